@@ -1,0 +1,783 @@
+//! The calibration blob: what training produces and the device runs on.
+//!
+//! One versioned, little-endian binary layout, defined only here. The host
+//! writes it with [`write_blob`]; the device (and the host, to check what it is
+//! about to provision) reads it with [`BlobView::parse`], which rejects
+//! anything malformed with a precise [`BlobError`].
+//!
+//! # Layout, format version 1
+//! Every section starts on a 4-byte boundary, so a blob placed at a 4-byte
+//! aligned address can be read in place as `f32` slices.
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `b"BRDW"` |
+//! | 4 | 2 | format version (1) |
+//! | 6 | 2 | header length (64) |
+//! | 8 | 2 | n, angle bins |
+//! | 10 | 2 | m, LEDs (readings per point) |
+//! | 12 | 2 | Z, zones of pixels |
+//! | 14 | 2 | P, pixels of the line sensor |
+//! | 16 | 4 | relative noise level used in training (f32) |
+//! | 20 | 2 | estimator kind ([`EstimatorKind`]) |
+//! | 22 | 2 | flags (bit 0: far-field model); other bits must be 0 |
+//! | 24 | 20 | training summary ([`TrainingSummary`]) |
+//! | 44 | 4 | total length of the blob in bytes, CRC included |
+//! | 48 | 16 | reserved, must be 0 |
+//! | 64 | 4n | angle grid, degrees, strictly ascending (f32) |
+//! | .. | m, padded to 4 | LED order: the LED fired for reading i |
+//! | .. | 2Z, padded to 4 | first pixel of each zone (ascending, first is 0) |
+//! | .. | 4Pm | white reference per pixel and LED: dark-corrected reading of a perfect diffuser |
+//! | .. | 4Zn | predicted standard uncertainty per zone and bin |
+//! | .. | 4Znm | W per zone, row-major n x m |
+//! | end-4 | 4 | CRC-32 (ISO-HDLC) of everything before it |
+//!
+//! # Compatibility rules
+//! - A parser accepts exactly the format versions it knows; a new field that
+//!   old firmware could misread bumps the version.
+//! - Reserved bytes and flag bits are zero in version 1 so that a later version
+//!   can give them meaning without ambiguity.
+
+use core::fmt;
+
+/// First four bytes of every blob.
+pub const MAGIC: [u8; 4] = *b"BRDW";
+/// The format version this library writes and reads.
+pub const FORMAT_VERSION: u16 = 1;
+/// Length of the fixed header.
+pub const HEADER_LEN: usize = 64;
+/// Largest number of angle bins a blob may carry.
+pub const MAX_BINS: usize = 1024;
+/// Largest number of LEDs a blob may carry.
+pub const MAX_LEDS: usize = 64;
+/// Largest number of pixels a blob may carry.
+pub const MAX_PIXELS: usize = 4096;
+
+const FLAG_FAR_FIELD: u16 = 1;
+
+/// CRC used for blobs (and by the calibration store and wire protocol).
+pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Which estimator produced the matrices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u16)]
+pub enum EstimatorKind {
+    /// Wiener estimation with the noise term (patent eq. 22).
+    Wiener = 0,
+    /// Wiener estimation without noise (patent eq. 20).
+    WienerNoiseFree = 1,
+    /// Inverse of a square H (claim 3).
+    Inverse = 2,
+    /// Moore-Penrose pseudo-inverse (claim 4).
+    PseudoInverse = 3,
+    /// Linear interpolation between the measured angles (baseline).
+    Interpolation = 4,
+    /// Wiener estimation in a log-mapped space, linearised.
+    LogWiener = 5,
+}
+
+impl EstimatorKind {
+    /// Decodes the on-blob code.
+    pub fn from_code(code: u16) -> Option<Self> {
+        Some(match code {
+            0 => Self::Wiener,
+            1 => Self::WienerNoiseFree,
+            2 => Self::Inverse,
+            3 => Self::PseudoInverse,
+            4 => Self::Interpolation,
+            5 => Self::LogWiener,
+            _ => return None,
+        })
+    }
+}
+
+/// What training reports about the matrices it wrote (worst case over zones).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrainingSummary {
+    /// Number of sample BRDFs in the prior.
+    pub prior_samples: u32,
+    /// Condition number of the matrix that was solved (worst zone).
+    pub condition: f32,
+    /// Relative regularisation actually applied (0 when none was needed).
+    pub regularisation: f32,
+    /// RMSE the Wiener error covariance predicts (mean over zones).
+    pub predicted_rmse: f32,
+    /// Largest relative difference between f32 and f64 evaluation on the prior.
+    pub f32_rel_error: f32,
+}
+
+/// Where in the blob a problem was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Section {
+    /// The fixed header.
+    Header,
+    /// The angle grid.
+    Grid,
+    /// The LED order.
+    LedOrder,
+    /// The zone map.
+    Zones,
+    /// The white reference.
+    White,
+    /// The per-bin uncertainty.
+    Uncertainty,
+    /// The matrices.
+    Matrices,
+}
+
+/// Why a blob was rejected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BlobError {
+    /// Fewer bytes than the header (or the declared length) needs.
+    TooShort {
+        /// Bytes needed.
+        need: usize,
+        /// Bytes given.
+        got: usize,
+    },
+    /// The first four bytes are not [`MAGIC`].
+    BadMagic,
+    /// A format version this parser does not know.
+    UnsupportedVersion(u16),
+    /// The header length field is not [`HEADER_LEN`].
+    BadHeaderLen(u16),
+    /// A dimension is zero or above its limit.
+    BadDimension {
+        /// Field name (`n`, `m`, `zones`, `pixels`).
+        field: &'static str,
+        /// Value found.
+        value: u16,
+    },
+    /// The declared total length disagrees with the dimensions or the input.
+    LengthMismatch {
+        /// Length the dimensions imply.
+        expected: usize,
+        /// Length declared or given.
+        got: usize,
+    },
+    /// The CRC does not match the content.
+    CrcMismatch {
+        /// CRC stored in the blob.
+        stored: u32,
+        /// CRC computed over the content.
+        computed: u32,
+    },
+    /// Reserved bytes or flag bits are not zero.
+    ReservedNotZero,
+    /// Unknown estimator code.
+    UnknownEstimator(u16),
+    /// A value is NaN or infinite.
+    NonFinite {
+        /// Section holding it.
+        section: Section,
+        /// Index within the section.
+        index: usize,
+    },
+    /// A value is out of its allowed range.
+    OutOfRange {
+        /// Section holding it.
+        section: Section,
+        /// Index within the section.
+        index: usize,
+    },
+    /// The angle grid is not strictly ascending.
+    GridNotAscending {
+        /// First index that is not above its predecessor.
+        index: usize,
+    },
+    /// The LED order is not a permutation of 0..m.
+    BadLedOrder {
+        /// Index of the offending entry.
+        index: usize,
+    },
+    /// The zone map does not start at 0, ascend strictly and stay below P.
+    BadZoneMap {
+        /// Index of the offending entry.
+        index: usize,
+    },
+    /// The output buffer given to [`write_blob`] is too small.
+    BufferTooSmall {
+        /// Bytes needed.
+        need: usize,
+    },
+    /// The contents given to [`write_blob`] disagree with their dimensions.
+    ContentMismatch {
+        /// Which section.
+        section: Section,
+    },
+}
+
+impl fmt::Display for BlobError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::TooShort { need, got } => write!(f, "blob truncated: need {need} bytes, got {got}"),
+            Self::BadMagic => write!(f, "not a calibration blob (magic is not \"BRDW\")"),
+            Self::UnsupportedVersion(v) => {
+                write!(f, "blob format version {v} is not supported (this build reads {FORMAT_VERSION})")
+            }
+            Self::BadHeaderLen(l) => write!(f, "header length {l} is not {HEADER_LEN}"),
+            Self::BadDimension { field, value } => write!(f, "dimension {field} = {value} is zero or too large"),
+            Self::LengthMismatch { expected, got } => {
+                write!(f, "blob length {got} does not match the {expected} bytes its dimensions imply")
+            }
+            Self::CrcMismatch { stored, computed } => {
+                write!(f, "CRC mismatch: stored {stored:#010x}, computed {computed:#010x} (blob corrupted)")
+            }
+            Self::ReservedNotZero => write!(f, "reserved header bytes or flag bits are not zero"),
+            Self::UnknownEstimator(c) => write!(f, "unknown estimator code {c}"),
+            Self::NonFinite { section, index } => write!(f, "non-finite value in {section:?} at index {index}"),
+            Self::OutOfRange { section, index } => write!(f, "value out of range in {section:?} at index {index}"),
+            Self::GridNotAscending { index } => write!(f, "angle grid not strictly ascending at index {index}"),
+            Self::BadLedOrder { index } => write!(f, "LED order is not a permutation (index {index})"),
+            Self::BadZoneMap { index } => write!(f, "zone map invalid at index {index}"),
+            Self::BufferTooSmall { need } => write!(f, "output buffer too small: need {need} bytes"),
+            Self::ContentMismatch { section } => write!(f, "{section:?} does not match the blob's dimensions"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for BlobError {}
+
+/// Dimensions of a blob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Dims {
+    /// Angle bins.
+    pub n: usize,
+    /// LEDs, readings per point.
+    pub m: usize,
+    /// Zones of pixels.
+    pub zones: usize,
+    /// Pixels of the line sensor.
+    pub pixels: usize,
+}
+
+/// Byte offsets of the sections, derived from the dimensions alone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Layout {
+    grid: usize,
+    led_order: usize,
+    zones: usize,
+    white: usize,
+    uncertainty: usize,
+    matrices: usize,
+    crc: usize,
+    total: usize,
+}
+
+const fn pad4(x: usize) -> usize {
+    (x + 3) & !3
+}
+
+impl Dims {
+    fn layout(&self) -> Layout {
+        let grid = HEADER_LEN;
+        let led_order = grid + 4 * self.n;
+        let zones = led_order + pad4(self.m);
+        let white = zones + pad4(2 * self.zones);
+        let uncertainty = white + 4 * self.pixels * self.m;
+        let matrices = uncertainty + 4 * self.zones * self.n;
+        let crc = matrices + 4 * self.zones * self.n * self.m;
+        Layout { grid, led_order, zones, white, uncertainty, matrices, crc, total: crc + 4 }
+    }
+
+    /// Total length in bytes of a blob with these dimensions.
+    pub fn blob_len(&self) -> usize {
+        self.layout().total
+    }
+
+    fn check(&self) -> Result<(), BlobError> {
+        let lim = |field, value: usize, max: usize| {
+            if value == 0 || value > max {
+                Err(BlobError::BadDimension { field, value: value.min(u16::MAX as usize) as u16 })
+            } else {
+                Ok(())
+            }
+        };
+        lim("n", self.n, MAX_BINS)?;
+        lim("m", self.m, MAX_LEDS)?;
+        lim("pixels", self.pixels, MAX_PIXELS)?;
+        lim("zones", self.zones, self.pixels)
+    }
+}
+
+/// Everything a blob holds, borrowed; what [`write_blob`] writes.
+#[derive(Clone, Copy, Debug)]
+pub struct BlobContents<'a> {
+    /// Dimensions.
+    pub dims: Dims,
+    /// Relative noise level the matrices were trained for.
+    pub noise_rel: f32,
+    /// Estimator that produced the matrices.
+    pub estimator: EstimatorKind,
+    /// Whether the optics were modelled far-field.
+    pub far_field: bool,
+    /// Training summary.
+    pub summary: TrainingSummary,
+    /// Angle grid in degrees, n values ascending.
+    pub grid_deg: &'a [f32],
+    /// LED fired for reading i, m values, a permutation of 0..m.
+    pub led_order: &'a [u8],
+    /// First pixel of each zone, Z values.
+    pub zone_start: &'a [u16],
+    /// White reference, P x m row-major (pixel-major).
+    pub white: &'a [f32],
+    /// Predicted standard uncertainty, Z x n.
+    pub uncertainty: &'a [f32],
+    /// W for each zone, Z x n x m.
+    pub matrices: &'a [f32],
+}
+
+/// Writes `c` into `out` and returns the number of bytes written.
+///
+/// The result always parses: the same checks [`BlobView::parse`] applies are
+/// applied here before anything is written.
+pub fn write_blob(c: &BlobContents<'_>, out: &mut [u8]) -> Result<usize, BlobError> {
+    let d = c.dims;
+    d.check()?;
+    let lay = d.layout();
+    let sized = |ok: bool, section| if ok { Ok(()) } else { Err(BlobError::ContentMismatch { section }) };
+    sized(c.grid_deg.len() == d.n, Section::Grid)?;
+    sized(c.led_order.len() == d.m, Section::LedOrder)?;
+    sized(c.zone_start.len() == d.zones, Section::Zones)?;
+    sized(c.white.len() == d.pixels * d.m, Section::White)?;
+    sized(c.uncertainty.len() == d.zones * d.n, Section::Uncertainty)?;
+    sized(c.matrices.len() == d.zones * d.n * d.m, Section::Matrices)?;
+    if out.len() < lay.total {
+        return Err(BlobError::BufferTooSmall { need: lay.total });
+    }
+    let out = &mut out[..lay.total];
+    out.fill(0);
+    out[0..4].copy_from_slice(&MAGIC);
+    put_u16(out, 4, FORMAT_VERSION);
+    put_u16(out, 6, HEADER_LEN as u16);
+    put_u16(out, 8, d.n as u16);
+    put_u16(out, 10, d.m as u16);
+    put_u16(out, 12, d.zones as u16);
+    put_u16(out, 14, d.pixels as u16);
+    put_f32(out, 16, c.noise_rel);
+    put_u16(out, 20, c.estimator as u16);
+    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 });
+    put_u32(out, 24, c.summary.prior_samples);
+    put_f32(out, 28, c.summary.condition);
+    put_f32(out, 32, c.summary.regularisation);
+    put_f32(out, 36, c.summary.predicted_rmse);
+    put_f32(out, 40, c.summary.f32_rel_error);
+    put_u32(out, 44, lay.total as u32);
+    for (i, x) in c.grid_deg.iter().enumerate() {
+        put_f32(out, lay.grid + 4 * i, *x);
+    }
+    out[lay.led_order..lay.led_order + d.m].copy_from_slice(c.led_order);
+    for (i, z) in c.zone_start.iter().enumerate() {
+        put_u16(out, lay.zones + 2 * i, *z);
+    }
+    for (off, xs) in [(lay.white, c.white), (lay.uncertainty, c.uncertainty), (lay.matrices, c.matrices)] {
+        for (i, x) in xs.iter().enumerate() {
+            put_f32(out, off + 4 * i, *x);
+        }
+    }
+    let crc = CRC32.checksum(&out[..lay.crc]);
+    put_u32(out, lay.crc, crc);
+    // Validate what we wrote with the one parser, so a blob that would be
+    // refused on the device is refused here, before it leaves the host.
+    BlobView::parse(out)?;
+    Ok(lay.total)
+}
+
+/// A validated blob, read in place.
+#[derive(Clone, Copy, Debug)]
+pub struct BlobView<'a> {
+    bytes: &'a [u8],
+    dims: Dims,
+    lay: Layout,
+}
+
+impl<'a> BlobView<'a> {
+    /// Validates `bytes` (exactly one blob, or a blob followed by unused bytes
+    /// such as erased flash) and returns a view of it.
+    pub fn parse(bytes: &'a [u8]) -> Result<Self, BlobError> {
+        if bytes.len() < HEADER_LEN {
+            return Err(BlobError::TooShort { need: HEADER_LEN, got: bytes.len() });
+        }
+        if bytes[0..4] != MAGIC {
+            return Err(BlobError::BadMagic);
+        }
+        let version = get_u16(bytes, 4);
+        if version != FORMAT_VERSION {
+            return Err(BlobError::UnsupportedVersion(version));
+        }
+        let hl = get_u16(bytes, 6);
+        if hl as usize != HEADER_LEN {
+            return Err(BlobError::BadHeaderLen(hl));
+        }
+        let dims = Dims {
+            n: get_u16(bytes, 8) as usize,
+            m: get_u16(bytes, 10) as usize,
+            zones: get_u16(bytes, 12) as usize,
+            pixels: get_u16(bytes, 14) as usize,
+        };
+        dims.check()?;
+        let lay = dims.layout();
+        let declared = get_u32(bytes, 44) as usize;
+        if declared != lay.total {
+            return Err(BlobError::LengthMismatch { expected: lay.total, got: declared });
+        }
+        if bytes.len() < lay.total {
+            return Err(BlobError::TooShort { need: lay.total, got: bytes.len() });
+        }
+        let bytes = &bytes[..lay.total];
+        let stored = get_u32(bytes, lay.crc);
+        let computed = CRC32.checksum(&bytes[..lay.crc]);
+        if stored != computed {
+            return Err(BlobError::CrcMismatch { stored, computed });
+        }
+        // Semantic checks: a blob with a valid CRC can still be wrong if the
+        // host that wrote it was; the device must never run on such a blob.
+        if bytes[48..64].iter().any(|b| *b != 0) || get_u16(bytes, 22) & !FLAG_FAR_FIELD != 0 {
+            return Err(BlobError::ReservedNotZero);
+        }
+        let code = get_u16(bytes, 20);
+        EstimatorKind::from_code(code).ok_or(BlobError::UnknownEstimator(code))?;
+        let view = Self { bytes, dims, lay };
+        let noise = view.noise_rel();
+        if !noise.is_finite() {
+            return Err(BlobError::NonFinite { section: Section::Header, index: 16 });
+        }
+        if noise < 0.0 {
+            return Err(BlobError::OutOfRange { section: Section::Header, index: 16 });
+        }
+        let mut prev = f32::NEG_INFINITY;
+        for i in 0..dims.n {
+            let g = view.grid_deg(i);
+            if !g.is_finite() {
+                return Err(BlobError::NonFinite { section: Section::Grid, index: i });
+            }
+            if !(-90.0..=90.0).contains(&g) {
+                return Err(BlobError::OutOfRange { section: Section::Grid, index: i });
+            }
+            if g <= prev {
+                return Err(BlobError::GridNotAscending { index: i });
+            }
+            prev = g;
+        }
+        let mut seen = 0u64;
+        for (i, &led) in view.led_order().iter().enumerate() {
+            if led as usize >= dims.m || seen & (1 << led) != 0 {
+                return Err(BlobError::BadLedOrder { index: i });
+            }
+            seen |= 1 << led;
+        }
+        let mut prev_start = None;
+        for i in 0..dims.zones {
+            let s = view.zone_start(i);
+            let ok = match prev_start {
+                None => s == 0,
+                Some(p) => s > p && (s as usize) < dims.pixels,
+            };
+            if !ok {
+                return Err(BlobError::BadZoneMap { index: i });
+            }
+            prev_start = Some(s);
+        }
+        view.check_finite(Section::White, lay.white, dims.pixels * dims.m, true)?;
+        view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * dims.n, false)?;
+        view.check_finite(Section::Matrices, lay.matrices, dims.zones * dims.n * dims.m, false)?;
+        Ok(view)
+    }
+
+    fn check_finite(&self, section: Section, off: usize, count: usize, positive: bool) -> Result<(), BlobError> {
+        for i in 0..count {
+            let x = get_f32(self.bytes, off + 4 * i);
+            if !x.is_finite() {
+                return Err(BlobError::NonFinite { section, index: i });
+            }
+            if (positive && x <= 0.0) || (section == Section::Uncertainty && x < 0.0) {
+                return Err(BlobError::OutOfRange { section, index: i });
+            }
+        }
+        Ok(())
+    }
+
+    /// The blob's bytes (exactly its length).
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+    /// The blob's CRC, which also identifies it.
+    pub fn crc(&self) -> u32 {
+        get_u32(self.bytes, self.lay.crc)
+    }
+    /// Dimensions.
+    pub fn dims(&self) -> Dims {
+        self.dims
+    }
+    /// Relative noise level used in training.
+    pub fn noise_rel(&self) -> f32 {
+        get_f32(self.bytes, 16)
+    }
+    /// Estimator that produced the matrices.
+    pub fn estimator(&self) -> EstimatorKind {
+        // Checked in parse.
+        EstimatorKind::from_code(get_u16(self.bytes, 20)).unwrap_or(EstimatorKind::Wiener)
+    }
+    /// Whether the optics were modelled far-field.
+    pub fn far_field(&self) -> bool {
+        get_u16(self.bytes, 22) & FLAG_FAR_FIELD != 0
+    }
+    /// Training summary.
+    pub fn summary(&self) -> TrainingSummary {
+        TrainingSummary {
+            prior_samples: get_u32(self.bytes, 24),
+            condition: get_f32(self.bytes, 28),
+            regularisation: get_f32(self.bytes, 32),
+            predicted_rmse: get_f32(self.bytes, 36),
+            f32_rel_error: get_f32(self.bytes, 40),
+        }
+    }
+    /// Angle of bin `i`, degrees.
+    pub fn grid_deg(&self, i: usize) -> f32 {
+        assert!(i < self.dims.n);
+        get_f32(self.bytes, self.lay.grid + 4 * i)
+    }
+    /// The LED fired for each reading.
+    pub fn led_order(&self) -> &'a [u8] {
+        &self.bytes[self.lay.led_order..self.lay.led_order + self.dims.m]
+    }
+    /// First pixel of zone `z`.
+    pub fn zone_start(&self, z: usize) -> u16 {
+        assert!(z < self.dims.zones);
+        get_u16(self.bytes, self.lay.zones + 2 * z)
+    }
+    /// Zone that pixel `p` belongs to.
+    pub fn zone_of_pixel(&self, p: usize) -> usize {
+        let mut z = 0;
+        while z + 1 < self.dims.zones && (self.zone_start(z + 1) as usize) <= p {
+            z += 1;
+        }
+        z
+    }
+    /// White reference of pixel `p` under reading `i`.
+    pub fn white(&self, p: usize, i: usize) -> f32 {
+        assert!(p < self.dims.pixels && i < self.dims.m);
+        get_f32(self.bytes, self.lay.white + 4 * (p * self.dims.m + i))
+    }
+    /// Predicted standard uncertainty of zone `z`, bin `j`.
+    pub fn uncertainty(&self, z: usize, j: usize) -> f32 {
+        assert!(z < self.dims.zones && j < self.dims.n);
+        get_f32(self.bytes, self.lay.uncertainty + 4 * (z * self.dims.n + j))
+    }
+    /// Element (j, i) of zone `z`'s matrix.
+    pub fn w(&self, z: usize, j: usize, i: usize) -> f32 {
+        assert!(z < self.dims.zones && j < self.dims.n && i < self.dims.m);
+        get_f32(self.bytes, self.lay.matrices + 4 * ((z * self.dims.n + j) * self.dims.m + i))
+    }
+    /// Copies zone `z`'s matrix (row-major n x m) into `out`.
+    pub fn copy_matrix(&self, z: usize, out: &mut [f32]) {
+        let nm = self.dims.n * self.dims.m;
+        assert!(z < self.dims.zones && out.len() == nm);
+        let off = self.lay.matrices + 4 * z * nm;
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = get_f32(self.bytes, off + 4 * k);
+        }
+    }
+    /// Zone `z`'s matrix as an `f32` slice in place, when the blob sits at a
+    /// 4-byte aligned address (little-endian targets only).
+    #[cfg(target_endian = "little")]
+    pub fn matrix_in_place(&self, z: usize) -> Option<&'a [f32]> {
+        let nm = self.dims.n * self.dims.m;
+        let off = self.lay.matrices + 4 * z * nm;
+        bytemuck::try_cast_slice(self.bytes.get(off..off + 4 * nm)?).ok()
+    }
+}
+
+fn put_u16(b: &mut [u8], off: usize, v: u16) {
+    b[off..off + 2].copy_from_slice(&v.to_le_bytes());
+}
+fn put_u32(b: &mut [u8], off: usize, v: u32) {
+    b[off..off + 4].copy_from_slice(&v.to_le_bytes());
+}
+fn put_f32(b: &mut [u8], off: usize, v: f32) {
+    put_u32(b, off, v.to_bits());
+}
+fn get_u16(b: &[u8], off: usize) -> u16 {
+    u16::from_le_bytes([b[off], b[off + 1]])
+}
+fn get_u32(b: &[u8], off: usize) -> u32 {
+    u32::from_le_bytes([b[off], b[off + 1], b[off + 2], b[off + 3]])
+}
+fn get_f32(b: &[u8], off: usize) -> f32 {
+    f32::from_bits(get_u32(b, off))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Owned {
+        grid: Vec<f32>,
+        order: Vec<u8>,
+        zones: Vec<u16>,
+        white: Vec<f32>,
+        unc: Vec<f32>,
+        mats: Vec<f32>,
+        dims: Dims,
+    }
+
+    fn sample(n: usize, m: usize, zones: usize, pixels: usize) -> Owned {
+        let dims = Dims { n, m, zones, pixels };
+        Owned {
+            grid: (0..n).map(|i| 25.0 + 0.5 * i as f32).collect(),
+            order: (0..m as u8).rev().collect(),
+            zones: (0..zones).map(|z| (z * pixels / zones) as u16).collect(),
+            white: (0..pixels * m).map(|k| 1000.0 + k as f32).collect(),
+            unc: (0..zones * n).map(|k| 0.01 * k as f32).collect(),
+            mats: (0..zones * n * m).map(|k| (k as f32).sin()).collect(),
+            dims,
+        }
+    }
+
+    fn contents(o: &Owned) -> BlobContents<'_> {
+        BlobContents {
+            dims: o.dims,
+            noise_rel: 0.02,
+            estimator: EstimatorKind::Wiener,
+            far_field: false,
+            summary: TrainingSummary {
+                prior_samples: 16,
+                condition: 1.0e10,
+                regularisation: 1e-12,
+                predicted_rmse: 0.1,
+                f32_rel_error: 1e-6,
+            },
+            grid_deg: &o.grid,
+            led_order: &o.order,
+            zone_start: &o.zones,
+            white: &o.white,
+            uncertainty: &o.unc,
+            matrices: &o.mats,
+        }
+    }
+
+    fn encode(o: &Owned) -> Vec<u8> {
+        let mut buf = vec![0u8; o.dims.blob_len()];
+        let len = write_blob(&contents(o), &mut buf).unwrap();
+        assert_eq!(len, buf.len());
+        buf
+    }
+
+    #[test]
+    fn round_trip_preserves_every_field() {
+        let o = sample(9, 7, 3, 16);
+        let buf = encode(&o);
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!(v.dims(), o.dims);
+        assert_eq!(v.noise_rel(), 0.02);
+        assert_eq!(v.estimator(), EstimatorKind::Wiener);
+        assert!(!v.far_field());
+        assert_eq!(v.summary(), contents(&o).summary);
+        assert_eq!(v.led_order(), &o.order[..]);
+        for i in 0..9 {
+            assert_eq!(v.grid_deg(i), o.grid[i]);
+        }
+        for z in 0..3 {
+            assert_eq!(v.zone_start(z), o.zones[z]);
+            let mut w = vec![0.0; 63];
+            v.copy_matrix(z, &mut w);
+            assert_eq!(w, o.mats[z * 63..(z + 1) * 63]);
+            assert_eq!(v.w(z, 4, 2), o.mats[z * 63 + 4 * 7 + 2]);
+            assert_eq!(v.uncertainty(z, 5), o.unc[z * 9 + 5]);
+        }
+        assert_eq!(v.white(15, 6), o.white[15 * 7 + 6]);
+        assert_eq!(v.zone_of_pixel(0), 0);
+        assert_eq!(v.zone_of_pixel(4), 0);
+        assert_eq!(v.zone_of_pixel(5), 1);
+        assert_eq!(v.zone_of_pixel(15), 2);
+    }
+
+    #[test]
+    fn trailing_erased_flash_is_ignored() {
+        let o = sample(4, 3, 1, 2);
+        let mut buf = encode(&o);
+        let len = buf.len();
+        buf.extend_from_slice(&[0xFF; 37]);
+        assert_eq!(BlobView::parse(&buf).unwrap().as_bytes().len(), len);
+    }
+
+    #[test]
+    fn every_single_byte_corruption_is_rejected() {
+        let o = sample(6, 4, 2, 5);
+        let buf = encode(&o);
+        for pos in 0..buf.len() {
+            for flip in [0x01u8, 0x80, 0xFF, 0x5A] {
+                let mut bad = buf.clone();
+                bad[pos] ^= flip;
+                assert!(BlobView::parse(&bad).is_err(), "corruption at byte {pos} (xor {flip:#x}) accepted");
+            }
+        }
+    }
+
+    #[test]
+    fn every_truncation_is_rejected() {
+        let o = sample(5, 3, 2, 4);
+        let buf = encode(&o);
+        for len in 0..buf.len() {
+            assert!(BlobView::parse(&buf[..len]).is_err(), "truncation to {len} accepted");
+        }
+    }
+
+    #[test]
+    fn semantic_errors_are_refused_even_with_a_good_crc() {
+        let mut o = sample(4, 3, 2, 4);
+        o.grid[2] = o.grid[1];
+        let mut buf = vec![0u8; o.dims.blob_len()];
+        assert_eq!(write_blob(&contents(&o), &mut buf), Err(BlobError::GridNotAscending { index: 2 }));
+        let mut o = sample(4, 3, 2, 4);
+        o.order[1] = o.order[0];
+        assert_eq!(write_blob(&contents(&o), &mut buf), Err(BlobError::BadLedOrder { index: 1 }));
+        let mut o = sample(4, 3, 2, 4);
+        o.mats[7] = f32::NAN;
+        assert_eq!(
+            write_blob(&contents(&o), &mut buf),
+            Err(BlobError::NonFinite { section: Section::Matrices, index: 7 })
+        );
+        let mut o = sample(4, 3, 2, 4);
+        o.zones[1] = 9;
+        assert_eq!(write_blob(&contents(&o), &mut buf), Err(BlobError::BadZoneMap { index: 1 }));
+        let mut o = sample(4, 3, 2, 4);
+        o.white[0] = 0.0;
+        assert_eq!(
+            write_blob(&contents(&o), &mut buf),
+            Err(BlobError::OutOfRange { section: Section::White, index: 0 })
+        );
+    }
+
+    #[test]
+    fn content_of_the_wrong_size_is_refused() {
+        let o = sample(4, 3, 2, 4);
+        let mut c = contents(&o);
+        c.matrices = &o.mats[1..];
+        let mut buf = vec![0u8; o.dims.blob_len()];
+        assert_eq!(write_blob(&c, &mut buf), Err(BlobError::ContentMismatch { section: Section::Matrices }));
+        let mut small = vec![0u8; 10];
+        assert_eq!(
+            write_blob(&contents(&o), &mut small),
+            Err(BlobError::BufferTooSmall { need: o.dims.blob_len() })
+        );
+    }
+
+    #[test]
+    fn in_place_matrix_matches_copy_when_aligned() {
+        let o = sample(8, 7, 2, 4);
+        let buf = encode(&o);
+        // Copy into an f32-aligned buffer.
+        let mut aligned = vec![0u32; buf.len() / 4];
+        bytemuck::cast_slice_mut::<u32, u8>(&mut aligned).copy_from_slice(&buf);
+        let v = BlobView::parse(bytemuck::cast_slice(&aligned)).unwrap();
+        let w = v.matrix_in_place(1).unwrap();
+        assert_eq!(w, &o.mats[56..112]);
+    }
+}

@@ -1,0 +1,15 @@
+//! The instrument's shared library: everything the firmware and the host tools
+//! must agree on lives here, once, so both sides compute bit-identical results.
+//!
+//! Data flow (each stage in the module named for it):
+//! host training --> [`blob`] (calibration blob) --> device flash --> [`kernel`]
+//! (`rho = W v` per point) --> frames --> host.
+//!
+//! The library is `no_std`, never depends on host code or on a board, and
+//! allocates nothing.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs)]
+
+pub mod blob;
+pub mod kernel;
