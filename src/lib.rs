@@ -12,4 +12,5 @@
 #![warn(missing_docs)]
 
 pub mod blob;
+pub mod hw;
 pub mod kernel;

@@ -1,1 +1,9 @@
-//! Host tools for the BRDF meter.
+//! Host tools for the BRDF meter: optics, BRDF models, priors, training,
+//! baselines, evaluation, the device link and the command line.
+//!
+//! Data flow: optics (instrument -> system matrix H) + prior (sample BRDFs ->
+//! R_pp) + noise model (R_nn) -> training (W per zone) -> calibration blob
+//! (format owned by the `brdf_meter` no_std library) -> device -> frames -> host.
+
+pub mod cli;
+pub mod io;
