@@ -5,5 +5,10 @@
 //! R_pp) + noise model (R_nn) -> training (W per zone) -> calibration blob
 //! (format owned by the `brdf_meter` no_std library) -> device -> frames -> host.
 
+pub mod brdf;
 pub mod cli;
+pub mod config;
+pub mod grid;
 pub mod io;
+pub mod optics;
+pub mod prior;

@@ -1,0 +1,129 @@
+//! Reflection models. Every model gives f_r for a pair of directions in the
+//! surface frame (z = normal); the quantity the instrument estimates is the
+//! reflectance factor R = pi f_r, relative to a perfect diffuser (method.md).
+//!
+//! Directions point away from the surface: `wi` towards the light, `wo`
+//! towards the viewer. In-plane, the light is on the -x side at incidence
+//! theta_i and the viewer on the +x side at theta_o (the mirror direction of
+//! theta_i = theta_o).
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+mod ggx;
+mod lambert;
+mod tabulated;
+mod ward;
+
+pub use ggx::Ggx;
+pub use lambert::Lambertian;
+pub use tabulated::Tabulated;
+pub use ward::Ward;
+
+/// A bidirectional reflectance distribution function.
+pub trait Brdf: Send + Sync + std::fmt::Debug {
+    /// f_r (1/sr) for unit directions `wi` (to the light) and `wo` (to the viewer).
+    fn f_r(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> f64;
+
+    /// Reflectance factor R = pi f_r, in-plane, light at `theta_i_deg` and
+    /// viewer at `theta_o_deg` on the opposite side of the normal.
+    fn reflectance(&self, theta_i_deg: f64, theta_o_deg: f64) -> f64 {
+        std::f64::consts::PI * self.f_r(&light_dir(theta_i_deg), &view_dir(theta_o_deg))
+    }
+}
+
+/// Unit direction towards an in-plane light at incidence `theta_deg` (-x side).
+pub fn light_dir(theta_deg: f64) -> Vector3<f64> {
+    let t = theta_deg.to_radians();
+    Vector3::new(-t.sin(), 0.0, t.cos())
+}
+
+/// Unit direction towards an in-plane viewer at `theta_deg` (+x side).
+pub fn view_dir(theta_deg: f64) -> Vector3<f64> {
+    let t = theta_deg.to_radians();
+    Vector3::new(t.sin(), 0.0, t.cos())
+}
+
+/// A reflection model as written in instrument, prior and scene files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum BrdfSpec {
+    /// Isotropic Ward; `rho_s` defaults to 1 - rho_d (the patent profile).
+    Ward {
+        /// Diffuse albedo.
+        rho_d: f64,
+        /// Specular albedo (default 1 - rho_d).
+        #[serde(default)]
+        rho_s: Option<f64>,
+        /// Roughness.
+        alpha: f64,
+    },
+    /// Lambertian diffuser.
+    Lambertian {
+        /// Albedo (1 = perfect diffuser).
+        rho: f64,
+    },
+    /// Cook-Torrance microfacet model with the GGX distribution.
+    Ggx {
+        /// Diffuse albedo.
+        rho_d: f64,
+        /// Specular scale.
+        k_s: f64,
+        /// GGX roughness.
+        alpha: f64,
+        /// Fresnel reflectance at normal incidence.
+        #[serde(default = "Ggx::default_f0")]
+        f0: f64,
+    },
+}
+
+/// Why a model description was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("{model}: parameter `{field}` = {value} is invalid: {why}")]
+pub struct BrdfParamError {
+    /// Model name.
+    pub model: &'static str,
+    /// Parameter name.
+    pub field: &'static str,
+    /// Value given.
+    pub value: f64,
+    /// What is allowed.
+    pub why: &'static str,
+}
+
+pub(crate) fn check(model: &'static str, field: &'static str, value: f64, lo: f64, hi: f64, why: &'static str) -> Result<(), BrdfParamError> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(BrdfParamError { model, field, value, why })
+    }
+}
+
+impl BrdfSpec {
+    /// Builds the model, validating every parameter.
+    pub fn build(&self) -> Result<Box<dyn Brdf>, BrdfParamError> {
+        Ok(match *self {
+            BrdfSpec::Ward { rho_d, rho_s, alpha } => Box::new(Ward::new(rho_d, rho_s.unwrap_or(1.0 - rho_d), alpha)?),
+            BrdfSpec::Lambertian { rho } => Box::new(Lambertian::new(rho)?),
+            BrdfSpec::Ggx { rho_d, k_s, alpha, f0 } => Box::new(Ggx::new(rho_d, k_s, alpha, f0)?),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_parse_from_toml_and_reject_unknown_models_and_fields() {
+        #[derive(Deserialize)]
+        struct W {
+            b: BrdfSpec,
+        }
+        let w: W = toml::from_str("b = { model = \"ward\", rho_d = 0.3, alpha = 0.05 }").unwrap();
+        assert_eq!(w.b, BrdfSpec::Ward { rho_d: 0.3, rho_s: None, alpha: 0.05 });
+        assert!(toml::from_str::<W>("b = { model = \"phong\", n = 3 }").is_err());
+        assert!(toml::from_str::<W>("b = { model = \"ward\", rho_d = 0.3, alpha = 0.05, beta = 1 }").is_err());
+        let err = BrdfSpec::Ward { rho_d: 0.3, rho_s: None, alpha: -1.0 }.build().unwrap_err();
+        assert_eq!(err.field, "alpha");
+    }
+}
