@@ -19,7 +19,7 @@ pub trait Leds {
 }
 
 /// Why a frame could not be read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SensorError {
     /// The sensor or its converter did not answer in time.

@@ -14,3 +14,4 @@
 pub mod blob;
 pub mod hw;
 pub mod kernel;
+pub mod protocol;
