@@ -1,0 +1,134 @@
+//! The calibration region of the chip's flash: the two slots memory.x
+//! reserves (CAL_SLOT_A, CAL_SLOT_B), as one `NorFlash` window whose offset 0
+//! is the start of slot A, plus the memory-mapped bytes for in-place reads.
+//!
+//! The addresses come from the linker symbols memory.x exports, so they are
+//! written down once; memory.x limits FLASH (the image) to the space below
+//! slot A, so the image can never overlap the calibration.
+//!
+//! Erases and writes are split into 2 KiB pages, feeding the watchdog after
+//! each page: a whole-slot erase takes about 4.5 s (192 pages x 22-25 ms),
+//! longer than the watchdog period, while each page is proof of progress. A
+//! flash operation that hangs still resets the board.
+
+use embassy_stm32::Peri;
+use embassy_stm32::flash::{Blocking, Error, FLASH_BASE, Flash, WRITE_SIZE};
+use embassy_stm32::peripherals::FLASH;
+use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
+
+use super::watchdog;
+
+/// Erase page size of the STM32L475VG.
+pub const PAGE: u32 = 2048;
+
+unsafe extern "C" {
+    static __cal_slot_a_start: u8;
+    static __cal_slot_b_start: u8;
+    static __cal_slot_len: u8;
+}
+
+/// Address of calibration slot A (memory.x).
+pub fn slot_a_addr() -> usize {
+    // Only the symbol's address is taken; it is never read.
+    &raw const __cal_slot_a_start as usize
+}
+/// Address of calibration slot B (memory.x).
+pub fn slot_b_addr() -> usize {
+    &raw const __cal_slot_b_start as usize
+}
+/// Length of one slot in bytes (memory.x; the symbol's value is the length).
+pub fn slot_len() -> usize {
+    &raw const __cal_slot_len as usize
+}
+
+/// The calibration region: slot A then slot B, back to back.
+pub struct CalFlash {
+    flash: Flash<'static, Blocking>,
+    /// Offset of slot A from the start of flash.
+    base: u32,
+    len: u32,
+}
+
+impl CalFlash {
+    /// Takes the flash controller. Panics if memory.x's slots are not two
+    /// page-aligned, back-to-back regions (a build mistake, caught at boot).
+    pub fn new(flash: Peri<'static, FLASH>) -> Self {
+        let (a, b, len) = (slot_a_addr(), slot_b_addr(), slot_len());
+        assert!(a >= FLASH_BASE && a % PAGE as usize == 0 && len % PAGE as usize == 0);
+        assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
+        defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);
+        Self { flash: Flash::new_blocking(flash), base: (a - FLASH_BASE) as u32, len: (2 * len) as u32 }
+    }
+
+    /// Offset of slot B within this window (slot A is at 0).
+    pub fn slot_b_offset(&self) -> u32 {
+        self.len / 2
+    }
+
+    /// The whole region as memory-mapped bytes, for reading blobs (and their
+    /// matrices) in place without copying them to RAM. Contents change only
+    /// through `&mut self` methods of this type, which this borrow excludes.
+    pub fn mapped(&self) -> &[u8] {
+        // SAFETY: the region is inside the chip's flash, always mapped and
+        // readable; memory.x keeps the image and all statics out of it.
+        unsafe { core::slice::from_raw_parts((FLASH_BASE + self.base as usize) as *const u8, self.len as usize) }
+    }
+
+    fn check(&self, offset: u32, len: usize) -> Result<(), Error> {
+        match offset.checked_add(len as u32) {
+            Some(end) if end <= self.len => Ok(()),
+            _ => Err(Error::Size),
+        }
+    }
+}
+
+impl ErrorType for CalFlash {
+    type Error = Error;
+}
+
+impl ReadNorFlash for CalFlash {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Error> {
+        self.check(offset, bytes.len())?;
+        self.flash.blocking_read(self.base + offset, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        self.len as usize
+    }
+}
+
+impl NorFlash for CalFlash {
+    const WRITE_SIZE: usize = WRITE_SIZE;
+    const ERASE_SIZE: usize = PAGE as usize;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Error> {
+        if from > to {
+            return Err(Error::Size);
+        }
+        self.check(from, (to - from) as usize)?;
+        if from % PAGE != 0 || to % PAGE != 0 {
+            return Err(Error::Unaligned);
+        }
+        let mut page = from;
+        while page < to {
+            self.flash.blocking_erase(self.base + page, self.base + page + PAGE)?;
+            watchdog::progress();
+            page += PAGE;
+        }
+        Ok(())
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Error> {
+        self.check(offset, bytes.len())?;
+        if offset as usize % WRITE_SIZE != 0 || bytes.len() % WRITE_SIZE != 0 {
+            return Err(Error::Unaligned);
+        }
+        for (k, chunk) in bytes.chunks(PAGE as usize).enumerate() {
+            self.flash.blocking_write(self.base + offset + (k as u32) * PAGE, chunk)?;
+            watchdog::progress();
+        }
+        Ok(())
+    }
+}

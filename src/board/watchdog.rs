@@ -1,0 +1,51 @@
+//! The independent watchdog (IWDG, clocked by the LSI, so it runs even if the
+//! main clocks fail).
+//!
+//! It is fed only as a consequence of healthy work:
+//! - [`healthy`] by the application's main loop, each time it completes a
+//!   cycle (a frame, or an idle poll of the link);
+//! - [`progress`] by long flash operations, once per 2 KiB page.
+//!
+//! Nothing feeds it from a timer, so a stuck main loop (a hung peripheral, a
+//! deadlock, an endless retry) resets the board, which then boots from the
+//! last good calibration slot.
+
+use core::cell::RefCell;
+
+use critical_section::Mutex;
+use embassy_stm32::Peri;
+use embassy_stm32::peripherals::IWDG;
+use embassy_stm32::wdg::IndependentWatchdog;
+
+/// Watchdog period. Longest healthy gap: one measurement cycle of m = 7 LEDs
+/// plus the dark frame at the longest exposure (8 x 100 ms) plus readouts,
+/// well below 1 s; 4 s leaves margin for USB stalls.
+pub const TIMEOUT_US: u32 = 4_000_000;
+
+static WDG: Mutex<RefCell<Option<IndependentWatchdog<'static, IWDG>>>> = Mutex::new(RefCell::new(None));
+
+/// Starts the watchdog. It cannot be stopped again (hardware rule).
+pub fn start(iwdg: Peri<'static, IWDG>) {
+    let mut w = IndependentWatchdog::new(iwdg, TIMEOUT_US);
+    w.unleash();
+    critical_section::with(|cs| WDG.borrow_ref_mut(cs).replace(w));
+    defmt::info!("watchdog started, {} ms", TIMEOUT_US / 1000);
+}
+
+fn pet() {
+    critical_section::with(|cs| {
+        if let Some(w) = WDG.borrow_ref_mut(cs).as_mut() {
+            w.pet();
+        }
+    });
+}
+
+/// The application's main loop completed a healthy cycle.
+pub fn healthy() {
+    pet();
+}
+
+/// A long flash operation completed one more page.
+pub fn progress() {
+    pet();
+}
