@@ -8,6 +8,7 @@
 pub mod brdf;
 pub mod cli;
 pub mod config;
+pub mod estimators;
 pub mod grid;
 pub mod io;
 pub mod optics;
