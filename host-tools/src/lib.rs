@@ -9,6 +9,7 @@ pub mod brdf;
 pub mod cli;
 pub mod config;
 pub mod estimators;
+pub mod fitting;
 pub mod grid;
 pub mod io;
 pub mod optics;
