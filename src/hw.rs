@@ -39,3 +39,62 @@ pub trait LineSensor {
     /// Integrates light for `exposure_us` microseconds and reads one frame.
     async fn read_frame(&mut self, exposure_us: u32, out: &mut [u16]) -> Result<(), SensorError>;
 }
+
+/// NOR flash whose content can also be read as memory: the MCU's internal
+/// flash (memory-mapped at 0x0800_0000), the QEMU build's RAM-backed flash and
+/// the host simulation's mock. The calibration store reads blobs in place
+/// through this, so the board can run matrices larger than its RAM straight
+/// from flash.
+///
+/// # Safety
+/// The implementer guarantees that `mapped(offset, len)` returns the bytes
+/// that a `read` of that range would return, that the memory stays valid for
+/// the program's life, and that it changes only through this object's
+/// `write`/`erase` of that range. The calibration store, for its part, never
+/// writes or erases a range while a slice of it obtained here is in use (the
+/// active slot is never written).
+pub unsafe trait MappedFlash: embedded_storage::nor_flash::NorFlash {
+    /// The bytes at `offset..offset + len` of this flash.
+    ///
+    /// # Panics
+    /// If the range is outside the flash.
+    fn mapped(&self, offset: u32, len: usize) -> &'static [u8];
+}
+
+/// Why a simulated-scene request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SceneError {
+    /// This device has a real sensor.
+    NotSimulated,
+    /// Line, frame or pixel range outside the scene's capacity.
+    OutOfRange,
+}
+
+/// Where a simulated sensor takes its scene from; the transport feeds it from
+/// the simulation-only protocol messages. Real boards use [`NoScene`].
+pub trait SceneInput {
+    /// Stores `pixels` (u16 values) at `first_pixel..` of frame `frame`
+    /// (0 = dark, 1 + LED index) of scene line `line`.
+    fn load(&mut self, line: u8, frame: u8, first_pixel: u16, pixels: impl Iterator<Item = u16>)
+    -> Result<(), SceneError>;
+    /// Sets how many scene lines the sensor cycles through.
+    fn set_lines(&mut self, lines: u8) -> Result<(), SceneError>;
+    /// Whether this device's sensor is simulated.
+    fn simulated(&self) -> bool;
+}
+
+/// The [`SceneInput`] of a device with a real sensor: refuses every request.
+pub struct NoScene;
+
+impl SceneInput for NoScene {
+    fn load(&mut self, _: u8, _: u8, _: u16, _: impl Iterator<Item = u16>) -> Result<(), SceneError> {
+        Err(SceneError::NotSimulated)
+    }
+    fn set_lines(&mut self, _: u8) -> Result<(), SceneError> {
+        Err(SceneError::NotSimulated)
+    }
+    fn simulated(&self) -> bool {
+        false
+    }
+}

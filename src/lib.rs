@@ -14,4 +14,10 @@
 pub mod blob;
 pub mod hw;
 pub mod kernel;
+pub mod acquire;
+pub mod estimate;
 pub mod protocol;
+pub mod scene;
+#[cfg(any(test, feature = "sim"))]
+pub mod sim;
+pub mod store;

@@ -1,0 +1,88 @@
+//! Simulated LEDs and line sensor for the host simulation. The sensor serves
+//! frames from a [`SceneStore`] (the same one the QEMU firmware uses) and sees
+//! which LED is lit through the shared state, as a real sensor sees light.
+use crate::hw::{Leds, LineSensor, SceneError, SceneInput, SensorError};
+use crate::scene::SceneStore;
+use std::sync::{Arc, Mutex};
+
+/// Scene lines the host simulation holds.
+pub const SIM_LINES: usize = 4;
+
+struct State<const P: usize, const F: usize> {
+    scene: SceneStore<P, F, SIM_LINES>,
+    lit: Option<u8>,
+    /// LED switch log: (led, intensity) per `Leds::set`, for tests.
+    switches: Vec<Option<u8>>,
+}
+
+/// Shared handle on the simulated optics: give [`SimLeds`], [`SimSensor`] and
+/// [`SimScene`] to the application; all three see one state.
+pub fn sim_optics<const P: usize, const F: usize>(
+    full_scale: u16,
+) -> (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) {
+    let st = Arc::new(Mutex::new(State { scene: SceneStore::new(), lit: None, switches: Vec::new() }));
+    (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale }, SimScene { st })
+}
+
+/// Simulated LEDs (F - 1 of them).
+pub struct SimLeds<const P: usize, const F: usize> {
+    st: Arc<Mutex<State<P, F>>>,
+}
+
+/// Simulated line sensor of P pixels.
+pub struct SimSensor<const P: usize, const F: usize> {
+    st: Arc<Mutex<State<P, F>>>,
+    full_scale: u16,
+}
+
+/// The simulation's scene input (and a test's view of the optics).
+#[derive(Clone)]
+pub struct SimScene<const P: usize, const F: usize> {
+    st: Arc<Mutex<State<P, F>>>,
+}
+
+impl<const P: usize, const F: usize> SimScene<P, F> {
+    /// LED switches so far (`None` = all off).
+    pub fn switches(&self) -> Vec<Option<u8>> {
+        self.st.lock().unwrap().switches.clone()
+    }
+}
+
+impl<const P: usize, const F: usize> Leds for SimLeds<P, F> {
+    fn count(&self) -> usize {
+        F - 1
+    }
+    async fn set(&mut self, led: Option<u8>, _intensity: u16) {
+        let mut st = self.st.lock().unwrap();
+        st.lit = led;
+        st.switches.push(led);
+    }
+}
+
+impl<const P: usize, const F: usize> LineSensor for SimSensor<P, F> {
+    fn pixels(&self) -> usize {
+        P
+    }
+    fn full_scale(&self) -> u16 {
+        self.full_scale
+    }
+    async fn read_frame(&mut self, exposure_us: u32, out: &mut [u16]) -> Result<(), SensorError> {
+        // Integration takes time, in simulated time too.
+        embassy_time::Timer::after_micros(exposure_us as u64).await;
+        let mut st = self.st.lock().unwrap();
+        let lit = st.lit;
+        st.scene.read(lit, out)
+    }
+}
+
+impl<const P: usize, const F: usize> SceneInput for SimScene<P, F> {
+    fn load(&mut self, line: u8, frame: u8, first: u16, px: impl Iterator<Item = u16>) -> Result<(), SceneError> {
+        self.st.lock().unwrap().scene.load(line, frame, first, px)
+    }
+    fn set_lines(&mut self, lines: u8) -> Result<(), SceneError> {
+        self.st.lock().unwrap().scene.set_lines(lines)
+    }
+    fn simulated(&self) -> bool {
+        true
+    }
+}

@@ -1,0 +1,357 @@
+//! The calibration store: two slots (A, B) on a NOR flash, each holding one
+//! slot header and one blob.
+//!
+//! # Slot layout (slot format version 1)
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `b"BRDS"` |
+//! | 4 | 2 | slot format version (1) |
+//! | 6 | 2 | header length (32) |
+//! | 8 | 4 | sequence number (higher = newer, wrapping) |
+//! | 12 | 4 | blob length |
+//! | 16 | 4 | blob CRC-32 over all its bytes |
+//! | 20 | 8 | reserved, 0 |
+//! | 28 | 4 | CRC-32 of bytes 0..28 |
+//! | 32 | .. | the blob (4-byte aligned, so its matrices can be read in place) |
+//!
+//! # Why a power cut never loses the last good calibration
+//! - A new blob is always written into the slot that is *not* active.
+//! - Its header is written last, after every blob byte; a slot counts only if
+//!   its header CRC, its blob CRC and the blob's own checks all pass. So an
+//!   interrupted write leaves at worst an invalid slot, and the active slot,
+//!   never touched, is what boot finds.
+//! - Boot takes the valid slot with the newest sequence number.
+//! - The target slot's first page (its header) is erased before anything is
+//!   written there, so a half-rewritten slot can never show an old valid
+//!   header over new bytes.
+//!
+//! The test `tests/power_cut.rs` cuts the power at every byte written and at
+//! every page erase of a provisioning and checks that boot then finds the old
+//! or the new blob, whole.
+use crate::blob::{BlobError, BlobView, CRC32};
+use crate::hw::MappedFlash;
+use crate::protocol::DeviceError;
+
+/// First bytes of a valid slot.
+pub const SLOT_MAGIC: [u8; 4] = *b"BRDS";
+/// Slot format version.
+pub const SLOT_VERSION: u16 = 1;
+/// Slot header length; the blob follows.
+pub const SLOT_HEADER_LEN: usize = 32;
+/// Largest flash write granularity the store supports.
+const MAX_WRITE: usize = 32;
+
+/// A valid slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SlotInfo {
+    /// 0 = A, 1 = B.
+    pub slot: u8,
+    /// Sequence number.
+    pub sequence: u32,
+    /// Blob length.
+    pub blob_len: u32,
+    /// Blob CRC over all its bytes.
+    pub blob_crc: u32,
+}
+
+/// A provisioning in progress.
+#[derive(Clone, Copy, Debug)]
+struct Session {
+    slot: u8,
+    len: u32,
+    crc: u32,
+    /// Blob bytes accepted (written or in `carry`).
+    received: u32,
+    /// Slot bytes erased so far (from the slot start).
+    erased_to: u32,
+    /// Bytes waiting for a whole write unit.
+    carry: [u8; MAX_WRITE],
+    carry_len: usize,
+}
+
+/// The two-slot calibration store.
+pub struct Store<F> {
+    flash: F,
+    slot_len: u32,
+    active: Option<SlotInfo>,
+    session: Option<Session>,
+}
+
+/// Whether sequence `a` is newer than `b` (wrapping).
+fn newer(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) > 0
+}
+
+impl<F: MappedFlash> Store<F> {
+    /// Opens the store on `flash`, whose first `2 * slot_len` bytes are slots
+    /// A and B, and finds the newest valid slot.
+    ///
+    /// `accept` is asked about each valid blob, newest first; the first it
+    /// accepts becomes active (so a blob made for another build is skipped in
+    /// favour of an older one that fits).
+    ///
+    /// # Panics
+    /// If `slot_len` is not a multiple of the erase size, the flash is smaller
+    /// than two slots, or the write size is above 32 bytes (build-time errors).
+    pub fn open(flash: F, slot_len: u32, mut accept: impl FnMut(&BlobView<'static>) -> bool) -> Self {
+        assert!(slot_len as usize % F::ERASE_SIZE == 0, "slot length must be whole erase pages");
+        assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN % F::WRITE_SIZE == 0);
+        assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
+        let mut s = Self { flash, slot_len, active: None, session: None };
+        let (a, b) = (s.scan(0), s.scan(1));
+        let newest_first = match (a, b) {
+            (Some(x), Some(y)) if newer(y.sequence, x.sequence) => [b, a],
+            _ => [a, b],
+        };
+        for info in newest_first.into_iter().flatten() {
+            if let Some(view) = s.view(info)
+                && accept(&view)
+            {
+                s.active = Some(info);
+                break;
+            }
+        }
+        s
+    }
+
+    /// The active slot.
+    pub fn active(&self) -> Option<SlotInfo> {
+        self.active
+    }
+
+    /// The active blob, read in place.
+    pub fn active_blob(&self) -> Option<(SlotInfo, BlobView<'static>)> {
+        let info = self.active?;
+        Some((info, self.view(info)?))
+    }
+
+    /// Largest blob a slot holds.
+    pub fn max_blob(&self) -> u32 {
+        self.slot_len - SLOT_HEADER_LEN as u32
+    }
+
+    /// Bytes received by the provisioning in progress.
+    pub fn provisioning(&self) -> Option<u32> {
+        self.session.map(|s| s.received)
+    }
+
+    /// The flash (for tests).
+    pub fn flash(&self) -> &F {
+        &self.flash
+    }
+
+    fn base(&self, slot: u8) -> u32 {
+        slot as u32 * self.slot_len
+    }
+
+    fn view(&self, info: SlotInfo) -> Option<BlobView<'static>> {
+        let bytes = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+        BlobView::parse(bytes).ok()
+    }
+
+    /// Validates slot `slot`'s header and blob CRC.
+    fn scan(&self, slot: u8) -> Option<SlotInfo> {
+        let h = self.flash.mapped(self.base(slot), SLOT_HEADER_LEN);
+        let u16_at = |o: usize| u16::from_le_bytes([h[o], h[o + 1]]);
+        let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
+        if h[0..4] != SLOT_MAGIC
+            || u16_at(4) != SLOT_VERSION
+            || u16_at(6) as usize != SLOT_HEADER_LEN
+            || CRC32.checksum(&h[..28]) != u32_at(28)
+        {
+            return None;
+        }
+        let info = SlotInfo { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) };
+        if info.blob_len > self.max_blob() {
+            return None;
+        }
+        let blob = self.flash.mapped(self.base(slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+        (CRC32.checksum(blob) == info.blob_crc).then_some(info)
+    }
+
+    /// Starts writing a blob of `len` bytes (CRC `crc`) into the inactive slot;
+    /// returns that slot. Cancels any provisioning in progress.
+    pub fn begin(&mut self, len: u32, crc: u32) -> Result<u8, DeviceError> {
+        self.session = None;
+        if len > self.max_blob() {
+            return Err(DeviceError::BlobTooLarge { len, max: self.max_blob() });
+        }
+        if len == 0 {
+            return Err(BlobError::TooShort { need: crate::blob::HEADER_LEN, got: 0 }.into());
+        }
+        let slot = match self.active {
+            Some(a) => 1 - a.slot,
+            None => 0,
+        };
+        // Invalidate the target's header first: from here on the slot is not
+        // valid until commit writes a new header.
+        let base = self.base(slot);
+        self.flash.erase(base, base + F::ERASE_SIZE as u32).map_err(|_| DeviceError::Storage)?;
+        self.session = Some(Session {
+            slot,
+            len,
+            crc,
+            received: 0,
+            erased_to: F::ERASE_SIZE as u32,
+            carry: [0xFF; MAX_WRITE],
+            carry_len: 0,
+        });
+        Ok(slot)
+    }
+
+    /// Writes the blob bytes at `offset`; returns the next expected offset.
+    pub fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, DeviceError> {
+        let mut s = self.session.ok_or(DeviceError::NotProvisioning)?;
+        if offset != s.received {
+            return Err(DeviceError::OutOfOrder { expected: s.received, got: offset });
+        }
+        if data.len() > crate::protocol::MAX_CHUNK || s.received as usize + data.len() > s.len as usize {
+            return Err(DeviceError::ChunkTooLarge { max: (s.len - s.received).min(crate::protocol::MAX_CHUNK as u32) });
+        }
+        let w = F::WRITE_SIZE;
+        let mut rest = data;
+        while !rest.is_empty() {
+            let take = (w - s.carry_len).min(rest.len());
+            s.carry[s.carry_len..s.carry_len + take].copy_from_slice(&rest[..take]);
+            s.carry_len += take;
+            s.received += take as u32;
+            rest = &rest[take..];
+            if s.carry_len == w {
+                let at = SLOT_HEADER_LEN as u32 + s.received - w as u32;
+                if let Err(e) = self.program(&mut s, at) {
+                    self.session = None;
+                    return Err(e);
+                }
+            }
+        }
+        self.session = Some(s);
+        Ok(s.received)
+    }
+
+    /// Writes `s.carry` (one write unit) at slot offset `at`, erasing ahead.
+    fn program(&mut self, s: &mut Session, at: u32) -> Result<(), DeviceError> {
+        let w = F::WRITE_SIZE;
+        let base = self.base(s.slot);
+        while s.erased_to < at + w as u32 {
+            let p = base + s.erased_to;
+            self.flash.erase(p, p + F::ERASE_SIZE as u32).map_err(|_| DeviceError::Storage)?;
+            s.erased_to += F::ERASE_SIZE as u32;
+        }
+        self.flash.write(base + at, &s.carry[..w]).map_err(|_| DeviceError::Storage)?;
+        s.carry = [0xFF; MAX_WRITE];
+        s.carry_len = 0;
+        Ok(())
+    }
+
+    /// Verifies the written blob (whole-blob CRC against the one declared at
+    /// begin, the blob's own checks, then `accept`) and, only if all pass,
+    /// writes the slot header that makes it the active calibration.
+    ///
+    /// On error the provisioning is over and the previous calibration stays
+    /// active.
+    pub fn commit(
+        &mut self,
+        accept: impl FnOnce(&BlobView<'static>) -> Result<(), DeviceError>,
+    ) -> Result<SlotInfo, DeviceError> {
+        let mut s = self.session.take().ok_or(DeviceError::NotProvisioning)?;
+        if s.received != s.len {
+            return Err(DeviceError::Incomplete { received: s.received, len: s.len });
+        }
+        if s.carry_len > 0 {
+            let at = SLOT_HEADER_LEN as u32 + s.received - s.carry_len as u32;
+            self.program(&mut s, at)?;
+        }
+        let base = self.base(s.slot);
+        let blob = self.flash.mapped(base + SLOT_HEADER_LEN as u32, s.len as usize);
+        let computed = CRC32.checksum(blob);
+        if computed != s.crc {
+            return Err(DeviceError::CrcMismatch { declared: s.crc, computed });
+        }
+        let view = BlobView::parse(blob)?;
+        if view.as_bytes().len() != s.len as usize {
+            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: s.len as usize }.into());
+        }
+        accept(&view)?;
+        let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
+        let mut h = [0u8; SLOT_HEADER_LEN];
+        h[0..4].copy_from_slice(&SLOT_MAGIC);
+        h[4..6].copy_from_slice(&SLOT_VERSION.to_le_bytes());
+        h[6..8].copy_from_slice(&(SLOT_HEADER_LEN as u16).to_le_bytes());
+        h[8..12].copy_from_slice(&sequence.to_le_bytes());
+        h[12..16].copy_from_slice(&s.len.to_le_bytes());
+        h[16..20].copy_from_slice(&computed.to_le_bytes());
+        let hcrc = CRC32.checksum(&h[..28]);
+        h[28..32].copy_from_slice(&hcrc.to_le_bytes());
+        self.flash.write(base, &h).map_err(|_| DeviceError::Storage)?;
+        // Trust only what reads back.
+        let info = self.scan(s.slot).ok_or(DeviceError::Storage)?;
+        self.active = Some(info);
+        Ok(info)
+    }
+
+    /// Abandons the provisioning in progress (the target slot stays invalid).
+    pub fn abort(&mut self) -> Result<(), DeviceError> {
+        self.session.take().map(|_| ()).ok_or(DeviceError::NotProvisioning)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::SimFlash;
+
+    fn blob(seed: f32) -> Vec<u8> {
+        crate::sim::test_blob(5, 3, 2, 4, seed)
+    }
+
+    fn provision(st: &mut Store<SimFlash>, b: &[u8], chunk: usize) -> Result<SlotInfo, DeviceError> {
+        st.begin(b.len() as u32, CRC32.checksum(b))?;
+        let mut off = 0;
+        for c in b.chunks(chunk) {
+            off = st.write_chunk(off, c)?;
+        }
+        st.commit(|_| Ok(()))
+    }
+
+    #[test]
+    fn alternates_slots_and_keeps_the_previous_blob() {
+        let flash = SimFlash::new(4 * 2048);
+        let mut st = Store::open(flash.clone(), 4096, |_| true);
+        assert_eq!(st.active(), None);
+        let (a, b, c) = (blob(1.0), blob(2.0), blob(3.0));
+        let i1 = provision(&mut st, &a, 7).unwrap();
+        let i2 = provision(&mut st, &b, 64).unwrap();
+        assert_eq!((i1.slot, i1.sequence, i2.slot, i2.sequence), (0, 1, 1, 2));
+        let st2 = Store::open(flash.clone(), 4096, |_| true);
+        assert_eq!(st2.active_blob().unwrap().1.as_bytes(), &b[..]);
+        // A failed provisioning leaves the active blob in place.
+        let mut st = st2;
+        st.begin(c.len() as u32, 0xBAD).unwrap();
+        st.write_chunk(0, &c).unwrap();
+        assert!(matches!(st.commit(|_| Ok(())), Err(DeviceError::CrcMismatch { .. })));
+        assert_eq!(st.active_blob().unwrap().1.as_bytes(), &b[..]);
+        let st3 = Store::open(flash, 4096, |_| true);
+        assert_eq!(st3.active_blob().unwrap().1.as_bytes(), &b[..]);
+    }
+
+    #[test]
+    fn out_of_order_and_oversized_chunks_are_refused() {
+        let mut st = Store::open(SimFlash::new(4 * 2048), 4096, |_| true);
+        let a = blob(1.0);
+        assert_eq!(st.write_chunk(0, &a[..8]), Err(DeviceError::NotProvisioning));
+        st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap();
+        st.write_chunk(0, &a[..10]).unwrap();
+        assert_eq!(st.write_chunk(20, &a[20..30]), Err(DeviceError::OutOfOrder { expected: 10, got: 20 }));
+        assert!(matches!(st.write_chunk(10, &vec![0; a.len()]), Err(DeviceError::ChunkTooLarge { .. })));
+        assert!(matches!(st.commit(|_| Ok(())), Err(DeviceError::Incomplete { received: 10, .. })));
+        assert_eq!(st.begin(5000, 0), Err(DeviceError::BlobTooLarge { len: 5000, max: 4096 - 32 }));
+    }
+
+    #[test]
+    fn wrapping_sequence_numbers_order_correctly() {
+        assert!(newer(0, u32::MAX));
+        assert!(newer(5, 4));
+        assert!(!newer(4, 5));
+    }
+}
