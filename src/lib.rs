@@ -15,6 +15,8 @@ pub mod blob;
 pub mod hw;
 pub mod kernel;
 pub mod acquire;
+#[cfg(feature = "app")]
+pub mod app;
 pub mod estimate;
 pub mod protocol;
 pub mod scene;

@@ -160,8 +160,11 @@ pub enum Response<'a> {
         /// Lines requested (0 = continuous).
         lines: u32,
     },
-    /// Measurement stopped (reply to [`Request::Stop`], or sent when the
-    /// requested lines are done).
+    /// The measurement will stop after the line in progress; `MeasureDone`
+    /// follows.
+    StopRequested,
+    /// The measurement is over (all requested lines sent, stopped, or ended by
+    /// an error sent just before).
     MeasureDone {
         /// Lines measured.
         lines_done: u32,
@@ -718,6 +721,7 @@ mod tests {
             Response::Aborted,
             Response::MeasureStarted { lines: 3 },
             Response::MeasureDone { lines_done: 3 },
+            Response::StopRequested,
             Response::SimLoaded,
         ];
         all.extend(errors.map(Response::Error));

@@ -1,0 +1,89 @@
+//! Request handling: one request in, one reply out, synchronous. Provisioning
+//! writes go straight to the flash's inactive slot; a measurement is handed to
+//! the acquisition task.
+use super::{Job, Shared};
+use crate::estimate::Calibration;
+use crate::hw::{MappedFlash, SceneError, SceneInput};
+use crate::protocol::{DeviceError, DeviceInfo, MAX_CHUNK, PROTOCOL_VERSION, Request, Response};
+use core::sync::atomic::Ordering;
+
+impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
+    /// Answers one request.
+    pub fn handle<S: SceneInput>(&self, seq: u32, req: &Request<'_>, scene: &mut S) -> Response<'static> {
+        let r = self.core.lock(|c| {
+            let mut guard = c.borrow_mut();
+            let c = &mut *guard;
+            let measuring = c.status.measuring;
+            let r: Result<Response<'static>, DeviceError> = match *req {
+                Request::Info => Ok(Response::Info(DeviceInfo {
+                    protocol: PROTOCOL_VERSION,
+                    firmware: super::FIRMWARE_VERSION,
+                    bins: N as u16,
+                    leds: M as u16,
+                    pixels: P as u16,
+                    max_blob: c.store.max_blob(),
+                    ram_matrix_words: c.cal.ram_words() as u32,
+                    simulated: self.simulated,
+                    calibration: c.cal.active().map(|a| a.info),
+                })),
+                Request::Status => {
+                    c.status.provisioning = c.store.provisioning();
+                    Ok(Response::Status(c.status))
+                }
+                Request::ProvisionBegin { .. } | Request::ProvisionCommit if measuring => Err(DeviceError::Busy),
+                Request::ProvisionBegin { len, crc } => c
+                    .store
+                    .begin(len, crc)
+                    .map(|slot| Response::ProvisionReady { slot, max_chunk: MAX_CHUNK as u16 }),
+                Request::ProvisionChunk { offset, data } => {
+                    c.store.write_chunk(offset, data).map(|next_offset| Response::ChunkAck { next_offset })
+                }
+                Request::ProvisionCommit => c.store.commit(|v| Calibration::<N, M, P>::check(v)).and_then(|_| {
+                    let (info, view) = c.store.active_blob().ok_or(DeviceError::Storage)?;
+                    c.cal.load(&view, info)?;
+                    let cal = c.cal.active().map(|a| a.info).ok_or(DeviceError::Storage)?;
+                    c.status.calibration = Some(cal);
+                    Ok(Response::Committed(cal))
+                }),
+                Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted),
+                Request::Measure { .. } if measuring => Err(DeviceError::Busy),
+                Request::Measure { .. } if c.cal.active().is_none() => Err(DeviceError::NoCalibration),
+                Request::Measure { lines } => {
+                    c.status.measuring = true;
+                    self.stop.store(false, Ordering::SeqCst);
+                    self.start.signal(Job { seq, lines });
+                    Ok(Response::MeasureStarted { lines })
+                }
+                Request::Stop => {
+                    self.stop.store(true, Ordering::SeqCst);
+                    Ok(Response::StopRequested)
+                }
+                Request::SimFrame { line, frame, first_pixel, pixels } => {
+                    if !pixels.is_whole(2) {
+                        Err(DeviceError::Simulation)
+                    } else {
+                        scene.load(line, frame, first_pixel, pixels.u16s()).map(|_| Response::SimLoaded).map_err(sim_err)
+                    }
+                }
+                Request::SimLines { lines } => scene.set_lines(lines).map(|_| Response::SimLoaded).map_err(sim_err),
+            };
+            if r.is_err() {
+                c.status.refused = c.status.refused.wrapping_add(1);
+            }
+            r
+        });
+        r.unwrap_or_else(Response::Error)
+    }
+
+    /// Counts a frame that could not be read.
+    pub fn count_bad_frame(&self) {
+        self.core.lock(|c| {
+            let mut c = c.borrow_mut();
+            c.status.bad_frames = c.status.bad_frames.wrapping_add(1);
+        });
+    }
+}
+
+fn sim_err(_: SceneError) -> DeviceError {
+    DeviceError::Simulation
+}

@@ -1,0 +1,166 @@
+//! The instrument's application, platform-agnostic: the board firmware, the
+//! QEMU firmware and the host simulation run exactly this code and differ only
+//! in the hardware they hand it and the executor that runs it.
+//!
+//! Three tasks, joined by embassy-sync channels:
+//!
+//! ```text
+//!  transport ──(start/stop)──> acquisition ──[line buffer x2]──> estimation
+//!      ^  requests, replies          LEDs + sensor, correction      W v per point
+//!      └──────────────(encoded frames: replies, points)─────────────┘
+//! ```
+//!
+//! The two line buffers are a zero-copy channel: acquisition fills one while
+//! estimation works on (and the transport sends) the other, so line k+1 is
+//! acquired while line k is estimated and sent.
+//!
+//! Embassy tasks cannot be generic, so each platform writes three one-line
+//! `#[embassy_executor::task]` wrappers around [`acquisition`], [`estimation`]
+//! and [`transport`] with its concrete types (see `src/bin/qemu-fw.rs`).
+mod handler;
+mod tasks;
+
+pub use tasks::{acquisition, estimation, transport};
+
+use crate::acquire::{AcqConfig, RawLine};
+use crate::estimate::Calibration;
+use crate::hw::MappedFlash;
+use crate::protocol::{DeviceStatus, MAX_FRAME};
+use crate::store::Store;
+use core::cell::RefCell;
+use core::sync::atomic::AtomicBool;
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+
+/// An encoded frame on its way to the host.
+pub type OutFrame = heapless::Vec<u8, MAX_FRAME>;
+
+/// Firmware version reported by `Info`.
+pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// A measurement to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Job {
+    /// Sequence number of the `Measure` request (echoed in every frame).
+    pub seq: u32,
+    /// Lines to measure, 0 for continuous.
+    pub lines: u32,
+}
+
+/// What travels in a line buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Slot {
+    /// Nothing yet.
+    Empty,
+    /// A corrected line, number `line` of `job`.
+    Line {
+        /// Job.
+        job: Job,
+        /// Line number within the job.
+        line: u32,
+    },
+    /// The job is over after `lines` lines (error or done); estimation sends
+    /// the error, if any, then `MeasureDone`, after the lines before it.
+    End {
+        /// Job.
+        job: Job,
+        /// Lines measured.
+        lines: u32,
+        /// Why it ended early.
+        error: Option<crate::protocol::DeviceError>,
+    },
+}
+
+/// One line buffer: raw frames, corrected readings and flags per pixel.
+pub struct LineBuf<const M: usize, const P: usize> {
+    /// What this buffer holds.
+    pub slot: Slot,
+    /// Raw frames.
+    pub raw: RawLine<M, P>,
+    /// Corrected readings per pixel.
+    pub v: [[f32; M]; P],
+    /// Flags per pixel.
+    pub flags: [u8; P],
+}
+
+impl<const M: usize, const P: usize> LineBuf<M, P> {
+    /// An empty buffer.
+    pub const fn new() -> Self {
+        Self { slot: Slot::Empty, raw: RawLine::new(), v: [[0.0; M]; P], flags: [0; P] }
+    }
+}
+
+impl<const M: usize, const P: usize> Default for LineBuf<M, P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// State the request handler and the tasks share.
+pub struct Core<F, const N: usize, const M: usize, const P: usize> {
+    /// Calibration store.
+    pub store: Store<F>,
+    /// Active calibration.
+    pub cal: Calibration<N, M, P>,
+    /// Counters and flags.
+    pub status: DeviceStatus,
+}
+
+/// Everything the three tasks share; the platform puts one in a `static`.
+pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
+    /// Store, calibration, status. A blocking mutex: every use is short and
+    /// never awaits while holding it.
+    pub core: BlockingMutex<Cs, RefCell<Core<F, N, M, P>>>,
+    /// Transport -> acquisition: start a job.
+    pub start: Signal<Cs, Job>,
+    /// Transport -> acquisition: stop after the line in progress.
+    pub stop: AtomicBool,
+    /// Estimation and transport -> transport writer: encoded frames.
+    pub out: Channel<Cs, OutFrame, 4>,
+    /// Acquisition settings.
+    pub acq: AcqConfig,
+    /// The sensor's full scale (for saturation flags).
+    pub full_scale: u16,
+    /// Whether the sensor is simulated (reported by `Info`).
+    pub simulated: bool,
+}
+
+impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
+    /// Boots: opens the store on `flash` (two slots of `slot_len` bytes), takes
+    /// the newest valid blob made for this build, and loads it (matrices to
+    /// `ram` when they fit, else in place).
+    pub fn new(
+        flash: F,
+        slot_len: u32,
+        ram: &'static mut [[[f32; M]; N]],
+        acq: AcqConfig,
+        full_scale: u16,
+        simulated: bool,
+    ) -> Self {
+        let store = Store::open(flash, slot_len, |v| Calibration::<N, M, P>::check(v).is_ok());
+        let mut cal = Calibration::new(ram);
+        if let Some((info, view)) = store.active_blob() {
+            // Checked by `open`'s filter; a failure here would leave no
+            // calibration, which Measure reports as NoCalibration.
+            let _ = cal.load(&view, info);
+        }
+        let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
+        Self {
+            core: BlockingMutex::new(RefCell::new(Core { store, cal, status })),
+            start: Signal::new(),
+            stop: AtomicBool::new(false),
+            out: Channel::new(),
+            acq,
+            full_scale,
+            simulated,
+        }
+    }
+
+    /// A copy of the status.
+    pub fn status(&self) -> DeviceStatus {
+        self.core.lock(|c| c.borrow().status)
+    }
+}

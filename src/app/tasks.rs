@@ -1,0 +1,185 @@
+//! The bodies of the three tasks. Each platform wraps them in
+//! `#[embassy_executor::task]` functions with its concrete types.
+use super::{Job, LineBuf, OutFrame, Shared, Slot};
+use crate::acquire::{acquire_line, correct_line};
+use crate::hw::{Leds, LineSensor, MappedFlash, SceneInput};
+use crate::protocol::{
+    self, DeviceError, FrameReader, LeBytes, MAX_FRAME, MAX_WIRE_BINS, PointFrame, Pushed, Request, Response, flags,
+};
+use core::sync::atomic::Ordering;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
+use embassy_sync::zerocopy_channel::{Receiver, Sender};
+use embedded_io_async::{Read, Write};
+
+/// Encodes a frame for the writer.
+fn frame(seq: u32, r: &Response<'_>) -> OutFrame {
+    let mut f = OutFrame::new();
+    let _ = f.resize(MAX_FRAME, 0);
+    // Every message fits MAX_PAYLOAD by construction (protocol tests check
+    // the largest of each, and N <= MAX_WIRE_BINS is checked at build time).
+    let n = protocol::encode(seq, r, &mut f).unwrap_or(0);
+    f.truncate(n);
+    f
+}
+
+/// The transport task: reads request frames, answers each, and writes every
+/// outgoing frame (replies and the estimation's point frames) in order.
+pub async fn transport<F, R, W, S, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    mut rx: R,
+    mut tx: W,
+    mut scene: S,
+) -> !
+where
+    F: MappedFlash,
+    R: Read,
+    W: Write,
+    S: SceneInput,
+{
+    let reader = async {
+        let mut frames = FrameReader::new();
+        let mut buf = [0u8; 64];
+        loop {
+            let n = match rx.read(&mut buf).await {
+                Ok(n) => n,
+                Err(_) => continue, // line noise, overrun: the frame CRC catches the damage
+            };
+            for &b in &buf[..n] {
+                let out = match frames.push(b) {
+                    Pushed::More => continue,
+                    Pushed::Oversized => {
+                        shared.count_bad_frame();
+                        frame(0, &Response::Error(DeviceError::Frame(protocol::FrameError::Oversized)))
+                    }
+                    Pushed::Frame(f) => match protocol::decode::<Request<'_>>(f) {
+                        Ok((seq, req)) => frame(seq, &shared.handle(seq, &req, &mut scene)),
+                        Err(e) => {
+                            shared.count_bad_frame();
+                            frame(0, &Response::Error(DeviceError::Frame(e)))
+                        }
+                    },
+                };
+                shared.out.send(out).await;
+            }
+        }
+    };
+    let writer = async {
+        loop {
+            let f = shared.out.receive().await;
+            // A host that went away: nothing to do but keep serving.
+            let _ = tx.write_all(&f).await;
+            let _ = tx.flush().await;
+        }
+    };
+    embassy_futures::join::join(reader, writer).await;
+    unreachable!()
+}
+
+/// The acquisition task: runs each job line by line into the line buffers.
+pub async fn acquisition<F, L, S, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    mut leds: L,
+    mut sensor: S,
+    mut lines_out: Sender<'static, Cs, LineBuf<M, P>>,
+) -> !
+where
+    F: MappedFlash,
+    L: Leds,
+    S: LineSensor,
+{
+    loop {
+        let job = shared.start.wait().await;
+        let mut line = 0u32;
+        let mut error = None;
+        while !shared.stop.load(Ordering::SeqCst) && (job.lines == 0 || line < job.lines) {
+            let order = shared.core.lock(|c| c.borrow().cal.active().map(|a| a.led_order));
+            let Some(order) = order else {
+                error = Some(DeviceError::NoCalibration);
+                break;
+            };
+            // Waits while both buffers are in use: estimation is the pace.
+            let buf = lines_out.send().await;
+            if let Err(e) = acquire_line(&mut leds, &mut sensor, &order, &shared.acq, &mut buf.raw).await {
+                error = Some(DeviceError::Sensor(e));
+                break;
+            }
+            let ok = shared.core.lock(|c| match c.borrow().cal.active() {
+                Some(a) => {
+                    correct_line(&buf.raw, &a.white, shared.full_scale, &mut buf.v, &mut buf.flags);
+                    true
+                }
+                None => false,
+            });
+            if !ok {
+                error = Some(DeviceError::NoCalibration);
+                break;
+            }
+            buf.slot = Slot::Line { job, line };
+            lines_out.send_done();
+            line += 1;
+        }
+        let buf = lines_out.send().await;
+        buf.slot = Slot::End { job, lines: line, error };
+        lines_out.send_done();
+    }
+}
+
+/// The estimation task: `rho = W_zone v` for every point of each line, one
+/// frame per point.
+pub async fn estimation<F, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    mut lines_in: Receiver<'static, Cs, LineBuf<M, P>>,
+) -> !
+where
+    F: MappedFlash,
+{
+    const { assert!(N <= MAX_WIRE_BINS, "a point frame carries at most MAX_WIRE_BINS bins") };
+    let mut stream_seq = 0u32;
+    let mut current: Option<Job> = None;
+    loop {
+        let buf = lines_in.receive().await;
+        match buf.slot {
+            Slot::Empty => {}
+            Slot::Line { job, line } => {
+                if current != Some(job) {
+                    current = Some(job);
+                    stream_seq = 0;
+                }
+                for p in 0..P {
+                    let mut rho = [0.0f32; N];
+                    let zone = shared.core.lock(|c| {
+                        let c = c.borrow();
+                        c.cal.active().is_some().then(|| c.cal.estimate(p, &buf.v[p], &mut rho))
+                    });
+                    let mut fl = buf.flags[p];
+                    if zone.is_none() || rho.iter().any(|x| !x.is_finite()) {
+                        fl |= flags::NON_FINITE;
+                    }
+                    let pf = PointFrame {
+                        line,
+                        seq: stream_seq,
+                        point: p as u16,
+                        zone: zone.unwrap_or(u16::MAX),
+                        flags: fl,
+                        values: LeBytes::from_f32(&rho),
+                    };
+                    stream_seq = stream_seq.wrapping_add(1);
+                    shared.out.send(frame(job.seq, &Response::Point(pf))).await;
+                }
+                shared.core.lock(|c| {
+                    let mut c = c.borrow_mut();
+                    c.status.lines_total = c.status.lines_total.wrapping_add(1);
+                });
+            }
+            Slot::End { job, lines, error } => {
+                if let Some(e) = error {
+                    shared.out.send(frame(job.seq, &Response::Error(e))).await;
+                }
+                shared.core.lock(|c| c.borrow_mut().status.measuring = false);
+                shared.out.send(frame(job.seq, &Response::MeasureDone { lines_done: lines })).await;
+            }
+        }
+        buf.slot = Slot::Empty;
+        lines_in.receive_done();
+    }
+}
