@@ -1,0 +1,66 @@
+//! `provision-swd`: factory provisioning of a calibration blob over SWD with
+//! the probe-rs command line (no USB link or running firmware needed).
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args as ClapArgs;
+
+use crate::swd::{self, ProbeRs, SlotMap};
+
+/// Writes a calibration blob into the board's calibration flash over SWD.
+///
+/// The blob is checked with the device's own parser, wrapped in the
+/// calibration store's slot header and written with `probe-rs download` into
+/// the slot that does not hold the device's newest valid calibration (with
+/// the next sequence number, so it becomes the active one at the next boot);
+/// then read back with `probe-rs read` and compared byte for byte.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// The calibration blob (as written by training).
+    pub blob: PathBuf,
+    /// Write this slot instead of the inactive one (a or b).
+    #[arg(long, value_parser = ["a", "b", "A", "B"])]
+    pub slot: Option<String>,
+    /// The probe-rs executable.
+    #[arg(long, default_value = "probe-rs")]
+    pub probe_rs: PathBuf,
+    /// probe-rs chip name.
+    #[arg(long, default_value = swd::CHIP)]
+    pub chip: String,
+    /// Probe selector (VID:PID[:serial]) when several probes are attached.
+    #[arg(long)]
+    pub probe: Option<String>,
+    /// Only write the slot image (header + blob) to this file for slot A,
+    /// sequence 1; touch no device.
+    #[arg(long)]
+    pub image_out: Option<PathBuf>,
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> Result<()> {
+    let map = SlotMap::board();
+    let blob = swd::read_blob(&args.blob)?;
+    if let Some(out) = &args.image_out {
+        let image = swd::slot_image(1, &blob, map.slot_len())?;
+        crate::io::write_atomic(out, &image)?;
+        println!("slot image: {} bytes for address {:#010x} -> {}", image.len(), map.addr(0), out.display());
+        return Ok(());
+    }
+    let force = args.slot.as_deref().map(|s| if s.eq_ignore_ascii_case("a") { 0 } else { 1 });
+    let scratch = swd::scratch_dir()?;
+    let probe = ProbeRs {
+        program: args.probe_rs,
+        chip: args.chip,
+        probe: args.probe,
+        scratch: scratch.path().to_path_buf(),
+    };
+    let done = swd::provision(&probe, &map, &blob, force)?;
+    println!(
+        "provisioned slot {} at {:#010x}: {} bytes, sequence {}, verified by read-back",
+        swd::slot_name(done.slot),
+        done.addr,
+        done.len,
+        done.sequence
+    );
+    Ok(())
+}
