@@ -36,15 +36,29 @@ impl<const M: usize, const P: usize> Default for RawLine<M, P> {
 
 /// Corrects one point: `v[i] = (lit[i] - dark) / white[i]`, in f32, and flags
 /// saturation (a raw value at full scale), under-exposure (signal below
-/// [`MIN_SIGNAL_COUNTS`]) and non-finite results.
+/// [`MIN_SIGNAL_COUNTS`]) and non-finite results. Fixed-size form of
+/// [`correct_point_into`] (same operations, same bits).
 #[inline]
 pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M], full_scale: u16) -> ([f32; M], u8) {
     let mut v = [0.0f32; M];
+    let f = correct_point_into(dark, lit, white, full_scale, &mut v);
+    (v, f)
+}
+
+/// Corrects one point of `lit.len()` readings into `v`; returns its flags.
+/// The one definition of a corrected reading (the host uses it to reproduce
+/// the device's numbers).
+///
+/// # Panics
+/// If `lit`, `white` and `v` differ in length.
+#[inline]
+pub fn correct_point_into(dark: u16, lit: &[u16], white: &[f32], full_scale: u16, v: &mut [f32]) -> u8 {
+    assert!(lit.len() == white.len() && lit.len() == v.len(), "one white value and one output per reading");
     let mut f = 0u8;
     if dark >= full_scale {
         f |= flags::SATURATED;
     }
-    for i in 0..M {
+    for i in 0..v.len() {
         if lit[i] >= full_scale {
             f |= flags::SATURATED;
         }
@@ -57,7 +71,7 @@ pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M]
             f |= flags::NON_FINITE;
         }
     }
-    (v, f)
+    f
 }
 
 /// Corrects a whole line into `v` and `fl` (one entry per pixel).

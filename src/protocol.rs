@@ -178,6 +178,27 @@ pub enum Response<'a> {
     Error(DeviceError),
 }
 
+impl<'a> Response<'a> {
+    /// Every reply but a point frame owns its data: returns it with a
+    /// `'static` life, or the point frame (which borrows the frame buffer).
+    pub fn detach(self) -> Result<Response<'static>, PointFrame<'a>> {
+        Ok(match self {
+            Self::Point(p) => return Err(p),
+            Self::Info(x) => Response::Info(x),
+            Self::Status(x) => Response::Status(x),
+            Self::ProvisionReady { slot, max_chunk } => Response::ProvisionReady { slot, max_chunk },
+            Self::ChunkAck { next_offset } => Response::ChunkAck { next_offset },
+            Self::Committed(x) => Response::Committed(x),
+            Self::Aborted => Response::Aborted,
+            Self::MeasureStarted { lines } => Response::MeasureStarted { lines },
+            Self::StopRequested => Response::StopRequested,
+            Self::MeasureDone { lines_done } => Response::MeasureDone { lines_done },
+            Self::SimLoaded => Response::SimLoaded,
+            Self::Error(e) => Response::Error(e),
+        })
+    }
+}
+
 /// Build-time sizes and identity of the device.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -192,6 +213,8 @@ pub struct DeviceInfo {
     pub leds: u16,
     /// Pixels P of the line sensor.
     pub pixels: u16,
+    /// Sensor full scale: raw readings at or above it are saturated.
+    pub full_scale: u16,
     /// Largest blob a slot holds, bytes.
     pub max_blob: u32,
     /// Matrices up to this many f32 words are copied to RAM; above, read in place.
@@ -708,6 +731,7 @@ mod tests {
                 bins: 81,
                 leds: 7,
                 pixels: 32,
+                full_scale: 4095,
                 max_blob: 12_000,
                 ram_matrix_words: 9072,
                 simulated: true,

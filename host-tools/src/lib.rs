@@ -13,6 +13,7 @@ pub mod firmware_budget;
 pub mod fitting;
 pub mod grid;
 pub mod io;
+pub mod link;
 pub mod optics;
 pub mod prior;
 pub mod swd;

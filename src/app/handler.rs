@@ -21,6 +21,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     bins: N as u16,
                     leds: M as u16,
                     pixels: P as u16,
+                    full_scale: self.full_scale,
                     max_blob: c.store.max_blob(),
                     ram_matrix_words: c.cal.ram_words() as u32,
                     simulated: self.simulated,
