@@ -16,4 +16,6 @@ pub mod io;
 pub mod link;
 pub mod optics;
 pub mod prior;
+pub mod reproduce;
+pub mod train;
 pub mod swd;

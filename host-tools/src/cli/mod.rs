@@ -5,6 +5,9 @@ use clap::{Parser, Subcommand};
 pub mod firmware_budget;
 pub mod provision_swd;
 
+pub mod reproduce;
+pub mod train;
+
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
 #[command(name = "host-tools", version, about)]
@@ -21,6 +24,10 @@ pub enum Command {
     ProvisionSwd(provision_swd::Args),
     /// Check firmware images against the flash/RAM budget for Z = 128 zones.
     FirmwareBudget(firmware_budget::Args),
+    /// Reproduce the patent's Table 6 on the patent profile (every method, timed).
+    Reproduce(reproduce::Args),
+    /// Train the estimator matrices (one per zone) and write the calibration blob.
+    Train(train::Args),
 }
 
 /// Runs one parsed command line.
@@ -28,5 +35,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::ProvisionSwd(a) => provision_swd::run(a),
         Command::FirmwareBudget(a) => firmware_budget::run(a),
+        Command::Reproduce(a) => reproduce::run(a),
+        Command::Train(a) => train::run(a),
     }
 }

@@ -1,0 +1,133 @@
+//! `host-tools train`: train the estimator matrices and write the calibration blob.
+use crate::estimators::kind_name;
+use crate::optics::Instrument;
+use crate::prior::PriorSpec;
+use crate::train::{TrainSpec, train, uniform_zones};
+use anyhow::Context;
+use brdf_meter::blob::{BlobView, EstimatorKind};
+use std::path::{Path, PathBuf};
+
+/// Estimators on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Estimator {
+    /// Wiener estimation with the noise term (eq. 22).
+    Wiener,
+    /// Wiener estimation without noise (eq. 20).
+    WienerNoiseFree,
+    /// Moore-Penrose pseudo-inverse of H (claim 4).
+    PseudoInverse,
+    /// Inverse of a square H (claim 3).
+    Inverse,
+    /// Linear interpolation between the LEDs' centre angles ([0004]).
+    Interpolation,
+}
+
+impl From<Estimator> for EstimatorKind {
+    fn from(e: Estimator) -> Self {
+        match e {
+            Estimator::Wiener => Self::Wiener,
+            Estimator::WienerNoiseFree => Self::WienerNoiseFree,
+            Estimator::PseudoInverse => Self::PseudoInverse,
+            Estimator::Inverse => Self::Inverse,
+            Estimator::Interpolation => Self::Interpolation,
+        }
+    }
+}
+
+/// Train the estimator matrices (one per zone) and write the calibration blob.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Where to write the blob.
+    #[arg(long, value_name = "PATH", default_value = "out/calibration.blob")]
+    pub out: PathBuf,
+    /// Also write bins_deg, H, W and the per-bin uncertainty (f64) as JSON here.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+    /// Zones of pixels, each with its own matrix.
+    #[arg(long, default_value_t = 1)]
+    pub zones: usize,
+    /// Pixels of the line sensor.
+    #[arg(long, default_value_t = 128)]
+    pub pixels: usize,
+    /// Relative measurement noise (standard deviation / value; 0.02 = 2 %).
+    #[arg(long, default_value_t = 0.02)]
+    pub noise: f64,
+    /// Estimator.
+    #[arg(long, value_enum, default_value_t = Estimator::Wiener)]
+    pub estimator: Estimator,
+    /// Prior: `patent` (Table 5, built in), a prior TOML file, or a measured
+    /// sample CSV (`angle_deg,value` rows).
+    #[arg(long, value_name = "patent|PATH", default_value = "patent")]
+    pub prior: String,
+    /// Instrument description (TOML); default: the built-in patent profile.
+    #[arg(long, value_name = "PATH")]
+    pub instrument: Option<PathBuf>,
+    /// Model the optics far-field (every LED a single ray at its centre angle).
+    #[arg(long)]
+    pub far_field: bool,
+}
+
+/// Runs the command. Nothing is written unless training succeeds.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if !a.noise.is_finite() || !(0.0..1.0).contains(&a.noise) {
+        anyhow::bail!("--noise {}: must be a relative level in [0, 1) (0.02 is 2 %)", a.noise);
+    }
+    let inst: Instrument = match &a.instrument {
+        Some(p) => crate::config::load_toml(p)?,
+        None => Instrument::patent_profile(),
+    };
+    let grid = inst.grid().context("the instrument's angle grid")?;
+    let (spec, base) = if a.prior == "patent" {
+        (PriorSpec::patent(), PathBuf::from("."))
+    } else {
+        let p = Path::new(&a.prior);
+        let is_csv = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        if is_csv {
+            (PriorSpec { csv: vec![p.to_path_buf()], ..Default::default() }, PathBuf::new())
+        } else {
+            PriorSpec::load(p).with_context(|| format!("reading the prior {}", p.display()))?
+        }
+    };
+    let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
+    let zones = uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?;
+    let trained = train(&TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones,
+        pixels: a.pixels,
+        prior: &prior,
+        noise_rel: a.noise,
+        estimator: a.estimator.into(),
+        far_field: a.far_field,
+        led_order: None,
+        white: None,
+    })?;
+    // Everything is computed; serialise before writing anything.
+    let json = a.json.as_ref().map(|_| trained.to_json());
+    crate::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
+    if let (Some(p), Some(j)) = (&a.json, &json) {
+        crate::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
+    }
+    let view = BlobView::parse(&trained.blob).expect("validated");
+    let s = &trained.zones[0].estimator.summary;
+    println!(
+        "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, prior {} samples (rank {}), noise {}",
+        kind_name(a.estimator.into()),
+        trained.dims.zones,
+        trained.dims.pixels,
+        trained.dims.n,
+        trained.dims.m,
+        s.prior_samples,
+        s.prior_rank,
+        a.noise
+    );
+    println!(
+        "cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}, f32 vs f64 {:.1e}",
+        s.condition_h, s.condition_system, s.effective_rank, s.regularisation, s.predicted_rmse, trained.f32_rel_error
+    );
+    println!("{}", s.method);
+    println!("wrote {} ({} bytes, CRC {:#010x})", a.out.display(), trained.blob.len(), view.crc());
+    if let Some(p) = &a.json {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
