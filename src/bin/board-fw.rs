@@ -1,28 +1,118 @@
-//! Board firmware for the B-L475E-IOT01A (STM32L475VG). The hardware layer is
-//! src/board/ (pin map and peripheral choices); everything above it is the
-//! shared library's application, the same the QEMU build runs.
+//! Board firmware for the B-L475E-IOT01A (STM32L475VG).
+//!
+//! The hardware layer is src/board/ (pin map, peripheral choices, drivers
+//! for the library's traits). Everything above it is the shared library's
+//! application (`brdf_meter::app`): the same transport, acquisition and
+//! estimation tasks the QEMU firmware and the host simulation run. This file
+//! only wires them to the board: it is the one place with concrete types.
 #![no_std]
 #![no_main]
 
 #[path = "../board/mod.rs"]
 mod board;
 
-use brdf_meter::hw::{Leds, LineSensor};
+use brdf_meter::acquire::AcqConfig;
+use brdf_meter::app::{self, LineBuf, Shared};
+use brdf_meter::hw::NoScene;
 use defmt_rtt as _;
 use embassy_executor::Spawner;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
+use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
+use embassy_time::{Instant, Timer};
 use panic_probe as _;
+use static_cell::StaticCell;
+
+use board::flash::CalFlash;
+use board::leds::{LED_COUNT, PwmLeds};
+use board::sensor::{PIXELS, Tsl1401};
+use board::usb::{UsbRx, UsbTx};
+
+/// Angle bins of the calibration this build runs (patent profile).
+const N: usize = 81;
+/// Readings per point: one per LED.
+const M: usize = LED_COUNT;
+/// Pixels of the line sensor.
+const P: usize = PIXELS;
+/// Zones whose matrices are copied to RAM; a calibration with more zones
+/// (up to Z = P = 128, about 290 KiB) runs in place from its flash slot.
+/// 8 zones = 18 KiB of RAM.
+const RAM_ZONES: usize = 8;
+
+/// Acquisition settings: integration per frame and LED settling before it.
+const ACQ: AcqConfig = AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX };
+
+type BoardShared = Shared<CalFlash, N, M, P>;
+
+static SHARED: StaticCell<BoardShared> = StaticCell::new();
+
+#[embassy_executor::task]
+async fn transport(shared: &'static BoardShared, rx: UsbRx, tx: UsbTx) -> ! {
+    app::transport(shared, rx, tx, NoScene).await
+}
+
+#[embassy_executor::task]
+async fn acquisition(
+    shared: &'static BoardShared,
+    leds: PwmLeds,
+    sensor: Tsl1401,
+    lines: Sender<'static, Cs, LineBuf<M, P>>,
+) -> ! {
+    app::acquisition(shared, leds, sensor, lines).await
+}
+
+#[embassy_executor::task]
+async fn estimation(shared: &'static BoardShared, lines: Receiver<'static, Cs, LineBuf<M, P>>) -> ! {
+    app::estimation(shared, lines).await
+}
+
+/// Feeds the watchdog while the application is healthy (see
+/// `board::watchdog`), and shows it on LED2.
+#[embassy_executor::task]
+async fn supervisor(shared: &'static BoardShared, mut led: embassy_stm32::gpio::Output<'static>) -> ! {
+    let mut health = board::watchdog::Health::default();
+    loop {
+        let st = shared.status();
+        if health.observe(Instant::now().as_millis(), st.measuring, st.lines_total) {
+            board::watchdog::healthy();
+            led.toggle();
+        } else {
+            defmt::error!("measurement stalled at line {}: the watchdog will reset", st.lines_total);
+            led.set_low();
+        }
+        Timer::after_millis(250).await;
+    }
+}
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     defmt::info!("board-fw {} starting", env!("CARGO_PKG_VERSION"));
-    let (mut b, iwdg) = board::Board::init();
-    spawner.spawn(board::usb::run(b.usb.device).expect("usb task spawns once"));
-    board::watchdog::start(iwdg);
-    let mut frame = [0u16; board::sensor::PIXELS];
-    loop {
-        b.leds.set(None, 0).await;
-        let r = b.sensor.read_frame(1000, &mut frame).await;
-        defmt::info!("dark frame: {}", r);
-        board::watchdog::healthy();
+    let (b, iwdg) = board::Board::init();
+
+    static RAM: StaticCell<[[[f32; M]; N]; RAM_ZONES]> = StaticCell::new();
+    let ram = RAM.init([[[0.0; M]; N]; RAM_ZONES]);
+    let slot_len = b.cal_flash.slot_len();
+    let shared: &'static BoardShared =
+        SHARED.init(Shared::new(b.cal_flash, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false));
+    match shared.status().calibration {
+        Some(c) => defmt::info!(
+            "calibration: slot {}, sequence {}, {} zones, matrices in {}",
+            c.slot,
+            c.sequence,
+            c.zones,
+            if c.in_ram { "RAM" } else { "flash (in place)" }
+        ),
+        None => defmt::warn!("no valid calibration for this build (n = {}, m = {}, P = {}): provision one", N, M, P),
     }
+
+    static LINES: StaticCell<[LineBuf<M, P>; 2]> = StaticCell::new();
+    static CHANNEL: StaticCell<Channel<'static, Cs, LineBuf<M, P>>> = StaticCell::new();
+    let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
+    let (lines_tx, lines_rx) = channel.split();
+
+    spawner.spawn(board::usb::run(b.usb.device).expect("spawned once"));
+    spawner.spawn(transport(shared, b.usb.rx, b.usb.tx).expect("spawned once"));
+    spawner.spawn(acquisition(shared, b.leds, b.sensor, lines_tx).expect("spawned once"));
+    spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
+    board::watchdog::start(iwdg);
+    spawner.spawn(supervisor(shared, b.status_led).expect("spawned once"));
 }

@@ -1,6 +1,7 @@
 //! The calibration region of the chip's flash: the two slots memory.x
 //! reserves (CAL_SLOT_A, CAL_SLOT_B), as one `NorFlash` window whose offset 0
-//! is the start of slot A, plus the memory-mapped bytes for in-place reads.
+//! is the start of slot A (the layout `brdf_meter::store::Store` expects),
+//! and as memory (`MappedFlash`) so blobs and matrices are read in place.
 //!
 //! The addresses come from the linker symbols memory.x exports, so they are
 //! written down once; memory.x limits FLASH (the image) to the space below
@@ -15,6 +16,8 @@ use embassy_stm32::Peri;
 use embassy_stm32::flash::{Blocking, Error, FLASH_BASE, Flash, WRITE_SIZE};
 use embassy_stm32::peripherals::FLASH;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
+
+use brdf_meter::hw::MappedFlash;
 
 use super::watchdog;
 
@@ -54,24 +57,15 @@ impl CalFlash {
     /// page-aligned, back-to-back regions (a build mistake, caught at boot).
     pub fn new(flash: Peri<'static, FLASH>) -> Self {
         let (a, b, len) = (slot_a_addr(), slot_b_addr(), slot_len());
-        assert!(a >= FLASH_BASE && a % PAGE as usize == 0 && len % PAGE as usize == 0);
+        assert!(a >= FLASH_BASE && a.is_multiple_of(PAGE as usize) && len.is_multiple_of(PAGE as usize));
         assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
         defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);
         Self { flash: Flash::new_blocking(flash), base: (a - FLASH_BASE) as u32, len: (2 * len) as u32 }
     }
 
-    /// Offset of slot B within this window (slot A is at 0).
-    pub fn slot_b_offset(&self) -> u32 {
+    /// Length of one slot (slot A at offset 0, slot B at this offset).
+    pub fn slot_len(&self) -> u32 {
         self.len / 2
-    }
-
-    /// The whole region as memory-mapped bytes, for reading blobs (and their
-    /// matrices) in place without copying them to RAM. Contents change only
-    /// through `&mut self` methods of this type, which this borrow excludes.
-    pub fn mapped(&self) -> &[u8] {
-        // SAFETY: the region is inside the chip's flash, always mapped and
-        // readable; memory.x keeps the image and all statics out of it.
-        unsafe { core::slice::from_raw_parts((FLASH_BASE + self.base as usize) as *const u8, self.len as usize) }
     }
 
     fn check(&self, offset: u32, len: usize) -> Result<(), Error> {
@@ -79,6 +73,18 @@ impl CalFlash {
             Some(end) if end <= self.len => Ok(()),
             _ => Err(Error::Size),
         }
+    }
+}
+
+// SAFETY: the region is inside the chip's flash, always mapped and readable
+// for the program's life; memory.x keeps the image and every static out of
+// it, so its bytes change only through this type's `write`/`erase`.
+unsafe impl MappedFlash for CalFlash {
+    fn mapped(&self, offset: u32, len: usize) -> &'static [u8] {
+        self.check(offset, len).expect("mapped range outside the calibration region");
+        let addr = FLASH_BASE + (self.base + offset) as usize;
+        // SAFETY: in range (checked above); see the impl's safety note.
+        unsafe { core::slice::from_raw_parts(addr as *const u8, len) }
     }
 }
 
@@ -108,7 +114,7 @@ impl NorFlash for CalFlash {
             return Err(Error::Size);
         }
         self.check(from, (to - from) as usize)?;
-        if from % PAGE != 0 || to % PAGE != 0 {
+        if !from.is_multiple_of(PAGE) || !to.is_multiple_of(PAGE) {
             return Err(Error::Unaligned);
         }
         let mut page = from;
@@ -122,7 +128,7 @@ impl NorFlash for CalFlash {
 
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Error> {
         self.check(offset, bytes.len())?;
-        if offset as usize % WRITE_SIZE != 0 || bytes.len() % WRITE_SIZE != 0 {
+        if !(offset as usize).is_multiple_of(WRITE_SIZE) || !bytes.len().is_multiple_of(WRITE_SIZE) {
             return Err(Error::Unaligned);
         }
         for (k, chunk) in bytes.chunks(PAGE as usize).enumerate() {

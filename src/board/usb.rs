@@ -10,9 +10,12 @@
 //! host (the watchdog is fed by that loop):
 //! - reads wait for a host to connect and for data; a disconnect is not an
 //!   error to the reader, it just waits again;
-//! - writes while no host has the port open are dropped (reported as
-//!   [`LinkError::Disconnected`]); a write the host does not take within
-//!   [`WRITE_TIMEOUT`] fails with [`LinkError::Timeout`].
+//! - writes while the device is not configured by a host are dropped
+//!   (reported as [`LinkError::Disconnected`]); a packet the host does not
+//!   take within [`WRITE_TIMEOUT`] fails with [`LinkError::Timeout`], and
+//!   until the host takes one again every packet gets only
+//!   [`STALLED_TIMEOUT`]: a host that opened the port but stopped reading
+//!   costs dropped frames, never a stalled pipeline.
 
 use embassy_stm32::Peri;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
@@ -33,6 +36,8 @@ pub const USB_PID: u16 = 0x0001;
 const MAX_PACKET: u16 = 64;
 /// How long one packet may wait for the host before the write fails.
 pub const WRITE_TIMEOUT: Duration = Duration::from_millis(500);
+/// How long a packet may wait while the host is known not to be reading.
+pub const STALLED_TIMEOUT: Duration = Duration::from_millis(2);
 
 /// The board's USB driver type.
 pub type UsbDriver = Driver<'static, USB_OTG_FS>;
@@ -41,8 +46,10 @@ pub type UsbDriver = Driver<'static, USB_OTG_FS>;
 pub struct Usb {
     /// Must be run (forever) by a task for the port to work.
     pub device: UsbDevice<'static, UsbDriver>,
-    /// The CDC-ACM port.
-    pub serial: UsbSerial,
+    /// The CDC-ACM port, host to device.
+    pub rx: UsbRx,
+    /// The CDC-ACM port, device to host.
+    pub tx: UsbTx,
 }
 
 impl Usb {
@@ -84,14 +91,14 @@ impl Usb {
         let device = builder.build();
         let (tx, rx) = class.split();
         let rx = rx.into_buffered(RX.init([0; MAX_PACKET as usize]));
-        Self { device, serial: UsbSerial { tx, rx, last_full: false } }
+        Self { device, rx: UsbRx { rx }, tx: UsbTx { tx, last_full: false, host_stalled: false } }
     }
 }
 
 /// Why a write to the host failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
 pub enum LinkError {
-    /// No host has the port open: the data was dropped.
+    /// No host has configured the device: the data was dropped.
     Disconnected,
     /// The host did not take the data within [`WRITE_TIMEOUT`].
     Timeout,
@@ -100,7 +107,7 @@ pub enum LinkError {
 impl core::fmt::Display for LinkError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            Self::Disconnected => "no host has the USB serial port open",
+            Self::Disconnected => "no USB host has configured the device",
             Self::Timeout => "the USB host did not take the data in time",
         })
     }
@@ -117,40 +124,50 @@ impl embedded_io_async::Error for LinkError {
     }
 }
 
-/// The CDC-ACM serial port.
-pub struct UsbSerial {
-    tx: Sender<'static, UsbDriver>,
+/// The receiving half of the CDC-ACM port.
+pub struct UsbRx {
     rx: BufferedReceiver<'static, UsbDriver>,
+}
+
+/// The sending half of the CDC-ACM port.
+pub struct UsbTx {
+    tx: Sender<'static, UsbDriver>,
     /// The last packet sent was full: a transfer ends only with a short (or
     /// zero-length) packet, so `flush` sends one.
     last_full: bool,
+    /// The last packet timed out: the host is not reading.
+    host_stalled: bool,
 }
 
-impl UsbSerial {
-    /// Whether a host has the port open (DTR set by the terminal/host tool).
-    pub fn connected(&self) -> bool {
-        self.tx.dtr()
-    }
-
+impl UsbTx {
     async fn send(&mut self, packet: &[u8]) -> Result<(), LinkError> {
-        match with_timeout(WRITE_TIMEOUT, self.tx.write_packet(packet)).await {
+        let timeout = if self.host_stalled { STALLED_TIMEOUT } else { WRITE_TIMEOUT };
+        match with_timeout(timeout, self.tx.write_packet(packet)).await {
             Ok(Ok(())) => {
                 self.last_full = packet.len() == MAX_PACKET as usize;
+                self.host_stalled = false;
                 Ok(())
             }
             Ok(Err(EndpointError::Disabled)) => Err(LinkError::Disconnected),
             // write_packet never gets more than MAX_PACKET bytes from us.
             Ok(Err(EndpointError::BufferOverflow)) => Err(LinkError::Disconnected),
-            Err(_) => Err(LinkError::Timeout),
+            Err(_) => {
+                self.host_stalled = true;
+                Err(LinkError::Timeout)
+            }
         }
     }
 }
 
-impl embedded_io_async::ErrorType for UsbSerial {
+impl embedded_io_async::ErrorType for UsbRx {
     type Error = LinkError;
 }
 
-impl embedded_io_async::Read for UsbSerial {
+impl embedded_io_async::ErrorType for UsbTx {
+    type Error = LinkError;
+}
+
+impl embedded_io_async::Read for UsbRx {
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, LinkError> {
         if buf.is_empty() {
             return Ok(0);
@@ -167,13 +184,10 @@ impl embedded_io_async::Read for UsbSerial {
     }
 }
 
-impl embedded_io_async::Write for UsbSerial {
+impl embedded_io_async::Write for UsbTx {
     async fn write(&mut self, buf: &[u8]) -> Result<usize, LinkError> {
         if buf.is_empty() {
             return Ok(0);
-        }
-        if !self.connected() {
-            return Err(LinkError::Disconnected);
         }
         let n = buf.len().min(MAX_PACKET as usize);
         self.send(&buf[..n]).await?;
