@@ -18,7 +18,9 @@ pub struct Pipe {
     from_device: Arc<Mutex<Queue>>,
 }
 
-/// The device's end of the link.
+/// The device's end of the link (clone it to give the reader and the writer
+/// their own handle).
+#[derive(Clone)]
 pub struct PipeEnd {
     rx: Arc<Mutex<Queue>>,
     tx: Arc<Mutex<Queue>>,

@@ -4,6 +4,7 @@
 //! wire protocol defined once in `brdf_meter::protocol`.
 mod client;
 mod serial;
+pub mod sim;
 mod tcp;
 
 pub use client::{Client, Frame, LinkError, PointRecord, Reply};

@@ -1,0 +1,303 @@
+//! Host simulation of the instrument's application: the same tasks the
+//! firmware runs, on an embassy executor with mock time, an in-memory NOR
+//! flash and an in-memory link, driven by host-tools' own client.
+use brdf_meter::blob::{BlobView, CRC32};
+use brdf_meter::protocol::{
+    DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode, flags,
+};
+use brdf_meter::hw::SensorError;
+use brdf_meter::sim::{SimFlash, test_blob};
+use host_tools::link::sim::{SceneFrames, analytic_scene, expected_line};
+use host_tools::link::{Client, LinkError, PointRecord, Reply};
+use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
+
+const ZONES: usize = 4;
+
+fn flash() -> SimFlash {
+    SimFlash::new(2 * SLOT_LEN as usize)
+}
+
+fn client(flash: SimFlash, ram_zones: usize) -> Client<SimDevice> {
+    Client::new(SimDevice::boot(flash, ram_zones)).unwrap()
+}
+
+fn blob(seed: f32) -> Vec<u8> {
+    test_blob(N, M, ZONES, P, seed)
+}
+
+/// Checks that `points` (of `lines` lines) are bit-identical to the host's
+/// computation on the scene line each device line saw.
+fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines: usize) {
+    let view = BlobView::parse(blob).unwrap();
+    assert_eq!(points.len(), lines * P);
+    for (k, p) in points.iter().enumerate() {
+        let line = k / P;
+        let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
+        assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
+        assert_eq!((p.zone, p.flags), (want.0, want.1), "point {k}");
+        let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
+        let exp: Vec<u32> = want.2.iter().map(|x| x.to_bits()).collect();
+        assert_eq!(got, exp, "values of point {k} differ");
+    }
+}
+
+fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
+    match r {
+        Err(LinkError::Device(e)) => e,
+        other => panic!("expected a device error, got {other:?}"),
+    }
+}
+
+#[test]
+fn provisions_then_measures_bit_identically_and_survives_reboot() {
+    let fl = flash();
+    let mut c = client(fl.clone(), ZONES);
+    let info = c.info().unwrap();
+    assert_eq!((info.bins, info.leds, info.pixels, info.full_scale), (N as u16, M as u16, P as u16, FULL_SCALE));
+    assert_eq!(info.calibration, None);
+    assert!(info.simulated);
+    assert_eq!(device_error(c.measure(1)), DeviceError::NoCalibration);
+
+    let b = blob(1.0);
+    let mut acks = 0;
+    let cal = c.provision(&b, |_, _| acks += 1).unwrap();
+    assert_eq!(acks, b.len().div_ceil(MAX_CHUNK), "every chunk acknowledged");
+    assert_eq!((cal.slot, cal.sequence, cal.zones, cal.in_ram), (0, 1, ZONES as u16, true));
+    assert_eq!(cal.blob_crc, BlobView::parse(&b).unwrap().crc());
+
+    let view = BlobView::parse(&b).unwrap();
+    let scene = analytic_scene(&view, 2, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let pts = c.measure(3).unwrap();
+    check_points(&b, &scene, &pts, 3);
+    // The scene exercises several zones and non-trivial values.
+    assert!(pts.iter().map(|p| p.zone).max() == Some(ZONES as u16 - 1));
+    assert!(pts.iter().all(|p| p.flags == 0));
+    let st = c.status().unwrap();
+    assert_eq!((st.lines_total, st.measuring), (3, false));
+
+    // LEDs: per line, all off (dark), then the calibrated order, then off.
+    let sw = c.transport().scene.switches();
+    let order: Vec<Option<u8>> = view.led_order().iter().map(|&l| Some(l)).collect();
+    let mut one_line = vec![None];
+    one_line.extend(order);
+    one_line.push(None);
+    assert_eq!(sw, one_line.repeat(3));
+
+    // Power off and on: the calibration is found again.
+    drop(c);
+    let mut c = client(fl.reboot(), ZONES);
+    assert_eq!(c.info().unwrap().calibration, Some(cal));
+}
+
+#[test]
+fn matrices_larger_than_the_ram_budget_are_read_in_place() {
+    let mut c = client(flash(), 1);
+    let b = blob(2.0);
+    let cal = c.provision(&b, |_, _| {}).unwrap();
+    assert!(!cal.in_ram);
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 1, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let pts = c.measure(2).unwrap();
+    check_points(&b, &scene, &pts, 2);
+}
+
+#[test]
+fn bad_blobs_are_refused_and_the_previous_calibration_keeps_measuring() {
+    let mut c = client(flash(), ZONES);
+    let good = blob(3.0);
+    let cal = c.provision(&good, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&good).unwrap(), 1, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+
+    // 1. Corrupted in transit: the declared CRC is the original's.
+    let newer = blob(4.0);
+    let crc = CRC32.checksum(&newer);
+    let mut bad = newer.clone();
+    bad[1000] ^= 0x40;
+    let Response::ProvisionReady { .. } = c.request(&Request::ProvisionBegin { len: bad.len() as u32, crc }).unwrap()
+    else {
+        panic!()
+    };
+    for (k, ch) in bad.chunks(MAX_CHUNK).enumerate() {
+        c.request(&Request::ProvisionChunk { offset: (k * MAX_CHUNK) as u32, data: ch }).unwrap();
+    }
+    let e = device_error(c.request(&Request::ProvisionCommit));
+    assert_eq!(e, DeviceError::CrcMismatch { declared: crc, computed: CRC32.checksum(&bad) });
+
+    // 2. Corrupted before sending (CRC consistent with the bytes): the blob's
+    //    own CRC catches it.
+    let e = device_error(c.provision(&bad, |_, _| {}));
+    assert!(matches!(e, DeviceError::BlobRejected { .. }), "{e:?}");
+
+    // 3. A valid blob for another instrument (16 pixels).
+    let other = test_blob(N, M, 2, 16, 5.0);
+    let e = device_error(c.provision(&other, |_, _| {}));
+    assert_eq!(e, DeviceError::Mismatch { field: SizeField::Pixels, device: P as u16, blob: 16 });
+
+    // 4. Not a blob at all, and too large.
+    let e = device_error(c.provision(&[0x42; 300], |_, _| {}));
+    assert!(matches!(e, DeviceError::BlobRejected { .. }), "{e:?}");
+    let e = device_error(c.request(&Request::ProvisionBegin { len: SLOT_LEN, crc: 0 }));
+    assert_eq!(e, DeviceError::BlobTooLarge { len: SLOT_LEN, max: SLOT_LEN - 32 });
+
+    // Still the old calibration, still measuring with it, bit for bit.
+    assert_eq!(c.info().unwrap().calibration, Some(cal));
+    let pts = c.measure(1).unwrap();
+    check_points(&good, &scene, &pts, 1);
+    assert!(c.status().unwrap().refused >= 5);
+}
+
+#[test]
+fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
+    let mut c = client(flash(), ZONES);
+    let mut frame = [0u8; MAX_FRAME];
+
+    // Corrupted: a byte flipped inside an Info frame.
+    let n = encode(77, &Request::Info, &mut frame).unwrap();
+    let mut f = frame[..n].to_vec();
+    f[3] ^= 0x10;
+    if f[3] == 0 {
+        f[3] = 0x33;
+    }
+    c.send_raw(&f).unwrap();
+    let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+    assert!(
+        matches!(
+            r.reply,
+            Reply::Msg(Response::Error(DeviceError::Frame(
+                FrameError::BadCrc | FrameError::Cobs | FrameError::Truncated { .. }
+            )))
+        ),
+        "{r:?}"
+    );
+    // Corrupted in the CRC itself (last payload byte).
+    let n = encode(79, &Request::Info, &mut frame).unwrap();
+    let mut f = frame[..n].to_vec();
+    f[n - 2] = if f[n - 2] == 0x01 { 0x02 } else { 0x01 };
+    c.send_raw(&f).unwrap();
+    let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+    assert!(matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))), "{r:?}");
+
+    // Truncated: the last payload bytes lost (COBS still valid).
+    let n = encode(78, &Request::Measure { lines: 5 }, &mut frame).unwrap();
+    let mut raw = [0u8; MAX_FRAME];
+    let m = cobs::decode(&frame[..n - 1], &mut raw).unwrap();
+    let mut t = vec![0u8; MAX_FRAME];
+    let k = cobs::encode(&raw[..m - 3], &mut t);
+    t.truncate(k);
+    t.push(0);
+    c.send_raw(&t).unwrap();
+    let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+    assert_eq!(
+        r.reply,
+        Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Truncated { declared: m as u16, got: m as u16 - 3 })))
+    );
+
+    // Oversized: a flood of non-zero bytes.
+    c.send_raw(&vec![0x55u8; 3 * MAX_FRAME]).unwrap();
+    c.send_raw(&[0]).unwrap();
+    let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+    assert_eq!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Oversized))));
+
+    // Out of order: chunks, commit and chunk without begin.
+    let b = blob(6.0);
+    assert_eq!(device_error(c.request(&Request::ProvisionChunk { offset: 0, data: &b[..64] })), DeviceError::NotProvisioning);
+    assert_eq!(device_error(c.request(&Request::ProvisionCommit)), DeviceError::NotProvisioning);
+    c.request(&Request::ProvisionBegin { len: b.len() as u32, crc: CRC32.checksum(&b) }).unwrap();
+    c.request(&Request::ProvisionChunk { offset: 0, data: &b[..100] }).unwrap();
+    assert_eq!(
+        device_error(c.request(&Request::ProvisionChunk { offset: 200, data: &b[200..300] })),
+        DeviceError::OutOfOrder { expected: 100, got: 200 }
+    );
+    assert_eq!(
+        device_error(c.request(&Request::ProvisionCommit)),
+        DeviceError::Incomplete { received: 100, len: b.len() as u32 }
+    );
+    // Simulation requests out of range.
+    let px = [1u16; 4];
+    assert_eq!(
+        device_error(c.request(&Request::SimFrame { line: 99, frame: 0, first_pixel: 0, pixels: LeBytes::from_u16(&px) })),
+        DeviceError::Simulation
+    );
+    assert_eq!(device_error(c.request(&Request::SimLines { lines: 0 })), DeviceError::Simulation);
+
+    // And the device still serves, and provisions from scratch.
+    let st = c.status().unwrap();
+    assert_eq!(st.bad_frames, 4);
+    let cal = c.provision(&b, |_, _| {}).unwrap();
+    assert_eq!(c.info().unwrap().calibration, Some(cal));
+}
+
+#[test]
+fn continuous_measurement_refuses_provisioning_and_stops_on_request() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(7.0);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 3, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let seq = c.send(&Request::Measure { lines: 0 }).unwrap();
+    // Let a few lines stream.
+    let mut points = Vec::new();
+    while points.len() < 3 * P {
+        match c.next_frame(std::time::Duration::from_secs(1)).unwrap() {
+            f if f.seq != seq => panic!("unexpected frame {f:?}"),
+            f => {
+                if let Reply::Point(p) = f.reply {
+                    points.push(p)
+                }
+            }
+        }
+    }
+    let begin = Request::ProvisionBegin { len: b.len() as u32, crc: CRC32.checksum(&b) };
+    let s2 = c.send(&begin).unwrap();
+    let s3 = c.send(&Request::Measure { lines: 1 }).unwrap();
+    let s4 = c.send(&Request::Stop).unwrap();
+    let mut replies = Vec::new();
+    let done_lines = loop {
+        let f = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+        match f.reply {
+            Reply::Point(p) => points.push(p),
+            Reply::Msg(Response::MeasureDone { lines_done }) => break lines_done,
+            Reply::Msg(m) => replies.push((f.seq, m)),
+        }
+    };
+    assert_eq!(
+        replies,
+        vec![
+            (s2, Response::Error(DeviceError::Busy)),
+            (s3, Response::Error(DeviceError::Busy)),
+            (s4, Response::StopRequested)
+        ]
+    );
+    assert_eq!(points.len(), done_lines as usize * P, "whole lines only");
+    check_points(&b, &scene, &points, done_lines as usize);
+    assert!(!c.status().unwrap().measuring);
+}
+
+#[test]
+fn sensor_without_a_scene_reports_a_typed_error() {
+    let mut c = client(flash(), ZONES);
+    c.provision(&blob(8.0), |_, _| {}).unwrap();
+    assert_eq!(device_error(c.measure(2)), DeviceError::Sensor(SensorError::NoData));
+    // Still serving: status after the error.
+    assert!(!c.status().unwrap().measuring);
+}
+
+#[test]
+fn saturated_and_dark_points_are_flagged() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(9.0);
+    c.provision(&b, |_, _| {}).unwrap();
+    let view = BlobView::parse(&b).unwrap();
+    let mut scene = analytic_scene(&view, 1, FULL_SCALE);
+    scene[0][1][3] = FULL_SCALE; // LED 0 saturates pixel 3
+    for f in 1..=M {
+        scene[0][f][5] = scene[0][0][5] + 2; // pixel 5: barely above dark
+    }
+    c.load_scene(&scene).unwrap();
+    let pts = c.measure(1).unwrap();
+    check_points(&b, &scene, &pts, 1);
+    assert_eq!(pts[3].flags, flags::SATURATED);
+    assert_eq!(pts[5].flags, flags::UNDER_EXPOSED);
+}

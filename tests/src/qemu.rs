@@ -1,0 +1,1 @@
+//! Building and running the QEMU firmware (filled in with the QEMU tests).

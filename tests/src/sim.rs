@@ -1,0 +1,134 @@
+//! The host simulation of the firmware (see the crate docs).
+use brdf_meter::acquire::AcqConfig;
+use brdf_meter::app::{self, LineBuf, Shared};
+use brdf_meter::sim::{Pipe, SimFlash, SimLeds, SimScene, SimSensor, pipe, sim_optics};
+use embassy_executor::raw::{Executor, TaskStorage};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
+use embassy_sync::zerocopy_channel::Channel;
+use embassy_time::{Duration, MockDriver};
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+/// Angle bins of the simulated build (the QEMU build's sizes).
+pub const N: usize = 81;
+/// LEDs.
+pub const M: usize = 7;
+/// Pixels.
+pub const P: usize = 32;
+/// Frames per line (dark + LEDs).
+pub const F: usize = M + 1;
+/// Calibration slot length: 8 pages of 2 KiB.
+pub const SLOT_LEN: u32 = 16 * 1024;
+/// Sensor full scale (12-bit).
+pub const FULL_SCALE: u16 = 4095;
+
+/// The simulated device's shared state type.
+pub type Dev = Shared<SimFlash, N, M, P>;
+
+/// The pender of every simulated executor: its context is the executor's
+/// own "work pending" flag.
+#[unsafe(export_name = "__pender")]
+fn pender(context: *mut ()) {
+    // SAFETY: every executor here is created with a leaked AtomicBool as context.
+    let flag = unsafe { &*(context as *const AtomicBool) };
+    flag.store(true, Ordering::SeqCst);
+}
+
+/// Mock time is process-wide: one simulation runs at a time.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+/// A simulated instrument.
+pub struct SimDevice {
+    exec: &'static Executor,
+    pending: &'static AtomicBool,
+    host: Pipe,
+    inbox: VecDeque<u8>,
+    /// Scene input and LED log.
+    pub scene: SimScene<P, F>,
+    /// The application's shared state.
+    pub shared: &'static Dev,
+    /// The flash (shares memory with the device's).
+    pub flash: SimFlash,
+    _lock: MutexGuard<'static, ()>,
+}
+
+fn leak<T>(x: T) -> &'static mut T {
+    Box::leak(Box::new(x))
+}
+
+fn spawn<Fut: core::future::Future<Output = ()> + 'static>(exec: &'static Executor, fut: Fut) {
+    let storage: &'static TaskStorage<Fut> = leak(TaskStorage::new());
+    let token = storage.spawn(|| fut).expect("fresh task storage");
+    exec.spawner().spawn(token);
+}
+
+impl SimDevice {
+    /// Boots a device on `flash` with room for `ram_zones` matrices in RAM
+    /// (more zones are read in place from flash).
+    pub fn boot(flash: SimFlash, ram_zones: usize) -> Self {
+        let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+        MockDriver::get().reset();
+        let ram: &'static mut [[[f32; M]; N]] = Box::leak(vec![[[0.0f32; M]; N]; ram_zones].into_boxed_slice());
+        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) = sim_optics(FULL_SCALE);
+        let shared: &'static Dev =
+            leak(Shared::new(flash.clone(), SLOT_LEN, ram, AcqConfig::default(), FULL_SCALE, true));
+        let pending: &'static AtomicBool = leak(AtomicBool::new(false));
+        let exec: &'static Executor = leak(Executor::new(pending as *const AtomicBool as *mut ()));
+        let bufs: &'static mut [LineBuf<M, P>; 2] = leak([LineBuf::new(), LineBuf::new()]);
+        let chan: &'static mut Channel<'static, Cs, LineBuf<M, P>> = leak(Channel::new(bufs));
+        let (tx_lines, rx_lines) = chan.split();
+        let (host, dev_end) = pipe();
+        let scene_in = scene.clone();
+        spawn(exec, async move { app::transport(shared, dev_end.clone(), dev_end, scene_in).await });
+        spawn(exec, async move { app::acquisition(shared, leds, sensor, tx_lines).await });
+        spawn(exec, async move { app::estimation(shared, rx_lines).await });
+        let mut dev = Self { exec, pending, host, inbox: VecDeque::new(), scene, shared, flash, _lock: lock };
+        pending.store(true, Ordering::SeqCst);
+        dev.run_until_idle();
+        dev
+    }
+
+    /// Polls the executor until no task is ready.
+    pub fn run_until_idle(&mut self) {
+        while self.pending.swap(false, Ordering::SeqCst) {
+            // SAFETY: this thread is the executor's only poller, never reentrant.
+            unsafe { self.exec.poll() };
+        }
+        self.inbox.extend(self.host.drain());
+    }
+
+    /// Advances simulated time by `us` microseconds, then runs what woke.
+    pub fn advance_us(&mut self, us: u64) {
+        MockDriver::get().advance(Duration::from_micros(us));
+        self.run_until_idle();
+    }
+}
+
+/// Simulated time a `recv` waits before reporting nothing, in 100 us steps.
+const RECV_STEPS: usize = 200_000;
+
+impl host_tools::link::Transport for SimDevice {
+    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.host.send(bytes);
+        self.run_until_idle();
+        Ok(())
+    }
+
+    /// Runs the device, advancing simulated time while it is idle, until it
+    /// has sent something (or 20 simulated seconds have passed).
+    fn recv(&mut self, buf: &mut [u8], _timeout: std::time::Duration) -> std::io::Result<usize> {
+        for _ in 0..RECV_STEPS {
+            self.run_until_idle();
+            if !self.inbox.is_empty() {
+                let n = buf.len().min(self.inbox.len());
+                for (d, s) in buf.iter_mut().zip(self.inbox.drain(..n)) {
+                    *d = s;
+                }
+                return Ok(n);
+            }
+            self.advance_us(100);
+        }
+        Ok(0)
+    }
+}
