@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Firmware checks for CI (called by scripts/test-all.sh):
+#  1. every firmware binary (board-fw; qemu-fw when the package has it) builds
+#     for thumbv7em-none-eabihf in release with no warning at all;
+#  2. clippy is clean (-D warnings) for each of them, library included;
+#  3. a size report (flash and RAM per section) and the budget check: the
+#     image must fit the flash outside the calibration slots, a slot must hold
+#     the Z = 128 zones x 81 x 7 calibration, and the statics plus a stack
+#     reserve must fit RAM (host-tools firmware-budget; fails if over budget).
+# Warnings are checked from cargo's output (cargo replays cached warnings), not
+# with RUSTFLAGS, so nothing is rebuilt twice and the host builds are untouched.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+TARGET=thumbv7em-none-eabihf
+OUT="target/$TARGET/release"
+
+# bin:feature pairs; qemu-fw only if the package defines it.
+firmwares=("board-fw:board")
+if grep -q '^name = "qemu-fw"' Cargo.toml; then
+  firmwares+=("qemu-fw:qemu")
+fi
+
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+
+elfs=()
+for fw in "${firmwares[@]}"; do
+  bin=${fw%%:*}
+  feature=${fw##*:}
+  echo "[firmware] build $bin (release, --features $feature, $TARGET)"
+  if ! cargo build --release --target "$TARGET" --features "$feature" --bin "$bin" >"$log" 2>&1; then
+    cat "$log"
+    echo "[firmware] FAILED: $bin does not build" >&2
+    exit 1
+  fi
+  if grep -qE '^(warning|error)(\[|:)' "$log"; then
+    cat "$log"
+    echo "[firmware] FAILED: $bin builds with warnings (warnings are errors for firmware)" >&2
+    exit 1
+  fi
+  echo "[firmware] clippy $bin (-D warnings)"
+  if ! cargo clippy --release --target "$TARGET" --features "$feature" --bin "$bin" -- -D warnings >"$log" 2>&1; then
+    cat "$log"
+    echo "[firmware] FAILED: clippy is not clean for $bin" >&2
+    exit 1
+  fi
+  elfs+=("$OUT/$bin")
+done
+
+echo "[firmware] size report (arm-none-eabi-size -A -d)"
+for elf in "${elfs[@]}"; do
+  arm-none-eabi-size -A -d "$elf" | awk 'NR <= 2 || ($2 > 0 && $3 > 0)'
+  arm-none-eabi-size -B -d "$elf"
+done
+
+echo "[firmware] budget for the largest calibration (Z = 128 zones of 81 x 7)"
+cargo run --quiet --release -p host-tools -- firmware-budget "${elfs[@]}"
+echo "[firmware] ok: ${#elfs[@]} firmware image(s) built warning-free, clippy clean, within budget"
