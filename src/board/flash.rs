@@ -52,6 +52,20 @@ pub struct CalFlash {
     len: u32,
 }
 
+/// Resets the flash data cache (ART) so in-place reads see what was just
+/// erased or programmed: the flash driver does not, and a cached line of the
+/// old content would otherwise be read back (RM0351 3.3.x; ST's HAL flushes
+/// after erase for the same reason).
+fn flush_data_cache() {
+    let acr = embassy_stm32::pac::FLASH.acr();
+    if acr.read().dcen() {
+        acr.modify(|w| w.set_dcen(false));
+        acr.modify(|w| w.set_dcrst(true));
+        acr.modify(|w| w.set_dcrst(false));
+        acr.modify(|w| w.set_dcen(true));
+    }
+}
+
 impl CalFlash {
     /// Takes the flash controller. Panics if memory.x's slots are not two
     /// page-aligned, back-to-back regions (a build mistake, caught at boot).
@@ -119,7 +133,9 @@ impl NorFlash for CalFlash {
         }
         let mut page = from;
         while page < to {
-            self.flash.blocking_erase(self.base + page, self.base + page + PAGE)?;
+            let r = self.flash.blocking_erase(self.base + page, self.base + page + PAGE);
+            flush_data_cache();
+            r?;
             watchdog::progress();
             page += PAGE;
         }
@@ -132,7 +148,9 @@ impl NorFlash for CalFlash {
             return Err(Error::Unaligned);
         }
         for (k, chunk) in bytes.chunks(PAGE as usize).enumerate() {
-            self.flash.blocking_write(self.base + offset + (k as u32) * PAGE, chunk)?;
+            let r = self.flash.blocking_write(self.base + offset + (k as u32) * PAGE, chunk);
+            flush_data_cache();
+            r?;
             watchdog::progress();
         }
         Ok(())
