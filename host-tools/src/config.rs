@@ -119,7 +119,8 @@ fn locate(text: &str, path: &str) -> Option<usize> {
             Some(b) => (&seg[..b], seg[b + 1..].trim_end_matches(']').parse::<usize>().ok()),
             None => (seg, None),
         };
-        let (_, value) = table.iter().find(|(k, _)| k.get_ref().as_ref() == key)?;
+        // A missing key (e.g. a missing field) leaves the deepest parent found.
+        let Some((_, value)) = table.iter().find(|(k, _)| k.get_ref().as_ref() == key) else { break };
         found = Some(value.span().start);
         let mut v = value.get_ref();
         if let (Some(i), DeValue::Array(items)) = (idx, v) {

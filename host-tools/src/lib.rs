@@ -16,6 +16,7 @@ pub mod io;
 pub mod link;
 pub mod optics;
 pub mod prior;
+pub mod scene;
 pub mod reproduce;
 pub mod train;
 pub mod swd;

@@ -1,8 +1,8 @@
 //! The system matrix H and simulated readings.
-use super::{Instrument, rays};
+use super::{Instrument, Optics, RayModel, rays};
 use crate::brdf::Brdf;
 use crate::grid::AngleGrid;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Why the optics could not be modelled on a grid.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -19,8 +19,9 @@ pub enum OpticsError {
         /// Grid end.
         hi: f64,
     },
-    /// No light reaches the point (every source behind the surface).
-    #[error("illumination {led}: no light reaches the point (every source is behind the surface)")]
+    /// No light reaches the point (every source behind the surface, or an
+    /// emission profile that sends nothing towards it).
+    #[error("illumination {led}: no light reaches the point (every source is behind the surface or emits nothing towards it)")]
     NoLight {
         /// Illumination index.
         led: usize,
@@ -30,23 +31,45 @@ pub enum OpticsError {
 /// H (m x n): row i is illumination i's normalised ray distribution spread
 /// onto the grid by linear interpolation. Every row sums to 1.
 pub fn system_matrix(inst: &Instrument, grid: &AngleGrid, far_field: bool) -> Result<DMatrix<f64>, OpticsError> {
-    let mut h = DMatrix::zeros(inst.m(), grid.n());
-    for led in 0..inst.m() {
-        let rs = rays(inst, led, far_field);
-        if rs.is_empty() {
-            return Err(OpticsError::NoLight { led });
-        }
-        for r in rs {
-            let parts = grid.split(r.theta_deg).ok_or(OpticsError::RayOutsideGrid {
+    let optics = Optics::new(inst, RayModel::legacy(far_field));
+    system_matrix_at(&optics, grid, &Vector3::from(inst.point.position_cm))
+}
+
+/// H (m x n) at `point` (cm, instrument frame) for prepared optics: row i is
+/// LED i's rays spread onto the grid by linear interpolation, divided by the
+/// LED's total irradiance there (white-standard calibration), so every row
+/// sums to 1.
+pub fn system_matrix_at(optics: &Optics, grid: &AngleGrid, point: &Vector3<f64>) -> Result<DMatrix<f64>, OpticsError> {
+    let mut h = DMatrix::zeros(optics.m(), grid.n());
+    for led in 0..optics.m() {
+        let mut total = 0.0;
+        let mut outside = None;
+        optics.for_each_ray(led, point, |r| {
+            if r.weight <= 0.0 {
+                return;
+            }
+            match grid.split(r.theta_deg) {
+                Some(parts) => {
+                    for (j, f) in parts {
+                        h[(led, j)] += r.weight * f;
+                    }
+                    total += r.weight;
+                }
+                None => outside = outside.or(Some(r.theta_deg)),
+            }
+        });
+        if let Some(theta_deg) = outside {
+            return Err(OpticsError::RayOutsideGrid {
                 led,
-                theta_deg: r.theta_deg,
+                theta_deg,
                 lo: grid.bins_deg()[0],
                 hi: *grid.bins_deg().last().unwrap(),
-            })?;
-            for (j, f) in parts {
-                h[(led, j)] += r.weight * f;
-            }
+            });
         }
+        if !(total > 0.0) || !total.is_finite() {
+            return Err(OpticsError::NoLight { led });
+        }
+        h.row_mut(led).scale_mut(1.0 / total);
     }
     Ok(h)
 }
