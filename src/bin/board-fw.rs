@@ -69,7 +69,7 @@ async fn estimation(shared: &'static BoardShared, lines: Receiver<'static, Cs, L
 /// `board::watchdog`), and shows it on LED2.
 #[embassy_executor::task]
 async fn supervisor(shared: &'static BoardShared, mut led: embassy_stm32::gpio::Output<'static>) -> ! {
-    let mut health = board::watchdog::Health::default();
+    let mut health = board::health::Health::default();
     loop {
         let st = shared.status();
         if health.observe(Instant::now().as_millis(), st.measuring, st.lines_total) {

@@ -33,6 +33,7 @@
 //! the ADC runs from SYSCLK.
 
 pub mod flash;
+pub mod health;
 pub mod leds;
 pub mod sensor;
 pub mod usb;
