@@ -51,6 +51,14 @@ struct Inner {
     log: Mutex<Vec<FlashOp>>,
 }
 
+impl Drop for Inner {
+    fn drop(&mut self) {
+        // SAFETY: `mem` came from a leaked boxed slice of `len` bytes, and the
+        // last handle is going: see `SimFlash::mapped` on slices' lifetime.
+        unsafe { drop(Box::from_raw(core::ptr::slice_from_raw_parts_mut(self.mem, self.len))) }
+    }
+}
+
 // The memory is only touched through the store's contract (see MappedFlash):
 // writes never overlap a mapped slice in use. Tests share a flash between a
 // store and a checker on one thread at a time.
@@ -70,7 +78,7 @@ impl SimFlash {
     /// An erased flash of `len` bytes (a multiple of the page size).
     pub fn new(len: usize) -> Self {
         assert!(len % Self::PAGE == 0);
-        // Leaked on purpose: mapped slices are 'static, like real flash.
+        // Freed when the last handle goes (see `mapped`).
         let mem = Box::leak(vec![0xFFu8; len].into_boxed_slice()).as_mut_ptr();
         Self {
             inner: Arc::new(Inner {
@@ -198,8 +206,11 @@ impl NorFlash for SimFlash {
     }
 }
 
-// SAFETY: the memory is a leaked allocation (valid forever) changed only by
-// `erase`/`write` above, range by range.
+// SAFETY: the memory is changed only by `erase`/`write` above, range by
+// range. Unlike real flash it is freed with the last handle, so the 'static
+// slices must not outlive every handle: the store and a calibration hold a
+// handle (the store owns one) for as long as they use them, which is what the
+// tests do. Simulation only.
 unsafe impl MappedFlash for SimFlash {
     fn mapped(&self, offset: u32, len: usize) -> &'static [u8] {
         assert!(offset as usize + len <= self.inner.len, "mapped range outside the flash");

@@ -1,0 +1,124 @@
+//! Power cut during provisioning at every step of the flash mock (every byte
+//! written, every page erase): after each, boot must find a whole valid
+//! calibration, the old one or the new one, never a mix and never none.
+use brdf_meter::blob::{BlobView, CRC32};
+use brdf_meter::estimate::Calibration;
+use brdf_meter::sim::{SimFlash, test_blob};
+use brdf_meter::store::Store;
+use host_tools::link::Client;
+use host_tools::link::sim::{analytic_scene, expected_line};
+use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
+
+fn open(flash: SimFlash) -> Store<SimFlash> {
+    Store::open(flash, SLOT_LEN, |v| Calibration::<N, M, P>::check(v).is_ok())
+}
+
+/// Provisions `blob` through the store as the device does (chunks of 512).
+fn provision(st: &mut Store<SimFlash>, blob: &[u8]) -> Result<(), brdf_meter::protocol::DeviceError> {
+    st.begin(blob.len() as u32, CRC32.checksum(blob))?;
+    let mut off = 0;
+    for c in blob.chunks(512) {
+        off = st.write_chunk(off, c)?;
+    }
+    st.commit(|v| Calibration::<N, M, P>::check(v)).map(|_| ())
+}
+
+/// A flash holding the `olds`, provisioned in turn.
+fn image(olds: &[&[u8]]) -> SimFlash {
+    let f = SimFlash::new(2 * SLOT_LEN as usize);
+    let mut st = open(f.clone());
+    for b in olds {
+        provision(&mut st, b).unwrap();
+    }
+    f
+}
+
+/// Cuts the power at every step of provisioning `new` over `base`; checks what
+/// boot finds. Returns the number of cut points tried.
+fn cut_everywhere(base: &SimFlash, old: &[u8], new: &[u8]) -> usize {
+    // How many steps a whole provisioning takes.
+    let probe = base.reboot();
+    let before = probe.steps();
+    provision(&mut open(probe.clone()), new).unwrap();
+    let total = probe.steps() - before;
+    let (mut saw_old, mut saw_new) = (0, 0);
+    for cut in 0..=total {
+        let f = base.reboot();
+        f.cut_after(cut);
+        let r = provision(&mut open(f.clone()), new);
+        assert_eq!(r.is_ok(), cut == total, "cut at step {cut} of {total}: {r:?}");
+        let st = open(f.reboot());
+        let (_, view) = st.active_blob().unwrap_or_else(|| panic!("no calibration after a cut at step {cut}"));
+        let got = view.as_bytes();
+        if got == old {
+            saw_old += 1;
+        } else if got == new {
+            saw_new += 1;
+        } else {
+            panic!("cut at step {cut}: boot found a blob that is neither the old nor the new one");
+        }
+    }
+    // The new blob wins only once its header is whole: the last 32 steps are
+    // the header bytes, so only the final cut point (no cut) sees it.
+    assert_eq!(saw_new, 1, "the new blob must count only once completely written");
+    assert_eq!(saw_old, total);
+    total + 1
+}
+
+#[test]
+fn a_cut_at_any_step_leaves_the_old_or_the_new_calibration_whole() {
+    let a = test_blob(N, M, 4, P, 1.0);
+    let b = test_blob(N, M, 4, P, 2.0);
+    let c = test_blob(N, M, 3, P, 3.0);
+    // Target slot B, the active one A.
+    let tried = cut_everywhere(&image(&[&a]), &a, &b);
+    assert!(tried > a.len(), "every byte is a cut point ({tried})");
+    // Target slot A holding an older valid blob, the active one B.
+    cut_everywhere(&image(&[&a, &b]), &b, &c);
+}
+
+#[test]
+fn a_cut_provisioning_never_writes_the_active_slot() {
+    let a = test_blob(N, M, 4, P, 1.0);
+    let b = test_blob(N, M, 4, P, 2.0);
+    let base = image(&[&a]);
+    let f = base.reboot();
+    let before = f.log().len();
+    provision(&mut open(f.clone()), &b).unwrap();
+    for op in &f.log()[before..] {
+        let at = match *op {
+            brdf_meter::sim::FlashOp::Erase(o) | brdf_meter::sim::FlashOp::Write(o, _) => o,
+        };
+        assert!(at >= SLOT_LEN, "operation {op:?} touched the active slot A");
+    }
+}
+
+#[test]
+fn after_a_cut_the_application_boots_and_measures_with_the_surviving_calibration() {
+    let a = test_blob(N, M, 4, P, 1.0);
+    let b = test_blob(N, M, 4, P, 2.0);
+    let base = image(&[&a]);
+    let probe = base.reboot();
+    let s0 = probe.steps();
+    provision(&mut open(probe.clone()), &b).unwrap();
+    let total = probe.steps() - s0;
+    // A spread of cut points through the application (the store-level test
+    // above covers every one).
+    for cut in (0..=total).step_by(total / 7).chain([total - 1, total]) {
+        let f = base.reboot();
+        f.cut_after(cut);
+        let _ = provision(&mut open(f.clone()), &b);
+        let mut c = Client::new(SimDevice::boot(f.reboot(), 4)).unwrap();
+        let cal = c.info().unwrap().calibration.expect("a calibration survives");
+        let blob = if cal.blob_crc == BlobView::parse(&b).unwrap().crc() { &b } else { &a };
+        assert_eq!(cal.blob_crc, BlobView::parse(blob).unwrap().crc());
+        let view = BlobView::parse(blob).unwrap();
+        let scene = analytic_scene(&view, 1, FULL_SCALE);
+        c.load_scene(&scene).unwrap();
+        let pts = c.measure(1).unwrap();
+        let want = expected_line(&view, &scene[0], FULL_SCALE);
+        for (p, w) in pts.iter().zip(&want) {
+            assert_eq!(p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), w.2.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        }
+    }
+}
