@@ -87,6 +87,9 @@ async fn supervisor(shared: &'static BoardShared, mut led: embassy_stm32::gpio::
 async fn main(spawner: Spawner) {
     defmt::info!("board-fw {} starting", env!("CARGO_PKG_VERSION"));
     let (b, iwdg) = board::Board::init();
+    // From here a hang or a panic (panic-probe logs it, then faults) ends in
+    // a watchdog reset: the supervisor below is the only thing that feeds it.
+    board::watchdog::start(iwdg);
 
     static RAM: StaticCell<[[[f32; M]; N]; RAM_ZONES]> = StaticCell::new();
     let ram = RAM.init([[[0.0; M]; N]; RAM_ZONES]);
@@ -113,6 +116,5 @@ async fn main(spawner: Spawner) {
     spawner.spawn(transport(shared, b.usb.rx, b.usb.tx).expect("spawned once"));
     spawner.spawn(acquisition(shared, b.leds, b.sensor, lines_tx).expect("spawned once"));
     spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
-    board::watchdog::start(iwdg);
     spawner.spawn(supervisor(shared, b.status_led).expect("spawned once"));
 }

@@ -97,8 +97,9 @@ pub struct Board {
 
 impl Board {
     /// Brings up clocks and every peripheral the firmware uses. The watchdog
-    /// is started separately ([`watchdog::start`]) once the application is
-    /// about to run, so a slow init cannot reset-loop the board.
+    /// is handed back unstarted: the caller starts it ([`watchdog::start`])
+    /// right after, so clock start-up (the LSE crystal can take a second or
+    /// two) cannot reset-loop the board.
     pub fn init() -> (Self, Peri<'static, peripherals::IWDG>) {
         let p = embassy_stm32::init(config());
         let sysclk = embassy_stm32::rcc::clocks(&p.RCC).sys.to_hertz().map(|h: Hertz| h.0);
