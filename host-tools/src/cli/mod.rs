@@ -6,6 +6,7 @@ pub mod firmware_budget;
 pub mod provision_swd;
 
 pub mod reproduce;
+pub mod simulate;
 pub mod train;
 
 /// Host tools for the handheld gloss/BRDF meter.
@@ -28,6 +29,8 @@ pub enum Command {
     Reproduce(reproduce::Args),
     /// Train the estimator matrices (one per zone) and write the calibration blob.
     Train(train::Args),
+    /// Simulate a scene's readings (CSV, JSON and a plot), truth beside them.
+    Simulate(simulate::Args),
 }
 
 /// Runs one parsed command line.
@@ -37,5 +40,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::FirmwareBudget(a) => firmware_budget::run(a),
         Command::Reproduce(a) => reproduce::run(a),
         Command::Train(a) => train::run(a),
+        Command::Simulate(a) => simulate::run(a),
     }
 }

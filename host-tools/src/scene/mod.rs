@@ -230,6 +230,22 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// Incidence angle (degrees) of LED `led`'s centre ray at the point pixel
+    /// `px` sees: the nominal centre angle in far field (parallel light),
+    /// the direction to the LED's centre in near field.
+    pub fn led_incidence_deg(&self, led: usize, px: f64) -> f64 {
+        let inst = &self.instrument;
+        let three_d = self.has("3d-geometry");
+        let dir = if self.has("near-field") {
+            (inst.led_centre(led, three_d) - self.pixel_point(px)).normalize()
+        } else {
+            inst.led_direction(led, three_d)
+        };
+        (crate::optics::surface_frame(&inst.normal()) * dir).z.clamp(-1.0, 1.0).acos().to_degrees()
+    }
+}
+
 /// Point seen by pixel `p` (see [`Scene::pixel_point`]).
 pub(crate) fn geometry_point(inst: &Instrument, p: f64, per_pixel: bool, three_d: bool) -> Vector3<f64> {
     let c = Vector3::from(inst.point.position_cm);
