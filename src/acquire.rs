@@ -123,13 +123,13 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
     leds.set(None, 0).await;
     settle().await;
     let mut r = sensor.read_frame(cfg.exposure_us, &mut raw.dark).await;
-    for i in 0..M {
+    for (&led, lit) in order.iter().zip(raw.lit.iter_mut()) {
         if r.is_err() {
             break;
         }
-        leds.set(Some(order[i]), cfg.intensity).await;
+        leds.set(Some(led), cfg.intensity).await;
         settle().await;
-        r = sensor.read_frame(cfg.exposure_us, &mut raw.lit[i]).await;
+        r = sensor.read_frame(cfg.exposure_us, lit).await;
     }
     leds.set(None, 0).await;
     r

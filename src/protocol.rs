@@ -73,7 +73,7 @@ impl<'a> LeBytes<'a> {
     }
     /// Whether the length is a whole number of `size`-byte values.
     pub fn is_whole(&self, size: usize) -> bool {
-        self.0.len() % size == 0
+        self.0.len().is_multiple_of(size)
     }
 }
 

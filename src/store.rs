@@ -95,8 +95,8 @@ impl<F: MappedFlash> Store<F> {
     /// If `slot_len` is not a multiple of the erase size, the flash is smaller
     /// than two slots, or the write size is above 32 bytes (build-time errors).
     pub fn open(flash: F, slot_len: u32, mut accept: impl FnMut(&BlobView<'static>) -> bool) -> Self {
-        assert!(slot_len as usize % F::ERASE_SIZE == 0, "slot length must be whole erase pages");
-        assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN % F::WRITE_SIZE == 0);
+        assert!((slot_len as usize).is_multiple_of(F::ERASE_SIZE), "slot length must be whole erase pages");
+        assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN.is_multiple_of(F::WRITE_SIZE));
         assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
         let mut s = Self { flash, slot_len, active: None, session: None };
         let (a, b) = (s.scan(0), s.scan(1));

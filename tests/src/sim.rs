@@ -20,8 +20,8 @@ pub const P: usize = 32;
 pub const F: usize = M + 1;
 /// Calibration slot length: 8 pages of 2 KiB.
 pub const SLOT_LEN: u32 = 16 * 1024;
-/// Sensor full scale (12-bit).
-pub const FULL_SCALE: u16 = 4095;
+/// Sensor full scale (16-bit, as the QEMU build).
+pub const FULL_SCALE: u16 = u16::MAX;
 
 /// The simulated device's shared state type.
 pub type Dev = Shared<SimFlash, N, M, P>;

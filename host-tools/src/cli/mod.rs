@@ -3,6 +3,10 @@
 use clap::{Parser, Subcommand};
 
 pub mod firmware_budget;
+pub mod info;
+pub mod measure;
+pub mod provision;
+pub mod qemu;
 pub mod provision_swd;
 
 pub mod reproduce;
@@ -31,6 +35,14 @@ pub enum Command {
     Train(train::Args),
     /// Simulate a scene's readings (CSV, JSON and a plot), truth beside them.
     Simulate(simulate::Args),
+    /// Show a device's identity, sizes, calibration and status.
+    Info(info::Args),
+    /// Provision a calibration blob onto a device over its link.
+    Provision(provision::Args),
+    /// Measure lines on a device; write every point as CSV and JSON.
+    Measure(measure::Args),
+    /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
+    Qemu(qemu::Args),
 }
 
 /// Runs one parsed command line.
@@ -41,5 +53,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::run(a),
         Command::Train(a) => train::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Provision(a) => provision::run(a),
+        Command::Measure(a) => measure::run(a),
+        Command::Qemu(a) => qemu::run(a),
     }
 }

@@ -3,6 +3,7 @@
 //! as the host simulation's in-memory pipe) and the [`Client`] that speaks the
 //! wire protocol defined once in `brdf_meter::protocol`.
 mod client;
+pub mod qemu;
 mod serial;
 pub mod sim;
 mod tcp;

@@ -62,3 +62,45 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
         })
         .collect()
 }
+
+/// The patent-profile scene (host-tools' scene simulator) with a line sensor
+/// of `pixels` pixels: what the QEMU instrument simulates by default.
+pub fn patent_scene(pixels: usize) -> crate::scene::Scene {
+    let mut s = crate::scene::Scene::patent_profile();
+    s.instrument.sensor.pixels = pixels;
+    s
+}
+
+/// Trains a calibration for `scene` with host-tools' training: `zones` zones,
+/// each with the system matrix at its centre pixel, the scene's white
+/// reference, the patent prior and `noise_rel` relative noise (Wiener, eq. 22).
+pub fn train_for_scene(scene: &crate::scene::Scene, zones: usize, noise_rel: f64) -> anyhow::Result<crate::train::Trained> {
+    use anyhow::Context;
+    let inst = &scene.instrument;
+    let grid = inst.grid().context("the scene's angle grid")?;
+    let prior = crate::prior::PriorSpec::patent()
+        .build(&grid, inst.view_deg, std::path::Path::new("."))
+        .context("building the patent prior")?;
+    let centres = inst.centre_angles_deg();
+    let zones: Vec<crate::train::ZoneOptics> = crate::scene::zone_system_matrices(scene, zones)?
+        .into_iter()
+        .map(|z| crate::train::ZoneOptics { first_pixel: z.first_pixel, h: z.h, centres_deg: centres.clone() })
+        .collect();
+    let white = crate::scene::white_reference(scene).context("the scene's white reference")?;
+    crate::train::train(&crate::train::TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones,
+        pixels: inst.sensor.pixels,
+        prior: &prior,
+        noise_rel,
+        estimator: brdf_meter::blob::EstimatorKind::Wiener,
+        far_field: false,
+        led_order: None,
+        white: Some(white),
+    })
+}
+
+/// Raw frames of `lines` lines of `scene` from host-tools' scene simulator.
+pub fn scene_frames(scene: &crate::scene::Scene, lines: usize) -> anyhow::Result<SceneFrames> {
+    (0..lines as u64).map(|l| crate::scene::raw_frames(scene, l)).collect()
+}

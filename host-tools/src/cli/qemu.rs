@@ -1,0 +1,67 @@
+//! `host-tools qemu`: start the QEMU instrument for a person to play with.
+use crate::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
+use anyhow::Context;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Build the QEMU firmware and run it (QEMU machine b-l475e-iot01a) with its
+/// serial on 127.0.0.1:PORT; optionally provision a calibration trained for
+/// it and load a simulated scene, so `measure` works at once.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// TCP port of the instrument's serial (127.0.0.1).
+    #[arg(long, default_value_t = 4555)]
+    pub port: u16,
+    /// Firmware ELF to run instead of building it.
+    #[arg(long, value_name = "PATH")]
+    pub elf: Option<PathBuf>,
+    /// Train a 4-zone calibration for the QEMU instrument's simulated optics
+    /// (patent-profile scene), write it here, provision it and load the scene.
+    #[arg(long, value_name = "PATH")]
+    pub demo: Option<PathBuf>,
+    /// Stop QEMU after this many minutes.
+    #[arg(long, default_value_t = 60)]
+    pub minutes: u64,
+}
+
+/// Runs the command: returns when QEMU stops (time limit, or Ctrl-C).
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let elf = match a.elf {
+        Some(e) => e,
+        None => {
+            eprintln!("building the QEMU firmware ...");
+            build_firmware(&workspace_root()).context("building the QEMU firmware (or pass --elf)")?
+        }
+    };
+    let elf = if elf.is_file() { elf } else { firmware_path(&workspace_root()) };
+    let mut q = QemuInstrument::start(&elf, Some(a.port), Duration::from_secs(a.minutes * 60), &[])
+        .with_context(|| format!("starting QEMU with {} (is port {} free?)", elf.display(), a.port))?;
+    let addr = q.addr.clone();
+    if let Some(blob_path) = &a.demo {
+        let mut c = q.connect()?;
+        let info = c.info()?;
+        let scene = crate::link::sim::patent_scene(info.pixels as usize);
+        eprintln!("training a 4-zone calibration for the simulated optics ...");
+        let trained = crate::link::sim::train_for_scene(&scene, 4, 0.02)?;
+        crate::io::write_atomic(blob_path, &trained.blob)?;
+        let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
+        c.load_scene(&crate::link::sim::scene_frames(&scene, 4)?)?;
+        eprintln!(
+            "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line patent-profile scene",
+            blob_path.display(),
+            cal.blob_crc,
+            cal.zones
+        );
+    }
+    let blob = a.demo.as_ref().map_or("CAL.blob".into(), |p| p.display().to_string());
+    println!("QEMU instrument running: serial on tcp {addr}, for {} min (Ctrl-C stops it). Try:", a.minutes);
+    println!("  host-tools info --tcp {addr}");
+    if a.demo.is_none() {
+        println!("  host-tools train --pixels 32 --zones 4 --out {blob}    # or restart with --demo {blob}");
+        println!("  host-tools provision --tcp {addr} --blob {blob}");
+    }
+    println!("  host-tools measure --tcp {addr} --blob {blob} --lines 4 --scene patent --csv out/m.csv --json out/m.json");
+    let st = q.wait()?;
+    println!("QEMU stopped ({st}); {}", q.log_text().trim());
+    Ok(())
+}

@@ -1,0 +1,154 @@
+//! The QEMU instrument: building the QEMU firmware and running it under QEMU
+//! (machine b-l475e-iot01a) with its serial on a 127.0.0.1 TCP port.
+//!
+//! QEMU always runs under `timeout`, and [`QemuInstrument`] stops it when
+//! dropped, so a failing test or an interrupted command never leaves it behind.
+use super::{Client, TcpTransport};
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The workspace root (where the firmware is built).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools is a workspace member").to_path_buf()
+}
+
+/// Path of the QEMU firmware ELF that `cargo qemu-fw` builds.
+pub fn firmware_path(root: &Path) -> PathBuf {
+    let target = std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("target"));
+    target.join("thumbv7em-none-eabihf/firmware/qemu-fw")
+}
+
+/// Builds the QEMU firmware (`cargo qemu-fw`, the firmware profile) and
+/// returns its ELF.
+pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(root)
+        .args(["build", "--profile", "firmware", "--target", "thumbv7em-none-eabihf", "--features", "qemu", "--bin", "qemu-fw"])
+        // Host-side variables of an enclosing `cargo test` must not leak into the firmware build.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .context("running cargo to build the QEMU firmware")?;
+    if !status.success() {
+        bail!("building the QEMU firmware failed ({status}); is the target installed? (scripts/install-test-deps.sh)");
+    }
+    let elf = firmware_path(root);
+    if !elf.is_file() {
+        bail!("cargo built the firmware but {} is missing", elf.display());
+    }
+    Ok(elf)
+}
+
+/// A running QEMU instrument.
+pub struct QemuInstrument {
+    child: Option<Child>,
+    /// 127.0.0.1:PORT of its serial.
+    pub addr: String,
+    /// QEMU's stderr (semihosting output: firmware panics).
+    pub log: PathBuf,
+}
+
+fn free_port() -> std::io::Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+impl QemuInstrument {
+    /// Starts QEMU with `elf`, its serial on 127.0.0.1:`port` (a free port if
+    /// `None`), stopped after `max_run` at the latest; `extra` are more QEMU
+    /// arguments. Returns once the serial accepts connections.
+    pub fn start(elf: &Path, port: Option<u16>, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
+        let mut last_err = None;
+        for _ in 0..5 {
+            let port = match port {
+                Some(p) => p,
+                None => free_port().context("finding a free TCP port on 127.0.0.1")?,
+            };
+            match Self::try_start(elf, port, max_run, extra) {
+                Ok(q) => return Ok(q),
+                Err(e) => last_err = Some(e),
+            }
+        }
+        Err(last_err.expect("tried at least once"))
+    }
+
+    fn try_start(elf: &Path, port: u16, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
+        let log = elf.with_file_name(format!("qemu-{port}.log"));
+        let stderr = std::fs::File::create(&log).with_context(|| format!("creating {}", log.display()))?;
+        let child = Command::new("timeout")
+            .arg(format!("{}", max_run.as_secs().max(1)))
+            .args(["qemu-system-arm", "-machine", "b-l475e-iot01a", "-display", "none", "-monitor", "none"])
+            .arg("-serial")
+            .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
+            .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
+            .arg(elf)
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(stderr)
+            .spawn()
+            .context("starting qemu-system-arm under timeout (install it with scripts/install-test-deps.sh)")?;
+        let mut q = Self { child: Some(child), addr: format!("127.0.0.1:{port}"), log };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(st) = q.child.as_mut().and_then(|c| c.try_wait().ok().flatten()) {
+                q.child = None;
+                bail!("QEMU exited at start ({st}): {}", q.log_text());
+            }
+            if std::net::TcpStream::connect_timeout(&q.addr.parse()?, Duration::from_millis(200)).is_ok() {
+                return Ok(q);
+            }
+            if Instant::now() > deadline {
+                bail!("QEMU's serial on {} did not open within 10 s: {}", q.addr, q.log_text());
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// A protocol client on its serial.
+    pub fn connect(&self) -> anyhow::Result<Client<TcpTransport>> {
+        let t = TcpTransport::connect(&self.addr).with_context(|| format!("connecting to {}", self.addr))?;
+        Ok(Client::new(t)?)
+    }
+
+    /// What QEMU printed on stderr (firmware panics arrive there).
+    pub fn log_text(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// Whether QEMU is still running.
+    pub fn running(&mut self) -> bool {
+        matches!(self.child.as_mut().map(|c| c.try_wait()), Some(Ok(None)))
+    }
+
+    /// Waits for QEMU to end (its timeout, or the firmware exiting).
+    pub fn wait(&mut self) -> anyhow::Result<std::process::ExitStatus> {
+        let mut c = self.child.take().context("QEMU is not running")?;
+        Ok(c.wait()?)
+    }
+
+    /// Stops QEMU: SIGTERM to `timeout` (which passes it on to QEMU), then
+    /// SIGKILL if it lingers.
+    pub fn stop(&mut self) {
+        let Some(mut c) = self.child.take() else { return };
+        let _ = Command::new("kill").arg("-TERM").arg(c.id().to_string()).status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = c.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = c.kill();
+        let _ = c.wait();
+    }
+}
+
+impl Drop for QemuInstrument {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
