@@ -197,22 +197,8 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     let prior: Prior = cfg.prior.build(&grid, inst.view_deg, &cfg.prior_base).context("building the prior")?;
 
     // Truth and readings.
-    let truth = cfg.test.on_grid(&grid, inst.view_deg); // n x K
+    let (truth, noisy) = test_data(cfg, &grid);
     let k = truth.ncols();
-    let clean: Vec<DVector<f64>> = cfg.test.brdfs.iter().map(|b| simulate_readings(inst, b.as_ref(), false)).collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let noisy: Vec<Vec<f64>> = clean
-        .iter()
-        .map(|v| {
-            v.iter()
-                .map(|x| {
-                    let sd = cfg.noise_rel * x.abs();
-                    let e = if sd > 0.0 { Normal::new(0.0, sd).expect("finite sd").sample(&mut rng) } else { 0.0 };
-                    (x + e).max(0.0)
-                })
-                .collect()
-        })
-        .collect();
     let rms_true = (truth.norm_squared() / (n * k) as f64).sqrt();
 
     // Linear estimators.
@@ -347,6 +333,56 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
         wiener: wiener.summary,
         f32_rel_error,
     })
+}
+
+/// The test set on the grid (n x K truth) and its simulated noisy readings
+/// (K x m): the continuous BRDF at every ray's exact direction, plus seeded
+/// noise `N(0, (noise_rel v_i)^2)`, clamped at 0.
+pub fn test_data(cfg: &Config, grid: &crate::grid::AngleGrid) -> (DMatrix<f64>, Vec<Vec<f64>>) {
+    let inst = &cfg.instrument;
+    let truth = cfg.test.on_grid(grid, inst.view_deg);
+    let clean: Vec<DVector<f64>> = cfg.test.brdfs.iter().map(|b| simulate_readings(inst, b.as_ref(), false)).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let noisy = clean
+        .iter()
+        .map(|v| {
+            v.iter()
+                .map(|x| {
+                    let sd = cfg.noise_rel * x.abs();
+                    let e = if sd > 0.0 { Normal::new(0.0, sd).expect("finite sd").sample(&mut rng) } else { 0.0 };
+                    (x + e).max(0.0)
+                })
+                .collect()
+        })
+        .collect();
+    (truth, noisy)
+}
+
+/// The fitting problem of the experiment as JSON, for an external fitter
+/// (`scripts/fit_scipy.py`): per condition the rays of each reading as
+/// `[weight, weight / (4 sqrt(cos_i cos_o)), tan^2 delta]`, the noisy
+/// readings, the truth on the grid and the fit's bounds.
+pub fn fit_problem_json(cfg: &Config) -> anyhow::Result<serde_json::Value> {
+    let inst = &cfg.instrument;
+    let grid = inst.grid().context("the instrument's angle grid")?;
+    let (truth, noisy) = test_data(cfg, &grid);
+    let cos_o = inst.view_deg.to_radians().cos();
+    Ok(serde_json::json!({
+        "bins_deg": grid.bins_deg(),
+        "view_deg": inst.view_deg,
+        "cos_o": cos_o,
+        "readings": noisy,
+        "truth": truth.column_iter().map(|c| c.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
+        "rays": {
+            "fit-no-distribution": ForwardModel::far_field(inst).terms(),
+            "fit-distribution": ForwardModel::near_field(inst).terms(),
+        },
+        "bounds": { "lo": cfg.fit.bounds.lo, "hi": cfg.fit.bounds.hi },
+        "alpha_grid": cfg.fit.alpha_grid,
+        "starts": cfg.fit.starts,
+        "noise_rel": cfg.noise_rel,
+        "seed": cfg.seed,
+    }))
 }
 
 fn errors(est: &DMatrix<f64>, truth: &DMatrix<f64>) -> (f64, f64) {

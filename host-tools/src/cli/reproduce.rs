@@ -21,6 +21,10 @@ pub struct Args {
     /// Prior description (TOML); default: the patent's Table 5.
     #[arg(long, value_name = "PATH")]
     pub prior: Option<PathBuf>,
+    /// Also write the fitting problem (rays, noisy readings, truth) as JSON
+    /// here, for `scripts/fit_scipy.py`.
+    #[arg(long, value_name = "PATH")]
+    pub dump_fit_problem: Option<PathBuf>,
     /// Full runs of each fit for timing (median reported).
     #[arg(long, default_value_t = 3)]
     pub fit_runs: usize,
@@ -45,6 +49,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let report = run_experiment(&cfg).context("running the reproduction")?;
     print!("{}", format_table(&report));
+    if let Some(p) = &a.dump_fit_problem {
+        let v = crate::reproduce::fit_problem_json(&cfg)?;
+        crate::io::write_json(p, &v).with_context(|| format!("writing {}", p.display()))?;
+        println!("wrote {}", p.display());
+    }
     if let Some(p) = &a.json {
         write_json(p, &report).with_context(|| format!("writing {}", p.display()))?;
         println!("wrote {}", p.display());

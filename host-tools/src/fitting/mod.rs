@@ -185,6 +185,12 @@ impl ForwardModel {
         Self { readings: readings.iter().map(|r| r.iter().map(|(d, w)| ray_term(d, wo, *w)).collect()).collect() }
     }
 
+    /// The rays of each reading as `[weight, weight / (4 sqrt(cos_i cos_o)), tan^2 delta]`
+    /// (for external fitters and inspection).
+    pub fn terms(&self) -> Vec<Vec<[f64; 3]>> {
+        self.readings.iter().map(|rs| rs.iter().map(|t| [t.weight, t.wc, t.tan2]).collect()).collect()
+    }
+
     /// Number of readings m.
     pub fn m(&self) -> usize {
         self.readings.len()
