@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Firmware checks for CI (called by scripts/test-all.sh):
 #  1. every firmware binary (board-fw; qemu-fw when the package has it) builds
-#     for thumbv7em-none-eabihf in release with no warning at all;
+#     for thumbv7em-none-eabihf with no warning at all: board-fw in release,
+#     qemu-fw in the firmware profile (release + fat LTO) its QEMU tests use,
+#     so the test run builds it once;
 #  2. clippy is clean (-D warnings) for each of them, library included;
 #  3. a size report (flash and RAM per section) and the budget check: the
 #     image must fit the flash outside the calibration slots, a slot must hold
@@ -13,12 +15,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 TARGET=thumbv7em-none-eabihf
-OUT="target/$TARGET/release"
 
-# bin:feature pairs; qemu-fw only if the package defines it.
-firmwares=("board-fw:board")
+# bin:feature:profile; qemu-fw only if the package defines it.
+firmwares=("board-fw:board:release")
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
-  firmwares+=("qemu-fw:qemu")
+  firmwares+=("qemu-fw:qemu:firmware")
 fi
 
 log=$(mktemp)
@@ -26,10 +27,9 @@ trap 'rm -f "$log"' EXIT
 
 elfs=()
 for fw in "${firmwares[@]}"; do
-  bin=${fw%%:*}
-  feature=${fw##*:}
-  echo "[firmware] build $bin (release, --features $feature, $TARGET)"
-  if ! cargo build --release --target "$TARGET" --features "$feature" --bin "$bin" >"$log" 2>&1; then
+  IFS=: read -r bin feature profile <<<"$fw"
+  echo "[firmware] build $bin (--profile $profile, --features $feature, $TARGET)"
+  if ! cargo build --profile "$profile" --target "$TARGET" --features "$feature" --bin "$bin" >"$log" 2>&1; then
     cat "$log"
     echo "[firmware] FAILED: $bin does not build" >&2
     exit 1
@@ -45,7 +45,7 @@ for fw in "${firmwares[@]}"; do
     echo "[firmware] FAILED: clippy is not clean for $bin" >&2
     exit 1
   fi
-  elfs+=("$OUT/$bin")
+  elfs+=("target/$TARGET/$profile/$bin")
 done
 
 echo "[firmware] size report (arm-none-eabi-size -A -d)"
