@@ -48,6 +48,23 @@ for fw in "${firmwares[@]}"; do
   elfs+=("target/$TARGET/$profile/$bin")
 done
 
+# The board image must carry its logger (RTT control block) and find the
+# calibration slots through memory.x's symbols at the addresses memory.x gives.
+board_elf="target/$TARGET/release/board-fw"
+syms=$(arm-none-eabi-nm "$board_elf")
+for want in "D _SEGGER_RTT" "A __cal_slot_a_start" "A __cal_slot_b_start"; do
+  if ! grep -q " $want\$" <<<"$syms"; then
+    echo "[firmware] FAILED: board-fw has no symbol '$want'" >&2
+    exit 1
+  fi
+done
+slot_a=$(awk '$3 == "__cal_slot_a_start" {print $1}' <<<"$syms")
+slot_a_x=$(sed -n 's/^ *CAL_SLOT_A *: *ORIGIN *= *0x\([0-9A-Fa-f]*\).*/\1/p' memory.x)
+if [ "$((16#$slot_a))" -ne "$((16#$slot_a_x))" ]; then
+  echo "[firmware] FAILED: board-fw's slot A at 0x$slot_a, memory.x says 0x$slot_a_x" >&2
+  exit 1
+fi
+
 echo "[firmware] size report (arm-none-eabi-size -A -d)"
 for elf in "${elfs[@]}"; do
   arm-none-eabi-size -A -d "$elf" | awk 'NR <= 2 || ($2 > 0 && $3 > 0)'
