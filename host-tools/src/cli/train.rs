@@ -65,6 +65,13 @@ pub struct Args {
     /// Model the optics far-field (every LED a single ray at its centre angle).
     #[arg(long)]
     pub far_field: bool,
+    /// Scene file (TOML): the instrument, its optics (exactly the geometric
+    /// effects the scene lists) and its sensor. H is computed per zone at
+    /// each zone's centre pixel and the blob gets the scene's white
+    /// reference; the scene's P replaces --pixels. Never uses the scene's
+    /// surface or noise draw.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["instrument", "far_field"])]
+    pub scene: Option<PathBuf>,
 }
 
 /// Runs the command. Nothing is written unless training succeeds.
@@ -72,9 +79,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if !a.noise.is_finite() || !(0.0..1.0).contains(&a.noise) {
         anyhow::bail!("--noise {}: must be a relative level in [0, 1) (0.02 is 2 %)", a.noise);
     }
-    let inst: Instrument = match &a.instrument {
-        Some(p) => crate::config::load_toml(p)?,
-        None => Instrument::patent_profile(),
+    let scene = match &a.scene {
+        Some(p) => Some(crate::scene::Scene::load(p)?),
+        None => None,
+    };
+    let inst: Instrument = match (&scene, &a.instrument) {
+        (Some(s), _) => s.instrument.clone(),
+        (None, Some(p)) => crate::config::load_toml(p)?,
+        (None, None) => Instrument::patent_profile(),
     };
     let grid = inst.grid().context("the instrument's angle grid")?;
     let (spec, base) = if a.prior == "patent" {
@@ -89,17 +101,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
-    let zones = uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?;
+    let (zones, pixels, white, far_field) = match &scene {
+        Some(s) => {
+            let t = crate::scene::training_optics(s, a.zones).context("--zones with --scene")?;
+            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
+        }
+        None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
+    };
     let trained = train(&TrainSpec {
         bins_deg: grid.bins_deg(),
         zones,
-        pixels: a.pixels,
+        pixels,
         prior: &prior,
         noise_rel: a.noise,
         estimator: a.estimator.into(),
-        far_field: a.far_field,
+        far_field,
         led_order: None,
-        white: None,
+        white,
     })?;
     // Everything is computed; serialise before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());

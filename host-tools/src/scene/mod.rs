@@ -321,6 +321,33 @@ pub fn zone_system_matrices(scene: &Scene, zones: usize) -> anyhow::Result<Vec<Z
     Ok(out)
 }
 
+/// What training takes from a scene: the optics per zone, the sensor's
+/// pixel count and the white reference for the blob.
+#[derive(Clone, Debug)]
+pub struct TrainingOptics {
+    /// One entry per zone: first pixel, H at the zone's centre, and each
+    /// LED's centre-ray incidence there.
+    pub zones: Vec<crate::train::ZoneOptics>,
+    /// Pixels P.
+    pub pixels: usize,
+    /// White reference, `p * m + i` (see [`white_reference`]).
+    pub white: Vec<f32>,
+}
+
+/// The optics of `zones` zones of the scene, for `train` (no noise draw, no
+/// surface, no truth).
+pub fn training_optics(scene: &Scene, zones: usize) -> anyhow::Result<TrainingOptics> {
+    let zs = zone_system_matrices(scene, zones)?
+        .into_iter()
+        .map(|z| crate::train::ZoneOptics {
+            first_pixel: z.first_pixel,
+            centres_deg: (0..scene.instrument.m()).map(|k| scene.led_incidence_deg(k, z.centre_pixel)).collect(),
+            h: z.h,
+        })
+        .collect();
+    Ok(TrainingOptics { zones: zs, pixels: scene.instrument.pixels(), white: white_reference(scene)? })
+}
+
 /// The blob's white reference: for every pixel p and LED i (physical order),
 /// the dark-corrected, noise-free, drift-free reading of a perfect diffuser
 /// through the scene's whole pipeline, at index `p * m + i`.
@@ -336,6 +363,24 @@ pub fn white_reference(scene: &Scene) -> anyhow::Result<Vec<f32>> {
 /// the scene to model the converter itself.
 pub fn raw_frames(scene: &Scene, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
     Ok(Simulator::new(scene)?.raw_frames(line))
+}
+
+/// Time to simulate one line of `scene` from scratch (preparing the rays and
+/// the white reference included), the fastest of repeated runs over about
+/// `seconds` of wall time (the minimum is the least disturbed by the machine).
+pub fn time_simulation(scene: &Scene, seconds: f64) -> anyhow::Result<std::time::Duration> {
+    use std::time::{Duration, Instant};
+    let start = Instant::now();
+    let mut best = Duration::MAX;
+    let mut runs = 0u32;
+    while runs < 3 || (start.elapsed().as_secs_f64() < seconds && runs < 1_000_000) {
+        let t = Instant::now();
+        let sim = Simulator::new(scene)?;
+        std::hint::black_box(sim.simulate_line(0, pipeline::Mode::Full));
+        best = best.min(t.elapsed());
+        runs += 1;
+    }
+    Ok(best)
 }
 
 #[cfg(test)]
