@@ -149,3 +149,58 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(dir: &Path) -> Args {
+        Args {
+            out: dir.join("out/cal.blob"),
+            json: Some(dir.join("out/cal.json")),
+            zones: 2,
+            pixels: 16,
+            noise: 0.02,
+            estimator: Estimator::Wiener,
+            prior: "patent".into(),
+            instrument: None,
+            far_field: false,
+            scene: None,
+        }
+    }
+
+    #[test]
+    fn writes_a_parsable_blob_and_the_inspection_json() {
+        let dir = tempfile::tempdir().unwrap();
+        run(args(dir.path())).unwrap();
+        let blob = std::fs::read(dir.path().join("out/cal.blob")).unwrap();
+        let v = BlobView::parse(&blob).unwrap();
+        assert_eq!((v.dims().zones, v.dims().pixels), (2, 16));
+        let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("out/cal.json")).unwrap()).unwrap();
+        assert_eq!(j["W"].as_array().unwrap().len(), 81);
+        assert_eq!(j["zones"].as_array().unwrap().len(), 2);
+    }
+
+    #[test]
+    fn failures_name_the_problem_and_write_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("prior.toml");
+        std::fs::write(&bad, "[[ward_grid]]\nrho_d = [0.5]\nalpha = [\"x\"]\n").unwrap();
+        let csv = dir.path().join("m.csv");
+        std::fs::write(&csv, "20,1.0\n30,oops\n").unwrap();
+        let cases: Vec<(Box<dyn Fn(&mut Args)>, &str)> = vec![
+            (Box::new(|a: &mut Args| a.prior = bad.display().to_string()), "prior.toml:3"),
+            (Box::new(|a: &mut Args| a.prior = csv.display().to_string()), "m.csv:2"),
+            (Box::new(|a: &mut Args| a.noise = -0.1), "--noise"),
+            (Box::new(|a: &mut Args| a.zones = 17), "zones = 17"),
+            (Box::new(|a: &mut Args| a.estimator = Estimator::Inverse), "square"),
+        ];
+        for (edit, want) in cases {
+            let mut a = args(dir.path());
+            edit(&mut a);
+            let e = format!("{:#}", run(a).unwrap_err());
+            assert!(e.contains(want), "{e:?} should mention {want:?}");
+            assert!(!dir.path().join("out").exists(), "output written despite: {e}");
+        }
+    }
+}
