@@ -341,7 +341,7 @@ pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use brdf_meter::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
     use brdf_meter::hw::MappedFlash;

@@ -64,3 +64,56 @@ pub fn run(args: Args) -> Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cli::{Cli, Command};
+    use clap::Parser;
+
+    #[test]
+    fn the_command_line_parses_and_refuses_unknown_slots() {
+        let cli = Cli::try_parse_from(["host-tools", "provision-swd", "cal.blob", "--slot", "b", "--probe", "0483:374b"]).unwrap();
+        let Command::ProvisionSwd(a) = cli.command else { panic!("wrong subcommand") };
+        assert_eq!(a.slot.as_deref(), Some("b"));
+        assert_eq!(a.chip, "STM32L475VGTx");
+        assert_eq!(a.probe_rs, PathBuf::from("probe-rs"));
+        assert!(Cli::try_parse_from(["host-tools", "provision-swd", "cal.blob", "--slot", "c"]).is_err());
+    }
+
+    #[test]
+    fn image_out_writes_the_slot_image_and_touches_no_device() {
+        let dir = tempfile::tempdir().unwrap();
+        let blob = crate::swd::tests::test_blob(4.0);
+        let blob_path = dir.path().join("cal.blob");
+        std::fs::write(&blob_path, &blob).unwrap();
+        let out = dir.path().join("slot.bin");
+        run(Args {
+            blob: blob_path.clone(),
+            slot: None,
+            // A probe-rs that cannot run: --image-out must not need one.
+            probe_rs: dir.path().join("no-probe-rs"),
+            chip: swd::CHIP.into(),
+            probe: None,
+            image_out: Some(out.clone()),
+        })
+        .unwrap();
+        let image = std::fs::read(&out).unwrap();
+        assert_eq!(image, swd::slot_image(1, &blob, SlotMap::board().slot_len()).unwrap());
+        // A corrupted blob is refused and no image is written.
+        let mut bad = blob;
+        bad[100] ^= 0xFF;
+        std::fs::write(&blob_path, &bad).unwrap();
+        let out2 = dir.path().join("slot2.bin");
+        let r = run(Args {
+            blob: blob_path,
+            slot: None,
+            probe_rs: dir.path().join("no-probe-rs"),
+            chip: swd::CHIP.into(),
+            probe: None,
+            image_out: Some(out2.clone()),
+        });
+        assert!(r.is_err());
+        assert!(!out2.exists());
+    }
+}
