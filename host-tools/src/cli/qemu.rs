@@ -22,6 +22,13 @@ pub struct Args {
     /// Stop QEMU after this many minutes.
     #[arg(long, default_value_t = 60)]
     pub minutes: u64,
+    /// Extra QEMU argument (repeatable), e.g. tracing for scripts/qemu-icount.sh.
+    #[arg(long = "qemu-arg", value_name = "ARG", allow_hyphen_values = true)]
+    pub qemu_args: Vec<String>,
+    /// Scripted run: after --demo, measure this many lines, print a summary
+    /// and stop QEMU instead of waiting.
+    #[arg(long, value_name = "LINES", requires = "demo")]
+    pub measure_and_exit: Option<u32>,
 }
 
 /// Runs the command: returns when QEMU stops (time limit, or Ctrl-C).
@@ -34,7 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let elf = if elf.is_file() { elf } else { firmware_path(&workspace_root()) };
-    let mut q = QemuInstrument::start(&elf, Some(a.port), Duration::from_secs(a.minutes * 60), &[])
+    let mut q = QemuInstrument::start(&elf, Some(a.port), Duration::from_secs(a.minutes * 60), &a.qemu_args)
         .with_context(|| format!("starting QEMU with {} (is port {} free?)", elf.display(), a.port))?;
     let addr = q.addr.clone();
     if let Some(blob_path) = &a.demo {
@@ -52,6 +59,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             cal.blob_crc,
             cal.zones
         );
+        if let Some(lines) = a.measure_and_exit {
+            c.timeout = Duration::from_secs(600);
+            let pts = c.measure(lines).context("measuring")?;
+            let d = brdf_meter::blob::BlobView::parse(&trained.blob).expect("trained blobs parse").dims();
+            println!("measured {lines} lines: {} points, {} multiply-accumulates", pts.len(), pts.len() * d.n * d.m);
+            q.stop();
+            return Ok(());
+        }
     }
     let blob = a.demo.as_ref().map_or("CAL.blob".into(), |p| p.display().to_string());
     println!("QEMU instrument running: serial on tcp {addr}, for {} min (Ctrl-C stops it). Try:", a.minutes);

@@ -164,6 +164,26 @@ impl<T: Transport> Client<T> {
         self.reply_to(seq)
     }
 
+    /// Waits until the device answers `Info`, asking again every 250 ms (bytes
+    /// sent before a device's UART is enabled are lost, as QEMU's USART drops
+    /// them), for at most `total`.
+    pub fn wait_ready(&mut self, total: Duration) -> Result<DeviceInfo, LinkError> {
+        let saved = self.timeout;
+        let deadline = Instant::now() + total;
+        self.timeout = Duration::from_millis(250);
+        let r = loop {
+            match self.info() {
+                Err(LinkError::Timeout(..)) if Instant::now() < deadline => {
+                    self.t.send(&[0])?;
+                }
+                Err(LinkError::Timeout(..)) => break Err(LinkError::Timeout(total, "the device to answer Info")),
+                other => break other,
+            }
+        };
+        self.timeout = saved;
+        r
+    }
+
     /// Device identity and sizes.
     pub fn info(&mut self) -> Result<DeviceInfo, LinkError> {
         match self.request(&Request::Info)? {

@@ -78,7 +78,10 @@ impl QemuInstrument {
     fn try_start(elf: &Path, port: u16, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
         let log = elf.with_file_name(format!("qemu-{port}.log"));
         let stderr = std::fs::File::create(&log).with_context(|| format!("creating {}", log.display()))?;
+        // --foreground: QEMU stays in our process group, so a Ctrl-C of
+        // `host-tools qemu` reaches it too; `timeout` still ends it in time.
         let child = Command::new("timeout")
+            .arg("--foreground")
             .arg(format!("{}", max_run.as_secs().max(1)))
             .args(["qemu-system-arm", "-machine", "b-l475e-iot01a", "-display", "none", "-monitor", "none"])
             .arg("-serial")
@@ -108,10 +111,13 @@ impl QemuInstrument {
         }
     }
 
-    /// A protocol client on its serial.
+    /// A protocol client on its serial, once the firmware answers.
     pub fn connect(&self) -> anyhow::Result<Client<TcpTransport>> {
         let t = TcpTransport::connect(&self.addr).with_context(|| format!("connecting to {}", self.addr))?;
-        Ok(Client::new(t)?)
+        let mut c = Client::new(t)?;
+        c.wait_ready(Duration::from_secs(20))
+            .with_context(|| format!("the QEMU firmware did not answer: {}", self.log_text()))?;
+        Ok(c)
     }
 
     /// What QEMU printed on stderr (firmware panics arrive there).

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Counts, exactly, the instructions the estimation kernel executes per point on
+# the Cortex-M4F in QEMU, and reports instructions per multiply-accumulate.
+#
+# How: QEMU runs the QEMU firmware with one instruction per translation block
+# and logs every block executed (-d exec,nochain); each log line names the
+# function the instruction belongs to (QEMU reads the ELF's symbols), so the
+# lines in `estimate_point` (the kernel's one non-inlined symbol, n x m MACs
+# per call) are the kernel's executed instructions. The firmware is driven by
+# `host-tools qemu --demo ... --measure-and-exit LINES` (train, provision,
+# load a scene, measure), and the count is divided by the points measured.
+#
+#   scripts/qemu-icount.sh [LINES]     (default 1 line = 32 points)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+lines=${1:-1}
+cargo qemu-fw >&2
+cargo build --release -p host-tools >&2
+elf=target/thumbv7em-none-eabihf/firmware/qemu-fw
+sym=$(arm-none-eabi-nm -S "$elf" | awk '/estimate_point/ {print $4}')
+[ -n "$sym" ] || { echo "icount: no estimate_point symbol in $elf" >&2; exit 1; }
+read -r start size < <(arm-none-eabi-nm -S "$elf" | awk '/estimate_point/ {print $1, $2}')
+echo "icount: kernel symbol $sym at 0x$start, $((16#$size)) bytes" >&2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkfifo "$work/trace"
+grep -c -F " $sym" "$work/trace" > "$work/count" &
+counter=$!
+out=$(./target/release/host-tools qemu --elf "$elf" --port "${QEMU_PORT:-4571}" --minutes 20 \
+  --demo "$work/demo.blob" --measure-and-exit "$lines" \
+  --qemu-arg=-accel --qemu-arg=tcg,one-insn-per-tb=on \
+  --qemu-arg=-d --qemu-arg=exec,nochain --qemu-arg=-D --qemu-arg="$work/trace")
+wait "$counter" || true
+echo "$out" >&2
+points=$(echo "$out" | sed -n 's/^measured .*: \([0-9]*\) points, \([0-9]*\) multiply-accumulates$/\1/p')
+macs=$(echo "$out" | sed -n 's/^measured .*: \([0-9]*\) points, \([0-9]*\) multiply-accumulates$/\2/p')
+count=$(cat "$work/count")
+[ -n "$points" ] && [ "$points" -gt 0 ] || { echo "icount: the measurement did not complete" >&2; exit 1; }
+echo "kernel instructions: $count for $points points ($macs MACs)"
+awk -v c="$count" -v p="$points" -v m="$macs" 'BEGIN { printf "per point: %.1f instructions; per multiply-accumulate: %.3f\n", c / p, c / m }'

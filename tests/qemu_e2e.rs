@@ -1,0 +1,135 @@
+//! End to end in QEMU: the QEMU firmware (built by this test) on QEMU's
+//! b-l475e-iot01a machine, over its TCP serial on 127.0.0.1, driven by
+//! host-tools' link: provision a blob trained by host-tools, measure a scene
+//! from host-tools' scene simulator, and check every streamed value bit for
+//! bit against the host's f32 computation on the same corrected readings.
+use brdf_meter::blob::{BlobView, CRC32};
+use brdf_meter::protocol::{DeviceError, FrameError, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode};
+use host_tools::link::sim::{expected_line, patent_scene, scene_frames, train_for_scene};
+use host_tools::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
+use std::time::Duration;
+use system_tests::qemu::start;
+
+const PIXELS: usize = 32;
+const ZONES: usize = 4;
+
+fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRecord], lines: usize, full_scale: u16) {
+    let view = BlobView::parse(blob).unwrap();
+    assert_eq!(points.len(), lines * PIXELS, "one frame per point");
+    let mut compared = 0;
+    for (k, p) in points.iter().enumerate() {
+        let line = k / PIXELS;
+        let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
+        assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
+        assert_eq!((p.zone, p.flags), (want.0, want.1), "zone/flags of point {k}");
+        for (j, (g, w)) in p.values.iter().zip(&want.2).enumerate() {
+            assert_eq!(g.to_bits(), w.to_bits(), "point {k} bin {j}: device {g:e}, host {w:e}");
+            compared += 1;
+        }
+        assert_eq!(p.values.len(), want.2.len());
+    }
+    assert_eq!(compared, lines * PIXELS * view.dims().n);
+}
+
+fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
+    match r {
+        Err(LinkError::Device(e)) => e,
+        other => panic!("expected a device error, got {other:?}"),
+    }
+}
+
+fn connect(q: &host_tools::link::qemu::QemuInstrument) -> Client<TcpTransport> {
+    let mut c = q.connect().unwrap();
+    c.timeout = Duration::from_secs(20);
+    c
+}
+
+#[test]
+fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
+    let q = start(Duration::from_secs(240));
+    let mut c = connect(&q);
+    let info = c.info().unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    assert_eq!((info.bins, info.leds, info.pixels), (81, 7, PIXELS as u16));
+    assert!(info.simulated && info.calibration.is_none());
+
+    let scene = patent_scene(PIXELS);
+    let trained = train_for_scene(&scene, ZONES, 0.02).unwrap();
+    let cal = c.provision(&trained.blob, |_, _| {}).unwrap();
+    assert_eq!((cal.zones, cal.in_ram), (ZONES as u16, true));
+    assert_eq!(cal.blob_crc, BlobView::parse(&trained.blob).unwrap().crc());
+
+    let frames = scene_frames(&scene, 4).unwrap();
+    c.load_scene(&frames).unwrap();
+    let lines = 6;
+    let points = c.measure(lines as u32).unwrap();
+    check_bit_identical(&trained.blob, &frames, &points, lines, info.full_scale);
+    // Every zone is exercised and the values are real estimates.
+    let zones: std::collections::BTreeSet<u16> = points.iter().map(|p| p.zone).collect();
+    assert_eq!(zones.len(), ZONES);
+    assert!(points.iter().all(|p| p.values.iter().all(|v| v.is_finite())));
+    assert!(points.iter().any(|p| p.values.iter().any(|v| *v > 0.1)));
+    let st = c.status().unwrap();
+    assert_eq!((st.lines_total, st.bad_frames, st.measuring), (lines as u32, 0, false));
+    assert!(!q.log_text().contains("panic"), "{}", q.log_text());
+}
+
+#[test]
+fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() {
+    let q = start(Duration::from_secs(240));
+    let mut c = connect(&q);
+    let info = c.info().unwrap();
+    let scene = patent_scene(PIXELS);
+    let good = train_for_scene(&scene, 2, 0.02).unwrap().blob;
+    let cal = c.provision(&good, |_, _| {}).unwrap();
+    let frames = scene_frames(&scene, 2).unwrap();
+    c.load_scene(&frames).unwrap();
+
+    // A blob corrupted in transit: refused at commit (whole-blob CRC).
+    let newer = train_for_scene(&scene, 3, 0.05).unwrap().blob;
+    let crc = CRC32.checksum(&newer);
+    let mut bad = newer.clone();
+    bad[newer.len() / 2] ^= 0x01;
+    c.request(&Request::ProvisionBegin { len: bad.len() as u32, crc }).unwrap();
+    for (k, ch) in bad.chunks(MAX_CHUNK).enumerate() {
+        c.request(&Request::ProvisionChunk { offset: (k * MAX_CHUNK) as u32, data: ch }).unwrap();
+    }
+    assert_eq!(
+        device_error(c.request(&Request::ProvisionCommit)),
+        DeviceError::CrcMismatch { declared: crc, computed: CRC32.checksum(&bad) }
+    );
+    // A valid blob trained for another instrument (16 pixels).
+    let other = train_for_scene(&patent_scene(16), 2, 0.02).unwrap().blob;
+    assert_eq!(
+        device_error(c.provision(&other, |_, _| {})),
+        DeviceError::Mismatch { field: SizeField::Pixels, device: PIXELS as u16, blob: 16 }
+    );
+    // A blob corrupted before sending (its own CRC catches it).
+    assert!(matches!(device_error(c.provision(&bad, |_, _| {})), DeviceError::BlobRejected { .. }));
+
+    // Malformed frames: corrupted, oversized, out-of-order chunk.
+    let mut f = [0u8; MAX_FRAME];
+    let n = encode(900, &Request::Status, &mut f).unwrap();
+    let mut corrupt = f[..n].to_vec();
+    corrupt[n - 3] = if corrupt[n - 3] == 0x01 { 0x02 } else { 0x01 };
+    c.send_raw(&corrupt).unwrap();
+    let r = c.next_frame(Duration::from_secs(10)).unwrap();
+    assert!(matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))), "{r:?}");
+    c.send_raw(&vec![0x11u8; 2 * MAX_FRAME + 7]).unwrap();
+    c.send_raw(&[0]).unwrap();
+    let r = c.next_frame(Duration::from_secs(10)).unwrap();
+    assert_eq!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Oversized))));
+    c.request(&Request::ProvisionBegin { len: newer.len() as u32, crc }).unwrap();
+    assert_eq!(
+        device_error(c.request(&Request::ProvisionChunk { offset: 64, data: &newer[64..128] })),
+        DeviceError::OutOfOrder { expected: 0, got: 64 }
+    );
+    c.request(&Request::ProvisionAbort).unwrap();
+
+    // Still the first calibration, still measuring with it, bit for bit.
+    assert_eq!(c.info().unwrap().calibration, Some(cal));
+    let points = c.measure(2).unwrap();
+    check_bit_identical(&good, &frames, &points, 2, info.full_scale);
+    let st = c.status().unwrap();
+    assert_eq!(st.bad_frames, 2);
+    assert!(st.refused >= 4);
+}
