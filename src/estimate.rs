@@ -157,7 +157,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
 /// (scripts/qemu-icount.sh).
 #[inline(never)]
 pub fn estimate_point<const N: usize, const M: usize>(w: &[[f32; M]; N], v: &[f32; M], out: &mut [f32; N]) {
-    *out = crate::kernel::estimate(w, v);
+    crate::kernel::estimate_to(w, v, out);
 }
 
 #[cfg(all(test, feature = "sim"))]
