@@ -358,11 +358,12 @@ pub fn white_reference(scene: &Scene) -> anyhow::Result<Vec<f32>> {
 
 /// Raw frames of scene line `line` for the simulated line sensor: `m + 1`
 /// frames of P u16 counts, the dark frame first, then one per LED in physical
-/// order. Counts are rounded to the nearest integer and clamped to
-/// 0..=65535 (the link carries u16); list `quantisation` and `saturation` in
-/// the scene to model the converter itself.
+/// order. Counts are rounded to the nearest integer, negative ones read as
+/// 0; a count above 65535 is an error (the link carries u16). List
+/// `quantisation` and `saturation` in the scene to model the converter
+/// itself.
 pub fn raw_frames(scene: &Scene, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
-    Ok(Simulator::new(scene)?.raw_frames(line))
+    Simulator::new(scene)?.raw_frames(line)
 }
 
 /// Time to simulate one line of `scene` from scratch (preparing the rays and

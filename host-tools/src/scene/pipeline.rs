@@ -398,12 +398,27 @@ impl Simulator {
     }
 
     /// Raw frames of `line` as the simulated sensor serves them: u16,
-    /// rounded, clamped to 0..=65535; dark first, then LEDs in order.
-    pub fn raw_frames(&self, line: u64) -> Vec<Vec<u16>> {
-        self.frames(line, Mode::Full)
-            .into_iter()
-            .map(|f| f.into_iter().map(|x| if x.is_nan() { 0 } else { x.round().clamp(0.0, 65535.0) as u16 }).collect())
-            .collect()
+    /// rounded, negative counts read as 0; dark first, then LEDs in order.
+    /// A count above 65535 cannot cross the link: that is an error naming
+    /// the pixel and LED (lower `instrument.sensor.gain` or list `saturation`).
+    pub fn raw_frames(&self, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
+        let frames = self.frames(line, Mode::Full);
+        let mut out = Vec::with_capacity(frames.len());
+        for (f, frame) in frames.into_iter().enumerate() {
+            let mut px_out = Vec::with_capacity(frame.len());
+            for (px, x) in frame.into_iter().enumerate() {
+                let r = x.round();
+                if !(r <= 65535.0) {
+                    let what = if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
+                    bail!(
+                        "line {line}, pixel {px}, {what}: {x} counts do not fit the u16 link; lower instrument.sensor.gain or list the `saturation` effect"
+                    );
+                }
+                px_out.push(r.max(0.0) as u16);
+            }
+            out.push(px_out);
+        }
+        Ok(out)
     }
 }
 

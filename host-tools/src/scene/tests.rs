@@ -438,6 +438,14 @@ fn white_reference_and_raw_frames_have_the_blob_and_link_layouts() {
     // Correcting the u16 frames with the blob's white gives the host readings.
     let corrected = sm.correct(&frames.iter().map(|f| f.iter().map(|x| *x as f64).collect()).collect::<Vec<_>>());
     assert!(corrected.iter().all(|x| x.is_finite() && *x > 0.0));
+    // Counts the u16 link cannot carry are an error, not a silent clip.
+    let mut hot = s.clone();
+    hot.instrument.sensor.gain = 1e5;
+    hot.effects.retain(|e| !matches!(e, EffectSpec::Saturation {}));
+    let e = format!("{:#}", raw_frames(&hot, 0).unwrap_err());
+    assert!(e.contains("u16") && e.contains("instrument.leds[") && e.contains("saturation"), "{e}");
+    hot.effects.push(EffectSpec::Saturation {});
+    assert!(raw_frames(&hot, 0).unwrap()[4].iter().any(|x| *x == 4095));
 }
 
 #[test]
