@@ -118,6 +118,9 @@ pub enum EstimatorError {
     /// Angles for interpolation are unusable.
     #[error("interpolation: {0}")]
     BadAngles(String),
+    /// The kind is not a linear estimator this crate trains.
+    #[error("the {0} estimator is not trained by this crate; choose wiener, wiener-noise-free, inverse, pseudo-inverse or interpolation")]
+    Unsupported(&'static str),
 }
 
 /// The measurement noise the estimators are built for and judged against.
@@ -291,9 +294,7 @@ pub fn build(kind: EstimatorKind, inputs: &EstimatorInputs<'_>) -> Result<Linear
         EstimatorKind::Inverse => inverse::build(h)?,
         EstimatorKind::PseudoInverse => pseudo_inverse::build(h),
         EstimatorKind::Interpolation => interpolation::build(inputs.bins_deg, inputs.centres_deg, m)?,
-        EstimatorKind::LogWiener => {
-            return Err(EstimatorError::BadAngles("log-Wiener is not a linear estimator this crate trains".into()));
-        }
+        EstimatorKind::LogWiener => return Err(EstimatorError::Unsupported(kind_name(kind))),
     };
     let var = error_variance(&built.w, h, &prior, &noise_f);
     let predicted_rmse = (var.sum() / n as f64).sqrt();

@@ -16,9 +16,11 @@
 //!    removed (the pseudo-inverse tolerance). `cond(B) = sqrt(cond(H R_pp H^T))`.
 //! 3. Noise-free (eq. 20): `W = L V S^-1 U^T`, which is `R_pp H^T (H R_pp H^T)^+`,
 //!    the minimum-norm solution when `H R_pp H^T` is singular.
-//! 4. With noise and `R_nn` positive definite (eq. 22): whiten,
-//!    `T = R_nn^-1/2`, `G = T U S = P Sig Q^T` (SVD), then
-//!    `W = L V Q diag(sig / (sig^2 + 1)) P^T T`.
+//! 4. With noise and `R_nn` positive definite (eq. 22): whiten first,
+//!    `T = R_nn^-1/2`, `G = T H L = P Sig Q^T` (SVD, directions at or below
+//!    `max(m, r) eps sig_max` dropped), then `W = L Q diag(sig / (sig^2 + 1)) P^T T`.
+//!    The rank is decided in the whitened frame, so per-reading gains cancel
+//!    exactly (`W(G H) = W(H) G^-1`).
 //!    This is eq. 22 exactly (`(B B^T + R_nn)^-1 = T (G G^T + I)^-1 T`), its
 //!    gains `sig/(sig^2+1) <= 1/2` never blow up, and as `R_nn -> 0` it tends
 //!    to step 3's minimum-norm solution when the noise is isotropic (with
@@ -103,32 +105,39 @@ pub(crate) fn build(
     let condition_system = if ms_min > 0.0 { (ms_max / ms_min).powi(2) } else { f64::INFINITY };
 
     if noise.rank == m {
-        // Eq. 22, whitened. noise.l = Q diag(sqrt(lambda)), so
-        // T = R_nn^-1/2 = Q diag(lambda^-1/2) Q^T.
-        // T = R_nn^-1/2 = Q diag(lambda^-1/2) Q^T from noise.l = Q diag(lambda^1/2).
+        // Eq. 22, whitened *before* any rank decision: T = R_nn^-1/2 =
+        // Q diag(lambda^-1/2) Q^T from noise.l = Q diag(lambda^1/2), and
+        // G = T H L = P Sig Q^T. Deciding the rank on H L instead would drop
+        // the directions of weakly scaled readings (per-LED gains 1e-6 vs
+        // 1e6 put them below max(m, r) eps s_max) although the noise model
+        // says they are informative; in the whitened frame the result is
+        // exactly gain-covariant, W(G H) = W(H) G^-1 (stability family `gain`).
         let t = whitening(&noise.l);
-        let g = &t * &us; // m x k
+        let g = &t * (h * &prior.l); // m x r
         let gsvd = g.svd(true, true);
-        let sig = gsvd.singular_values.clone();
-        let p = gsvd.u.expect("u requested"); // m x k'
-        let qt = gsvd.v_t.expect("v requested"); // k' x k
-        let gain = DVector::from_iterator(sig.len(), sig.iter().map(|x| x / (x * x + 1.0)));
-        let mut x = p.transpose() * &t; // k' x m
+        let sig_all = gsvd.singular_values.clone();
+        let sig_max = sig_all.iter().fold(0.0f64, |a, x| a.max(*x));
+        let kw = sig_all.iter().take_while(|x| **x > tol * sig_max).count();
+        let sig = sig_all.rows(0, kw);
+        let p = gsvd.u.expect("u requested").columns(0, kw).into_owned(); // m x kw
+        let qt = gsvd.v_t.expect("v requested").rows(0, kw).into_owned(); // kw x r
+        let gain = DVector::from_iterator(kw, sig.iter().map(|x| x / (x * x + 1.0)));
+        let mut x = p.transpose() * &t; // kw x m
         for (row, gn) in gain.iter().enumerate() {
             x.row_mut(row).scale_mut(*gn);
         }
-        let w = &lv * (qt.transpose() * x);
+        let w = &prior.l * (qt.transpose() * x);
         let dof: f64 = sig.iter().map(|x| x * x / (x * x + 1.0)).sum();
         return Ok(Built {
             w,
             condition_system,
             effective_rank: dof,
-            regularisation: if truncated { tol } else { 0.0 },
+            regularisation: if kw < sig_all.len() { tol } else { 0.0 },
             tolerance: tol,
             method: format!(
-                "eq. 22 in square-root form: SVD of H L ({k} of {} directions above {tol:.1e} s_max), \
-                 whitened by R_nn^-1/2, W = L V Q diag(s/(s^2+1)) P^T R_nn^-1/2",
-                s.len()
+                "eq. 22 in square-root form: G = R_nn^-1/2 H L (R_pp = L L^T), SVD G = P S Q^T, {kw} of {} \
+                 directions above {tol:.1e} s_max, W = L Q diag(s/(s^2+1)) P^T R_nn^-1/2",
+                sig_all.len()
             ),
         });
     }
@@ -321,4 +330,47 @@ mod tests {
         // And the prediction says so too.
         assert!(wien.summary.predicted_rmse < pinv.summary.predicted_rmse);
     }
+
+    #[test]
+    fn wiener_is_optimal_and_finite_in_hard_cases() {
+        // H with singular values spread over 14 decades, duplicate LEDs, a
+        // rank-deficient prior, noise from 1e-12 to 0.2. W and its predicted
+        // uncertainty stay finite, and the Wiener W's predicted MSE is never
+        // above that of another linear W under the same prior and noise
+        // (it is the minimiser), nor above the trivial W = 0 (which predicts
+        // trace(R_pp)).
+        let (m, n) = (6, 40);
+        let base = blur(m, n, 1.2);
+        let svd = base.clone().svd(true, true);
+        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+        let spread = DMatrix::from_diagonal(&nalgebra::DVector::from_fn(m, |i, _| 10f64.powf(-14.0 * i as f64 / (m - 1) as f64)));
+        let mut hard = &u * spread * &vt; // cond 1e14
+        let r0 = base.row(0).into_owned();
+        let mut dup = base.clone();
+        dup.set_row(5, &r0); // duplicate LED
+        hard.iter_mut().for_each(|x| *x = x.abs()); // non-negative like an H
+        let prior_full = correlation(&lobes(n, 60, 21));
+        let prior_def = correlation(&lobes(n, 4, 22)); // rank 4 < m
+        for h in [&hard, &dup, &base] {
+            for r in [&prior_full, &prior_def] {
+                for s in [1e-12, 1e-8, 1e-4, 0.02, 0.2] {
+                    let noise = NoiseModel::Relative(s);
+                    let rnn = noise.covariance(h, r).unwrap();
+                    let w = build(EstimatorKind::Wiener, &inputs(h, r, noise.clone())).unwrap();
+                    assert!(w.w.iter().all(|x| x.is_finite()), "non-finite W at noise {s}");
+                    assert!(w.uncertainty.iter().all(|x| x.is_finite()));
+                    let mse = |wm: &DMatrix<f64>| error_covariance(wm, h, r, &rnn).trace();
+                    let ours = mse(&w.w);
+                    let tol = 1e-6 * r.trace();
+                    assert!(ours <= r.trace() + tol, "worse than W = 0 at noise {s}");
+                    let p = build(EstimatorKind::PseudoInverse, &inputs(h, r, noise.clone())).unwrap();
+                    assert!(ours <= mse(&p.w) + tol, "pinv beats Wiener at noise {s}: {ours} > {}", mse(&p.w));
+                    // A perturbed Wiener matrix is worse (W is a minimiser).
+                    let bumped = &w.w + DMatrix::from_fn(n, m, |j, i| 1e-3 * w.w.amax() * (((j * 7 + i * 3) % 5) as f64 - 2.0));
+                    assert!(ours <= mse(&bumped) + tol, "perturbed W is better at noise {s}");
+                }
+            }
+        }
+    }
+
 }
