@@ -154,7 +154,7 @@ impl Budget {
     pub fn table(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):", self.name, MAX_DIMS.zones, MAX_DIMS.n, MAX_DIMS.m, MAX_DIMS.pixels);
-        let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>6}  {}", "resource", "used", "limit", "free", "use%", "");
+        let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>6}", "resource", "used", "limit", "free", "use%");
         for l in &self.lines {
             let free = l.limit as i64 - l.used as i64;
             let pct = if l.limit == 0 { 100.0 } else { 100.0 * l.used as f64 / l.limit as f64 };
@@ -194,7 +194,7 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
         if r.origin % 2048 != 0 || r.length % 2048 != 0 {
             problems.push(format!("{n} is not whole 2 KiB erase pages"));
         }
-        if (r.origin as usize + SLOT_HEADER_LEN) % 4 != 0 {
+        if !(r.origin as usize + SLOT_HEADER_LEN).is_multiple_of(4) {
             problems.push(format!("the blob in {n} would not be 4-byte aligned: matrices cannot be read in place"));
         }
     }
@@ -299,8 +299,9 @@ mod tests {
         // 64 + 4*81 + 8 + 256 + 4*128*7 + 4*128*81 + 4*128*81*7 + 4
         assert_eq!(MAX_DIMS.blob_len(), 336_016);
         assert!(MAX_DIMS.blob_len() + SLOT_HEADER_LEN <= 384 * 1024);
-        // and it could never be copied to RAM:
-        assert!(4 * 128 * 81 * 7 > 96 * 1024);
+        // and its matrices could never be copied to RAM:
+        let d = MAX_DIMS;
+        assert!(4 * d.zones * d.n * d.m > board_map().ram.length as usize);
     }
 
     #[test]
@@ -352,7 +353,7 @@ mod tests {
         elf[5] = 1; // little-endian
         let str_off = elf.len() as u32;
         elf.extend_from_slice(&strtab);
-        while elf.len() % 4 != 0 {
+        while !elf.len().is_multiple_of(4) {
             elf.push(0);
         }
         let shoff = elf.len() as u32;
