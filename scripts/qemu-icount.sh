@@ -24,7 +24,18 @@ echo "icount: kernel symbol $sym at 0x$start, $((16#$size)) bytes" >&2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 mkfifo "$work/trace"
-grep -c -F " $sym" "$work/trace" > "$work/count" &
+# Per call of the kernel (a call starts at its first address), the number of
+# "Trace" lines in it. A call that an interrupt hits logs one instruction
+# twice (QEMU logs a block, sees the pending interrupt at its start, takes it,
+# then runs the block), so the exact count is the most frequent one, which is
+# also the smallest.
+awk -v sym="$sym" -v st="${start#"${start%%[!0]*}"}" '
+  /^Trace / && index($0, sym) {
+    split($0, f, "/"); pc = f[2]; sub(/^0+/, "", pc)
+    if (pc == st) { if (n) print n; n = 0 }
+    n++
+  }
+  END { if (n) print n }' "$work/trace" > "$work/calls" &
 counter=$!
 out=$(./target/release/host-tools qemu --elf "$elf" --port "${QEMU_PORT:-4571}" --minutes 20 \
   --demo "$work/demo.blob" --measure-and-exit "$lines" \
@@ -34,7 +45,10 @@ wait "$counter" || true
 echo "$out" >&2
 points=$(echo "$out" | sed -n 's/^measured .*: \([0-9]*\) points, \([0-9]*\) multiply-accumulates$/\1/p')
 macs=$(echo "$out" | sed -n 's/^measured .*: \([0-9]*\) points, \([0-9]*\) multiply-accumulates$/\2/p')
-count=$(cat "$work/count")
 [ -n "$points" ] && [ "$points" -gt 0 ] || { echo "icount: the measurement did not complete" >&2; exit 1; }
-echo "kernel instructions: $count for $points points ($macs MACs)"
-awk -v c="$count" -v p="$points" -v m="$macs" 'BEGIN { printf "per point: %.1f instructions; per multiply-accumulate: %.3f\n", c / p, c / m }'
+calls=$(wc -l < "$work/calls")
+[ "$calls" -eq "$points" ] || { echo "icount: $calls kernel calls for $points points" >&2; exit 1; }
+echo "instructions per call (count x calls):" $(sort -n "$work/calls" | uniq -c | awk '{printf "%sx%s ", $2, $1}')
+exact=$(sort -n "$work/calls" | uniq -c | sort -k1,1nr -k2,2n | awk 'NR == 1 {print $2}')
+echo "kernel: $exact instructions per point (n x m = $((macs / points)) multiply-accumulates)"
+awk -v c="$exact" -v m="$((macs / points))" 'BEGIN { printf "instructions per multiply-accumulate: %.3f\n", c / m }'
