@@ -340,6 +340,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, out: &Output) -> anyh
     c.configure_mesh()
         .x_desc("incidence of the LED's centre ray at the pixel's point (deg)")
         .y_desc("reflectance factor R")
+        .y_label_formatter(&|v| tick(*v))
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 14))
         .draw()
@@ -374,6 +375,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, out: &Output) -> anyh
     c.configure_mesh()
         .x_desc("pixel")
         .y_desc("counts")
+        .y_label_formatter(&|v| tick(*v))
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 14))
         .draw()
@@ -404,6 +406,20 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, out: &Output) -> anyh
         .draw()
         .map_err(e)?;
     Ok(())
+}
+
+/// A compact tick label: plain below 1e5, scientific above or for tiny values.
+fn tick(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if !(1e-2..1e5).contains(&a) {
+        format!("{v:.2e}")
+    } else if a >= 100.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.2}")
+    }
 }
 
 fn stage_list(out: &Output) -> String {
