@@ -18,5 +18,6 @@ pub mod optics;
 pub mod prior;
 pub mod scene;
 pub mod reproduce;
+pub mod tradeoff;
 pub mod train;
 pub mod swd;

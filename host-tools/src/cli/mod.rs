@@ -11,6 +11,7 @@ pub mod provision_swd;
 
 pub mod reproduce;
 pub mod simulate;
+pub mod tradeoff;
 pub mod train;
 
 /// Host tools for the handheld gloss/BRDF meter.
@@ -43,6 +44,8 @@ pub enum Command {
     Measure(measure::Args),
     /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
     Qemu(qemu::Args),
+    /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts (issue 5).
+    Tradeoff(tradeoff::Args),
 }
 
 /// Runs one parsed command line.
@@ -57,5 +60,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Provision(a) => provision::run(a),
         Command::Measure(a) => measure::run(a),
         Command::Qemu(a) => qemu::run(a),
+        Command::Tradeoff(a) => tradeoff::run(a),
     }
 }
