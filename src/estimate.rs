@@ -193,12 +193,12 @@ mod tests {
             assert_eq!(za as usize, view.zone_of_pixel(p));
             assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
             // And against the blob's own accessor.
-            for j in 0..9 {
+            for (j, aj) in a.iter().enumerate() {
                 let mut acc = 0.0f32;
-                for i in 0..3 {
-                    acc += view.w(za as usize, j, i) * v[i];
+                for (i, vi) in v.iter().enumerate() {
+                    acc += view.w(za as usize, j, i) * vi;
                 }
-                assert_eq!(a[j].to_bits(), acc.to_bits());
+                assert_eq!(aj.to_bits(), acc.to_bits());
             }
         }
     }

@@ -54,7 +54,7 @@ pub struct RamFlash<const LEN: usize> {
 impl<const LEN: usize> RamFlash<LEN> {
     /// Takes the memory, erased. Call once.
     pub fn take(mem: &'static Memory<LEN>) -> Self {
-        const { assert!(LEN % PAGE == 0) };
+        const { assert!(LEN.is_multiple_of(PAGE)) };
         // SAFETY: no slice of it exists yet.
         unsafe { core::ptr::write_bytes(mem.0.get() as *mut u8, 0xFF, LEN) };
         Self { mem }
@@ -66,7 +66,7 @@ impl<const LEN: usize> RamFlash<LEN> {
     }
 
     fn check(offset: u32, len: usize, align: usize) -> Result<(), RamFlashError> {
-        if offset as usize % align != 0 || len % align != 0 {
+        if !(offset as usize).is_multiple_of(align) || !len.is_multiple_of(align) {
             return Err(RamFlashError::NotAligned);
         }
         if offset as usize + len > LEN {

@@ -32,7 +32,7 @@ pub fn exit_failure() -> ! {
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
     cortex_m::interrupt::disable();
     let mut s = heapless::String::<250>::new();
-    let _ = write!(s, "qemu-fw panic: {info}\n");
+    let _ = writeln!(s, "qemu-fw panic: {info}");
     write_str(&s);
     exit_failure()
 }

@@ -77,7 +77,7 @@ impl SimFlash {
 
     /// An erased flash of `len` bytes (a multiple of the page size).
     pub fn new(len: usize) -> Self {
-        assert!(len % Self::PAGE == 0);
+        assert!(len.is_multiple_of(Self::PAGE));
         // Freed when the last handle goes (see `mapped`).
         let mem = Box::leak(vec![0xFFu8; len].into_boxed_slice()).as_mut_ptr();
         Self {
@@ -144,7 +144,7 @@ impl SimFlash {
     }
 
     fn check(&self, offset: u32, len: usize, align: usize) -> Result<(), SimFlashError> {
-        if offset as usize % align != 0 || len % align != 0 {
+        if !(offset as usize).is_multiple_of(align) || !len.is_multiple_of(align) {
             return Err(SimFlashError::NotAligned);
         }
         if offset as usize + len > self.inner.len {

@@ -15,6 +15,7 @@ pub type SceneFrames = Vec<Vec<Vec<u16>>>;
 /// A scene of `lines` lines for the instrument `blob` describes: raw counts
 /// are `dark + white * reflectance`, with the blob's white reference (so a
 /// perfect diffuser reads its white value), clamped to `full_scale`.
+#[allow(clippy::needless_range_loop)] // p indexes every frame of the line
 pub fn analytic_scene(blob: &BlobView<'_>, lines: usize, full_scale: u16) -> SceneFrames {
     let d = blob.dims();
     let order = blob.led_order();
