@@ -505,6 +505,41 @@ mod tests {
     }
 
     #[test]
+    fn emission_profiles_fall_off_as_stated_and_bad_tables_are_refused() {
+        let c = 60f64.to_radians().cos();
+        assert!((EmissionSpec::Lambertian {}.relative(c) - 0.5).abs() < 1e-12);
+        assert!((EmissionSpec::CosPower { k: 3.0 }.relative(c) - 0.125).abs() < 1e-12);
+        let t = EmissionSpec::Tabulated { angles_deg: vec![0.0, 30.0, 60.0], values: vec![1.0, 0.8, 0.2] };
+        assert!((t.relative(45f64.to_radians().cos()) - 0.5).abs() < 1e-9);
+        assert_eq!(t.relative(70f64.to_radians().cos()), 0.0);
+        assert_eq!(EmissionSpec::Lambertian {}.relative(-0.1), 0.0);
+        let mut p = Instrument::patent_profile();
+        p.leds[2].emission = Some(EmissionSpec::Tabulated { angles_deg: vec![5.0, 30.0], values: vec![1.0, 0.5] });
+        assert_eq!(p.validate().unwrap_err().path, "leds[2].emission.angles_deg");
+        p.leds[2].emission = Some(EmissionSpec::Tabulated { angles_deg: vec![0.0, 30.0, 20.0], values: vec![1.0, 0.5, 0.1] });
+        assert_eq!(p.validate().unwrap_err().path, "leds[2].emission.angles_deg[2]");
+    }
+
+    #[test]
+    fn extended_emitters_spread_the_intensity_over_their_samples() {
+        let mut p = Instrument::patent_profile();
+        p.leds[0].cluster = None;
+        p.leds[0].extended = Some(ExtendedSpec { width_cm: 0.4, height_cm: 0.2, samples: [4, 3] });
+        p.leds[0].intensity = 2.0;
+        p.validate().unwrap();
+        let s = p.sources_with(0, true);
+        assert_eq!(s.len(), 12);
+        assert!((s.iter().map(|x| x.1).sum::<f64>() - 2.0).abs() < 1e-12);
+        // Samples are midpoints: the outermost sit 3/8 of the width off centre.
+        let c = p.led_centre(0, true);
+        let far = s.iter().map(|x| (x.0 - c).norm()).fold(0.0, f64::max);
+        assert!((far - (0.15f64.powi(2) + (0.2f64 / 3.0).powi(2)).sqrt()).abs() < 1e-12, "{far}");
+        assert_eq!(p.sources_with(0, false).len(), 4);
+        p.leds[0].cluster = Some(ClusterSpec { count: 2, pitch_cm: 0.1 });
+        assert_eq!(p.validate().unwrap_err().path, "leds[0].extended");
+    }
+
+    #[test]
     fn impossible_led_values_are_refused_with_their_path() {
         let mut p = Instrument::patent_profile();
         p.leds[3].distance_cm = 0.0;

@@ -134,6 +134,19 @@ fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
     let rays = optics.rays_at(3, &near.pixel_point(0.0));
     assert_eq!(rays.len(), 25);
     assert!(rays.iter().any(|r| (r.theta_deg - 45.0).abs() > 0.5));
+    assert!(rays.iter().any(|r| r.dir.y.abs() > 1e-3));
+    // In-plane (no 3d-geometry): the emitter's height collapses, 5 rays, all in the plane.
+    let flat = handheld_with(vec![EffectSpec::NearField {}], ward());
+    let rays = Optics::new(&flat.instrument, flat.ray_model()).rays_at(3, &flat.pixel_point(0.0));
+    assert_eq!(rays.len(), 5);
+    assert!(rays.iter().all(|r| r.dir.y == 0.0));
+    // Near field alone spreads each H row over several bins; far field is one-hot.
+    let h = pixel_system_matrix(&flat, 0.0).unwrap();
+    let hf = pixel_system_matrix(&s, 63.5).unwrap();
+    for i in 0..7 {
+        assert!(h.row(i).iter().filter(|x| **x > 0.0).count() >= 3);
+        assert_eq!(hf.row(i).iter().filter(|x| **x > 0.0).count(), 1);
+    }
 }
 
 #[test]
