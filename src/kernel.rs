@@ -83,7 +83,7 @@ fn dot(row: &[f32], v: &[f32]) -> f32 {
 #[inline]
 pub fn select_cluster(centroids: &[f32], v: &[f32]) -> usize {
     let m = v.len();
-    assert!(m > 0 && !centroids.is_empty() && centroids.len() % m == 0, "centroids must be K x m");
+    assert!(m > 0 && !centroids.is_empty() && centroids.len().is_multiple_of(m), "centroids must be K x m");
     let mut sum = 0.0f32;
     for x in v {
         sum += x.abs();
@@ -312,7 +312,7 @@ fn hi(x: u32) -> i32 {
 pub fn estimate_q15(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
     assert!(m > 0 && v.len() == q15_v_words(m), "packed v has the wrong length");
     let pairs = acc.len() / 2;
-    assert!(acc.len() % 2 == 0 && w.len() == pairs * m, "packed W and acc disagree");
+    assert!(acc.len().is_multiple_of(2) && w.len() == pairs * m, "packed W and acc disagree");
     #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
     if m == 7 {
         // SAFETY: lengths checked above: `pairs` row pairs of 7 words each in
