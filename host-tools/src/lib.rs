@@ -17,6 +17,7 @@ pub mod link;
 pub mod optics;
 pub mod prior;
 pub mod scene;
+pub mod stability;
 pub mod reproduce;
 pub mod tradeoff;
 pub mod train;

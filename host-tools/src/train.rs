@@ -4,9 +4,13 @@
 //! zone's centre pixel) and so its own W; [`uniform_zones`] gives every zone
 //! the same H until a scene model supplies one per position. The blob is
 //! written by the one layout in `brdf_meter::blob` and parsed back before it
-//! is returned. Before that, the f32 matrices are checked against f64 on the
-//! prior's samples through the device kernel (`brdf_meter::kernel`), and the
-//! largest relative difference is recorded as `f32_rel_error`.
+//! is returned. Before that, every zone's matrix goes through the f32 gate
+//! ([`f32_gate`]): the device kernel (`brdf_meter::kernel`) is run on the
+//! prior's samples and must stay within [`F32_TOLERANCE`] of f64, after a
+//! power-of-two rescaling folded into the white reference if W leaves f32's
+//! range; otherwise training refuses with the zone, the measured error, the
+//! tolerance and what to do. The largest relative difference is recorded as
+//! `f32_rel_error`.
 use crate::estimators::{self, EstimatorInputs, EstimatorSummary, LinearEstimator, NoiseModel, kind_name};
 use crate::grid::AngleGrid;
 use crate::optics::{Instrument, system_matrix};
@@ -75,6 +79,10 @@ pub struct Trained {
     pub summary: TrainingSummary,
     /// Largest relative difference between f32 and f64 evaluation on the prior.
     pub f32_rel_error: f64,
+    /// Per zone, the power-of-two exponent of each reading folded into the
+    /// blob's W and white reference by the f32 gate (all 0 unless W left
+    /// f32's range): blob W = W 2^e_i, blob white = white 2^e_i.
+    pub f32_exponents: Vec<Vec<i32>>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
 }
@@ -118,7 +126,42 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
         zones.push(TrainedZone { first_pixel: zo.first_pixel, h: zo.h.clone(), estimator: est });
     }
 
-    let f32_rel_error = zones.iter().map(|z| f32_check(&z.estimator, &z.h, &spec.prior.samples)).fold(0.0, f64::max);
+    // The f32 gate, per zone: accept (possibly rescaled) or refuse with the reason.
+    let mut plans = Vec::with_capacity(zones.len());
+    for (z, tz) in zones.iter().enumerate() {
+        match f32_gate(&tz.estimator.w, &tz.h, &spec.prior.samples) {
+            Ok(p) => plans.push(p),
+            Err(r) => {
+                let advice = f32_advice(spec, z, r.rel_error);
+                bail!(
+                    "zone {z} (first pixel {}): the {} matrix cannot be evaluated in f32 on the device: {r}; {advice}",
+                    tz.first_pixel,
+                    kind_name(spec.estimator)
+                );
+            }
+        }
+    }
+    let mut white = white;
+    for (z, p) in plans.iter().enumerate() {
+        if p.exponents.iter().all(|e| *e == 0) {
+            continue;
+        }
+        let end = zones.get(z + 1).map_or(spec.pixels, |n| n.first_pixel);
+        for px in zones[z].first_pixel..end {
+            for i in 0..m {
+                let x = white[px * m + i] * 2f32.powi(p.exponents[i]);
+                ensure!(
+                    x.is_normal() && x > 0.0,
+                    "zone {z}: W leaves f32's range and the power-of-two rescaling 2^{} of reading {i} would make the \
+                     white reference of pixel {px} {x:e}, not a normal f32; retrain with more noise (--noise) or a \
+                     better-conditioned instrument",
+                    p.exponents[i]
+                );
+                white[px * m + i] = x;
+            }
+        }
+    }
+    let f32_rel_error = plans.iter().map(|p| p.rel_error).fold(0.0, f64::max);
     let worst = |f: fn(&EstimatorSummary) -> f64| zones.iter().map(|z| f(&z.estimator.summary)).fold(0.0, f64::max);
     let summary = TrainingSummary {
         prior_samples: spec.prior.samples.ncols() as u32,
@@ -132,7 +175,7 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
     let grid_f32: Vec<f32> = spec.bins_deg.iter().map(|x| *x as f32).collect();
     let zone_start: Vec<u16> = zones.iter().map(|z| z.first_pixel as u16).collect();
     let uncertainty: Vec<f32> = zones.iter().flat_map(|z| z.estimator.uncertainty.iter().map(|x| *x as f32)).collect();
-    let matrices: Vec<f32> = zones.iter().flat_map(|z| z.estimator.w_f32_row_major()).collect();
+    let matrices: Vec<f32> = plans.iter().flat_map(|p| p.w32.iter().copied()).collect();
     let contents = BlobContents {
         dims,
         noise_rel: spec.noise_rel as f32,
@@ -150,34 +193,189 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
     let len = write_blob(&contents, &mut blob).map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
-    if f32_rel_error > 1e-3 {
-        bail!(
-            "the f32 matrices differ from f64 by {f32_rel_error:.2e} (relative) on the prior's samples: \
-             the problem is too ill-conditioned for f32; use more noise or a better-conditioned instrument"
-        );
-    }
-    Ok(Trained { dims, bins_deg: spec.bins_deg.to_vec(), zones, summary, f32_rel_error, blob })
+    let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
+    Ok(Trained { dims, bins_deg: spec.bins_deg.to_vec(), zones, summary, f32_rel_error, f32_exponents, blob })
 }
 
-/// Largest |f32 kernel - f64| of `W H rho` over the samples, relative to the
-/// largest f64 estimate. The f32 path is the device's: f32 W and readings
-/// through `brdf_meter::kernel::estimate_into`.
-fn f32_check(est: &LinearEstimator, h: &DMatrix<f64>, samples: &DMatrix<f64>) -> f64 {
-    let w32 = est.w_f32_row_major();
-    let n = est.n();
+/// The device's f32 tolerance: the largest `|f32 kernel - f64|` over the
+/// prior's samples, relative to the largest f64 estimate (the estimate's
+/// scale), that a blob may carry.
+///
+/// Why 1e-3: it is 20 times below the patent's 2 % measurement noise, so f32
+/// adds at most 0.25 % to the error budget in quadrature, and it is far above
+/// what a well-posed W needs. The f32 kernel's error per bin is bounded by
+/// `gamma_(m+2) (|W||v|)_j` (`gamma_k = k u / (1 - k u)`, u = 2^-24: rounding
+/// of W, of v, and of m multiply-adds), so relative to the scale it is at most
+/// `gamma_(m+2) kappa_c`, where `kappa_c = max_j (|W||v|)_j / max_j |W v|`
+/// is the cancellation of the product. For m = 7 that passes for
+/// `kappa_c` up to about 1.1e3 and is refused beyond about 1e4 (the measured
+/// error is what decides; rounding errors rarely all align). Power-of-two
+/// scaling cannot change f32's relative rounding, so the only cure for a large
+/// `kappa_c` is a better-posed W: more noise in training (smaller gains on
+/// the weak directions) or better optics.
+pub const F32_TOLERANCE: f64 = 1e-3;
+
+/// How a zone's W is put into f32 for the device.
+#[derive(Clone, Debug, PartialEq)]
+pub struct F32Plan {
+    /// The blob's W, row-major n x m: `W[j][i] 2^exponents[i]` rounded to f32.
+    pub w32: Vec<f32>,
+    /// Power-of-two exponent per reading, folded into the white reference
+    /// (`white 2^e_i`), so the device's corrected reading is `v_i 2^-e_i`
+    /// exactly and `W' v' = W v`. All 0 unless W leaves f32's range.
+    pub exponents: Vec<i32>,
+    /// Measured `max |f32 - f64| / max |f64|` over the prior's samples.
+    pub rel_error: f64,
+    /// A-priori bound `gamma_(m+2) kappa_c` of the same quantity.
+    pub bound: f64,
+}
+
+impl F32Plan {
+    /// The device's corrected readings for f64 readings `v` (the white
+    /// reference's power-of-two factors applied, then rounded to f32).
+    pub fn readings(&self, v: &DVector<f64>) -> Vec<f32> {
+        v.iter().zip(&self.exponents).map(|(x, e)| (x * 2f64.powi(-e)) as f32).collect()
+    }
+}
+
+/// Why the f32 gate refused a matrix.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "f32 evaluation differs from f64 by {rel_error:.2e} of the estimate's scale on the prior's samples, \
+     tolerance {tolerance:.0e} ({reason})"
+)]
+pub struct F32Refusal {
+    /// Measured relative error (inf when the device result is not finite).
+    pub rel_error: f64,
+    /// The tolerance ([`F32_TOLERANCE`]).
+    pub tolerance: f64,
+    /// Cancellation `kappa_c` of the product.
+    pub cancellation: f64,
+    /// Why: cancellation or range.
+    pub reason: String,
+}
+
+/// The f32 gate: evaluates `W v` for the prior's samples (`v = H rho`) through
+/// the device kernel and accepts when within [`F32_TOLERANCE`] of f64. When
+/// W's entries or the products leave f32's normal range, it retries with
+/// W's columns rescaled by powers of two (exact; folded into the white
+/// reference by [`train`]); otherwise it refuses with the measured error.
+pub fn f32_gate(w: &DMatrix<f64>, h: &DMatrix<f64>, samples: &DMatrix<f64>) -> Result<F32Plan, F32Refusal> {
+    let m = w.ncols();
+    let vs: Vec<DVector<f64>> = (0..samples.ncols()).map(|c| h * samples.column(c)).collect();
+    let gamma = (m + 2) as f64 * f64::from(f32::EPSILON) / 2.0;
+    let gamma = gamma / (1.0 - gamma);
+    // Cancellation of the product, from f64.
+    let wabs = w.abs();
+    let (mut mag, mut scale) = (0.0f64, 0.0f64);
+    for v in &vs {
+        mag = mag.max((&wabs * v.abs()).max());
+        scale = scale.max((w * v).amax());
+    }
+    let cancellation = if scale > 0.0 { mag / scale } else { 1.0 };
+    let bound = gamma * cancellation;
+    let zero = vec![0i32; m];
+    let first = f32_measure(w, &vs, &zero);
+    if first.1 && first.0 <= F32_TOLERANCE {
+        return Ok(F32Plan { w32: scaled_w32(w, &zero), exponents: zero, rel_error: first.0, bound });
+    }
+    // Out of range? Equilibrate each column's largest entry to [1, 2).
+    let out_of_range = !first.1
+        || w.iter().any(|x| *x != 0.0 && !((*x as f32).is_normal()))
+        || vs.iter().flat_map(|v| v.iter()).any(|x| *x != 0.0 && !((*x as f32).is_normal()));
+    if out_of_range {
+        let exps: Vec<i32> = (0..m)
+            .map(|i| {
+                let cmax = w.column(i).amax();
+                if cmax > 0.0 && cmax.is_finite() { -(cmax.log2().floor() as i32) } else { 0 }
+            })
+            .collect();
+        let second = f32_measure(w, &vs, &exps);
+        if second.1 && second.0 <= F32_TOLERANCE {
+            return Ok(F32Plan { w32: scaled_w32(w, &exps), exponents: exps, rel_error: second.0, bound });
+        }
+        return Err(F32Refusal {
+            rel_error: if second.1 { second.0 } else { f64::INFINITY },
+            tolerance: F32_TOLERANCE,
+            cancellation,
+            reason: format!(
+                "W or the readings leave f32's normal range and power-of-two rescaling of the readings \
+                 did not bring the error within tolerance ({:.2e}); cancellation {cancellation:.2e}",
+                second.0
+            ),
+        });
+    }
+    Err(F32Refusal {
+        rel_error: first.0,
+        tolerance: F32_TOLERANCE,
+        cancellation,
+        reason: format!(
+            "the estimate cancels {cancellation:.2e}-fold (max |W||v| / max |W v|), so f32 rounding reaches \
+             {bound:.1e}; scaling cannot change f32's relative precision"
+        ),
+    })
+}
+
+/// W with column i scaled by 2^exps[i], row-major f32.
+fn scaled_w32(w: &DMatrix<f64>, exps: &[i32]) -> Vec<f32> {
+    let (n, m) = w.shape();
+    let mut out = Vec::with_capacity(n * m);
+    for j in 0..n {
+        for i in 0..m {
+            out.push((w[(j, i)] * 2f64.powi(exps[i])) as f32);
+        }
+    }
+    out
+}
+
+/// (max |f32 kernel - f64| / max |f64|, all finite) with the readings scaled
+/// by 2^-exps[i] and W's columns by 2^exps[i].
+fn f32_measure(w: &DMatrix<f64>, vs: &[DVector<f64>], exps: &[i32]) -> (f64, bool) {
+    let n = w.nrows();
+    let w32 = scaled_w32(w, exps);
     let mut out = vec![0.0f32; n];
-    let (mut worst, mut scale) = (0.0f64, 0.0f64);
-    for c in 0..samples.ncols() {
-        let v: DVector<f64> = h * samples.column(c);
-        let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
+    let (mut worst, mut scale, mut finite) = (0.0f64, 0.0f64, true);
+    for v in vs {
+        let v32: Vec<f32> = v.iter().zip(exps).map(|(x, e)| (x * 2f64.powi(-e)) as f32).collect();
         brdf_meter::kernel::estimate_into(&w32, &v32, &mut out);
-        let e64 = &est.w * &v;
+        let e64 = w * v;
         for j in 0..n {
+            finite &= out[j].is_finite();
             worst = worst.max((out[j] as f64 - e64[j]).abs());
             scale = scale.max(e64[j].abs());
         }
     }
-    if scale > 0.0 { worst / scale } else { 0.0 }
+    (if scale > 0.0 { worst / scale } else { worst }, finite)
+}
+
+/// What to do when zone `z` is refused: the smallest relative noise (in
+/// half-decade steps up to 0.5) at which the Wiener matrix passes the gate.
+fn f32_advice(spec: &TrainSpec<'_>, z: usize, err: f64) -> String {
+    let zo = &spec.zones[z];
+    let mut s = spec.noise_rel.max(1e-6);
+    while s <= 0.5 {
+        s *= 10f64.sqrt();
+        let inputs = EstimatorInputs {
+            h: &zo.h,
+            r_pp: &spec.prior.r_pp,
+            prior_samples: spec.prior.samples.ncols(),
+            noise: NoiseModel::Relative(s),
+            bins_deg: spec.bins_deg,
+            centres_deg: &zo.centres_deg,
+        };
+        if let Ok(e) = estimators::build(EstimatorKind::Wiener, &inputs)
+            && let Ok(p) = f32_gate(&e.w, &zo.h, &spec.prior.samples)
+        {
+            return format!(
+                "retrain the wiener estimator with --noise {s:.2e} or more (f32 error {:.1e} there, {err:.1e} now), \
+                 or use an instrument whose LEDs are better spread",
+                p.rel_error
+            );
+        }
+    }
+    "no Wiener noise level up to 0.5 passes: the optics are too ill-conditioned for the device; spread the LEDs or \
+     coarsen the angle grid"
+        .into()
 }
 
 /// What `train --json` writes: zone 0 at the top level, every zone below.

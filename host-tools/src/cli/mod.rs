@@ -11,6 +11,7 @@ pub mod provision_swd;
 
 pub mod reproduce;
 pub mod simulate;
+pub mod stability;
 pub mod tradeoff;
 pub mod train;
 
@@ -44,6 +45,8 @@ pub enum Command {
     Measure(measure::Args),
     /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
     Qemu(qemu::Args),
+    /// Run the hard-case numerical stability checks over many generated cases (issue 6).
+    Stability(stability::Args),
     /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts (issue 5).
     Tradeoff(tradeoff::Args),
 }
@@ -60,6 +63,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Provision(a) => provision::run(a),
         Command::Measure(a) => measure::run(a),
         Command::Qemu(a) => qemu::run(a),
+        Command::Stability(a) => stability::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),
     }
 }

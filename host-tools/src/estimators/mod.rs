@@ -408,7 +408,13 @@ impl PsdFactor {
                 detail: format!("eigenvalue {neg:.3e} with largest {lmax:.3e}"),
             });
         }
-        let keep: Vec<usize> = (0..k).filter(|&i| vals[i] > floor).collect();
+        // The floor applies to computed eigenvalues. A diagonal matrix's
+        // eigenvalues are its entries, exact: every positive one is kept, so
+        // readings whose noise variance is tiny next to another's (per-LED
+        // gains 1e-6 vs 1e6 make the ratio 1e24) stay noisy readings instead
+        // of being treated as noise-free (stability family `gain`).
+        let cut = if diagonal { 0.0 } else { floor };
+        let keep: Vec<usize> = (0..k).filter(|&i| vals[i] > cut).collect();
         let mut l = DMatrix::zeros(k, keep.len());
         for (c, &i) in keep.iter().enumerate() {
             let s = vals[i].sqrt();

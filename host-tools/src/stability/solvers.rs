@@ -1,0 +1,133 @@
+//! The solvers the invariants judge: the product's ([`Production`]) and
+//! deliberately broken ones, which exist only to show that every invariant
+//! can fail (each is flagged by at least one invariant on hard cases; tested
+//! in `host-tools/tests/stability.rs`).
+use crate::estimators::{self, EstimatorInputs, EstimatorSummary, NoiseModel};
+use brdf_meter::blob::EstimatorKind;
+use nalgebra::DMatrix;
+
+/// What a solver returns.
+#[derive(Clone, Debug)]
+pub struct Solved {
+    /// W, n x m.
+    pub w: DMatrix<f64>,
+    /// The solver's own summary, if it makes one.
+    pub summary: Option<EstimatorSummary>,
+}
+
+/// A Wiener solver under test.
+pub trait Solver: Sync {
+    /// Name for reports.
+    fn name(&self) -> &'static str;
+    /// W for system `h`, prior `r_pp` and `noise` (`NoiseModel::None`: eq. 20).
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String>;
+}
+
+/// The product: `estimators::build` (square-root SVD form), eq. 22, or eq. 20
+/// when there is no noise.
+pub struct Production;
+
+impl Solver for Production {
+    fn name(&self) -> &'static str {
+        "production"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
+        let kind = if matches!(noise, NoiseModel::None) { EstimatorKind::WienerNoiseFree } else { EstimatorKind::Wiener };
+        let inputs = EstimatorInputs { h, r_pp, prior_samples: 0, noise: noise.clone(), bins_deg: &[], centres_deg: &[] };
+        let e = estimators::build(kind, &inputs).map_err(|e| e.to_string())?;
+        Ok(Solved { w: e.w, summary: Some(e.summary) })
+    }
+}
+
+/// BROKEN on purpose: the textbook formula with an explicit f64 inverse,
+/// `R_pp H^T (H R_pp H^T + R_nn)^-1` (`try_inverse`, LU). Loses
+/// `log10 cond` digits; returns NaN when the LU gives up.
+pub struct ExplicitInverse;
+
+impl Solver for ExplicitInverse {
+    fn name(&self) -> &'static str {
+        "explicit-inverse"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
+        let rnn = noise.covariance(h, r_pp).map_err(|e| e.to_string())?;
+        let a = h * r_pp * h.transpose() + rnn;
+        let w = match a.try_inverse() {
+            Some(inv) => r_pp * h.transpose() * inv,
+            None => DMatrix::from_element(h.ncols(), h.nrows(), f64::NAN),
+        };
+        Ok(Solved { w, summary: None })
+    }
+}
+
+/// BROKEN on purpose: the same formula solved entirely in f32 (LU of the
+/// f32 normal matrix), as a naive port to the device would.
+pub struct F32Only;
+
+impl Solver for F32Only {
+    fn name(&self) -> &'static str {
+        "f32-only"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
+        let rnn = noise.covariance(h, r_pp).map_err(|e| e.to_string())?;
+        let h32 = h.map(|x| x as f32);
+        let r32 = r_pp.map(|x| x as f32);
+        let a = &h32 * &r32 * h32.transpose() + rnn.map(|x| x as f32);
+        let rhs = &h32 * &r32; // A W^T = H R_pp
+        let w = match a.lu().solve(&rhs) {
+            Some(wt) => wt.transpose().map(|x| x as f64),
+            None => DMatrix::from_element(h.ncols(), h.nrows(), f64::NAN),
+        };
+        Ok(Solved { w, summary: None })
+    }
+}
+
+/// BROKEN on purpose: a fixed Tikhonov floor, `(H R_pp H^T + R_nn + d I)^-1`
+/// with `d = 1e-6 * ||H R_pp H^T||`, solved stably by Cholesky. Finite and
+/// accurate at high noise, but W does not tend to the minimum-norm solution
+/// as the noise vanishes (a floor that is not documented as part of the model).
+pub struct FixedFloor;
+
+impl Solver for FixedFloor {
+    fn name(&self) -> &'static str {
+        "fixed-floor"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
+        let rnn = noise.covariance(h, r_pp).map_err(|e| e.to_string())?;
+        let hrh = h * r_pp * h.transpose();
+        let d = 1e-6 * hrh.norm();
+        let m = h.nrows();
+        let a = hrh + rnn + DMatrix::identity(m, m) * d;
+        let rhs = h * r_pp;
+        let w = a.cholesky().ok_or("not positive definite")?.solve(&rhs).transpose();
+        Ok(Solved { w, summary: None })
+    }
+}
+
+/// BROKEN on purpose: ignores the noise and always uses eq. 20 (the
+/// noise-free minimum-norm solution), which amplifies noise on ill-conditioned
+/// optics. Numerically impeccable, statistically wrong.
+pub struct IgnoresNoise;
+
+impl Solver for IgnoresNoise {
+    fn name(&self) -> &'static str {
+        "ignores-noise"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, _noise: &NoiseModel) -> Result<Solved, String> {
+        Production.solve(h, r_pp, &NoiseModel::None)
+    }
+}
+
+/// How the device evaluates `rho = W v` (the f32 invariant judges this).
+pub type DeviceKernel = fn(w: &[f32], v: &[f32], out: &mut [f32]);
+
+/// The device's kernel, `brdf_meter::kernel::estimate_into`.
+pub fn device_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
+    brdf_meter::kernel::estimate_into(w, v, out)
+}
+
+/// BROKEN on purpose: a kernel that keeps only 8 mantissa bits of W
+/// (bfloat16 storage, as a flash-saving shortcut would).
+pub fn bf16_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
+    let w16: Vec<f32> = w.iter().map(|x| f32::from_bits(x.to_bits() & 0xFFFF_0000)).collect();
+    brdf_meter::kernel::estimate_into(&w16, v, out)
+}
