@@ -164,16 +164,19 @@ impl<T: Transport> Client<T> {
         self.reply_to(seq)
     }
 
-    /// Waits until the device answers `Info`, asking again every 250 ms (bytes
-    /// sent before a device's UART is enabled are lost, as QEMU's USART drops
-    /// them), for at most `total`.
+    /// Waits until the device answers `Info`, asking again every 250 ms, for
+    /// at most `total`: bytes sent before a device's UART is enabled are lost
+    /// (QEMU's USART drops them), so the first request may vanish or arrive
+    /// cut (answered by a frame error).
     pub fn wait_ready(&mut self, total: Duration) -> Result<DeviceInfo, LinkError> {
         let saved = self.timeout;
         let deadline = Instant::now() + total;
         self.timeout = Duration::from_millis(250);
         let r = loop {
             match self.info() {
-                Err(LinkError::Timeout(..)) if Instant::now() < deadline => {
+                // Nothing yet, or the tail of a frame whose start was lost:
+                // ask again.
+                Err(LinkError::Timeout(..) | LinkError::Device(DeviceError::Frame(_))) if Instant::now() < deadline => {
                     self.t.send(&[0])?;
                 }
                 Err(LinkError::Timeout(..)) => break Err(LinkError::Timeout(total, "the device to answer Info")),
