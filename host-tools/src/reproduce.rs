@@ -83,7 +83,7 @@ impl Config {
     pub fn reduced(stride: usize) -> Self {
         let mut c = Self::patent();
         let all = SampleSet::patent_test();
-        let keep = |k: &usize| k % stride.max(1) == 0;
+        let keep = |k: &usize| k.is_multiple_of(stride.max(1));
         c.test = SampleSet {
             names: all.names.iter().enumerate().filter(|(k, _)| keep(k)).map(|(_, n)| n.clone()).collect(),
             brdfs: all.brdfs.into_iter().enumerate().filter(|(k, _)| keep(k)).map(|(_, b)| b).collect(),

@@ -188,7 +188,8 @@ mod tests {
         std::fs::write(&bad, "[[ward_grid]]\nrho_d = [0.5]\nalpha = [\"x\"]\n").unwrap();
         let csv = dir.path().join("m.csv");
         std::fs::write(&csv, "20,1.0\n30,oops\n").unwrap();
-        let cases: Vec<(Box<dyn Fn(&mut Args)>, &str)> = vec![
+        type Edit<'a> = Box<dyn Fn(&mut Args) + 'a>;
+        let cases: Vec<(Edit, &str)> = vec![
             (Box::new(|a: &mut Args| a.prior = bad.display().to_string()), "prior.toml:3"),
             (Box::new(|a: &mut Args| a.prior = csv.display().to_string()), "m.csv:2"),
             (Box::new(|a: &mut Args| a.noise = -0.1), "--noise"),

@@ -17,7 +17,8 @@ pub(crate) fn build(h: &DMatrix<f64>) -> Result<Built, EstimatorError> {
     let (smax, smin) = (sv.max(), sv.min());
     let tol = rank_tolerance(n, n);
     let condition = if smin > 0.0 { smax / smin } else { f64::INFINITY };
-    if !(smin > tol * smax) {
+    // Also refuses NaN singular values.
+    if smin.is_nan() || smin <= tol * smax {
         return Err(EstimatorError::Singular { condition });
     }
     let w = h.clone().lu().solve(&DMatrix::identity(n, n)).ok_or(EstimatorError::Singular { condition })?;

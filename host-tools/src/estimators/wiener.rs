@@ -149,7 +149,7 @@ pub(crate) fn build(
     let mut a_pinv = DMatrix::zeros(m, m);
     for &i in &kept {
         let col = pm.column(i);
-        a_pinv += (&col * col.transpose()) / (ms[i] * ms[i]);
+        a_pinv += (col * col.transpose()) / (ms[i] * ms[i]);
     }
     // W = L V S U^T A^+ = lv * (us^T A^+)
     let w = &lv * (us.transpose() * &a_pinv);
@@ -180,7 +180,7 @@ fn whitening(l: &DMatrix<f64>) -> DMatrix<f64> {
         let col = l.column(c);
         let lam = col.norm_squared(); // lambda_i (q_i is unit)
         // q_i q_i^T / sqrt(lambda_i) = col col^T / lambda_i^{3/2}
-        t += (&col * col.transpose()) / (lam * lam.sqrt());
+        t += (col * col.transpose()) / (lam * lam.sqrt());
     }
     t
 }

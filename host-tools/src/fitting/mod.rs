@@ -248,13 +248,13 @@ struct Transform {
 }
 
 impl Transform {
-    fn to_external(&self, u: &[f64; 3]) -> [f64; 3] {
+    fn external(&self, u: &[f64; 3]) -> [f64; 3] {
         std::array::from_fn(|k| self.lo[k] + (self.hi[k] - self.lo[k]) * 0.5 * (1.0 + u[k].sin()))
     }
     fn derivative(&self, u: &[f64; 3]) -> [f64; 3] {
         std::array::from_fn(|k| (self.hi[k] - self.lo[k]) * 0.5 * u[k].cos())
     }
-    fn to_internal(&self, p: &[f64; 3]) -> [f64; 3] {
+    fn internal(&self, p: &[f64; 3]) -> [f64; 3] {
         std::array::from_fn(|k| {
             let span = self.hi[k] - self.lo[k];
             // Keep starts off the bounds, where the transform's slope is zero.
@@ -293,7 +293,7 @@ impl LeastSquaresProblem<f64, na::Dyn, na::U3> for Problem<'_> {
 
     fn residuals(&self) -> Option<ResVec> {
         self.residual_evals.set(self.residual_evals.get() + 1);
-        let p = WardParams::from_array(self.tf.to_external(&self.u));
+        let p = WardParams::from_array(self.tf.external(&self.u));
         let pred = self.model.readings(&p);
         let r = ResVec::from_iterator(pred.len(), pred.iter().zip(self.v).zip(self.inv_sigma).map(|((m, v), s)| (m - v) * s));
         r.iter().all(|x| x.is_finite()).then_some(r)
@@ -301,7 +301,7 @@ impl LeastSquaresProblem<f64, na::Dyn, na::U3> for Problem<'_> {
 
     fn jacobian(&self) -> Option<JacMat> {
         self.jacobian_evals.set(self.jacobian_evals.get() + 1);
-        let [d, s, a] = self.tf.to_external(&self.u);
+        let [d, s, a] = self.tf.external(&self.u);
         let dp = self.tf.derivative(&self.u);
         let _ = d;
         let ia2 = 1.0 / (a * a);
@@ -394,14 +394,14 @@ pub fn fit_ward(model: &ForwardModel, v: &[f64], opts: &FitOptions) -> Result<Fi
             v,
             inv_sigma: &inv_sigma,
             tf,
-            u: tf.to_internal(&scan[q].0),
+            u: tf.internal(&scan[q].0),
             residual_evals: Cell::new(0),
             jacobian_evals: Cell::new(0),
         };
         let (problem, report) = lm.minimize(problem);
         re += problem.residual_evals.get();
         je += problem.jacobian_evals.get();
-        let p = tf.to_external(&problem.u);
+        let p = tf.external(&problem.u);
         // Re-evaluate the cost at the returned point (LM reports the last one it computed).
         let cost = 0.5 * problem.residuals().map_or(f64::INFINITY, |r| r.norm_squared());
         if best.as_ref().is_none_or(|(c, _, _)| cost < *c) {
@@ -516,7 +516,7 @@ mod tests {
             v: &v,
             inv_sigma: &inv,
             tf,
-            u: tf.to_internal(&[0.4, 0.5, 0.07]),
+            u: tf.internal(&[0.4, 0.5, 0.07]),
             residual_evals: Cell::new(0),
             jacobian_evals: Cell::new(0),
         };
