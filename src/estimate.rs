@@ -152,6 +152,27 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     }
 }
 
+/// Makes one point's estimate safe to stream, and says so in its flags.
+///
+/// If any value is NaN or infinite - corrected readings that were not finite
+/// (a white reference so small that the division overflowed), or `W v`
+/// overflowing f32 because W itself is huge - every value of the point is set
+/// to 0 and [`crate::protocol::flags::NON_FINITE`] is returned; otherwise the
+/// values are untouched and 0 is returned. The whole point is zeroed, not just
+/// the bad bins: its other bins come from the same readings and matrix and
+/// cannot be trusted either, and a host that ignores flags then sees a flat
+/// zero curve rather than a wild one. The device applies this to every point
+/// before it is framed, so no NaN or infinity is ever streamed; the host's
+/// reproduction of the device (`host_tools::link::sim::expected_line`) calls
+/// the same function.
+pub fn guard_estimate(rho: &mut [f32]) -> u8 {
+    if rho.iter().all(|x| x.is_finite()) {
+        return 0;
+    }
+    rho.fill(0.0);
+    crate::protocol::flags::NON_FINITE
+}
+
 /// `out = W v` for one point, with the shared kernel. Not inlined, so the
 /// firmware has one symbol whose instructions can be counted in QEMU
 /// (scripts/qemu-icount.sh).

@@ -151,8 +151,9 @@ where
                         let c = c.borrow();
                         c.cal.active().is_some().then(|| c.cal.estimate(p, &buf.v[p], &mut rho))
                     });
-                    let mut fl = buf.flags[p];
-                    if zone.is_none() || rho.iter().any(|x| !x.is_finite()) {
+                    // Never stream NaN/inf: a non-finite point is zeroed and flagged.
+                    let mut fl = buf.flags[p] | crate::estimate::guard_estimate(&mut rho);
+                    if zone.is_none() {
                         fl |= flags::NON_FINITE;
                     }
                     let pf = PointFrame {

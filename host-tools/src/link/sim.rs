@@ -56,9 +56,7 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
             blob.copy_matrix(z, &mut w);
             let mut rho = vec![0.0f32; d.n];
             estimate_into(&w, &v, &mut rho);
-            if rho.iter().any(|x| !x.is_finite()) {
-                flags |= brdf_meter::protocol::flags::NON_FINITE;
-            }
+            flags |= brdf_meter::estimate::guard_estimate(&mut rho);
             (z as u16, flags, rho)
         })
         .collect()
