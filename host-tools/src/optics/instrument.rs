@@ -109,7 +109,7 @@ impl EmissionSpec {
                     return Err(FieldError::new("angles_deg", "the table must start on the axis, at 0 deg"));
                 }
                 for (i, w) in angles_deg.windows(2).enumerate() {
-                    if !(w[1] > w[0]) || w[1] > 90.0 {
+                    if w[1] <= w[0] || w[1].is_nan() || w[1] > 90.0 {
                         return Err(FieldError::new(format!("angles_deg[{}]", i + 1), "angles must ascend strictly, up to 90 deg"));
                     }
                 }

@@ -106,6 +106,11 @@ impl Optics {
         self.model
     }
 
+    /// Point sources prepared over all LEDs (0 in far field, where none are built).
+    pub fn sources_built(&self) -> usize {
+        self.leds.iter().map(|l| l.sources.len()).sum()
+    }
+
     /// Number of LEDs.
     pub fn m(&self) -> usize {
         self.leds.len()

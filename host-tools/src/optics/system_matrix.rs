@@ -66,7 +66,7 @@ pub fn system_matrix_at(optics: &Optics, grid: &AngleGrid, point: &Vector3<f64>)
                 hi: *grid.bins_deg().last().unwrap(),
             });
         }
-        if !(total > 0.0) || !total.is_finite() {
+        if total.is_nan() || total <= 0.0 || !total.is_finite() {
             return Err(OpticsError::NoLight { led });
         }
         h.row_mut(led).scale_mut(1.0 / total);

@@ -209,7 +209,7 @@ impl Scene {
     }
 
     /// The BRDF of each pixel: (distinct models, model index per pixel).
-    pub fn surface_brdfs(&self) -> anyhow::Result<(Vec<Box<dyn Brdf>>, Vec<usize>)> {
+    pub fn surface_brdfs(&self) -> anyhow::Result<SurfaceModels> {
         let mut models = vec![self.surface.brdf.build().context("surface.brdf")?];
         let mut of_pixel = vec![0; self.instrument.sensor.pixels];
         for (k, s) in self.surface.segments.iter().enumerate() {
@@ -245,6 +245,9 @@ impl Scene {
         (crate::optics::surface_frame(&inst.normal()) * dir).z.clamp(-1.0, 1.0).acos().to_degrees()
     }
 }
+
+/// The distinct BRDFs of a surface and the index of each pixel's.
+pub type SurfaceModels = (Vec<Box<dyn Brdf>>, Vec<usize>);
 
 /// Point seen by pixel `p` (see [`Scene::pixel_point`]).
 pub(crate) fn geometry_point(inst: &Instrument, p: f64, per_pixel: bool, three_d: bool) -> Vector3<f64> {

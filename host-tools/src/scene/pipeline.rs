@@ -330,7 +330,7 @@ impl Simulator {
         for px in 0..p {
             for k in 0..m {
                 let w = white[px * m + k];
-                if !(w > 0.0) || !w.is_finite() {
+                if w.is_nan() || w <= 0.0 || !w.is_finite() {
                     bail!(
                         "scene `{}`: pixel {px} gets no usable light from instrument.leds[{k}] (white reference {w}); \
                          check the LED's position, emission profile and the sensor's gain and saturation",
@@ -408,7 +408,7 @@ impl Simulator {
             let mut px_out = Vec::with_capacity(frame.len());
             for (px, x) in frame.into_iter().enumerate() {
                 let r = x.round();
-                if !(r <= 65535.0) {
+                if r.is_nan() || r > 65535.0 {
                     let what = if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
                     bail!(
                         "line {line}, pixel {px}, {what}: {x} counts do not fit the u16 link; lower instrument.sensor.gain or list the `saturation` effect"

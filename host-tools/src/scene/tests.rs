@@ -121,6 +121,7 @@ fn patent_profile_scene_is_the_original_optics() {
 fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
     let s = load("far-field.toml");
     let optics = Optics::new(&s.instrument, s.ray_model());
+    assert_eq!(optics.sources_built(), 0, "far field builds no per-source positions");
     for px in [0.0, 63.5, 127.0] {
         for led in 0..s.instrument.m() {
             let rays = optics.rays_at(led, &s.pixel_point(px));
@@ -131,6 +132,7 @@ fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
     // Near field: 25 rays per extended LED, spread around the centre angle.
     let near = handheld_with(vec![EffectSpec::NearField {}, EffectSpec::ThreeDGeometry {}], ward());
     let optics = Optics::new(&near.instrument, near.ray_model());
+    assert_eq!(optics.sources_built(), 7 * 25);
     let rays = optics.rays_at(3, &near.pixel_point(0.0));
     assert_eq!(rays.len(), 25);
     assert!(rays.iter().any(|r| (r.theta_deg - 45.0).abs() > 0.5));
@@ -458,7 +460,7 @@ fn white_reference_and_raw_frames_have_the_blob_and_link_layouts() {
     let e = format!("{:#}", raw_frames(&hot, 0).unwrap_err());
     assert!(e.contains("u16") && e.contains("instrument.leds[") && e.contains("saturation"), "{e}");
     hot.effects.push(EffectSpec::Saturation {});
-    assert!(raw_frames(&hot, 0).unwrap()[4].iter().any(|x| *x == 4095));
+    assert!(raw_frames(&hot, 0).unwrap()[4].contains(&4095));
 }
 
 #[test]
