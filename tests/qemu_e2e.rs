@@ -133,3 +133,22 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
     assert_eq!(st.bad_frames, 2);
     assert!(st.refused >= 4);
 }
+
+#[test]
+fn qemu_serves_the_same_protocol_over_a_serial_port() {
+    // QEMU's serial on a pseudo-terminal, opened with the serialport crate
+    // exactly as a real instrument on /dev/ttyACM* is.
+    let q = host_tools::link::qemu::QemuInstrument::start_pty(&system_tests::qemu::firmware(), Duration::from_secs(240), &[])
+        .unwrap();
+    let mut c = q.connect_serial().unwrap();
+    c.timeout = Duration::from_secs(20);
+    assert!(q.addr.starts_with("/dev/pts/"), "{}", q.addr);
+    let scene = patent_scene(PIXELS);
+    let blob = train_for_scene(&scene, 2, 0.02).unwrap().blob;
+    c.provision(&blob, |_, _| {}).unwrap();
+    let frames = scene_frames(&scene, 1).unwrap();
+    c.load_scene(&frames).unwrap();
+    let points = c.measure(1).unwrap();
+    let full_scale = c.info().unwrap().full_scale;
+    check_bit_identical(&blob, &frames, &points, 1, full_scale);
+}

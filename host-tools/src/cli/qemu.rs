@@ -12,6 +12,10 @@ pub struct Args {
     /// TCP port of the instrument's serial (127.0.0.1).
     #[arg(long, default_value_t = 4555)]
     pub port: u16,
+    /// Put the serial on a pseudo-terminal (reach it with `--port /dev/pts/N`,
+    /// as a real instrument on /dev/ttyACM*) instead of TCP.
+    #[arg(long)]
+    pub pty: bool,
     /// Firmware ELF to run instead of building it.
     #[arg(long, value_name = "PATH")]
     pub elf: Option<PathBuf>,
@@ -41,11 +45,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let elf = if elf.is_file() { elf } else { firmware_path(&workspace_root()) };
-    let mut q = QemuInstrument::start(&elf, Some(a.port), Duration::from_secs(a.minutes * 60), &a.qemu_args)
-        .with_context(|| format!("starting QEMU with {} (is port {} free?)", elf.display(), a.port))?;
+    let max_run = Duration::from_secs(a.minutes * 60);
+    let mut q = if a.pty {
+        QemuInstrument::start_pty(&elf, max_run, &a.qemu_args)
+            .with_context(|| format!("starting QEMU with {}", elf.display()))?
+    } else {
+        QemuInstrument::start(&elf, Some(a.port), max_run, &a.qemu_args)
+            .with_context(|| format!("starting QEMU with {} (is port {} free?)", elf.display(), a.port))?
+    };
     let addr = q.addr.clone();
+    let link = if a.pty { format!("--port {addr}") } else { format!("--tcp {addr}") };
     if let Some(blob_path) = &a.demo {
-        let mut c = q.connect()?;
+        let mut c: crate::link::Client<Box<dyn crate::link::Transport>> = if a.pty {
+            let mut c = crate::link::Client::new(Box::new(crate::link::SerialTransport::open(&addr)?) as Box<dyn crate::link::Transport>)?;
+            c.wait_ready(Duration::from_secs(20))?;
+            c
+        } else {
+            let mut c = crate::link::Client::new(Box::new(crate::link::TcpTransport::connect(&addr)?) as Box<dyn crate::link::Transport>)?;
+            c.wait_ready(Duration::from_secs(20))?;
+            c
+        };
         let info = c.info()?;
         let scene = crate::link::sim::patent_scene(info.pixels as usize);
         eprintln!("training a 4-zone calibration for the simulated optics ...");
@@ -69,13 +88,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     let blob = a.demo.as_ref().map_or("CAL.blob".into(), |p| p.display().to_string());
-    println!("QEMU instrument running: serial on tcp {addr}, for {} min (Ctrl-C stops it). Try:", a.minutes);
-    println!("  host-tools info --tcp {addr}");
+    println!("QEMU instrument running: serial on {addr}, for {} min (Ctrl-C stops it). Try:", a.minutes);
+    println!("  host-tools info {link}");
     if a.demo.is_none() {
-        println!("  host-tools train --pixels 32 --zones 4 --out {blob}    # or restart with --demo {blob}");
-        println!("  host-tools provision --tcp {addr} --blob {blob}");
+        println!("  (restart with --demo {blob} for a calibration trained for the simulated optics, or)");
+        println!("  host-tools provision {link} --blob {blob}");
     }
-    println!("  host-tools measure --tcp {addr} --blob {blob} --lines 4 --scene patent --csv out/m.csv --json out/m.json");
+    println!("  host-tools measure {link} --blob {blob} --lines 4 --scene patent --csv out/m.csv --json out/m.json");
     let st = q.wait()?;
     println!("QEMU stopped ({st}); {}", q.log_text().trim());
     Ok(())

@@ -48,7 +48,7 @@ pub struct QemuInstrument {
     child: Option<Child>,
     /// 127.0.0.1:PORT of its serial.
     pub addr: String,
-    /// QEMU's stderr (semihosting output: firmware panics).
+    /// QEMU's output (its messages, and firmware panics through semihosting).
     pub log: PathBuf,
 }
 
@@ -75,25 +75,64 @@ impl QemuInstrument {
         Err(last_err.expect("tried at least once"))
     }
 
-    fn try_start(elf: &Path, port: u16, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
-        let log = elf.with_file_name(format!("qemu-{port}.log"));
-        let stderr = std::fs::File::create(&log).with_context(|| format!("creating {}", log.display()))?;
-        // --foreground: QEMU stays in our process group, so a Ctrl-C of
-        // `host-tools qemu` reaches it too; `timeout` still ends it in time.
-        let child = Command::new("timeout")
+    /// Starts QEMU with its serial on a pseudo-terminal (`-serial pty`), the
+    /// way a real instrument appears as /dev/ttyACM*: [`Self::addr`] is the
+    /// pty's path, for [`Self::connect_serial`] or `--port`.
+    pub fn start_pty(elf: &Path, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
+        let log = elf.with_file_name(format!("qemu-pty-{}.log", std::process::id()));
+        let child = Self::spawn(elf, "pty", max_run, extra, &log)?;
+        let mut q = Self { child: Some(child), addr: String::new(), log };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            // QEMU prints "char device redirected to /dev/pts/N (label serial0)".
+            if let Some(path) = q.log_text().split_whitespace().skip_while(|w| *w != "to").nth(1) {
+                q.addr = path.to_string();
+                return Ok(q);
+            }
+            if !q.running() {
+                bail!("QEMU exited at start: {}", q.log_text());
+            }
+            if Instant::now() > deadline {
+                bail!("QEMU did not report its pty within 10 s: {}", q.log_text());
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// A protocol client on its pty serial (see [`Self::start_pty`]), through
+    /// the serial-port transport a real instrument uses.
+    pub fn connect_serial(&self) -> anyhow::Result<Client<super::SerialTransport>> {
+        let t = super::SerialTransport::open(&self.addr).with_context(|| format!("opening {}", self.addr))?;
+        let mut c = Client::new(t)?;
+        c.wait_ready(Duration::from_secs(20))
+            .with_context(|| format!("the QEMU firmware did not answer: {}", self.log_text()))?;
+        Ok(c)
+    }
+
+    fn spawn(elf: &Path, serial: &str, max_run: Duration, extra: &[String], log: &Path) -> anyhow::Result<Child> {
+        let stderr = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+        Command::new("timeout")
             .arg("--foreground")
             .arg(format!("{}", max_run.as_secs().max(1)))
             .args(["qemu-system-arm", "-machine", "b-l475e-iot01a", "-display", "none", "-monitor", "none"])
             .arg("-serial")
-            .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
+            .arg(serial)
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
             .arg(elf)
             .args(extra)
             .stdin(Stdio::null())
-            .stdout(Stdio::null())
+            // QEMU reports its pty on stdout, firmware panics on stderr: one log.
+            .stdout(stderr.try_clone().context("duplicating the log handle")?)
             .stderr(stderr)
             .spawn()
-            .context("starting qemu-system-arm under timeout (install it with scripts/install-test-deps.sh)")?;
+            .context("starting qemu-system-arm under timeout (install it with scripts/install-test-deps.sh)")
+    }
+
+    fn try_start(elf: &Path, port: u16, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
+        let log = elf.with_file_name(format!("qemu-{port}.log"));
+        // --foreground (in spawn): QEMU stays in our process group, so a
+        // Ctrl-C of `host-tools qemu` reaches it too; `timeout` still ends it.
+        let child = Self::spawn(elf, &format!("tcp:127.0.0.1:{port},server=on,wait=off"), max_run, extra, &log)?;
         let mut q = Self { child: Some(child), addr: format!("127.0.0.1:{port}"), log };
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
