@@ -224,6 +224,23 @@ pub fn read_measured_csv(path: &Path) -> anyhow::Result<Tabulated> {
         };
         match (parse(0, "angle_deg")?, parse(1, "value")?) {
             (Some(a), Some(v)) => {
+                // Check each row where its line is known; Tabulated::new
+                // repeats the checks for callers without a file.
+                if !a.is_finite() {
+                    bail!("{}:{line}: field `angle_deg`: {a} is not a finite number", path.display());
+                }
+                if !v.is_finite() {
+                    bail!("{}:{line}: field `value`: {v} is not a finite number", path.display());
+                }
+                if v < 0.0 {
+                    bail!("{}:{line}: field `value`: {v} is negative; a reflectance factor is >= 0", path.display());
+                }
+                if !(0.0..90.0).contains(&a) {
+                    bail!("{}:{line}: field `angle_deg`: {a} deg is outside [0, 90)", path.display());
+                }
+                if angles.last().is_some_and(|&prev| a <= prev) {
+                    bail!("{}:{line}: field `angle_deg`: {a} deg is not above the previous row's; sort the rows and remove duplicates", path.display());
+                }
                 angles.push(a);
                 values.push(v);
             }
@@ -278,9 +295,13 @@ mod tests {
         assert!(e.contains("bad.csv:2") && e.contains("`value`"), "{e}");
         std::fs::write(&bad, "20,1.0\n30,-0.2\n").unwrap();
         let e = format!("{:#}", read_measured_csv(&bad).unwrap_err());
-        assert!(e.contains("negative"), "{e}");
+        assert!(e.contains("bad.csv:2") && e.contains("negative"), "{e}");
         std::fs::write(&bad, "20,1.0\n30,NaN\n").unwrap();
-        assert!(format!("{:#}", read_measured_csv(&bad).unwrap_err()).contains("finite"));
+        let e = format!("{:#}", read_measured_csv(&bad).unwrap_err());
+        assert!(e.contains("bad.csv:2") && e.contains("finite"), "{e}");
+        std::fs::write(&bad, "# header comment\n20,1.0\n20,2.0\n").unwrap();
+        let e = format!("{:#}", read_measured_csv(&bad).unwrap_err());
+        assert!(e.contains("bad.csv:3") && e.contains("`angle_deg`"), "{e}");
         // Too narrow for the grid.
         std::fs::write(&bad, "30,1.0\n40,1.0\n").unwrap();
         let spec = PriorSpec { csv: vec![bad.clone()], ..Default::default() };
