@@ -315,13 +315,10 @@ impl Simulator {
             let b = of_pixel[px];
             let key = pt * brdfs.len() + b;
             if memo[key].is_none() || white_memo[pt].is_none() {
-                let point = scene.pixel_point(px as f64);
-                if memo[key].is_none() {
-                    memo[key] = Some(light(&optics, &point, &pixel_view(scene, px), brdfs[b].as_ref(), gain));
-                }
-                if white_memo[pt].is_none() {
-                    white_memo[pt] = Some(white_light(&optics, &point, gain));
-                }
+                // One pass over the rays gives the surface's light and the white tile's.
+                let (l, w) = light(&optics, &scene.pixel_point(px as f64), &pixel_view(scene, px), brdfs[b].as_ref(), gain);
+                memo[key].get_or_insert(l);
+                white_memo[pt].get_or_insert(w);
             }
             signal[px * m..(px + 1) * m].copy_from_slice(memo[key].as_deref().unwrap());
             white_signal[px * m..(px + 1) * m].copy_from_slice(white_memo[pt].as_deref().unwrap());
@@ -422,26 +419,20 @@ impl Simulator {
     }
 }
 
-/// gain x sum over rays of weight x R(ray, view), per LED.
-fn light(optics: &Optics, point: &Vector3<f64>, wo: &Vector3<f64>, brdf: &dyn Brdf, gain: f64) -> Vec<f64> {
+/// Per LED: gain x sum over rays of weight x R(ray, view), and the same for
+/// a perfect diffuser (R = 1 wherever the viewer sees the surface).
+fn light(optics: &Optics, point: &Vector3<f64>, wo: &Vector3<f64>, brdf: &dyn Brdf, gain: f64) -> (Vec<f64>, Vec<f64>) {
+    let seen = if wo.z > 0.0 { 1.0 } else { 0.0 };
     (0..optics.m())
         .map(|led| {
-            let mut s = 0.0;
-            optics.for_each_ray(led, point, |r| s += r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, wo));
-            gain * s
+            let (mut s, mut w) = (0.0, 0.0);
+            optics.for_each_ray(led, point, |r| {
+                s += r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, wo);
+                w += r.weight;
+            });
+            (gain * s, gain * w * seen)
         })
-        .collect()
-}
-
-/// The light a perfect diffuser (R = 1) sends: gain x sum of weights.
-fn white_light(optics: &Optics, point: &Vector3<f64>, gain: f64) -> Vec<f64> {
-    (0..optics.m())
-        .map(|led| {
-            let mut s = 0.0;
-            optics.for_each_ray(led, point, |r| s += r.weight);
-            gain * s
-        })
-        .collect()
+        .unzip()
 }
 
 /// Dark-corrected reference readings of the white signal (`p * m + k`).
