@@ -149,7 +149,7 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
         let end = zones.get(z + 1).map_or(spec.pixels, |n| n.first_pixel);
         for px in zones[z].first_pixel..end {
             for i in 0..m {
-                let x = white[px * m + i] * 2f32.powi(p.exponents[i]);
+                let x = (f64::from(white[px * m + i]) * 2f64.powi(p.exponents[i])) as f32;
                 ensure!(
                     x.is_normal() && x > 0.0,
                     "zone {z}: W leaves f32's range and the power-of-two rescaling 2^{} of reading {i} would make the \

@@ -131,3 +131,52 @@ pub fn bf16_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
     let w16: Vec<f32> = w.iter().map(|x| f32::from_bits(x.to_bits() & 0xFFFF_0000)).collect();
     brdf_meter::kernel::estimate_into(&w16, v, out)
 }
+
+/// BROKEN on purpose: eq. 22 with the rank decided on the un-whitened
+/// `B = H L` and readings whose noise variance is below `m eps` of the
+/// largest treated as noise-free (dropped from the whitening) - the product's
+/// algorithm before issue 6. Fine for gains of one order, but per-reading
+/// gains 1e-6..1e6 push whole readings below the cut-off, so W is not
+/// gain-covariant and is far from optimal.
+pub struct TruncateThenWhiten;
+
+impl Solver for TruncateThenWhiten {
+    fn name(&self) -> &'static str {
+        "truncate-then-whiten"
+    }
+    fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
+        let rnn = noise.covariance(h, r_pp).map_err(|e| e.to_string())?;
+        let (m, n) = h.shape();
+        let e = r_pp.clone().symmetric_eigen();
+        let lmax = e.eigenvalues.amax();
+        let keep: Vec<usize> = (0..n).filter(|&i| e.eigenvalues[i] > n as f64 * f64::EPSILON * lmax).collect();
+        let l = DMatrix::from_fn(n, keep.len(), |j, c| e.eigenvectors[(j, keep[c])] * e.eigenvalues[keep[c]].sqrt());
+        let b = h * &l;
+        let r = b.ncols();
+        let svd = b.svd(true, true);
+        let (u, s, vt) = (svd.u.expect("u"), svd.singular_values, svd.v_t.expect("v"));
+        let smax = s.amax();
+        let k = s.iter().filter(|x| **x > estimators::rank_tolerance(m, r) * smax).count();
+        let rmax = (0..m).map(|i| rnn[(i, i)]).fold(0.0f64, f64::max);
+        let noisy: Vec<usize> = (0..m).filter(|&i| rnn[(i, i)] > m as f64 * f64::EPSILON * rmax).collect();
+        if noisy.is_empty() {
+            return Production.solve(h, r_pp, &NoiseModel::None);
+        }
+        // Whiten only the noisy readings; noise-free ones get the minimum-norm treatment (ignored here).
+        let us = DMatrix::from_fn(noisy.len(), k, |a, c| u[(noisy[a], c)] * s[c] / rnn[(noisy[a], noisy[a])].sqrt());
+        let g = us.svd(true, true);
+        let (p, sig, qt) = (g.u.expect("u"), g.singular_values, g.v_t.expect("v"));
+        let mut x = p.transpose(); // k' x noisy
+        for (row, sg) in sig.iter().enumerate() {
+            x.row_mut(row).scale_mut(sg / (sg * sg + 1.0));
+        }
+        let core = qt.transpose() * x; // k x noisy
+        let lv = &l * vt.rows(0, k).transpose();
+        let part = lv * core; // n x noisy
+        let mut w = DMatrix::zeros(n, m);
+        for (a, &i) in noisy.iter().enumerate() {
+            w.set_column(i, &(part.column(a) / rnn[(i, i)].sqrt()));
+        }
+        Ok(Solved { w, summary: None })
+    }
+}
