@@ -605,3 +605,12 @@ fn train_scene_puts_the_scene_optics_and_white_reference_in_the_blob() {
     let clash = crate::cli::Cli::try_parse_from(["host-tools", "train", "--scene", "a.toml", "--far-field"]);
     assert!(clash.is_err());
 }
+
+#[test]
+fn scenes_survive_a_toml_round_trip() {
+    for (path, s) in library() {
+        let text = toml::to_string(&s).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let back = Scene::parse(&text, "roundtrip").unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display()));
+        assert_eq!(back, s, "{}", path.display());
+    }
+}
