@@ -97,6 +97,12 @@ impl Validate for Scene {
                 return Err(at(FieldError::new("kind", format!("effect `{}` is listed twice; list each effect once", e.name()))));
             }
         }
+        if self.has("per-pixel-geometry") && !self.has("3d-geometry") && self.instrument.sensor.line_axis == crate::optics::LineAxis::Y {
+            return Err(FieldError::new(
+                "instrument.sensor.line_axis",
+                "a line across the plane of incidence (\"y\") collapses onto the centre point in-plane: list `3d-geometry` too, or use \"x\"",
+            ));
+        }
         self.surface.brdf.build().map_err(|e| FieldError::new("surface.brdf", e.to_string()))?;
         let p = self.instrument.sensor.pixels;
         let mut covered = vec![false; p];

@@ -556,6 +556,18 @@ brdf = { model = "ward", rho_d = 0.3, alpha = 0.05 }
     }
 
     #[test]
+    fn a_per_pixel_line_that_cannot_show_is_refused() {
+        let text = GOOD.replace("sensor = { pixels = 8, gain = 100.0 }", "sensor = { pixels = 8, gain = 100.0, line_axis = \"y\" }")
+            .replace("{ kind = \"near-field\" },", "{ kind = \"near-field\" }, { kind = \"per-pixel-geometry\" },");
+        let e = err(&text);
+        assert_eq!(e.field.as_deref(), Some("instrument.sensor.line_axis"), "{e}");
+        at(&e, 9, &["3d-geometry"]);
+        let ok = text.replace("{ kind = \"per-pixel-geometry\" },", "{ kind = \"per-pixel-geometry\" }, { kind = \"3d-geometry\" },");
+        let s = Scene::parse(&ok, "ok.toml").unwrap();
+        assert!((s.pixel_point(0.0).y + 3.5 * 63.5e-4).abs() < 1e-12);
+    }
+
+    #[test]
     fn a_missing_file_is_named() {
         let e = Scene::load(Path::new("/nonexistent/scene.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/scene.toml"), "{e}");
