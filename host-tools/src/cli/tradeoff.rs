@@ -29,6 +29,15 @@ pub struct Args {
     /// Points of the host batch speed test (default 1 000 000; quick 20 000).
     #[arg(long)]
     pub batch_points: Option<usize>,
+    /// Dense prior size: rho_d values x alpha values over Table 5's ranges (e.g. 18x60).
+    #[arg(long, value_name = "RxA")]
+    pub dense: Option<String>,
+    /// Training margin of the piecewise Wiener's clusters.
+    #[arg(long)]
+    pub margin: Option<f64>,
+    /// Skip the zone and LED-count sweeps.
+    #[arg(long)]
+    pub skip_sweeps: bool,
 }
 
 /// The repository root: the current directory if it holds scripts/ and
@@ -53,6 +62,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(p) = a.batch_points {
         anyhow::ensure!(p >= 1, "--batch-points must be at least 1");
         cfg.batch_points = p;
+    }
+    if let Some(d) = &a.dense {
+        let parse = || -> Option<(usize, usize)> {
+            let (r, al) = d.split_once('x')?;
+            Some((r.trim().parse().ok()?, al.trim().parse().ok()?))
+        };
+        let (r, al) = parse().with_context(|| format!("--dense {d}: expected RxA, e.g. 18x60"))?;
+        anyhow::ensure!(r >= 1 && al >= 1, "--dense {d}: both counts must be at least 1");
+        cfg.dense = (r, al);
+    }
+    if let Some(mg) = a.margin {
+        anyhow::ensure!(mg.is_finite() && mg >= 0.0, "--margin {mg}: must be >= 0");
+        cfg.margin = mg;
+    }
+    if a.skip_sweeps {
+        cfg.zones.clear();
+        cfg.leds.clear();
     }
     if a.no_qemu {
         cfg.qemu = false;

@@ -11,6 +11,20 @@ use super::LinearEstimator;
 
 /// Output bins computed together in registers.
 const LANES: usize = 16;
+/// Points computed together on the AVX2 path (8 accumulator chains), and per
+/// streamed block (8 points of n floats are a whole number of 32-byte vectors).
+#[cfg(target_arch = "x86_64")]
+const GROUP: usize = 8;
+/// Below this many points the output stays in cache: plain stores.
+#[cfg(target_arch = "x86_64")]
+const STREAM_MIN_POINTS: usize = 4096;
+/// Largest n of the streamed path (its staging buffer is on the stack).
+#[cfg(target_arch = "x86_64")]
+const STREAM_MAX_N: usize = 256;
+
+#[cfg(target_arch = "x86_64")]
+#[repr(align(32))]
+struct Aligned([f32; GROUP * STREAM_MAX_N]);
 
 /// An f32 estimator laid out for batches.
 #[derive(Clone, Debug)]
@@ -81,7 +95,91 @@ impl BatchEstimator {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn run_avx2(&self, readings: &[f32], out: &mut [f32]) {
-        self.run(readings, out);
+        use std::arch::x86_64::*;
+        let (n, m, np) = (self.n, self.m, self.n_pad);
+        let points = readings.len() / m;
+        if n > STREAM_MAX_N {
+            self.run(readings, out);
+            return;
+        }
+        // Large batches are bound by writing the output: stream it past the
+        // caches (non-temporal stores need no read-for-ownership, halving
+        // the memory traffic) once the output is 32-byte aligned.
+        let mut lead = 0;
+        let stream = points >= STREAM_MIN_POINTS && {
+            while lead < GROUP && (out.as_ptr() as usize + 4 * n * lead) % 32 != 0 {
+                lead += 1;
+            }
+            lead < GROUP
+        };
+        if !stream {
+            lead = 0;
+        }
+        self.run(&readings[..lead * m], &mut out[..lead * n]);
+        let groups = (points - lead) / GROUP;
+        let mut packed = Aligned([0.0f32; GROUP * STREAM_MAX_N]);
+        let wt = self.wt.as_ptr();
+        let full = n / 8;
+        let rest = n - full * 8;
+        // Lanes < rest are written by the last, partial block.
+        let mask = _mm256_setr_epi32(
+            if rest > 0 { -1 } else { 0 },
+            if rest > 1 { -1 } else { 0 },
+            if rest > 2 { -1 } else { 0 },
+            if rest > 3 { -1 } else { 0 },
+            if rest > 4 { -1 } else { 0 },
+            if rest > 5 { -1 } else { 0 },
+            if rest > 6 { -1 } else { 0 },
+            0,
+        );
+        for g in 0..groups {
+            let p0 = lead + g * GROUP;
+            let v = readings[p0 * m..(p0 + GROUP) * m].as_ptr();
+            // Where this group's GROUP x n results go: straight to `out`, or
+            // packed in L1 first when they are then streamed.
+            let dst: *mut f32 = if stream { packed.0.as_mut_ptr() } else { out[p0 * n..(p0 + GROUP) * n].as_mut_ptr() };
+            // GROUP points x 8 bins per step: 8 accumulator chains share each
+            // load of W. Per bin: acc = 0; acc += w_i * v_i, i ascending,
+            // multiply then add (no FMA): the kernel's arithmetic.
+            for b in 0..n.div_ceil(8) {
+                let mut a = [_mm256_setzero_ps(); GROUP];
+                for i in 0..m {
+                    // SAFETY: i * np + b * 8 + 8 <= m * np = wt.len(); p * m + i < GROUP * m.
+                    let w = unsafe { _mm256_loadu_ps(wt.add(i * np + b * 8)) };
+                    for (p, ap) in a.iter_mut().enumerate() {
+                        let x = unsafe { _mm256_broadcast_ss(&*v.add(p * m + i)) };
+                        *ap = _mm256_add_ps(*ap, _mm256_mul_ps(w, x));
+                    }
+                }
+                for (p, ap) in a.iter().enumerate() {
+                    // SAFETY: `dst` holds GROUP * n floats; a full block ends
+                    // at p * n + b * 8 + 8 <= p * n + n, the partial one
+                    // writes only its `rest` lanes.
+                    unsafe {
+                        if b < full {
+                            _mm256_storeu_ps(dst.add(p * n + b * 8), *ap);
+                        } else {
+                            _mm256_maskstore_ps(dst.add(p * n + b * 8), mask, *ap);
+                        }
+                    }
+                }
+            }
+            if stream {
+                let o = out[p0 * n..(p0 + GROUP) * n].as_mut_ptr();
+                // GROUP = 8 points of n floats: n whole 8-float vectors.
+                for k in 0..n {
+                    // SAFETY: `o` is 32-byte aligned (lead chosen so; each
+                    // group is 32 n bytes) and holds GROUP * n floats.
+                    unsafe { _mm256_stream_ps(o.add(k * 8), _mm256_load_ps(packed.0.as_ptr().add(k * 8))) };
+                }
+            }
+        }
+        if stream {
+            // Orders the streaming stores before anything that follows.
+            _mm_sfence();
+        }
+        let done = lead + groups * GROUP;
+        self.run(&readings[done * m..], &mut out[done * n..]);
     }
 
     #[inline(always)]
@@ -123,6 +221,27 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn streamed_large_batches_are_bit_identical_at_any_output_alignment() {
+        let (n, m, p) = (81, 7, 5000);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let w: Vec<f32> = (0..n * m).map(|_| rng.random_range(-50.0f32..50.0)).collect();
+        let v: Vec<f32> = (0..p * m).map(|_| rng.random_range(0.0f32..300.0)).collect();
+        let b = BatchEstimator::from_row_major(&w, n, m);
+        let mut one = vec![0.0f32; n];
+        for shift in 0..8 {
+            let mut buf = vec![f32::NAN; p * n + 8];
+            b.estimate_into(&v, &mut buf[shift..shift + p * n]);
+            for k in (0..p).step_by(7).chain(p - 9..p) {
+                brdf_meter::kernel::estimate_into(&w, &v[k * m..(k + 1) * m], &mut one);
+                for j in 0..n {
+                    assert_eq!(buf[shift + k * n + j].to_bits(), one[j].to_bits(), "shift {shift} point {k} bin {j}");
+                }
+            }
+            assert!(buf[shift..shift + p * n].iter().all(|x| !x.is_nan()), "shift {shift}: a point was not written");
+        }
+    }
 
     #[test]
     fn bit_identical_to_the_device_kernel() {

@@ -81,7 +81,7 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
     let v: Vec<f32> = (0..points * m).map(|_| rng.random_range(0.0f32..300.0)).collect();
     let b = BatchEstimator::from_row_major(&w, n, m);
     let mut out = vec![0.0f32; points * n];
-    let runs = 7;
+    let runs = 11;
     let mut timings = Vec::new();
     let (best, med) = timed(runs, || b.estimate_into(black_box(&v), black_box(&mut out)));
     timings.push(Timing { what: "host BatchEstimator".into(), threads: Some(1), best_s: best, median_s: med, best_s_per_point: best / points as f64 });
