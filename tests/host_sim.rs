@@ -301,3 +301,28 @@ fn saturated_and_dark_points_are_flagged() {
     assert_eq!(pts[3].flags, flags::SATURATED);
     assert_eq!(pts[5].flags, flags::UNDER_EXPOSED);
 }
+
+#[test]
+fn line_k_plus_1_is_acquired_while_line_k_is_estimated_and_sent() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(10.0);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let before = c.transport().scene.switches_timed().len();
+    let pts = c.measure(3).unwrap();
+    check_points(&b, &scene, &pts, 3);
+    let sw = &c.transport().scene.switches_timed()[before..];
+    let per_line = M + 2; // dark (all off), one per LED, all off
+    assert_eq!(sw.len(), 3 * per_line);
+    let sent_at_line_start = |k: usize| sw[k * per_line].1;
+    // When line 1's acquisition starts, the device has sent the reply to
+    // Measure and at most a few of line 0's point frames: line 0 is still
+    // being estimated and sent (with one buffer, acquisition would wait for
+    // all P of them to be estimated and at least P - 4 to be written).
+    let during = sent_at_line_start(1) - sent_at_line_start(0);
+    assert!(during < 1 + P / 2, "line 1 started only after {during} frames of line 0 were sent");
+    // And line 2 starts before line 1's points are all out.
+    let during = sent_at_line_start(2) - sent_at_line_start(1);
+    assert!(during < 1 + P + P / 2, "{during}");
+}

@@ -3,6 +3,7 @@
 //! synchronous push/drain for the test driving the simulation.
 use core::task::{Poll, Waker};
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 #[derive(Default)]
@@ -16,6 +17,7 @@ struct Queue {
 pub struct Pipe {
     to_device: Arc<Mutex<Queue>>,
     from_device: Arc<Mutex<Queue>>,
+    frames: Arc<AtomicUsize>,
 }
 
 /// The device's end of the link (clone it to give the reader and the writer
@@ -24,13 +26,15 @@ pub struct Pipe {
 pub struct PipeEnd {
     rx: Arc<Mutex<Queue>>,
     tx: Arc<Mutex<Queue>>,
+    frames: Arc<AtomicUsize>,
 }
 
 /// A connected pair.
 pub fn pipe() -> (Pipe, PipeEnd) {
     let a = Arc::new(Mutex::new(Queue::default()));
     let b = Arc::new(Mutex::new(Queue::default()));
-    (Pipe { to_device: a.clone(), from_device: b.clone() }, PipeEnd { rx: a, tx: b })
+    let f = Arc::new(AtomicUsize::new(0));
+    (Pipe { to_device: a.clone(), from_device: b.clone(), frames: f.clone() }, PipeEnd { rx: a, tx: b, frames: f })
 }
 
 impl Pipe {
@@ -41,6 +45,10 @@ impl Pipe {
         if let Some(w) = q.reader.take() {
             w.wake();
         }
+    }
+    /// Counts the frames (0x00 delimiters) the device has written.
+    pub fn frames_counter(&self) -> Arc<AtomicUsize> {
+        self.frames.clone()
     }
     /// Takes everything the device wrote so far.
     pub fn drain(&self) -> Vec<u8> {
@@ -73,6 +81,7 @@ impl embedded_io_async::Read for PipeEnd {
 impl embedded_io_async::Write for PipeEnd {
     async fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
         self.tx.lock().unwrap().bytes.extend(buf.iter().copied());
+        self.frames.fetch_add(buf.iter().filter(|b| **b == 0).count(), Ordering::SeqCst);
         Ok(buf.len())
     }
     async fn flush(&mut self) -> Result<(), Self::Error> {

@@ -3,6 +3,7 @@
 //! which LED is lit through the shared state, as a real sensor sees light.
 use crate::hw::{Leds, LineSensor, SceneError, SceneInput, SensorError};
 use crate::scene::SceneStore;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// Scene lines the host simulation holds.
@@ -11,16 +12,20 @@ pub const SIM_LINES: usize = 4;
 struct State<const P: usize, const F: usize> {
     scene: SceneStore<P, F, SIM_LINES>,
     lit: Option<u8>,
-    /// LED switch log: (led, intensity) per `Leds::set`, for tests.
-    switches: Vec<Option<u8>>,
+    /// LED switch log, per `Leds::set`: the LED lit and how many frames the
+    /// device had written to the link by then (for tests of the pipeline).
+    switches: Vec<(Option<u8>, usize)>,
+    frames_out: Arc<AtomicUsize>,
 }
 
 /// Shared handle on the simulated optics: give [`SimLeds`], [`SimSensor`] and
-/// [`SimScene`] to the application; all three see one state.
+/// [`SimScene`] to the application; all three see one state. `frames_out`
+/// counts the frames the device has sent ([`super::Pipe::frames_counter`]).
 pub fn sim_optics<const P: usize, const F: usize>(
     full_scale: u16,
+    frames_out: Arc<AtomicUsize>,
 ) -> (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) {
-    let st = Arc::new(Mutex::new(State { scene: SceneStore::new(), lit: None, switches: Vec::new() }));
+    let st = Arc::new(Mutex::new(State { scene: SceneStore::new(), lit: None, switches: Vec::new(), frames_out }));
     (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale }, SimScene { st })
 }
 
@@ -44,6 +49,11 @@ pub struct SimScene<const P: usize, const F: usize> {
 impl<const P: usize, const F: usize> SimScene<P, F> {
     /// LED switches so far (`None` = all off).
     pub fn switches(&self) -> Vec<Option<u8>> {
+        self.st.lock().unwrap().switches.iter().map(|s| s.0).collect()
+    }
+    /// LED switches so far, each with the number of frames the device had
+    /// sent when it happened.
+    pub fn switches_timed(&self) -> Vec<(Option<u8>, usize)> {
         self.st.lock().unwrap().switches.clone()
     }
 }
@@ -55,7 +65,8 @@ impl<const P: usize, const F: usize> Leds for SimLeds<P, F> {
     async fn set(&mut self, led: Option<u8>, _intensity: u16) {
         let mut st = self.st.lock().unwrap();
         st.lit = led;
-        st.switches.push(led);
+        let sent = st.frames_out.load(Ordering::SeqCst);
+        st.switches.push((led, sent));
     }
 }
 

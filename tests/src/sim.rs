@@ -70,7 +70,9 @@ impl SimDevice {
         let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         MockDriver::get().reset();
         let ram: &'static mut [[[f32; M]; N]] = Box::leak(vec![[[0.0f32; M]; N]; ram_zones].into_boxed_slice());
-        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) = sim_optics(FULL_SCALE);
+        let (host, dev_end) = pipe();
+        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) =
+            sim_optics(FULL_SCALE, host.frames_counter());
         let shared: &'static Dev =
             leak(Shared::new(flash.clone(), SLOT_LEN, ram, AcqConfig::default(), FULL_SCALE, true));
         let pending: &'static AtomicBool = leak(AtomicBool::new(false));
@@ -78,7 +80,6 @@ impl SimDevice {
         let bufs: &'static mut [LineBuf<M, P>; 2] = leak([LineBuf::new(), LineBuf::new()]);
         let chan: &'static mut Channel<'static, Cs, LineBuf<M, P>> = leak(Channel::new(bufs));
         let (tx_lines, rx_lines) = chan.split();
-        let (host, dev_end) = pipe();
         let scene_in = scene.clone();
         spawn(exec, async move { app::transport(shared, dev_end.clone(), dev_end, scene_in).await });
         spawn(exec, async move { app::acquisition(shared, leds, sensor, tx_lines).await });
