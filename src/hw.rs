@@ -3,8 +3,10 @@
 //! own) and in the host simulation (in-memory fakes).
 //!
 //! Transports use `embedded_io_async::{Read, Write}`; calibration storage uses
-//! `embedded_storage::nor_flash::NorFlash`. Only what has no standard trait is
-//! defined here.
+//! `embedded_storage::nor_flash::NorFlash`, plus [`MappedFlash`] so blobs are
+//! read in place. Only what has no standard trait is defined here: the LEDs,
+//! the line sensor, and [`SceneInput`] (where a simulated sensor's scene comes
+//! from; [`NoScene`] on real hardware).
 #![allow(async_fn_in_trait)] // single-threaded executors: no Send bound wanted
 
 /// The m LEDs that light the surface, one at a time.

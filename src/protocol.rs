@@ -160,7 +160,8 @@ pub enum Response<'a> {
         /// Lines requested (0 = continuous).
         lines: u32,
     },
-    /// The measurement will stop after the line in progress; `MeasureDone`
+    /// Reply to [`Request::Stop`]: a running measurement stops after the line
+    /// in progress and its `MeasureDone` follows; with none running, nothing
     /// follows.
     StopRequested,
     /// The measurement is over (all requested lines sent, stopped, or ended by
