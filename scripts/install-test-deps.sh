@@ -29,6 +29,12 @@ if ! command -v arm-none-eabi-size >/dev/null; then
   apt_install binutils-arm-none-eabi
 fi
 
+# Plot text (simulate, tradeoff) needs a TrueType font.
+if ! fc-list 2>/dev/null | grep -qi 'dejavu\|liberation' && ! ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf >/dev/null 2>&1; then
+  echo "[deps] installing fonts-dejavu-core (plot labels)"
+  apt_install fonts-dejavu-core
+fi
+
 qemu_ok() {
   command -v qemu-system-arm >/dev/null &&
     qemu-system-arm -machine help 2>/dev/null | grep -q b-l475e-iot01a

@@ -50,8 +50,10 @@ pub struct Args {
     #[arg(long, default_value_t = 128)]
     pub pixels: usize,
     /// Relative measurement noise (standard deviation / value; 0.02 = 2 %).
-    #[arg(long, default_value_t = 0.02)]
-    pub noise: f64,
+    /// Default: with --scene, the level the scene's `noise` effect implies
+    /// (0 when it lists none); otherwise 0.02, the patent's.
+    #[arg(long)]
+    pub noise: Option<f64>,
     /// Estimator.
     #[arg(long, value_enum, default_value_t = Estimator::Wiener)]
     pub estimator: Estimator,
@@ -74,15 +76,48 @@ pub struct Args {
     pub scene: Option<PathBuf>,
 }
 
+/// The relative noise level a scene's `noise` effect implies for a perfect
+/// diffuser's reading (the white level, where calibrated readings are 1):
+/// proportional noise is its sigma; additive noise sigma_counts / white;
+/// shot + read noise sqrt(white / e_per_count + read^2) / white, with the
+/// median white count over pixels and LEDs. A scene without noise trains
+/// noise-free: the estimator models what the scene says and no more.
+fn scene_noise_level(scene: &crate::scene::Scene) -> anyhow::Result<f64> {
+    use crate::scene::{EffectSpec, NoiseModel};
+    let Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) = scene.noise() else {
+        return Ok(0.0);
+    };
+    let white = || -> anyhow::Result<f64> {
+        let mut w: Vec<f32> = crate::scene::white_reference(scene)?;
+        w.sort_by(f32::total_cmp);
+        Ok(w[w.len() / 2] as f64)
+    };
+    Ok(match model {
+        NoiseModel::Proportional => sigma.unwrap_or(0.0),
+        NoiseModel::Additive => sigma_counts.unwrap_or(0.0) / white()?,
+        NoiseModel::ShotRead => {
+            let w = white()?;
+            let e = electrons_per_count.unwrap_or(f64::INFINITY);
+            let r = read_sigma_counts.unwrap_or(0.0);
+            (w / e + r * r).sqrt() / w
+        }
+    })
+}
+
 /// Runs the command. Nothing is written unless training succeeds.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    if !a.noise.is_finite() || !(0.0..1.0).contains(&a.noise) {
-        anyhow::bail!("--noise {}: must be a relative level in [0, 1) (0.02 is 2 %)", a.noise);
-    }
     let scene = match &a.scene {
         Some(p) => Some(crate::scene::Scene::load(p)?),
         None => None,
     };
+    let noise = match (a.noise, &scene) {
+        (Some(x), _) => x,
+        (None, Some(s)) => scene_noise_level(s)?,
+        (None, None) => 0.02,
+    };
+    if !noise.is_finite() || !(0.0..1.0).contains(&noise) {
+        anyhow::bail!("--noise {noise}: must be a relative level in [0, 1) (0.02 is 2 %)");
+    }
     let inst: Instrument = match (&scene, &a.instrument) {
         (Some(s), _) => s.instrument.clone(),
         (None, Some(p)) => crate::config::load_toml(p)?,
@@ -113,7 +148,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         zones,
         pixels,
         prior: &prior,
-        noise_rel: a.noise,
+        noise_rel: noise,
         estimator: a.estimator.into(),
         far_field,
         led_order: None,
@@ -136,7 +171,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         trained.dims.m,
         s.prior_samples,
         s.prior_rank,
-        a.noise
+        noise
     );
     println!(
         "cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}, f32 vs f64 {:.1e}",
@@ -154,13 +189,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn scene_noise_follows_the_scenes_noise_effect() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+        let load = |f: &str| crate::scene::Scene::load(&dir.join(f)).unwrap();
+        assert_eq!(scene_noise_level(&load("patent-profile.toml")).unwrap(), 0.02);
+        assert_eq!(scene_noise_level(&load("far-field.toml")).unwrap(), 0.0);
+        assert_eq!(scene_noise_level(&load("hard/noise-0.2.toml")).unwrap(), 0.2);
+        let handheld = scene_noise_level(&load("handheld.toml")).unwrap();
+        assert!(handheld > 0.0 && handheld < 0.2, "{handheld}");
+    }
+
     fn args(dir: &Path) -> Args {
         Args {
             out: dir.join("out/cal.blob"),
             json: Some(dir.join("out/cal.json")),
             zones: 2,
             pixels: 16,
-            noise: 0.02,
+            noise: Some(0.02),
             estimator: Estimator::Wiener,
             prior: "patent".into(),
             instrument: None,
@@ -192,7 +238,7 @@ mod tests {
         let cases: Vec<(Edit, &str)> = vec![
             (Box::new(|a: &mut Args| a.prior = bad.display().to_string()), "prior.toml:3"),
             (Box::new(|a: &mut Args| a.prior = csv.display().to_string()), "m.csv:2"),
-            (Box::new(|a: &mut Args| a.noise = -0.1), "--noise"),
+            (Box::new(|a: &mut Args| a.noise = Some(-0.1)), "--noise"),
             (Box::new(|a: &mut Args| a.zones = 17), "zones = 17"),
             (Box::new(|a: &mut Args| a.estimator = Estimator::Inverse), "square"),
         ];
