@@ -1,0 +1,41 @@
+//! The board firmware's flash/RAM budget for the largest calibration
+//! (Z = 128 zones of 81 x 7 matrices, P = 128), checked on the real image:
+//! builds `board-fw` (a no-op when scripts/check-firmware.sh already did, same
+//! command and profile) and fails if it is over budget. Run with
+//! `-- --nocapture` to see the table.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools sits in the workspace root").to_path_buf()
+}
+
+fn build_board_fw(root: &Path) -> PathBuf {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(root)
+        .args(["build", "--release", "--target", "thumbv7em-none-eabihf", "--features", "board", "--bin", "board-fw"])
+        // The enclosing `cargo test`'s host settings must not reach the firmware build.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .expect("running cargo to build board-fw");
+    assert!(status.success(), "board-fw does not build ({status}); is the target installed? (scripts/install-test-deps.sh)");
+    let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
+    target_dir.join("thumbv7em-none-eabihf/release/board-fw")
+}
+
+#[test]
+fn board_firmware_fits_its_budget_with_the_z128_calibration() {
+    let root = root();
+    let elf = build_board_fw(&root);
+    let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
+    let budget = host_tools::firmware_budget::check_file(&elf, &script).expect("reading the firmware image");
+    println!("{}", budget.table());
+    assert!(budget.ok(), "board-fw is over budget:\n{}", budget.table());
+    // The image really is the board firmware and really has the sections the
+    // budget is about (a check on an empty or wrong file must not pass).
+    assert!(budget.lines[0].used > 16 * 1024, "an implausibly small image: {}", budget.lines[0].used);
+    assert!(budget.lines[2].used > host_tools::firmware_budget::STACK_RESERVE);
+}
