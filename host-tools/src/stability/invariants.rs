@@ -65,11 +65,13 @@ pub const ERROR_FLOOR_C: f64 = 4.0;
 /// well-conditioned factors; 1e-6 leaves room for eq. 22 at cond 1e14).
 pub const PREDICTION_REL_TOL: f64 = 1e-6;
 /// I3/I6: `tol_c = CONTINUITY_C max(m, n) u kappa + 2 (sigma / s_min)^2`, with
-/// kappa the condition number of the whitened, truncated `B` whose
-/// pseudo-inverse is the limit. First-order perturbation theory of the
-/// pseudo-inverse gives `|d(B^+)| / |B^+| <= c kappa |dB| / |B|` and a
-/// backward-stable SVD gives `|dB| / |B| = O(max(m, n) u)`; the second term is
-/// the exact distance `sigma^2 / (s^2 + sigma^2)` of the last step from the limit.
+/// `kappa = cond(C) phi`: C the whitened, truncated `B` whose pseudo-inverse
+/// Y gives the limit `W = L Y`, and `phi = |L| |Y| / |L Y|` the amplification
+/// of Y's relative error by the product with L. First-order perturbation
+/// theory of the pseudo-inverse gives `|dY| / |Y| <= c cond(C) |dC| / |C|`, a
+/// backward-stable SVD gives `|dC| / |C| = O(max(m, n) u)`, and
+/// `|L dY| / |L Y| <= phi |dY| / |Y|`; the second term is the exact distance
+/// `sigma^2 / (s^2 + sigma^2)` of the last step from the limit.
 pub const CONTINUITY_C: f64 = 64.0;
 /// I3 is only checked to the precision f64 can resolve: a case whose `tol_c`
 /// exceeds this is recorded as unresolved (W is then finite and bounded but
@@ -353,27 +355,32 @@ pub fn check_case(case: &Case, solver: &dyn Solver, kernel: DeviceKernel) -> Cas
 /// independently of the solver: `C = diag(dw)^-1/2 B = P S Q^T` truncated at
 /// the product's rank tolerance, `W_lim = L Q_k S_k^-1 P_k^T diag(dw)^-1/2`
 /// (the dw-weighted generalised inverse; for isotropic dw, `L (H L)^+`).
-/// Returns `(W_lim, kappa = s_max / s_k, s_k)`.
+/// Returns `(W_lim, kappa, s_k)` where `kappa = (s_max / s_k) phi` and
+/// `phi = |L| |Y| / |L Y|` (`Y = C_k^+ diag(dw)^-1/2`) is the amplification of
+/// Y's relative error by the product with L (large when Y's big entries fall
+/// in L's small directions, as they do for ill-conditioned H).
 fn weighted_limit(rf: &Reference, dw: &DVector<f64>) -> (DMatrix<f64>, f64, f64) {
     let (m, r) = rf.b.shape();
-    let n = rf.l.nrows();
     let c = DMatrix::from_fn(m, r, |i, j| rf.b[(i, j)] / dw[i].sqrt());
     let svd = c.svd(true, true);
     let (p, sv, qt) = (svd.u.expect("u"), svd.singular_values, svd.v_t.expect("v"));
     let smax = sv.iter().fold(0.0f64, |a, x| a.max(*x));
     let k = sv.iter().take_while(|x| **x > rank_tolerance(m, r) * smax).count();
     if k == 0 {
-        return (DMatrix::zeros(n, m), f64::INFINITY, 0.0);
+        return (DMatrix::zeros(rf.l.nrows(), m), f64::INFINITY, 0.0);
     }
-    let mut lq = &rf.l * qt.rows(0, k).transpose(); // n x k
+    let mut qs = qt.rows(0, k).transpose(); // r x k
     for c in 0..k {
-        lq.column_mut(c).scale_mut(1.0 / sv[c]);
+        qs.column_mut(c).scale_mut(1.0 / sv[c]);
     }
     let mut pt = p.columns(0, k).transpose(); // k x m
     for i in 0..m {
         pt.column_mut(i).scale_mut(1.0 / dw[i].sqrt());
     }
-    (lq * pt, smax / sv[k - 1], sv[k - 1])
+    let y = qs * pt; // r x m
+    let w = &rf.l * &y;
+    let phi = rf.l.norm() * y.norm() / w.norm();
+    (w, smax / sv[k - 1] * phi, sv[k - 1])
 }
 
 fn f32_invariant(case: &Case, w: &DMatrix<f64>, noisy: &[DVector<f64>], kernel: DeviceKernel, rep: &mut CaseReport) {
@@ -451,10 +458,11 @@ fn continuity(case: &Case, rf: &Reference, solver: &dyn Solver, rep: &mut CaseRe
     let smax = rf.s.max();
     let r = rf.b.ncols();
     let pinv = rf.b.clone().pseudo_inverse(rank_tolerance(m, r) * smax).expect("eps >= 0");
-    let w_mn = &rf.l * pinv;
+    let w_mn = &rf.l * &pinv;
     let mean_d = rf.d.sum() / m as f64;
     let iso = DVector::from_element(m, mean_d);
-    let kappa_b = smax / rf.s[rf.kept - 1];
+    // kappa of B times the amplification by L (see `weighted_limit`).
+    let kappa_b = smax / rf.s[rf.kept - 1] * (rf.l.norm() * pinv.norm() / w_mn.norm());
     let tol0 = c_u * kappa_b;
     match solver.solve(&case.h, &case.r_pp, &NoiseModel::None) {
         Ok(nf) => {
