@@ -104,6 +104,15 @@ pub fn kernel_bench_dequantise(acc: &[i32; kernel::q15_acc_len(N)], inv: &[f32; 
     kernel::dequantise_q15(&acc[..N], inv, k, out);
 }
 
+/// The affine estimator's constant term: `out += b` (n adds).
+#[inline(never)]
+#[unsafe(no_mangle)]
+pub fn kernel_bench_offset(out: &mut [f32; N], b: &[f32; N]) {
+    for (o, x) in out.iter_mut().zip(b) {
+        *o += *x;
+    }
+}
+
 #[inline(never)]
 #[unsafe(no_mangle)]
 pub fn kernel_bench_select(c: &[f32], v: &[f32; M]) -> usize {
@@ -143,7 +152,7 @@ fn main() -> ! {
     line.push(b"SEG quantise_w");
     line.end();
     for p in 0..POINTS {
-        for name in [&b"gen"[..], b"f32", b"quantise_v", b"q15", b"dequantise"] {
+        for name in [&b"gen"[..], b"f32", b"quantise_v", b"q15", b"dequantise", b"offset"] {
             line.push(b"SEG ");
             line.push(name);
             line.push(b" ");
@@ -190,7 +199,10 @@ fn main() -> ! {
         kernel_bench_mark();
         kernel_bench_q15(wq, &vq, &mut acc);
         kernel_bench_mark();
+        let mut shifted = out;
         kernel_bench_dequantise(&acc, inv, k, &mut rho_q);
+        kernel_bench_mark();
+        kernel_bench_offset(&mut shifted, &rho_q);
         kernel_bench_mark();
         let mut sel = [0usize; KMAX];
         for (kk, s) in sel.iter_mut().enumerate() {
@@ -211,6 +223,11 @@ fn main() -> ! {
         line.hex(k as u32);
         for x in acc {
             line.hex(x as u32);
+        }
+        line.end();
+        line.push(b"OFS ");
+        for x in shifted {
+            line.hex(x.to_bits());
         }
         line.end();
         line.push(b"RHOQ ");

@@ -42,6 +42,9 @@ pub struct Clustered {
     pub m: usize,
     /// Bins n.
     pub n: usize,
+    /// Affine form: per cluster `b_c = mu_c - W_c H mu_c` added to `W_c v`
+    /// (empty for the patent's non-centred form).
+    pub offsets: Vec<Vec<f32>>,
 }
 
 /// Normalised readings `v / sum|v|` (zero stays zero).
@@ -118,6 +121,15 @@ impl Clustered {
     /// relative noise `noise_rel`; `margin` widens each cluster's training set
     /// (0 = exactly its own samples).
     pub fn train(prior: &Prior, h: &DMatrix<f64>, noise_rel: f64, k: usize, margin: f64, seed: u64) -> anyhow::Result<Self> {
+        Self::train_with(prior, h, noise_rel, k, margin, seed, false)
+    }
+
+    /// [`Clustered::train`], optionally in the affine form: each cluster's
+    /// matrix is the Wiener matrix of the cluster's covariance about its mean
+    /// `mu_c` (noise `s^2 diag(H R_pp H^T)` of its non-centred correlation),
+    /// and `b_c = mu_c - W_c H mu_c` is added (the linear minimum-MSE
+    /// estimator with a constant term: one mat-vec plus n adds).
+    pub fn train_with(prior: &Prior, h: &DMatrix<f64>, noise_rel: f64, k: usize, margin: f64, seed: u64, affine: bool) -> anyhow::Result<Self> {
         let (m, n) = h.shape();
         let samples = &prior.samples;
         let feats: Vec<Vec<f64>> = (0..samples.ncols())
@@ -131,6 +143,7 @@ impl Clustered {
         let mut estimators = Vec::with_capacity(kk);
         let mut batch = Vec::with_capacity(kk);
         let mut samples_per_cluster = Vec::with_capacity(kk);
+        let mut offsets = Vec::new();
         for c in 0..kk {
             let cols: Vec<usize> = (0..samples.ncols())
                 .filter(|&s| {
@@ -141,21 +154,40 @@ impl Clustered {
                 })
                 .collect();
             let sub = DMatrix::from_fn(n, cols.len(), |j, i| samples[(j, cols[i])]);
-            let p = Prior::from_samples(sub).with_context(|| format!("cluster {c} of {kk}"))?;
-            let inputs = EstimatorInputs {
-                h,
-                r_pp: &p.r_pp,
-                prior_samples: cols.len(),
-                noise: NoiseModel::Relative(noise_rel),
-                bins_deg: &[],
-                centres_deg: &[],
+            let p = Prior::from_samples(sub.clone()).with_context(|| format!("cluster {c} of {kk}"))?;
+            let e = if affine {
+                let mu = sub.column_mean();
+                let mut cov = &p.r_pp - &mu * mu.transpose();
+                cov = (&cov + cov.transpose()) * 0.5;
+                let rnn = NoiseModel::Relative(noise_rel).covariance(h, &p.r_pp)?;
+                let inputs = EstimatorInputs {
+                    h,
+                    r_pp: &cov,
+                    prior_samples: cols.len(),
+                    noise: NoiseModel::Covariance(rnn),
+                    bins_deg: &[],
+                    centres_deg: &[],
+                };
+                let e = estimators::build(EstimatorKind::Wiener, &inputs).with_context(|| format!("affine Wiener matrix of cluster {c}"))?;
+                let b = &mu - &e.w * (h * &mu);
+                offsets.push(b.iter().map(|x| *x as f32).collect());
+                e
+            } else {
+                let inputs = EstimatorInputs {
+                    h,
+                    r_pp: &p.r_pp,
+                    prior_samples: cols.len(),
+                    noise: NoiseModel::Relative(noise_rel),
+                    bins_deg: &[],
+                    centres_deg: &[],
+                };
+                estimators::build(EstimatorKind::Wiener, &inputs).with_context(|| format!("Wiener matrix of cluster {c}"))?
             };
-            let e = estimators::build(EstimatorKind::Wiener, &inputs).with_context(|| format!("Wiener matrix of cluster {c}"))?;
             batch.push(BatchEstimator::from_estimator(&e));
             estimators.push(e);
             samples_per_cluster.push(cols.len());
         }
-        Ok(Self { centroids, estimators, batch, samples_per_cluster, m, n })
+        Ok(Self { centroids, estimators, batch, samples_per_cluster, m, n, offsets })
     }
 
     /// Number of clusters.
@@ -169,11 +201,53 @@ impl Clustered {
     }
 
     /// Estimates `readings` (points x m, f32) into `out` (points x n).
+    ///
+    /// Points are selected one by one (the device's rule), then gathered per
+    /// cluster so each cluster's matrix runs as one batch; the per-point
+    /// arithmetic is the device's either way (`BatchEstimator` is
+    /// bit-identical to the kernel), so the grouping changes only the speed.
     pub fn estimate_into(&self, readings: &[f32], out: &mut [f32]) {
         let (m, n) = (self.m, self.n);
-        for (v, o) in readings.chunks_exact(m).zip(out.chunks_exact_mut(n)) {
-            let c = self.select(v);
-            self.batch[c].estimate_into(v, o);
+        let points = readings.len() / m;
+        if points < 64 {
+            for (v, o) in readings.chunks_exact(m).zip(out.chunks_exact_mut(n)) {
+                let c = self.select(v);
+                self.batch[c].estimate_into(v, o);
+                self.add_offset(c, o);
+            }
+            return;
+        }
+        let sel: Vec<usize> = readings.chunks_exact(m).map(|v| self.select(v)).collect();
+        let mut vin = Vec::with_capacity(points * m);
+        let mut vout = vec![0.0f32; points * n];
+        let mut idx = Vec::with_capacity(points);
+        for c in 0..self.k() {
+            vin.clear();
+            idx.clear();
+            for (p, s) in sel.iter().enumerate() {
+                if *s == c {
+                    idx.push(p);
+                    vin.extend_from_slice(&readings[p * m..(p + 1) * m]);
+                }
+            }
+            if idx.is_empty() {
+                continue;
+            }
+            let o = &mut vout[..idx.len() * n];
+            self.batch[c].estimate_into(&vin, o);
+            for (k, &p) in idx.iter().enumerate() {
+                let dst = &mut out[p * n..(p + 1) * n];
+                dst.copy_from_slice(&o[k * n..(k + 1) * n]);
+                self.add_offset(c, dst);
+            }
+        }
+    }
+
+    fn add_offset(&self, c: usize, o: &mut [f32]) {
+        if let Some(b) = self.offsets.get(c) {
+            for (x, bj) in o.iter_mut().zip(b) {
+                *x += *bj;
+            }
         }
     }
 }

@@ -57,6 +57,10 @@ pub struct KernelCounts {
     pub dequantise_instructions: f64,
     /// Its cycles.
     pub dequantise_cycles: f64,
+    /// Adding the affine constant term (n bins), instructions.
+    pub offset_instructions: f64,
+    /// Its cycles.
+    pub offset_cycles: f64,
     /// Selection rule: (K, instructions, cycles) for K = 1..16.
     pub select: Vec<(usize, f64, f64)>,
     /// Load-time quantisation of one W, instructions.
@@ -247,6 +251,7 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
     let (qv_i, qv_c) = avg("quantise_v", None)?;
     let (dq_i, dq_c) = avg("dequantise", None)?;
     let (qw_i, _) = avg("quantise_w", None)?;
+    let (of_i, of_c) = avg("offset", None)?;
     let mut select = Vec::new();
     for kk in 1..=16usize {
         let (i, c) = avg("select", Some(&format!("{kk:08x}")))?;
@@ -265,6 +270,8 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
     let accs: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "ACC ")).collect();
     let rhoqs: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "RHOQ ")).collect();
     let sels: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "SEL ")).collect();
+    let ofs: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "OFS ")).collect();
+    ensure!(ofs.len() == vs.len(), "incomplete offset results");
     ensure!(!vs.is_empty() && vs.len() == outs.len() && vs.len() == accs.len() && vs.len() == rhoqs.len() && vs.len() == sels.len(), "incomplete results");
     let mut compared = 0usize;
     for p in 0..vs.len() {
@@ -289,13 +296,17 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
         if rq.iter().map(|x| x.to_bits()).collect::<Vec<_>>() != rhoqs[p] {
             bail!("point {p}: the device's Q15 estimates differ from the host's");
         }
+        let sum: Vec<u32> = o.iter().zip(&rq).map(|(a, b)| (a + b).to_bits()).collect();
+        if sum != ofs[p] {
+            bail!("point {p}: the device's offset additions differ from the host's");
+        }
         for kk in 1..=16usize {
             let s = kernel::select_cluster(&cents[..kk * m], &v) as u32;
             if s != sels[p][kk - 1] {
                 bail!("point {p}, K = {kk}: the device selected cluster {} and the host {s}", sels[p][kk - 1]);
             }
         }
-        compared += 2 * n + 1 + 16 + n;
+        compared += 3 * n + 1 + 16 + n;
     }
     let macs = (n * m) as f64;
     Ok(KernelCounts {
@@ -311,10 +322,12 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
         quantise_v_cycles: qv_c,
         dequantise_instructions: dq_i,
         dequantise_cycles: dq_c,
+        offset_instructions: of_i,
+        offset_cycles: of_c,
         select,
         quantise_w_instructions: qw_i,
         bit_exact: true,
-        compared: format!("{} points: f32 results, Q15 block exponents and accumulators, Q15 estimates, 16 selections each ({compared} values), bit for bit", vs.len()),
+        compared: format!("{} points: f32 results, Q15 block exponents and accumulators, Q15 estimates, offset sums, 16 selections each ({compared} values), bit for bit", vs.len()),
         command: "scripts/kernel-bench.sh target/kernel-bench".into(),
     })
 }
@@ -326,21 +339,27 @@ pub fn attach(rows: &mut [super::Row], kc: &KernelCounts) {
     let mk = |i: f64, c: f64, what: String| super::DeviceCost { instructions: i, cycles: c, seconds_at_80mhz: c / 80e6, counted: what };
     for r in rows.iter_mut() {
         let sel = |id: &str| -> Option<(usize, f64, f64)> {
-            let k: usize = id.strip_prefix("clustered-k")?.split('-').next()?.parse().ok()?;
+            let rest = id.strip_prefix("clustered-affine-k").or_else(|| id.strip_prefix("clustered-k"))?;
+            let k: usize = rest.split('-').next()?.parse().ok()?;
             kc.select.iter().find(|s| s.0 == k).copied()
         };
+        let affine = r.id.starts_with("clustered-affine");
         r.device = match r.group.as_str() {
             "linear" | "prior" if r.macs_per_point == Some(nm) => Some(mk(kc.f32_instructions, kc.f32_cycles, "f32 kernel".into())),
+            "clustered" if affine => sel(&r.id).map(|(k, i, c)| {
+                mk(kc.f32_instructions + i + kc.offset_instructions, kc.f32_cycles + c + kc.offset_cycles, format!("select K={k} + f32 kernel + {} adds", kc.n))
+            }),
             "clustered" => sel(&r.id).map(|(k, i, c)| mk(kc.f32_instructions + i, kc.f32_cycles + c, format!("select K={k} + f32 kernel"))),
             "format" => {
                 let (si, sc, what) = match sel(&r.id) {
                     Some((k, i, c)) => (i, c, format!("select K={k} + ")),
                     None => (0.0, 0.0, String::new()),
                 };
+                let (oi, oc, ow) = if affine { (kc.offset_instructions, kc.offset_cycles, " + offset") } else { (0.0, 0.0, "") };
                 Some(mk(
-                    si + kc.quantise_v_instructions + kc.q15_instructions + kc.dequantise_instructions,
-                    sc + kc.quantise_v_cycles + kc.q15_cycles + kc.dequantise_cycles,
-                    format!("{what}quantise v + Q15 kernel + scale to f32"),
+                    si + kc.quantise_v_instructions + kc.q15_instructions + kc.dequantise_instructions + oi,
+                    sc + kc.quantise_v_cycles + kc.q15_cycles + kc.dequantise_cycles + oc,
+                    format!("{what}quantise v + Q15 kernel + scale to f32{ow}"),
                 ))
             }
             _ => None,

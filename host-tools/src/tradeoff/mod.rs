@@ -559,6 +559,55 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
         }
     }
 
+    // Affine piecewise Wiener (a constant term per cluster: + n adds).
+    for &kk in cfg.ks.iter().filter(|k| [4usize, 8, 12, 16].contains(k)) {
+        let c = Clustered::train_with(&pri.dense, &data.h, cfg.noise_rel, kk, cfg.margin, 1, true)
+            .with_context(|| format!("affine clustered K = {kk}"))?;
+        let got = c.k();
+        let out = rb.linear_like(
+            &format!("clustered-affine-k{kk}"),
+            "clustered",
+            &format!("piecewise affine Wiener (mean + covariance), K = {got}, dense prior"),
+            matvec(&format!(" + {n} adds + select K={got}")),
+            Some(nm + got * m),
+            Some(got * (f32_bytes + 4 * n + 4 * m)),
+            None,
+            |v, o| c.estimate_into(v, o),
+        );
+        let (rmse, _) = errors(&out, &data.truth);
+        if clustered_best.as_ref().is_none_or(|(r, _)| rmse < *r) {
+            clustered_best = Some((rmse, c));
+        }
+    }
+
+    // The best piecewise estimator in Q15.
+    if let Some((_, c)) = &clustered_best {
+        let qs: Vec<Q15Estimator> = c.estimators.iter().map(|e| Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m)).collect();
+        let kk = c.k();
+        let affine = !c.offsets.is_empty();
+        let kind = if affine { "clustered-affine" } else { "clustered" };
+        rb.linear_like(
+            &format!("{kind}-k{kk}-q15"),
+            "format",
+            &format!("{kind} K = {kk} in Q15"),
+            format!("select K={kk} + quantise v + Q15 mat-vec {n}x{m} + scale{}", if affine { " + offset" } else { "" }),
+            Some(nm + kk * m),
+            Some(qs.iter().map(|q| q.bytes()).sum::<usize>() + 4 * kk * m + if affine { 4 * kk * n } else { 0 }),
+            None,
+            |v, o| {
+                for (vv, oo) in v.chunks_exact(m).zip(o.chunks_exact_mut(n)) {
+                    let sel = c.select(vv);
+                    qs[sel].estimate_into(vv, oo);
+                    if let Some(b) = c.offsets.get(sel) {
+                        for (x, bj) in oo.iter_mut().zip(b) {
+                            *x += *bj;
+                        }
+                    }
+                }
+            },
+        );
+    }
+
     // Log-domain Wiener.
     for (id, label, prior) in [("log-wiener-dense", "log-domain Wiener, dense prior", &pri.dense), ("log-wiener-patent16", "log-domain Wiener, patent prior", &pri.patent)] {
         let lw = LogWiener::train(prior, &data.h, cfg.noise_rel, 0.01)?;
@@ -580,24 +629,6 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
             Some(q.bytes()),
             Some(r64),
             |v, o| q.estimate_into(v, o),
-        );
-    }
-    if let Some((_, c)) = &clustered_best {
-        let qs: Vec<Q15Estimator> = c.estimators.iter().map(|e| Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m)).collect();
-        let kk = c.k();
-        rb.linear_like(
-            &format!("clustered-k{kk}-q15"),
-            "format",
-            &format!("piecewise Wiener K = {kk} in Q15"),
-            format!("select K={kk} + quantise v + Q15 mat-vec {n}x{m} + scale"),
-            Some(nm + kk * m),
-            Some(qs.iter().map(|q| q.bytes()).sum::<usize>() + 4 * kk * m),
-            None,
-            |v, o| {
-                for (vv, oo) in v.chunks_exact(m).zip(o.chunks_exact_mut(n)) {
-                    qs[c.select(vv)].estimate_into(vv, oo);
-                }
-            },
         );
     }
     let mut rows = rb.rows;

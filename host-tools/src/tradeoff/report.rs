@@ -57,8 +57,13 @@ pub fn markdown(r: &Report) -> String {
         t.best_linear_rmse,
         t.best_linear_speedup
     );
-    if let Some(d) = t.reaching_device_vs_host_fit {
-        let _ = writeln!(s, "On the device (80 MHz, cycle estimate) the reaching row takes {:.2e} x less time than the fit takes on this host.", d);
+    if let (Some(d), Some(id)) = (t.reaching_device_vs_host_fit, &t.reaching_id) {
+        let _ = writeln!(
+            s,
+            "On the device, {id} takes {:.1} us per point (80 MHz, cycle estimate): {:.2} x the time the condition-2 fit takes per point on this host (a fit on the M4 itself would take far longer).",
+            t.cond2_seconds_per_point / d * 1e6,
+            1.0 / d
+        );
     }
     let _ = writeln!(s, "\n**{}**", t.verdict);
 
@@ -72,6 +77,7 @@ pub fn markdown(r: &Report) -> String {
             ("Q15 mat-vec (SMLAD asm, m = 7)", k.q15_instructions, k.q15_cycles),
             ("Q15: quantise one point's readings", k.quantise_v_instructions, k.quantise_v_cycles),
             ("Q15: accumulators to f32 (81 bins)", k.dequantise_instructions, k.dequantise_cycles),
+            ("affine constant term (81 adds)", k.offset_instructions, k.offset_cycles),
         ] {
             let _ = writeln!(s, "| {name} | {i:.0} | {:.3} | {c:.0} | {:.2} |", i / macs, c / 80.0);
         }
