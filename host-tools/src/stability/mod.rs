@@ -49,7 +49,8 @@ pub struct FamilySummary {
     pub worst_continuity_ratio: f64,
     /// Cases whose sigma -> 0 limit f64 cannot resolve (I3 then checks finiteness only).
     pub continuity_unresolved: usize,
-    /// Worst f32 relative error (of the estimate's scale).
+    /// Worst f32 relative error (of the estimate's scale) among the matrices
+    /// the f32 gate accepted (what a device would run).
     pub worst_f32_rel_error: f64,
     /// Worst f32 error / rounding bound.
     pub worst_f32_bound_ratio: f64,
@@ -111,7 +112,9 @@ impl FamilySummary {
         if !r.continuity_resolved {
             self.continuity_unresolved += 1;
         }
-        self.worst_f32_rel_error = mx(self.worst_f32_rel_error, r.f32_rel_error);
+        if r.f32_accepted {
+            self.worst_f32_rel_error = mx(self.worst_f32_rel_error, r.f32_rel_error);
+        }
         self.worst_f32_bound_ratio = self.worst_f32_bound_ratio.max(nan_inf(r.f32_bound_ratio));
         if !r.f32_accepted {
             self.f32_refused += 1;
@@ -186,7 +189,7 @@ impl RunSummary {
             "sing",
             "cont/tol",
             "unres",
-            "f32 rel",
+            "f32 acc",
             "f32/bnd",
             "f32 ref",
             "backward",
