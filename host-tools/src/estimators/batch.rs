@@ -138,30 +138,45 @@ impl BatchEstimator {
             // Where this group's GROUP x n results go: straight to `out`, or
             // packed in L1 first when they are then streamed.
             let dst: *mut f32 = if stream { packed.0.as_mut_ptr() } else { out[p0 * n..(p0 + GROUP) * n].as_mut_ptr() };
-            // GROUP points x 8 bins per step: 8 accumulator chains share each
-            // load of W. Per bin: acc = 0; acc += w_i * v_i, i ascending,
+            // 4 points x 16 bins per step (8 accumulator chains): each load
+            // of W serves 4 points and each broadcast reading 2 vectors of
+            // bins. Per bin: acc = 0; acc += w_i * v_i, i ascending,
             // multiply then add (no FMA): the kernel's arithmetic.
-            for b in 0..n.div_ceil(8) {
-                let mut a = [_mm256_setzero_ps(); GROUP];
-                for i in 0..m {
-                    // SAFETY: i * np + b * 8 + 8 <= m * np = wt.len(); p * m + i < GROUP * m.
-                    let w = unsafe { _mm256_loadu_ps(wt.add(i * np + b * 8)) };
-                    for (p, ap) in a.iter_mut().enumerate() {
-                        let x = unsafe { _mm256_broadcast_ss(&*v.add(p * m + i)) };
-                        *ap = _mm256_add_ps(*ap, _mm256_mul_ps(w, x));
-                    }
-                }
-                for (p, ap) in a.iter().enumerate() {
-                    // SAFETY: `dst` holds GROUP * n floats; a full block ends
-                    // at p * n + b * 8 + 8 <= p * n + n, the partial one
-                    // writes only its `rest` lanes.
-                    unsafe {
-                        if b < full {
-                            _mm256_storeu_ps(dst.add(p * n + b * 8), *ap);
-                        } else {
-                            _mm256_maskstore_ps(dst.add(p * n + b * 8), mask, *ap);
+            let nb = n.div_ceil(8);
+            for half in 0..GROUP / 4 {
+                let vh = v.wrapping_add(half * 4 * m);
+                let dh = dst.wrapping_add(half * 4 * n);
+                let mut b = 0;
+                while b < nb {
+                    let two = b + 1 < nb;
+                    let mut a = [[_mm256_setzero_ps(); 2]; 4];
+                    for i in 0..m {
+                        // SAFETY: i * np + b * 8 + 16 <= m * np = wt.len() when
+                        // `two` (np is a multiple of 16 >= nb * 8); p * m + i < 4 * m.
+                        let w0 = unsafe { _mm256_loadu_ps(wt.add(i * np + b * 8)) };
+                        let w1 = if two { unsafe { _mm256_loadu_ps(wt.add(i * np + b * 8 + 8)) } } else { w0 };
+                        for (p, ap) in a.iter_mut().enumerate() {
+                            let x = unsafe { _mm256_broadcast_ss(&*vh.add(p * m + i)) };
+                            ap[0] = _mm256_add_ps(ap[0], _mm256_mul_ps(w0, x));
+                            ap[1] = _mm256_add_ps(ap[1], _mm256_mul_ps(w1, x));
                         }
                     }
+                    for (p, ap) in a.iter().enumerate() {
+                        for (k, acc) in ap.iter().enumerate().take(if two { 2 } else { 1 }) {
+                            let bb = b + k;
+                            // SAFETY: `dst` holds GROUP * n floats; a full block
+                            // ends at p * n + bb * 8 + 8 <= p * n + n, the partial
+                            // one writes only its `rest` lanes.
+                            unsafe {
+                                if bb < full {
+                                    _mm256_storeu_ps(dh.add(p * n + bb * 8), *acc);
+                                } else {
+                                    _mm256_maskstore_ps(dh.add(p * n + bb * 8), mask, *acc);
+                                }
+                            }
+                        }
+                    }
+                    b += 2;
                 }
             }
             if stream {
