@@ -296,7 +296,7 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
         if rq.iter().map(|x| x.to_bits()).collect::<Vec<_>>() != rhoqs[p] {
             bail!("point {p}: the device's Q15 estimates differ from the host's");
         }
-        let sum: Vec<u32> = o.iter().zip(&rq).map(|(a, b)| (a + b).to_bits()).collect();
+        let sum: Vec<u32> = o.iter().enumerate().map(|(j, a)| (v[j % m] + a).to_bits()).collect();
         if sum != ofs[p] {
             bail!("point {p}: the device's offset additions differ from the host's");
         }
