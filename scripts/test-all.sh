@@ -9,4 +9,14 @@ bash scripts/install-test-deps.sh
 echo "[test] firmware: builds, clippy, size and flash/RAM budget"
 bash scripts/check-firmware.sh
 echo "[test] host, host simulation and QEMU tests"
-cargo test --workspace --release
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+set +e
+cargo test --workspace --release 2>&1 | tee "$log"
+status=${PIPESTATUS[0]}
+set -e
+# cargo's last lines are doc-test runs with nothing to run; close with the
+# totals over every test binary so the summary says what actually ran.
+awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } }
+     END { printf "tests: %d passed, %d failed\n", p, f }' "$log"
+exit "$status"

@@ -55,6 +55,40 @@ pub struct SlotInfo {
     pub blob_crc: u32,
 }
 
+/// The slot header for a blob of `blob_len` bytes with CRC `blob_crc`: what
+/// the store writes after the blob, and what factory provisioning over SWD
+/// writes in front of one. The one encoder of the layout in the module docs.
+pub fn encode_slot_header(sequence: u32, blob_len: u32, blob_crc: u32) -> [u8; SLOT_HEADER_LEN] {
+    let mut h = [0u8; SLOT_HEADER_LEN];
+    h[0..4].copy_from_slice(&SLOT_MAGIC);
+    h[4..6].copy_from_slice(&SLOT_VERSION.to_le_bytes());
+    h[6..8].copy_from_slice(&(SLOT_HEADER_LEN as u16).to_le_bytes());
+    h[8..12].copy_from_slice(&sequence.to_le_bytes());
+    h[12..16].copy_from_slice(&blob_len.to_le_bytes());
+    h[16..20].copy_from_slice(&blob_crc.to_le_bytes());
+    let hcrc = CRC32.checksum(&h[..28]);
+    h[28..32].copy_from_slice(&hcrc.to_le_bytes());
+    h
+}
+
+/// Decodes the header of slot `slot`: `None` unless magic, version, header
+/// length and header CRC hold. The blob's own CRC is the caller's to check.
+pub fn decode_slot_header(slot: u8, h: &[u8]) -> Option<SlotInfo> {
+    if h.len() < SLOT_HEADER_LEN {
+        return None;
+    }
+    let u16_at = |o: usize| u16::from_le_bytes([h[o], h[o + 1]]);
+    let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
+    if h[0..4] != SLOT_MAGIC
+        || u16_at(4) != SLOT_VERSION
+        || u16_at(6) as usize != SLOT_HEADER_LEN
+        || CRC32.checksum(&h[..28]) != u32_at(28)
+    {
+        return None;
+    }
+    Some(SlotInfo { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) })
+}
+
 /// A provisioning in progress.
 #[derive(Clone, Copy, Debug)]
 struct Session {
@@ -79,7 +113,9 @@ pub struct Store<F> {
 }
 
 /// Whether sequence `a` is newer than `b` (wrapping).
-fn newer(a: u32, b: u32) -> bool {
+/// Whether sequence `a` is newer than `b` (wrapping comparison, so the
+/// sequence number may roll over).
+pub fn newer(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
 }
 
@@ -152,17 +188,7 @@ impl<F: MappedFlash> Store<F> {
 
     /// Validates slot `slot`'s header and blob CRC.
     fn scan(&self, slot: u8) -> Option<SlotInfo> {
-        let h = self.flash.mapped(self.base(slot), SLOT_HEADER_LEN);
-        let u16_at = |o: usize| u16::from_le_bytes([h[o], h[o + 1]]);
-        let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
-        if h[0..4] != SLOT_MAGIC
-            || u16_at(4) != SLOT_VERSION
-            || u16_at(6) as usize != SLOT_HEADER_LEN
-            || CRC32.checksum(&h[..28]) != u32_at(28)
-        {
-            return None;
-        }
-        let info = SlotInfo { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) };
+        let info = decode_slot_header(slot, self.flash.mapped(self.base(slot), SLOT_HEADER_LEN))?;
         if info.blob_len > self.max_blob() {
             return None;
         }
@@ -274,15 +300,7 @@ impl<F: MappedFlash> Store<F> {
         }
         accept(&view)?;
         let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
-        let mut h = [0u8; SLOT_HEADER_LEN];
-        h[0..4].copy_from_slice(&SLOT_MAGIC);
-        h[4..6].copy_from_slice(&SLOT_VERSION.to_le_bytes());
-        h[6..8].copy_from_slice(&(SLOT_HEADER_LEN as u16).to_le_bytes());
-        h[8..12].copy_from_slice(&sequence.to_le_bytes());
-        h[12..16].copy_from_slice(&s.len.to_le_bytes());
-        h[16..20].copy_from_slice(&computed.to_le_bytes());
-        let hcrc = CRC32.checksum(&h[..28]);
-        h[28..32].copy_from_slice(&hcrc.to_le_bytes());
+        let h = encode_slot_header(sequence, s.len, computed);
         self.flash.write(base, &h).map_err(|_| DeviceError::Storage)?;
         // Trust only what reads back.
         let info = self.scan(s.slot).ok_or(DeviceError::Storage)?;

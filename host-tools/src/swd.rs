@@ -19,7 +19,7 @@ use std::process::Command;
 
 use anyhow::{Context, Result, bail, ensure};
 use brdf_meter::blob::{BlobView, CRC32};
-use brdf_meter::store::{SLOT_HEADER_LEN, SLOT_MAGIC, SLOT_VERSION};
+use brdf_meter::store::{SLOT_HEADER_LEN, decode_slot_header, encode_slot_header, newer};
 
 /// The firmware's linker script.
 pub const MEMORY_X: &str = include_str!("../../memory.x");
@@ -129,53 +129,17 @@ impl SlotMap {
     }
 }
 
-/// A valid slot found on the device.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Found {
-    /// 0 = A, 1 = B.
-    pub slot: u8,
-    /// Sequence number.
-    pub sequence: u32,
-    /// Blob length.
-    pub blob_len: u32,
-    /// Blob CRC.
-    pub blob_crc: u32,
-}
+/// A valid slot found on the device (the store's own slot description).
+pub use brdf_meter::store::SlotInfo as Found;
 
 /// The store's slot header for a blob (slot format version 1).
 pub fn slot_header(sequence: u32, blob: &[u8]) -> [u8; SLOT_HEADER_LEN] {
-    let mut h = [0u8; SLOT_HEADER_LEN];
-    h[0..4].copy_from_slice(&SLOT_MAGIC);
-    h[4..6].copy_from_slice(&SLOT_VERSION.to_le_bytes());
-    h[6..8].copy_from_slice(&(SLOT_HEADER_LEN as u16).to_le_bytes());
-    h[8..12].copy_from_slice(&sequence.to_le_bytes());
-    h[12..16].copy_from_slice(&(blob.len() as u32).to_le_bytes());
-    h[16..20].copy_from_slice(&CRC32.checksum(blob).to_le_bytes());
-    let crc = CRC32.checksum(&h[..28]);
-    h[28..32].copy_from_slice(&crc.to_le_bytes());
-    h
+    encode_slot_header(sequence, blob.len() as u32, CRC32.checksum(blob))
 }
 
 /// Parses a slot header; `None` unless magic, version, length and CRC hold.
 pub fn parse_header(slot: u8, h: &[u8]) -> Option<Found> {
-    if h.len() < SLOT_HEADER_LEN {
-        return None;
-    }
-    let u16_at = |o: usize| u16::from_le_bytes([h[o], h[o + 1]]);
-    let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
-    if h[0..4] != SLOT_MAGIC
-        || u16_at(4) != SLOT_VERSION
-        || u16_at(6) as usize != SLOT_HEADER_LEN
-        || CRC32.checksum(&h[..28]) != u32_at(28)
-    {
-        return None;
-    }
-    Some(Found { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) })
-}
-
-/// Whether sequence `a` is newer than `b` (wrapping, as the store compares).
-fn newer(a: u32, b: u32) -> bool {
-    (a.wrapping_sub(b) as i32) > 0
+    decode_slot_header(slot, h)
 }
 
 /// Where a new blob goes: the slot not holding the newest valid calibration,
