@@ -28,7 +28,7 @@
 //! - **Reported cost**: residual and Jacobian evaluations per fit
 //!   ([`FitResult`]), so the speed comparison can be judged.
 use crate::brdf::Ward;
-use crate::optics::{Instrument, rays};
+use crate::optics::{Instrument, rays, surface_frame};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::Vector3;
 use nalgebra034 as na;
@@ -224,21 +224,6 @@ fn ray_term(wi: &Vector3<f64>, wo: &Vector3<f64>, weight: f64) -> RayTerm {
     RayTerm { weight, wc: weight / (4.0 * (ci * co).sqrt()), tan2: (h.x * h.x + h.y * h.y) / (h.z * h.z) }
 }
 
-/// Instrument frame -> surface frame of the point (normal -> z, the
-/// instrument's x axis projected on the surface -> x). Mirrors the optics'
-/// own frame; `fit_model_matches_simulated_readings_on_a_tilted_point` checks
-/// the two agree.
-fn surface_frame(normal: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
-    let n = normal.normalize();
-    let x = Vector3::x();
-    let mut t = x - n * n.dot(&x);
-    if t.norm() < 1e-9 {
-        t = Vector3::y() - n * n.dot(&Vector3::y());
-    }
-    let t = t.normalize();
-    let b = n.cross(&t);
-    nalgebra::Matrix3::from_rows(&[t.transpose(), b.transpose(), n.transpose()])
-}
 
 /// Maps unbounded internal `u` to bounded `p` and back (MINUIT's sine transform).
 #[derive(Clone, Copy, Debug)]
