@@ -245,7 +245,15 @@ fn main() -> ! {
     line.push(b"DONE");
     line.end();
     semihost(SYS_EXIT, ADP_STOPPED_APPLICATION_EXIT);
-    loop {}
+    halt()
+}
+
+/// After a semihosting exit QEMU has stopped; on anything else, wait here.
+fn halt() -> ! {
+    loop {
+        // SAFETY: wait for an interrupt; nothing else.
+        unsafe { core::arch::asm!("wfi", options(nomem, nostack)) };
+    }
 }
 
 #[panic_handler]
@@ -253,5 +261,5 @@ fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
     let msg = b"kernel-bench panic\n\0";
     semihost(SYS_WRITE0, msg.as_ptr() as usize);
     semihost(SYS_EXIT, ADP_STOPPED_RUNTIME_ERROR);
-    loop {}
+    halt()
 }

@@ -78,7 +78,7 @@ impl BatchEstimator {
     /// If the lengths do not agree.
     pub fn estimate_into(&self, readings: &[f32], out: &mut [f32]) {
         let m = self.m;
-        assert!(m > 0 && readings.len() % m == 0, "readings must be points x m");
+        assert!(m > 0 && readings.len().is_multiple_of(m), "readings must be points x m");
         let points = readings.len() / m;
         assert_eq!(out.len(), points * self.n, "out must be points x n");
         #[cfg(target_arch = "x86_64")]
@@ -107,7 +107,7 @@ impl BatchEstimator {
         // the memory traffic) once the output is 32-byte aligned.
         let mut lead = 0;
         let stream = points >= STREAM_MIN_POINTS && {
-            while lead < GROUP && (out.as_ptr() as usize + 4 * n * lead) % 32 != 0 {
+            while lead < GROUP && !(out.as_ptr() as usize + 4 * n * lead).is_multiple_of(32) {
                 lead += 1;
             }
             lead < GROUP

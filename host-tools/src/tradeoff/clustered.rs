@@ -67,7 +67,7 @@ pub fn kmeans(points: &[Vec<f64>], k: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<u
     while cents.len() < k {
         let d: Vec<f64> = points.iter().map(|p| cents.iter().map(|c| dist2(p, c)).fold(f64::INFINITY, f64::min)).collect();
         let total: f64 = d.iter().sum();
-        if !(total > 0.0) {
+        if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             break; // fewer distinct points than k
         }
         let mut r = rng.random_range(0.0..total);

@@ -90,7 +90,9 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
     // rounds and keep each one's best (and the median of its medians), so a
     // burst of load elsewhere does not favour one side.
     const ROUNDS: usize = 3;
-    let mut slots: Vec<(String, Option<usize>, Vec<f64>, Vec<f64>)> = Vec::new();
+    // (what, threads, bests, medians)
+    type Slot = (String, Option<usize>, Vec<f64>, Vec<f64>);
+    let mut slots: Vec<Slot> = Vec::new();
     let mut record = |what: &str, threads: Option<usize>, best: f64, med: f64| {
         if let Some(s) = slots.iter_mut().find(|s| s.0 == what && s.1 == threads) {
             s.2.push(best);
