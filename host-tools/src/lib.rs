@@ -15,6 +15,7 @@ pub mod grid;
 pub mod io;
 pub mod link;
 pub mod optics;
+pub mod plot;
 pub mod prior;
 pub mod scene;
 pub mod stability;

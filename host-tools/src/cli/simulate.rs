@@ -225,65 +225,16 @@ const SIZE: (u32, u32) = (1400, 560);
 
 /// The plot as SVG text and PNG bytes.
 fn plots(out: &Output) -> anyhow::Result<(String, Vec<u8>)> {
-    ensure_font()?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        draw(&root, out)?;
-        root.present().map_err(|e| anyhow!("SVG: {e:?}"))?;
-    }
-    let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
-        draw(&root, out)?;
-        root.present().map_err(|e| anyhow!("PNG: {e:?}"))?;
-    }
-    let mut png = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut png, SIZE.0, SIZE.1);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc.write_header().context("encoding the PNG")?;
-        w.write_image_data(&rgb).context("encoding the PNG")?;
-    }
-    Ok((svg, png))
-}
-
-/// Registers a sans-serif font for the plots' text, once: `HOST_TOOLS_FONT`
-/// if set, else the first of the usual system fonts.
-fn ensure_font() -> anyhow::Result<()> {
-    static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
-    FONT.get_or_init(|| {
-        let mut candidates: Vec<PathBuf> = Vec::new();
-        if let Some(p) = std::env::var_os("HOST_TOOLS_FONT") {
-            candidates.push(p.into());
+    struct Fig<'a>(&'a Output);
+    impl crate::plot::Figure for Fig<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+        where
+            DB::ErrorType: 'static,
+        {
+            draw(root, self.0)
         }
-        for p in [
-            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-            "/usr/share/fonts/TTF/DejaVuSans.ttf",
-            "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-            "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-            "/usr/share/fonts/liberation/LiberationSans-Regular.ttf",
-            "/Library/Fonts/Arial.ttf",
-            "C:\\Windows\\Fonts\\arial.ttf",
-        ] {
-            candidates.push(p.into());
-        }
-        for p in &candidates {
-            if let Ok(bytes) = std::fs::read(p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return Ok(());
-                }
-            }
-        }
-        Err(format!(
-            "no usable TrueType font for the plot's text (tried {}); install one (Debian: apt-get install fonts-dejavu-core) or set HOST_TOOLS_FONT to a .ttf file",
-            candidates.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-        ))
-    })
-    .clone()
-    .map_err(|e| anyhow!(e))
+    }
+    crate::plot::render(&Fig(out), SIZE)
 }
 
 fn colour(i: usize) -> RGBColor {

@@ -8,35 +8,6 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
-fn ensure_font() -> anyhow::Result<()> {
-    static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
-    FONT.get_or_init(|| {
-        let mut candidates: Vec<std::path::PathBuf> = Vec::new();
-        if let Some(p) = std::env::var_os("HOST_TOOLS_FONT") {
-            candidates.push(p.into());
-        }
-        for p in [
-            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-            "/usr/share/fonts/TTF/DejaVuSans.ttf",
-            "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-            "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-        ] {
-            candidates.push(p.into());
-        }
-        for p in &candidates {
-            if let Ok(bytes) = std::fs::read(p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return Ok(());
-                }
-            }
-        }
-        Err("no usable TrueType font for the plot (install fonts-dejavu-core or set HOST_TOOLS_FONT)".to_string())
-    })
-    .clone()
-    .map_err(|e| anyhow!(e))
-}
-
 fn colour(group: &str) -> RGBColor {
     match group {
         "linear" => RGBColor(31, 119, 180),
@@ -49,7 +20,7 @@ fn colour(group: &str) -> RGBColor {
     }
 }
 
-fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, rows: &[Row], title: &str) -> anyhow::Result<()>
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, rows: &[Row], title: &str) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
@@ -131,30 +102,24 @@ where
         .label_font(("sans-serif", 14))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
 }
 
-/// Writes `stem.svg` and `stem.png`.
+/// Writes `stem.svg` and `stem.png`, atomically.
 pub fn write(stem: &Path, rows: &[Row], title: &str) -> anyhow::Result<(std::path::PathBuf, std::path::PathBuf)> {
-    ensure_font()?;
+    struct Fig<'a>(&'a [Row], &'a str);
+    impl crate::plot::Figure for Fig<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+        where
+            DB::ErrorType: 'static,
+        {
+            draw(root, self.0, self.1)
+        }
+    }
+    let (svg_text, png_bytes) = crate::plot::render(&Fig(rows, title), (1200, 800))?;
     let svg = stem.with_extension("svg");
     let png = stem.with_extension("png");
-    if let Some(d) = svg.parent() {
-        std::fs::create_dir_all(d)?;
-    }
-    draw(SVGBackend::new(&svg, (1200, 800)).into_drawing_area(), rows, title)?;
-    let (w, h) = (1200u32, 800u32);
-    let mut buf = vec![0u8; (w * h * 3) as usize];
-    draw(BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area(), rows, title)?;
-    let mut bytes = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut bytes, w, h);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut wr = enc.write_header()?;
-        wr.write_image_data(&buf)?;
-    }
-    crate::io::write_atomic(&png, &bytes)?;
+    crate::io::write_atomic(&svg, svg_text.as_bytes())?;
+    crate::io::write_atomic(&png, &png_bytes)?;
     Ok((svg, png))
 }
