@@ -161,7 +161,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
     let view = BlobView::parse(&trained.blob).expect("validated");
-    let s = &trained.zones[0].estimator.summary;
+    // Report the worst-conditioned zone: it is what limits the calibration
+    // (and what the blob's training summary records).
+    let (worst, s) = trained
+        .zones
+        .iter()
+        .map(|z| &z.estimator.summary)
+        .enumerate()
+        .max_by(|a, b| a.1.condition_system.total_cmp(&b.1.condition_system))
+        .expect("training yields at least one zone");
     println!(
         "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, prior {} samples (rank {}), noise {}",
         kind_name(a.estimator.into()),
@@ -174,7 +182,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         noise
     );
     println!(
-        "cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}, f32 vs f64 {:.1e}",
+        "worst-conditioned zone {worst}: cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}; f32 vs f64 over all zones {:.1e}",
         s.condition_h, s.condition_system, s.effective_rank, s.regularisation, s.predicted_rmse, trained.f32_rel_error
     );
     println!("{}", s.method);
