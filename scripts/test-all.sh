@@ -8,6 +8,8 @@ bash scripts/install-test-deps.sh
 # the last thing printed.
 echo "[test] firmware: builds, clippy, size and flash/RAM budget"
 bash scripts/check-firmware.sh
+echo "[test] clippy on the host crates (-D warnings)"
+cargo clippy --workspace --release --all-targets -q -- -D warnings
 echo "[test] host, host simulation and QEMU tests"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

@@ -124,7 +124,7 @@ fn locate(text: &str, path: &str) -> Option<usize> {
         found = Some(value.span().start);
         let mut v = value.get_ref();
         if let (Some(i), DeValue::Array(items)) = (idx, v) {
-            let item = items.iter().nth(i)?;
+            let item = items.get(i)?;
             found = Some(item.span().start);
             v = item.get_ref();
         }

@@ -89,7 +89,7 @@ pub struct Trained {
 
 /// Zones of equal width, each with the same optics (the instrument's point).
 pub fn uniform_zones(inst: &Instrument, grid: &AngleGrid, zones: usize, pixels: usize, far_field: bool) -> anyhow::Result<Vec<ZoneOptics>> {
-    ensure!(pixels >= 1 && pixels <= MAX_PIXELS, "pixels = {pixels}: must be 1..={MAX_PIXELS}");
+    ensure!((1..=MAX_PIXELS).contains(&pixels), "pixels = {pixels}: must be 1..={MAX_PIXELS}");
     ensure!(zones >= 1 && zones <= pixels, "zones = {zones}: must be 1..=pixels ({pixels})");
     let h = system_matrix(inst, grid, far_field).context("computing the system matrix H")?;
     let centres = inst.centre_angles_deg();

@@ -304,10 +304,10 @@ mod tests {
         };
         let picks: Vec<usize> = (0..3).map(|f| c.select(&fam(f, 1.0))).collect();
         assert!(picks[0] != picks[1] && picks[1] != picks[2] && picks[0] != picks[2], "{picks:?}");
-        for f in 0..3 {
+        for (f, &pick) in picks.iter().enumerate() {
             for a in [0.01f32, 0.77, 30.0] {
                 let v = fam(f, a);
-                assert_eq!(c.select(&v), picks[f], "family {f} at level {a}");
+                assert_eq!(c.select(&v), pick, "family {f} at level {a}");
                 let mut out = vec![0.0f32; n];
                 c.estimate_into(&v, &mut out);
                 for j in 0..n {

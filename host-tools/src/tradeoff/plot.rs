@@ -34,7 +34,7 @@ where
         e0 = e0.min(r.rmse);
         e1 = e1.max(r.rmse);
     }
-    let mut chart = ChartBuilder::on(&root)
+    let mut chart = ChartBuilder::on(root)
         .caption(title, ("sans-serif", 22))
         .margin(20)
         .x_label_area_size(50)
