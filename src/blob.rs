@@ -108,8 +108,10 @@ pub struct TrainingSummary {
     pub f32_rel_error: f32,
 }
 
-/// Where in the blob a problem was found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Where in the blob a problem was found. Also travels in the wire
+/// protocol's typed errors (as `protocol::BlobSection`): never reorder the
+/// variants, postcard encodes them by index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Section {
     /// The fixed header.

@@ -28,7 +28,7 @@
 //! f32 values (BRDF vectors) and u16 pixel values (simulated frames) travel as
 //! raw little-endian bytes ([`LeBytes`]) so they arrive bit for bit and cost no
 //! encoding time on the device.
-use crate::blob::{BlobError, Section};
+use crate::blob::BlobError;
 use crate::hw::SensorError;
 use serde::{Deserialize, Serialize};
 
@@ -438,39 +438,8 @@ pub enum DeviceError {
     Simulation,
 }
 
-/// A blob section, as it travels (mirrors [`Section`]).
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum BlobSection {
-    /// Header.
-    Header,
-    /// Grid.
-    Grid,
-    /// LED order.
-    LedOrder,
-    /// Zones.
-    Zones,
-    /// White reference.
-    White,
-    /// Uncertainty.
-    Uncertainty,
-    /// Matrices.
-    Matrices,
-}
-
-impl From<Section> for BlobSection {
-    fn from(s: Section) -> Self {
-        match s {
-            Section::Header => Self::Header,
-            Section::Grid => Self::Grid,
-            Section::LedOrder => Self::LedOrder,
-            Section::Zones => Self::Zones,
-            Section::White => Self::White,
-            Section::Uncertainty => Self::Uncertainty,
-            Section::Matrices => Self::Matrices,
-        }
-    }
-}
+/// A blob section, as it travels: the blob's own [`crate::blob::Section`].
+pub use crate::blob::Section as BlobSection;
 
 impl From<BlobError> for DeviceError {
     fn from(e: BlobError) -> Self {
@@ -484,8 +453,8 @@ impl From<BlobError> for DeviceError {
             BlobError::CrcMismatch { .. } => (BlobFault::CrcMismatch, None, 0),
             BlobError::ReservedNotZero => (BlobFault::ReservedNotZero, None, 0),
             BlobError::UnknownEstimator(c) => (BlobFault::UnknownEstimator, None, c as usize),
-            BlobError::NonFinite { section, index } => (BlobFault::NonFinite, Some(section.into()), index),
-            BlobError::OutOfRange { section, index } => (BlobFault::OutOfRange, Some(section.into()), index),
+            BlobError::NonFinite { section, index } => (BlobFault::NonFinite, Some(section), index),
+            BlobError::OutOfRange { section, index } => (BlobFault::OutOfRange, Some(section), index),
             BlobError::GridNotAscending { index } => (BlobFault::GridNotAscending, Some(BlobSection::Grid), index),
             BlobError::BadLedOrder { index } => (BlobFault::BadLedOrder, Some(BlobSection::LedOrder), index),
             BlobError::BadZoneMap { index } => (BlobFault::BadZoneMap, Some(BlobSection::Zones), index),
@@ -893,7 +862,7 @@ mod tests {
 
     #[test]
     fn blob_errors_map_to_typed_faults() {
-        let e: DeviceError = BlobError::NonFinite { section: Section::White, index: 12 }.into();
+        let e: DeviceError = BlobError::NonFinite { section: BlobSection::White, index: 12 }.into();
         assert_eq!(
             e,
             DeviceError::BlobRejected { fault: BlobFault::NonFinite, section: Some(BlobSection::White), detail: 12 }

@@ -4,11 +4,11 @@
 //! `W v` overflows f32 (policy: the point is zeroed and flagged NON_FINITE,
 //! `brdf_meter::estimate::guard_estimate`).
 use brdf_meter::acquire::{MIN_SIGNAL_COUNTS, RawLine, correct_line, correct_point_into};
-use brdf_meter::blob::{BlobContents, BlobView, Dims, EstimatorKind, TrainingSummary, write_blob};
+use brdf_meter::blob::{BlobView, Dims};
 use brdf_meter::estimate::guard_estimate;
 use brdf_meter::kernel::estimate_into;
 use brdf_meter::protocol::flags;
-use brdf_meter::sim::SimFlash;
+use brdf_meter::sim::{SimFlash, test_blob_with};
 use host_tools::link::Client;
 use host_tools::link::sim::{analytic_scene, expected_line};
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
@@ -137,12 +137,8 @@ const ZONES: usize = 4;
 /// `tiny_white_px` has a subnormal white reference for reading 0.
 fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {
     let dims = Dims { n: N, m: M, zones: ZONES, pixels: P };
-    let grid: Vec<f32> = (0..N).map(|i| 25.0 + 0.5 * i as f32).collect();
-    let order: Vec<u8> = (0..M as u8).collect();
-    let zone_start: Vec<u16> = (0..ZONES).map(|z| (z * P / ZONES) as u16).collect();
     let mut white: Vec<f32> = (0..P * M).map(|k| 900.0 + ((k * 37) % 200) as f32).collect();
     white[tiny_white_px * M] = f32::from_bits(1);
-    let unc = vec![0.01f32; ZONES * N];
     let mats: Vec<f32> = (0..ZONES * N * M)
         .map(|k| {
             let z = k / (N * M);
@@ -153,23 +149,8 @@ fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {
             }
         })
         .collect();
-    let c = BlobContents {
-        dims,
-        noise_rel: 0.02,
-        estimator: EstimatorKind::Wiener,
-        far_field: false,
-        summary: TrainingSummary { prior_samples: 16, condition: 10.0, regularisation: 0.0, predicted_rmse: 0.1, f32_rel_error: 1e-6 },
-        grid_deg: &grid,
-        led_order: &order,
-        zone_start: &zone_start,
-        white: &white,
-        uncertainty: &unc,
-        matrices: &mats,
-    };
-    let mut out = vec![0u8; dims.blob_len()];
-    let len = write_blob(&c, &mut out).expect("valid blob");
-    out.truncate(len);
-    out
+    let order: Vec<u8> = (0..M as u8).collect();
+    test_blob_with(dims, &order, &white, &mats)
 }
 
 #[test]
