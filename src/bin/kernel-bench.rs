@@ -83,7 +83,7 @@ pub fn kernel_bench_mark() {
 #[inline(never)]
 #[unsafe(no_mangle)]
 pub fn kernel_bench_f32(w: &[[f32; M]; N], v: &[f32; M], out: &mut [f32; N]) {
-    kernel::estimate_to(w, v, out);
+    kernel::mat_vec_f32_into(w, v, out);
 }
 
 #[inline(never)]
@@ -95,7 +95,7 @@ pub fn kernel_bench_quantise_v(v: &[f32; M], vq: &mut [u32; kernel::q15_v_words(
 #[inline(never)]
 #[unsafe(no_mangle)]
 pub fn kernel_bench_q15(w: &[u32; kernel::q15_w_words(N, M)], vq: &[u32; kernel::q15_v_words(M)], acc: &mut [i32; kernel::q15_acc_len(N)]) {
-    kernel::estimate_q15(w, vq, M, acc);
+    kernel::mat_vec_q15(w, vq, M, acc);
 }
 
 #[inline(never)]

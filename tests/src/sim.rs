@@ -1,7 +1,7 @@
 //! The host simulation of the firmware (see the crate docs).
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
-use brdf_meter::sim::{Pipe, SimFlash, SimLeds, SimScene, SimSensor, pipe, sim_optics};
+use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimLeds, SimFrames, SimSensor, pipe, sim_optics};
 use embassy_executor::raw::{Executor, TaskStorage};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::Channel;
@@ -45,7 +45,7 @@ pub struct SimDevice {
     host: Pipe,
     inbox: VecDeque<u8>,
     /// Scene input and LED log.
-    pub scene: SimScene<P, F>,
+    pub scene: SimFrames<P, F>,
     /// The application's shared state.
     pub shared: &'static Dev,
     /// The flash (shares memory with the device's).
@@ -71,7 +71,7 @@ impl SimDevice {
         MockDriver::get().reset();
         let ram: &'static mut [[[f32; M]; N]] = Box::leak(vec![[[0.0f32; M]; N]; ram_zones].into_boxed_slice());
         let (host, dev_end) = pipe();
-        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) =
+        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, host.frames_counter());
         let shared: &'static Dev =
             leak(Shared::new(flash.clone(), SLOT_LEN, ram, AcqConfig::default(), FULL_SCALE, true));

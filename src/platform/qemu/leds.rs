@@ -1,7 +1,7 @@
 //! The m LEDs as GPIOE pins 0..m (push-pull outputs). QEMU has no PWM timer,
 //! so the drive is on/off: any non-zero intensity lights the LED.
 use super::regs::*;
-use brdf_meter::hw::Leds;
+use crate::hw::Leds;
 
 /// LEDs on GPIOE pins `0..M`.
 pub struct GpioLeds<const M: usize>(());

@@ -1,19 +1,6 @@
-//! Host-simulation helpers (feature `sim`, and this crate's own unit tests):
-//! an in-memory NOR flash that can lose power at any byte, an in-memory
-//! transport, simulated LEDs and line sensor, and a blob maker for tests.
-//! Nothing here is built into firmware.
-mod flash;
-#[cfg(feature = "app")]
-mod io;
-#[cfg(feature = "app")]
-mod sensor;
-
-pub use flash::{FlashOp, SimFlash, SimFlashError};
-#[cfg(feature = "app")]
-pub use io::{Pipe, PipeEnd, pipe};
-#[cfg(feature = "app")]
-pub use sensor::{SIM_LINES, SimLeds, SimScene, SimSensor, sim_optics};
-
+//! Valid calibration blobs with deterministic contents, for the tests of the
+//! library, of host-tools and of tests/ (one builder for all of them). Built
+//! with `std` (host users) and for this crate's own tests; never in firmware.
 use crate::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
 
 /// A valid blob with deterministic contents for tests: `zones` equal zones of
