@@ -15,32 +15,26 @@
 #![no_main]
 
 use brdf_meter::kernel;
+use brdf_meter::nalgebra::{ArrayStorage, SMatrix, SVector};
+use brdf_meter::shape;
 use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hio};
 
-const N: usize = 81;
-const M: usize = 7;
+const N: usize = shape::BINS;
+const M: usize = shape::LEDS;
 const POINTS: usize = 3;
 const KMAX: usize = 16;
 
-const SYS_WRITE0: usize = 0x04;
-const SYS_EXIT: usize = 0x18;
-const ADP_STOPPED_APPLICATION_EXIT: usize = 0x20026;
-const ADP_STOPPED_RUNTIME_ERROR: usize = 0x20023;
-
-fn semihost(op: usize, arg: usize) {
-    // SAFETY: the semihosting ABI: operation in r0, argument in r1, BKPT 0xAB.
-    unsafe { core::arch::asm!("bkpt 0xAB", inout("r0") op => _, in("r1") arg, options(nostack)) };
-}
-
-/// A line buffer written to the host's stdout with SYS_WRITE0.
+/// A line buffer written to the host's stdout (semihosting).
 struct Line {
+    out: hio::HostStream,
     buf: [u8; 160],
     len: usize,
 }
 
 impl Line {
-    const fn new() -> Self {
-        Self { buf: [0; 160], len: 0 }
+    fn new(out: hio::HostStream) -> Self {
+        Self { out, buf: [0; 160], len: 0 }
     }
     fn push(&mut self, s: &[u8]) {
         for &b in s {
@@ -61,8 +55,7 @@ impl Line {
         self.push(&d);
     }
     fn flush_keep(&mut self) {
-        self.buf[self.len] = 0;
-        semihost(SYS_WRITE0, self.buf.as_ptr() as usize);
+        let _ = self.out.write_all(&self.buf[..self.len]);
         self.len = 0;
     }
     fn end(&mut self) {
@@ -82,8 +75,8 @@ pub fn kernel_bench_mark() {
 
 #[inline(never)]
 #[unsafe(no_mangle)]
-pub fn kernel_bench_f32(w: &[[f32; M]; N], v: &[f32; M], out: &mut [f32; N]) {
-    kernel::mat_vec_f32_into(w, v, out);
+pub fn kernel_bench_f32(wt: &SMatrix<f32, M, N>, v: &SVector<f32, M>, out: &mut SVector<f32, N>) {
+    kernel::mat_vec_f32_into(wt.as_view(), v, out);
 }
 
 #[inline(never)]
@@ -107,8 +100,8 @@ pub fn kernel_bench_dequantise(acc: &[i32; kernel::q15_acc_len(N)], inv: &[f32; 
 /// The affine estimator's constant term: `out += b` (n adds).
 #[inline(never)]
 #[unsafe(no_mangle)]
-pub fn kernel_bench_offset(out: &mut [f32; N], b: &[f32; N]) {
-    for (o, x) in out.iter_mut().zip(b) {
+pub fn kernel_bench_offset(out: &mut [f32; N], b: &SVector<f32, N>) {
+    for (o, x) in out.iter_mut().zip(b.as_slice()) {
         *o += *x;
     }
 }
@@ -127,7 +120,8 @@ impl Lcg {
     }
 }
 
-static mut W: [[f32; M]; N] = [[0.0; M]; N];
+/// W transposed (M x N): the blob's row-major n x m in memory.
+static mut W: SMatrix<f32, M, N> = SMatrix::from_array_storage(ArrayStorage([[0.0; M]; N]));
 static mut WQ: [u32; kernel::q15_w_words(N, M)] = [0; kernel::q15_w_words(N, M)];
 static mut INV: [f32; N] = [0.0; N];
 static mut CENTROIDS: [f32; KMAX * M] = [0.0; KMAX * M];
@@ -139,15 +133,15 @@ fn main() -> ! {
         (&mut *core::ptr::addr_of_mut!(W), &mut *core::ptr::addr_of_mut!(WQ), &mut *core::ptr::addr_of_mut!(INV), &mut *core::ptr::addr_of_mut!(CENTROIDS))
     };
     let mut rng = Lcg(12345);
-    for row in w.iter_mut() {
-        for x in row.iter_mut() {
-            *x = (rng.next() - 0.5) * 60.0;
-        }
+    // Column-major: W's rows in turn, as the blob stores them.
+    for x in w.iter_mut() {
+        *x = (rng.next() - 0.5) * 60.0;
     }
     for c in cents.iter_mut() {
         *c = rng.next() / M as f32 * 2.0;
     }
-    let mut line = Line::new();
+    let Ok(stdout) = hio::hstdout() else { halt() };
+    let mut line = Line::new(stdout);
     // Segment order, then the inputs.
     line.push(b"SEG quantise_w");
     line.end();
@@ -167,10 +161,8 @@ fn main() -> ! {
         }
     }
     line.push(b"W ");
-    for row in w.iter() {
-        for x in row {
-            line.hex(x.to_bits());
-        }
+    for x in w.iter() {
+        line.hex(x.to_bits());
     }
     line.end();
     line.push(b"C ");
@@ -181,10 +173,10 @@ fn main() -> ! {
 
     // Load-time quantisation (as the device does when it activates a blob).
     kernel_bench_mark();
-    kernel::quantise_w_q15(w.as_flattened(), N, M, wq, inv);
+    kernel::quantise_w_q15(w.as_slice(), N, M, wq, inv);
     kernel_bench_mark();
 
-    let mut out = [0.0f32; N];
+    let mut out = SVector::<f32, N>::zeros();
     let mut acc = [0i32; kernel::q15_acc_len(N)];
     let mut rho_q = [0.0f32; N];
     for p in 0..POINTS {
@@ -194,7 +186,7 @@ fn main() -> ! {
         // The offset bench adds the f32 result to this (a stand-in for b).
         let mut shifted: [f32; N] = core::array::from_fn(|j| v[j % M]);
         kernel_bench_mark();
-        kernel_bench_f32(w, &v, &mut out);
+        kernel_bench_f32(w, &SVector::from(v), &mut out);
         kernel_bench_mark();
         let mut vq = [0u32; kernel::q15_v_words(M)];
         let k = kernel_bench_quantise_v(&v, &mut vq);
@@ -216,7 +208,7 @@ fn main() -> ! {
         }
         line.end();
         line.push(b"OUT ");
-        for x in out {
+        for x in out.iter() {
             line.hex(x.to_bits());
         }
         line.end();
@@ -244,7 +236,7 @@ fn main() -> ! {
     }
     line.push(b"DONE");
     line.end();
-    semihost(SYS_EXIT, ADP_STOPPED_APPLICATION_EXIT);
+    debug::exit(debug::EXIT_SUCCESS);
     halt()
 }
 
@@ -258,8 +250,9 @@ fn halt() -> ! {
 
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
-    let msg = b"kernel-bench panic\n\0";
-    semihost(SYS_WRITE0, msg.as_ptr() as usize);
-    semihost(SYS_EXIT, ADP_STOPPED_RUNTIME_ERROR);
+    if let Ok(mut err) = hio::hstderr() {
+        let _ = err.write_all(b"kernel-bench panic\n");
+    }
+    debug::exit(debug::EXIT_FAILURE);
     halt()
 }

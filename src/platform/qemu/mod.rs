@@ -17,7 +17,7 @@
 //!   provisioning works but does not survive a restart of QEMU.
 pub mod flash;
 pub mod leds;
-pub mod regs;
+mod regs;
 pub mod sensor;
 pub mod time_driver;
 pub mod usart;
