@@ -21,7 +21,7 @@ fn provision(st: &mut Store<SimFlash>, blob: &[u8]) -> Result<(), brdf_meter::pr
     for c in blob.chunks(512) {
         off = st.write_chunk(off, c)?;
     }
-    st.commit(|v| Calibration::<N, M, P>::check(v)).map(|_| ())
+    st.commit(|v| Calibration::<N, M, P>::check(v)).map(|_| ()).map_err(Into::into)
 }
 
 /// A flash holding the `olds`, provisioned in turn.
