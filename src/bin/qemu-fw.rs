@@ -55,7 +55,7 @@ async fn transport(shared: &'static QemuShared, rx: UsartRx, tx: UsartTx) -> ! {
 #[embassy_executor::task]
 async fn acquisition(shared: &'static QemuShared, lines: Sender<'static, Cs, LineBuf<M, P>>) -> ! {
     let sensor = FrameSensor { frames: &FRAMES, full_scale: FULL_SCALE, lit: qemu::leds::lit::<M> };
-    app::acquisition(shared, GpioLeds::<M>::new(), sensor, lines).await
+    app::acquisition(shared, GpioLeds::<M>::configure(), sensor, lines).await
 }
 
 #[embassy_executor::task]

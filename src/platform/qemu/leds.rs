@@ -7,8 +7,8 @@ use crate::hw::Leds;
 pub struct GpioLeds<const M: usize>(());
 
 impl<const M: usize> GpioLeds<M> {
-    /// Configures the pins as outputs, all off.
-    pub fn new() -> Self {
+    /// Configures the pins as outputs, all off (touches GPIOE: once, at boot).
+    pub fn configure() -> Self {
         const { assert!(M <= 16) };
         // SAFETY: boot-time configuration of GPIOE, owned by this driver.
         unsafe {
