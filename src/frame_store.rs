@@ -1,14 +1,14 @@
-//! The scene store of a simulated line sensor, shared by the QEMU firmware and
+//! The frame store of a simulated line sensor, shared by the QEMU firmware and
 //! the host simulation so both serve frames by the same rule.
 //!
 //! The host loads raw frames (dark + one per LED, P pixels of u16) for up to
-//! `L` scene lines with the simulation-only protocol messages. A read returns
+//! `L` lines with the simulation-only protocol messages. A read returns
 //! the frame of the LED that is lit (the sensor sees the LEDs, as a real one
-//! would); each dark-frame read starts the next scene line, cycling through
-//! the loaded lines, so line k of a measurement sees scene line k mod lines.
+//! would); each dark-frame read starts the next loaded line, cycling through
+//! the loaded lines, so line k of a measurement sees loaded line k mod lines.
 use crate::hw::{FrameLoadError, SensorError};
 
-/// Frames of `L` scene lines, `F` frames (dark + LEDs) of `P` pixels each.
+/// Frames of `L` lines, `F` frames (dark + LEDs) of `P` pixels each.
 pub struct FrameStore<const P: usize, const F: usize, const L: usize> {
     frames: [[[u16; P]; F]; L],
     lines: u8,
@@ -23,7 +23,7 @@ impl<const P: usize, const F: usize, const L: usize> Default for FrameStore<P, F
 }
 
 impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
-    /// An empty scene: reads fail with [`SensorError::NoData`] until
+    /// An empty store: reads fail with [`SensorError::NoData`] until
     /// [`Self::set_lines`].
     pub const fn new() -> Self {
         Self { frames: [[[0; P]; F]; L], lines: 0, current: 0, started: false }
@@ -51,7 +51,7 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
         Ok(())
     }
 
-    /// Sets the number of scene lines in use (1..=L) and restarts at line 0.
+    /// Sets the number of loaded lines in use (1..=L) and restarts at line 0.
     pub fn set_lines(&mut self, lines: u8) -> Result<(), FrameLoadError> {
         if lines == 0 || lines as usize > L {
             return Err(FrameLoadError::OutOfRange);

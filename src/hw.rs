@@ -5,7 +5,7 @@
 //! Transports use `embedded_io_async::{Read, Write}`; calibration storage uses
 //! `embedded_storage::nor_flash::NorFlash`, plus [`MappedFlash`] so blobs are
 //! read in place. Only what has no standard trait is defined here: the LEDs,
-//! the line sensor, and [`FrameInput`] (where a simulated sensor's scene comes
+//! the line sensor, and [`FrameInput`] (where a simulated sensor's frames come
 //! from; [`NoFrameInput`] on real hardware).
 #![allow(async_fn_in_trait)] // single-threaded executors: no Send bound wanted
 
@@ -63,21 +63,21 @@ pub unsafe trait MappedFlash: embedded_storage::nor_flash::NorFlash {
     fn mapped(&self, offset: u32, len: usize) -> &'static [u8];
 }
 
-/// Why a simulated-scene request was refused.
+/// Why a request to load simulated frames was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FrameLoadError {
     /// This device has a real sensor.
     NotSimulated,
-    /// Line, frame or pixel range outside the scene's capacity.
+    /// Line, frame or pixel range outside the frame store's capacity.
     OutOfRange,
 }
 
-/// Where a simulated sensor takes its scene from; the transport feeds it from
+/// Where a simulated sensor takes its frames from; the transport feeds it from
 /// the simulation-only protocol messages. Real boards use [`NoFrameInput`].
 pub trait FrameInput {
     /// Stores `pixels` (u16 values) at `first_pixel..` of frame `frame`
-    /// (0 = dark, 1 + LED index) of scene line `line`.
+    /// (0 = dark, 1 + LED index) of frame line `line`.
     fn load(&mut self, line: u8, frame: u8, first_pixel: u16, pixels: impl Iterator<Item = u16>)
     -> Result<(), FrameLoadError>;
     /// Sets how many scene lines the sensor cycles through.
