@@ -33,7 +33,6 @@
 //! the ADC runs from SYSCLK.
 
 pub mod flash;
-
 pub mod leds;
 pub mod sensor;
 pub mod usb;
