@@ -16,10 +16,12 @@ cd "$(dirname "$0")/.."
 TARGET=thumbv7em-none-eabihf
 target_dir=${CARGO_TARGET_DIR:-target}
 
-# bin:feature:profile; qemu-fw only if the package defines it.
-firmwares=("board-fw:board:release")
+# bin:profile (where its ELF lands); each is built with `cargo BIN` and
+# checked with `cargo BIN-clippy`, the aliases in .cargo/config.toml (the one
+# place the firmware command lines live). qemu-fw only if the package has it.
+firmwares=("board-fw:release")
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
-  firmwares+=("qemu-fw:qemu:firmware")
+  firmwares+=("qemu-fw:firmware")
 fi
 
 log=$(mktemp)
@@ -27,9 +29,9 @@ trap 'rm -f "$log"' EXIT
 
 elfs=()
 for fw in "${firmwares[@]}"; do
-  IFS=: read -r bin feature profile <<<"$fw"
-  echo "[firmware] build $bin (--profile $profile, --features $feature, $TARGET)"
-  if ! cargo build --profile "$profile" --target "$TARGET" --features "$feature" --bin "$bin" >"$log" 2>&1; then
+  IFS=: read -r bin profile <<<"$fw"
+  echo "[firmware] build $bin (cargo $bin: profile $profile, $TARGET)"
+  if ! cargo "$bin" >"$log" 2>&1; then
     cat "$log"
     echo "[firmware] FAILED: $bin does not build" >&2
     exit 1
@@ -40,7 +42,7 @@ for fw in "${firmwares[@]}"; do
     exit 1
   fi
   echo "[firmware] clippy $bin (-D warnings)"
-  if ! cargo clippy --release --target "$TARGET" --features "$feature" --bin "$bin" -- -D warnings >"$log" 2>&1; then
+  if ! cargo "$bin-clippy" -- -D warnings >"$log" 2>&1; then
     cat "$log"
     echo "[firmware] FAILED: clippy is not clean for $bin" >&2
     exit 1

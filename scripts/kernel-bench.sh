@@ -18,7 +18,7 @@ mkdir -p "$out"
 for tool in qemu-system-arm arm-none-eabi-nm arm-none-eabi-objdump; do
   command -v "$tool" >/dev/null || { echo "kernel-bench: $tool not found (scripts/install-test-deps.sh installs it)" >&2; exit 2; }
 done
-cargo build --quiet --profile firmware --target thumbv7em-none-eabihf --features kernel-bench --bin kernel-bench
+cargo --quiet kernel-bench-fw
 elf=target/thumbv7em-none-eabihf/firmware/kernel-bench
 cp "$elf" "$out/kernel-bench.elf"
 rm -f "$out/trace.txt"

@@ -5,7 +5,7 @@
 # How: QEMU runs the QEMU firmware with one instruction per translation block
 # and logs every block executed (-d exec,nochain); each log line names the
 # function the instruction belongs to (QEMU reads the ELF's symbols), so the
-# lines in `estimate_point` (the kernel's one non-inlined symbol, n x m MACs
+# lines in `point_kernel` (the kernel's one non-inlined symbol, n x m MACs
 # per call) are the kernel's executed instructions. The firmware is driven by
 # `host-tools qemu --demo ... --measure-and-exit LINES` (train, provision,
 # load a scene, measure), and the count is divided by the points measured.
@@ -17,9 +17,9 @@ lines=${1:-1}
 cargo qemu-fw >&2
 cargo build --release -p host-tools >&2
 elf=target/thumbv7em-none-eabihf/firmware/qemu-fw
-sym=$(arm-none-eabi-nm -S "$elf" | awk '/estimate_point/ {print $4}')
-[ -n "$sym" ] || { echo "icount: no estimate_point symbol in $elf" >&2; exit 1; }
-read -r start size < <(arm-none-eabi-nm -S "$elf" | awk '/estimate_point/ {print $1, $2}')
+sym=$(arm-none-eabi-nm -S "$elf" | awk '/point_kernel/ {print $4}')
+[ -n "$sym" ] || { echo "icount: no point_kernel symbol in $elf" >&2; exit 1; }
+read -r start size < <(arm-none-eabi-nm -S "$elf" | awk '/point_kernel/ {print $1, $2}')
 echo "icount: kernel symbol $sym at 0x$start, $((16#$size)) bytes" >&2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -5,6 +5,7 @@
 //! [`correct_point`] is the one definition of a corrected reading: the device
 //! runs it, and the host runs it to reproduce the device's numbers bit for bit.
 use crate::protocol::flags;
+use nalgebra::SVector;
 
 /// Dark-corrected signal (counts) below which a reading is flagged
 /// under-exposed: a few LSB of a 12-bit converter, where quantisation and dark
@@ -79,14 +80,12 @@ pub fn correct_line<const M: usize, const P: usize>(
     raw: &RawLine<M, P>,
     white: &[[f32; M]; P],
     full_scale: u16,
-    v: &mut [[f32; M]; P],
+    v: &mut [SVector<f32, M>; P],
     fl: &mut [u8; P],
 ) {
     for p in 0..P {
         let lit: [u16; M] = core::array::from_fn(|i| raw.lit[i][p]);
-        let (vp, f) = correct_point(raw.dark[p], &lit, &white[p], full_scale);
-        v[p] = vp;
-        fl[p] = f;
+        fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, v[p].as_mut_slice());
     }
 }
 
@@ -162,12 +161,12 @@ mod tests {
         raw.dark = [10, 20, 30];
         raw.lit = [[110, 220, 330], [60, 70, 80]];
         let white = [[100.0, 50.0], [200.0, 25.0], [300.0, 10.0]];
-        let mut v = [[0.0; 2]; 3];
+        let mut v = [SVector::<f32, 2>::zeros(); 3];
         let mut fl = [0; 3];
         correct_line(&raw, &white, 4095, &mut v, &mut fl);
         for p in 0..3 {
             let (vp, f) = correct_point(raw.dark[p], &[raw.lit[0][p], raw.lit[1][p]], &white[p], 4095);
-            assert_eq!(v[p], vp);
+            assert_eq!(v[p], SVector::from(vp));
             assert_eq!(fl[p], f);
         }
     }

@@ -619,55 +619,20 @@ fn get_f32(b: &[u8], off: usize) -> f32 {
 mod tests {
     use super::*;
 
-    struct Owned {
-        grid: Vec<f32>,
-        order: Vec<u8>,
-        zones: Vec<u16>,
-        white: Vec<f32>,
-        unc: Vec<f32>,
-        mats: Vec<f32>,
-        dims: Dims,
-    }
+    // The one test-blob builder's owned parts, changed one at a time below.
+    use crate::test_blobs::TestBlobParts as Owned;
 
     fn sample(n: usize, m: usize, zones: usize, pixels: usize) -> Owned {
-        let dims = Dims { n, m, zones, pixels };
-        Owned {
-            grid: (0..n).map(|i| 25.0 + 0.5 * i as f32).collect(),
-            order: (0..m as u8).rev().collect(),
-            zones: (0..zones).map(|z| (z * pixels / zones) as u16).collect(),
-            white: (0..pixels * m).map(|k| 1000.0 + k as f32).collect(),
-            unc: (0..zones * n).map(|k| 0.01 * k as f32).collect(),
-            mats: (0..zones * n * m).map(|k| (k as f32).sin()).collect(),
-            dims,
-        }
+        Owned::new(n, m, zones, pixels, 0.0)
     }
 
     fn contents(o: &Owned) -> BlobContents<'_> {
-        BlobContents {
-            dims: o.dims,
-            noise_rel: 0.02,
-            estimator: EstimatorKind::Wiener,
-            far_field: false,
-            summary: TrainingSummary {
-                prior_samples: 16,
-                condition: 1.0e10,
-                regularisation: 1e-12,
-                predicted_rmse: 0.1,
-                f32_rel_error: 1e-6,
-            },
-            grid_deg: &o.grid,
-            led_order: &o.order,
-            zone_start: &o.zones,
-            white: &o.white,
-            uncertainty: &o.unc,
-            matrices: &o.mats,
-        }
+        o.contents()
     }
 
     fn encode(o: &Owned) -> Vec<u8> {
-        let mut buf = vec![0u8; o.dims.blob_len()];
-        let len = write_blob(&contents(o), &mut buf).unwrap();
-        assert_eq!(len, buf.len());
+        let buf = o.encode();
+        assert_eq!(buf.len(), o.dims.blob_len());
         buf
     }
 

@@ -6,8 +6,10 @@
 //! buffer whose size is fixed at build time (the *RAM budget*), when they fit;
 //! otherwise they are read in place from the memory-mapped, CRC-validated
 //! calibration slot, which the store never writes while it is active. Both
-//! cases give the kernel the same `&[[f32; M]; N]` per zone, through the one
-//! method [`Calibration::matrix`]: there is one estimation code path.
+//! cases give the kernel the same nalgebra view of `W`'s transpose
+//! (`SMatrixView<f32, M, N>`, the blob's row-major n x m in memory) per zone,
+//! through the one method [`Calibration::matrix`]: there is one estimation
+//! code path.
 //!
 //! The board's full calibration (Z = 128 zones of 81 x 7 f32, about 290 KiB)
 //! cannot be copied into its 128 KiB of RAM and runs in place; the QEMU build
@@ -16,6 +18,10 @@
 use crate::blob::BlobView;
 use crate::protocol::{CalInfo, DeviceError, SizeField};
 use crate::store::SlotInfo;
+use nalgebra::{SMatrix, SMatrixView, SVector};
+
+/// One zone's matrix as the kernel takes it: `W` transposed, M x N.
+pub type ZoneMatrix<const N: usize, const M: usize> = SMatrix<f32, M, N>;
 
 /// Where the active matrices are read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,18 +45,19 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     pub zone_of: [u16; P],
     zones: usize,
     home: MatrixHome,
-    in_place: &'static [[[f32; M]; N]],
+    /// The blob's matrices in flash (Z x n x m f32), when read in place.
+    in_place: &'static [f32],
 }
 
 /// The calibration holder: the RAM budget buffer and the active calibration.
 pub struct Calibration<const N: usize, const M: usize, const P: usize> {
-    ram: &'static mut [[[f32; M]; N]],
+    ram: &'static mut [ZoneMatrix<N, M>],
     active: Option<Active<N, M, P>>,
 }
 
 impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// A holder whose RAM budget is `ram` (room for `ram.len()` zones).
-    pub fn new(ram: &'static mut [[[f32; M]; N]]) -> Self {
+    pub fn new(ram: &'static mut [ZoneMatrix<N, M>]) -> Self {
         Self { ram, active: None }
     }
 
@@ -80,14 +87,11 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         let w_len = 4 * z * N * M;
         let w_off = bytes.len() - 4 - w_len;
         let in_ram = z <= self.ram.len();
-        let in_place: &'static [[[f32; M]; N]] = if in_ram {
+        let in_place: &'static [f32] = if in_ram {
             &[]
         } else {
-            let w: &'static [f32] = bytemuck::try_cast_slice(&bytes[w_off..w_off + w_len])
-                .map_err(|_| DeviceError::Storage)?; // slot not 4-byte aligned: a build error
-            let (rows, _) = w.as_chunks::<M>();
-            let (mats, _) = rows.as_chunks::<N>();
-            mats
+            // A slot that is not 4-byte aligned is a build error.
+            bytemuck::try_cast_slice(&bytes[w_off..w_off + w_len]).map_err(|_| DeviceError::Storage)?
         };
         let mut white = [[0.0f32; M]; P];
         for (p, wp) in white.iter_mut().enumerate() {
@@ -99,7 +103,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
             for (zi, dst) in self.ram[..z].iter_mut().enumerate() {
-                view.copy_matrix(zi, dst.as_flattened_mut());
+                view.copy_matrix(zi, dst.as_mut_slice());
             }
         }
         self.active = Some(Active {
@@ -130,12 +134,12 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     ///
     /// # Panics
     /// If there is no active calibration or `z` is not one of its zones.
-    pub fn matrix(&self, z: usize) -> &[[f32; M]; N] {
+    pub fn matrix(&self, z: usize) -> SMatrixView<'_, f32, M, N> {
         let a = self.active.as_ref().expect("no active calibration");
         assert!(z < a.zones);
         match a.home {
-            MatrixHome::Ram => &self.ram[z],
-            MatrixHome::InPlace => &a.in_place[z],
+            MatrixHome::Ram => self.ram[z].as_view(),
+            MatrixHome::InPlace => SMatrixView::from_slice(&a.in_place[z * N * M..(z + 1) * N * M]),
         }
     }
 
@@ -144,10 +148,11 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         self.active.as_ref().map(|a| a.home)
     }
 
-    /// Estimates pixel `p` from its corrected readings; returns its zone.
-    pub fn estimate(&self, p: usize, v: &[f32; M], out: &mut [f32; N]) -> u16 {
+    /// Estimates pixel `p`'s BRDF from its corrected readings with its
+    /// zone's matrix; returns the zone.
+    pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> u16 {
         let z = self.active.as_ref().expect("no active calibration").zone_of[p];
-        estimate_point(self.matrix(z as usize), v, out);
+        point_kernel(self.matrix(z as usize), v, out);
         z
     }
 }
@@ -173,15 +178,19 @@ pub fn guard_estimate(rho: &mut [f32]) -> u8 {
     crate::protocol::flags::NON_FINITE
 }
 
-/// `out = W v` for one point, with the shared kernel. Not inlined, so the
-/// firmware has one symbol whose instructions can be counted in QEMU
-/// (scripts/qemu-icount.sh).
+/// `out = W v` for one point, with the shared kernel (`wt` is W's
+/// transpose). Not inlined, so the firmware has one symbol whose instructions
+/// can be counted in QEMU (scripts/qemu-icount.sh looks for its name).
 #[inline(never)]
-pub fn estimate_point<const N: usize, const M: usize>(w: &[[f32; M]; N], v: &[f32; M], out: &mut [f32; N]) {
-    crate::kernel::estimate_to(w, v, out);
+pub fn point_kernel<const N: usize, const M: usize>(
+    wt: SMatrixView<'_, f32, M, N>,
+    v: &SVector<f32, M>,
+    out: &mut SVector<f32, N>,
+) {
+    crate::kernel::mat_vec_f32_into(wt, v, out);
 }
 
-#[cfg(all(test, feature = "sim"))]
+#[cfg(test)]
 mod tests {
     use super::*;
     use crate::blob::BlobView;
@@ -192,24 +201,24 @@ mod tests {
 
     #[test]
     fn ram_and_in_place_give_identical_results() {
-        let bytes = crate::sim::test_blob(9, 3, 3, 6, 0.5);
+        let bytes = crate::test_blobs::test_blob(9, 3, 3, 6, 0.5);
         // 4-byte aligned copy with 'static life, as a flash slot is.
         let words: &'static mut [u32] = Box::leak(vec![0u32; bytes.len().div_ceil(4)].into_boxed_slice());
         bytemuck::cast_slice_mut::<u32, u8>(words)[..bytes.len()].copy_from_slice(&bytes);
         let aligned: &'static [u8] = &bytemuck::cast_slice::<u32, u8>(words)[..bytes.len()];
         let view = BlobView::parse(aligned).unwrap();
         let slot = SlotInfo { slot: 0, sequence: 1, blob_len: bytes.len() as u32, blob_crc: 0 };
-        let mut ram = Calibration::<9, 3, 6>::new(leak([[[0.0; 3]; 9]; 3]));
-        let mut flash = Calibration::<9, 3, 6>::new(leak([[[0.0; 3]; 9]; 1]));
+        let mut ram = Calibration::<9, 3, 6>::new(leak([SMatrix::zeros(); 3]));
+        let mut flash = Calibration::<9, 3, 6>::new(leak([SMatrix::zeros(); 1]));
         ram.load(&view, slot).unwrap();
         flash.load(&view, slot).unwrap();
         assert_eq!(ram.home(), Some(MatrixHome::Ram));
         assert_eq!(flash.home(), Some(MatrixHome::InPlace));
         for p in 0..6 {
-            let v = [0.3f32 + p as f32, -1.25, 7.5];
-            let (mut a, mut b) = ([0.0; 9], [0.0; 9]);
-            let za = ram.estimate(p, &v, &mut a);
-            let zb = flash.estimate(p, &v, &mut b);
+            let v = SVector::from([0.3f32 + p as f32, -1.25, 7.5]);
+            let (mut a, mut b) = (SVector::zeros(), SVector::zeros());
+            let za = ram.estimate_pixel(p, &v, &mut a);
+            let zb = flash.estimate_pixel(p, &v, &mut b);
             assert_eq!(za, zb);
             assert_eq!(za as usize, view.zone_of_pixel(p));
             assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
@@ -226,18 +235,18 @@ mod tests {
 
     #[test]
     fn a_blob_for_another_build_is_refused_and_nothing_changes() {
-        let good = crate::sim::test_blob(9, 3, 2, 6, 0.5);
-        let other = crate::sim::test_blob(9, 3, 2, 8, 0.5);
+        let good = crate::test_blobs::test_blob(9, 3, 2, 6, 0.5);
+        let other = crate::test_blobs::test_blob(9, 3, 2, 8, 0.5);
         let slot = SlotInfo { slot: 0, sequence: 1, blob_len: 0, blob_crc: 0 };
-        let mut c = Calibration::<9, 3, 6>::new(leak([[[0.0; 3]; 9]; 2]));
+        let mut c = Calibration::<9, 3, 6>::new(leak([SMatrix::zeros(); 2]));
         let g: &'static [u8] = Box::leak(good.into_boxed_slice());
         let o: &'static [u8] = Box::leak(other.into_boxed_slice());
         c.load(&BlobView::parse(g).unwrap(), slot).unwrap();
-        let before = *c.matrix(1);
+        let before = c.matrix(1).clone_owned();
         assert_eq!(
             c.load(&BlobView::parse(o).unwrap(), slot),
             Err(DeviceError::Mismatch { field: SizeField::Pixels, device: 6, blob: 8 })
         );
-        assert_eq!(*c.matrix(1), before);
+        assert_eq!(c.matrix(1).clone_owned(), before);
     }
 }

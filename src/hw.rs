@@ -5,8 +5,8 @@
 //! Transports use `embedded_io_async::{Read, Write}`; calibration storage uses
 //! `embedded_storage::nor_flash::NorFlash`, plus [`MappedFlash`] so blobs are
 //! read in place. Only what has no standard trait is defined here: the LEDs,
-//! the line sensor, and [`SceneInput`] (where a simulated sensor's scene comes
-//! from; [`NoScene`] on real hardware).
+//! the line sensor, and [`FrameInput`] (where a simulated sensor's frames come
+//! from; [`NoFrameInput`] on real hardware).
 #![allow(async_fn_in_trait)] // single-threaded executors: no Send bound wanted
 
 /// The m LEDs that light the surface, one at a time.
@@ -63,38 +63,38 @@ pub unsafe trait MappedFlash: embedded_storage::nor_flash::NorFlash {
     fn mapped(&self, offset: u32, len: usize) -> &'static [u8];
 }
 
-/// Why a simulated-scene request was refused.
+/// Why a request to load simulated frames was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum SceneError {
+pub enum FrameLoadError {
     /// This device has a real sensor.
     NotSimulated,
-    /// Line, frame or pixel range outside the scene's capacity.
+    /// Line, frame or pixel range outside the frame store's capacity.
     OutOfRange,
 }
 
-/// Where a simulated sensor takes its scene from; the transport feeds it from
-/// the simulation-only protocol messages. Real boards use [`NoScene`].
-pub trait SceneInput {
+/// Where a simulated sensor takes its frames from; the transport feeds it from
+/// the simulation-only protocol messages. Real boards use [`NoFrameInput`].
+pub trait FrameInput {
     /// Stores `pixels` (u16 values) at `first_pixel..` of frame `frame`
-    /// (0 = dark, 1 + LED index) of scene line `line`.
+    /// (0 = dark, 1 + LED index) of frame line `line`.
     fn load(&mut self, line: u8, frame: u8, first_pixel: u16, pixels: impl Iterator<Item = u16>)
-    -> Result<(), SceneError>;
+    -> Result<(), FrameLoadError>;
     /// Sets how many scene lines the sensor cycles through.
-    fn set_lines(&mut self, lines: u8) -> Result<(), SceneError>;
+    fn set_lines(&mut self, lines: u8) -> Result<(), FrameLoadError>;
     /// Whether this device's sensor is simulated.
     fn simulated(&self) -> bool;
 }
 
-/// The [`SceneInput`] of a device with a real sensor: refuses every request.
-pub struct NoScene;
+/// The [`FrameInput`] of a device with a real sensor: refuses every request.
+pub struct NoFrameInput;
 
-impl SceneInput for NoScene {
-    fn load(&mut self, _: u8, _: u8, _: u16, _: impl Iterator<Item = u16>) -> Result<(), SceneError> {
-        Err(SceneError::NotSimulated)
+impl FrameInput for NoFrameInput {
+    fn load(&mut self, _: u8, _: u8, _: u16, _: impl Iterator<Item = u16>) -> Result<(), FrameLoadError> {
+        Err(FrameLoadError::NotSimulated)
     }
-    fn set_lines(&mut self, _: u8) -> Result<(), SceneError> {
-        Err(SceneError::NotSimulated)
+    fn set_lines(&mut self, _: u8) -> Result<(), FrameLoadError> {
+        Err(FrameLoadError::NotSimulated)
     }
     fn simulated(&self) -> bool {
         false

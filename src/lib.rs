@@ -2,30 +2,49 @@
 //! must agree on lives here, once, so both sides compute bit-identical results.
 //!
 //! Data flow (each stage in the module named for it):
-//! host training --> [`blob`] (calibration blob) --> device flash --> [`kernel`]
-//! (`rho = W v` per point) --> frames --> host.
+//! host training --> [`blob`] (calibration blob) --> [`store`] (device flash)
+//! --> [`acquire`] (frames to readings) --> [`estimate`] / [`kernel`]
+//! (`rho = W v` per point) --> [`protocol`] (frames) --> host.
 //!
-//! The library is `no_std`, never depends on host code or on a board, and
-//! allocates nothing.
+//! # Module map
+//! The library (no_std, allocates nothing, never depends on host code):
+//! - [`shape`]: build-time shape (n, m, P per build) and flash geometry.
+//! - [`blob`]: the calibration blob format (writer and in-place reader).
+//! - [`store`]: the two-slot calibration store on any NOR flash.
+//! - [`kernel`]: the estimator kernels (f32, Q15, cluster selection).
+//! - [`estimate`]: the active calibration and one point's estimate.
+//! - [`acquire`]: raw frames to corrected readings.
+//! - [`protocol`]: the wire protocol (messages, errors, framing).
+//! - [`hw`]: the hardware traits the application needs.
+//! - [`frame_store`]: the frames a simulated line sensor serves.
+//! - [`app`] (feature `app`): the platform-agnostic application tasks.
+//! - [`test_blobs`] (std or tests): valid blobs for tests.
+//!
+//! The platforms, each behind its feature ([`platform`]):
+//! - `platform::board` (feature `board`, chip only): the B-L475E-IOT01A.
+//! - `platform::qemu` (feature `qemu`, chip only): QEMU's b-l475e-iot01a.
+//! - `platform::host_sim` (feature `sim`): the host simulation's fakes.
+//!
+//! The firmware binaries (src/bin/) only wire a platform to [`app`].
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
-pub mod blob;
-pub mod hw;
-pub mod kernel;
 pub mod acquire;
 #[cfg(feature = "app")]
 pub mod app;
+pub mod blob;
 pub mod estimate;
+pub mod frame_store;
+pub mod hw;
+pub mod kernel;
+pub mod platform;
 pub mod protocol;
-pub mod scene;
-#[cfg(any(test, feature = "sim"))]
-pub mod sim;
+pub mod shape;
 pub mod store;
+#[cfg(any(test, feature = "std"))]
+pub mod test_blobs;
 
-// The board firmware's watchdog health rule is pure logic: its tests run here,
-// on the host (the board layer itself only builds for the chip).
-#[cfg(test)]
-#[path = "board/health.rs"]
-mod board_health;
+/// The linear algebra of the estimator's fixed-size types (W, readings, BRDF
+/// vectors), re-exported so every user of this library names one version.
+pub use nalgebra;

@@ -31,6 +31,7 @@
 use crate::blob::{BlobError, BlobView, CRC32};
 use crate::hw::MappedFlash;
 use crate::protocol::DeviceError;
+use embedded_storage::nor_flash::{NorFlashError, NorFlashErrorKind};
 
 /// First bytes of a valid slot.
 pub const SLOT_MAGIC: [u8; 4] = *b"BRDS";
@@ -40,6 +41,53 @@ pub const SLOT_VERSION: u16 = 1;
 pub const SLOT_HEADER_LEN: usize = 32;
 /// Largest flash write granularity the store supports.
 const MAX_WRITE: usize = 32;
+
+/// Why the store did not do what was asked. `E` is the flash's own error,
+/// kept whole (its [`NorFlashErrorKind`] through [`StoreError::flash_kind`]);
+/// what travels to the host is the [`DeviceError`] it converts into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StoreError<E> {
+    /// The flash failed an erase or a write.
+    Flash(E),
+    /// A header just written did not read back valid.
+    ReadBack,
+    /// The request was refused (bad order, size, CRC, blob...): the reason
+    /// travels to the host as it is.
+    Refused(DeviceError),
+}
+
+impl<E: NorFlashError> StoreError<E> {
+    /// The flash error's kind, when the flash failed.
+    pub fn flash_kind(&self) -> Option<NorFlashErrorKind> {
+        match self {
+            Self::Flash(e) => Some(e.kind()),
+            _ => None,
+        }
+    }
+}
+
+impl<E> From<DeviceError> for StoreError<E> {
+    fn from(e: DeviceError) -> Self {
+        Self::Refused(e)
+    }
+}
+
+impl<E> From<BlobError> for StoreError<E> {
+    fn from(e: BlobError) -> Self {
+        Self::Refused(e.into())
+    }
+}
+
+/// On the wire a flash failure is [`DeviceError::Storage`] (the previous
+/// calibration is kept); a refusal is its own reason.
+impl<E> From<StoreError<E>> for DeviceError {
+    fn from(e: StoreError<E>) -> Self {
+        match e {
+            StoreError::Flash(_) | StoreError::ReadBack => DeviceError::Storage,
+            StoreError::Refused(d) => d,
+        }
+    }
+}
 
 /// A valid slot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -198,10 +246,10 @@ impl<F: MappedFlash> Store<F> {
 
     /// Starts writing a blob of `len` bytes (CRC `crc`) into the inactive slot;
     /// returns that slot. Cancels any provisioning in progress.
-    pub fn begin(&mut self, len: u32, crc: u32) -> Result<u8, DeviceError> {
+    pub fn begin(&mut self, len: u32, crc: u32) -> Result<u8, StoreError<F::Error>> {
         self.session = None;
         if len > self.max_blob() {
-            return Err(DeviceError::BlobTooLarge { len, max: self.max_blob() });
+            return Err(DeviceError::BlobTooLarge { len, max: self.max_blob() }.into());
         }
         if len == 0 {
             return Err(BlobError::TooShort { need: crate::blob::HEADER_LEN, got: 0 }.into());
@@ -213,7 +261,7 @@ impl<F: MappedFlash> Store<F> {
         // Invalidate the target's header first: from here on the slot is not
         // valid until commit writes a new header.
         let base = self.base(slot);
-        self.flash.erase(base, base + F::ERASE_SIZE as u32).map_err(|_| DeviceError::Storage)?;
+        self.flash.erase(base, base + F::ERASE_SIZE as u32).map_err(StoreError::Flash)?;
         self.session = Some(Session {
             slot,
             len,
@@ -227,13 +275,14 @@ impl<F: MappedFlash> Store<F> {
     }
 
     /// Writes the blob bytes at `offset`; returns the next expected offset.
-    pub fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, DeviceError> {
+    pub fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, StoreError<F::Error>> {
         let mut s = self.session.ok_or(DeviceError::NotProvisioning)?;
         if offset != s.received {
-            return Err(DeviceError::OutOfOrder { expected: s.received, got: offset });
+            return Err(DeviceError::OutOfOrder { expected: s.received, got: offset }.into());
         }
         if data.len() > crate::protocol::MAX_CHUNK || s.received as usize + data.len() > s.len as usize {
-            return Err(DeviceError::ChunkTooLarge { max: (s.len - s.received).min(crate::protocol::MAX_CHUNK as u32) });
+            let max = (s.len - s.received).min(crate::protocol::MAX_CHUNK as u32);
+            return Err(DeviceError::ChunkTooLarge { max }.into());
         }
         let w = F::WRITE_SIZE;
         let mut rest = data;
@@ -256,15 +305,15 @@ impl<F: MappedFlash> Store<F> {
     }
 
     /// Writes `s.carry` (one write unit) at slot offset `at`, erasing ahead.
-    fn program(&mut self, s: &mut Session, at: u32) -> Result<(), DeviceError> {
+    fn program(&mut self, s: &mut Session, at: u32) -> Result<(), StoreError<F::Error>> {
         let w = F::WRITE_SIZE;
         let base = self.base(s.slot);
         while s.erased_to < at + w as u32 {
             let p = base + s.erased_to;
-            self.flash.erase(p, p + F::ERASE_SIZE as u32).map_err(|_| DeviceError::Storage)?;
+            self.flash.erase(p, p + F::ERASE_SIZE as u32).map_err(StoreError::Flash)?;
             s.erased_to += F::ERASE_SIZE as u32;
         }
-        self.flash.write(base + at, &s.carry[..w]).map_err(|_| DeviceError::Storage)?;
+        self.flash.write(base + at, &s.carry[..w]).map_err(StoreError::Flash)?;
         s.carry = [0xFF; MAX_WRITE];
         s.carry_len = 0;
         Ok(())
@@ -279,10 +328,10 @@ impl<F: MappedFlash> Store<F> {
     pub fn commit(
         &mut self,
         accept: impl FnOnce(&BlobView<'static>) -> Result<(), DeviceError>,
-    ) -> Result<SlotInfo, DeviceError> {
+    ) -> Result<SlotInfo, StoreError<F::Error>> {
         let mut s = self.session.take().ok_or(DeviceError::NotProvisioning)?;
         if s.received != s.len {
-            return Err(DeviceError::Incomplete { received: s.received, len: s.len });
+            return Err(DeviceError::Incomplete { received: s.received, len: s.len }.into());
         }
         if s.carry_len > 0 {
             let at = SLOT_HEADER_LEN as u32 + s.received - s.carry_len as u32;
@@ -292,7 +341,7 @@ impl<F: MappedFlash> Store<F> {
         let blob = self.flash.mapped(base + SLOT_HEADER_LEN as u32, s.len as usize);
         let computed = CRC32.checksum(blob);
         if computed != s.crc {
-            return Err(DeviceError::CrcMismatch { declared: s.crc, computed });
+            return Err(DeviceError::CrcMismatch { declared: s.crc, computed }.into());
         }
         let view = BlobView::parse(blob)?;
         if view.as_bytes().len() != s.len as usize {
@@ -301,29 +350,31 @@ impl<F: MappedFlash> Store<F> {
         accept(&view)?;
         let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
         let h = encode_slot_header(sequence, s.len, computed);
-        self.flash.write(base, &h).map_err(|_| DeviceError::Storage)?;
+        self.flash.write(base, &h).map_err(StoreError::Flash)?;
         // Trust only what reads back.
-        let info = self.scan(s.slot).ok_or(DeviceError::Storage)?;
+        let info = self.scan(s.slot).ok_or(StoreError::ReadBack)?;
         self.active = Some(info);
         Ok(info)
     }
 
     /// Abandons the provisioning in progress (the target slot stays invalid).
-    pub fn abort(&mut self) -> Result<(), DeviceError> {
-        self.session.take().map(|_| ()).ok_or(DeviceError::NotProvisioning)
+    pub fn abort(&mut self) -> Result<(), StoreError<F::Error>> {
+        self.session.take().map(|_| ()).ok_or(StoreError::Refused(DeviceError::NotProvisioning))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::SimFlash;
+    use crate::platform::host_sim::{NorFault, SimFlash};
+
+    type Error = StoreError<NorFault>;
 
     fn blob(seed: f32) -> Vec<u8> {
-        crate::sim::test_blob(5, 3, 2, 4, seed)
+        crate::test_blobs::test_blob(5, 3, 2, 4, seed)
     }
 
-    fn provision(st: &mut Store<SimFlash>, b: &[u8], chunk: usize) -> Result<SlotInfo, DeviceError> {
+    fn provision(st: &mut Store<SimFlash>, b: &[u8], chunk: usize) -> Result<SlotInfo, Error> {
         st.begin(b.len() as u32, CRC32.checksum(b))?;
         let mut off = 0;
         for c in b.chunks(chunk) {
@@ -347,7 +398,7 @@ mod tests {
         let mut st = st2;
         st.begin(c.len() as u32, 0xBAD).unwrap();
         st.write_chunk(0, &c).unwrap();
-        assert!(matches!(st.commit(|_| Ok(())), Err(DeviceError::CrcMismatch { .. })));
+        assert!(matches!(st.commit(|_| Ok(())), Err(Error::Refused(DeviceError::CrcMismatch { .. }))));
         assert_eq!(st.active_blob().unwrap().1.as_bytes(), &b[..]);
         let st3 = Store::open(flash, 4096, |_| true);
         assert_eq!(st3.active_blob().unwrap().1.as_bytes(), &b[..]);
@@ -357,13 +408,31 @@ mod tests {
     fn out_of_order_and_oversized_chunks_are_refused() {
         let mut st = Store::open(SimFlash::new(4 * 2048), 4096, |_| true);
         let a = blob(1.0);
-        assert_eq!(st.write_chunk(0, &a[..8]), Err(DeviceError::NotProvisioning));
+        assert_eq!(st.write_chunk(0, &a[..8]), Err(Error::Refused(DeviceError::NotProvisioning)));
         st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap();
         st.write_chunk(0, &a[..10]).unwrap();
-        assert_eq!(st.write_chunk(20, &a[20..30]), Err(DeviceError::OutOfOrder { expected: 10, got: 20 }));
-        assert!(matches!(st.write_chunk(10, &vec![0; a.len()]), Err(DeviceError::ChunkTooLarge { .. })));
-        assert!(matches!(st.commit(|_| Ok(())), Err(DeviceError::Incomplete { received: 10, .. })));
-        assert_eq!(st.begin(5000, 0), Err(DeviceError::BlobTooLarge { len: 5000, max: 4096 - 32 }));
+        assert_eq!(st.write_chunk(20, &a[20..30]), Err(Error::Refused(DeviceError::OutOfOrder { expected: 10, got: 20 })));
+        assert!(matches!(st.write_chunk(10, &vec![0; a.len()]), Err(Error::Refused(DeviceError::ChunkTooLarge { .. }))));
+        assert!(matches!(st.commit(|_| Ok(())), Err(Error::Refused(DeviceError::Incomplete { received: 10, .. }))));
+        assert_eq!(st.begin(5000, 0), Err(Error::Refused(DeviceError::BlobTooLarge { len: 5000, max: 4096 - 32 })));
+    }
+
+    #[test]
+    fn a_flash_failure_keeps_its_kind_and_travels_as_storage() {
+        let flash = SimFlash::new(4 * 2048);
+        let mut st = Store::open(flash.clone(), 4096, |_| true);
+        let a = blob(1.0);
+        flash.cut_after(0);
+        let e = st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap_err();
+        assert_eq!(e, Error::Flash(NorFault::PowerCut));
+        assert_eq!(e.flash_kind(), Some(NorFlashErrorKind::Other));
+        assert_eq!(DeviceError::from(e), DeviceError::Storage);
+        // A misaligned write keeps the driver's own kind.
+        let mut raw = SimFlash::new(2048);
+        let e: Error = StoreError::Flash(embedded_storage::nor_flash::NorFlash::write(&mut raw, 3, &[0; 8]).unwrap_err());
+        assert_eq!(e.flash_kind(), Some(NorFlashErrorKind::NotAligned));
+        // A refusal travels as its own reason.
+        assert_eq!(DeviceError::from(Error::Refused(DeviceError::NotProvisioning)), DeviceError::NotProvisioning);
     }
 
     #[test]

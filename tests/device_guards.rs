@@ -3,12 +3,14 @@
 //! ever reaches a streamed frame - including when W itself is so large that
 //! `W v` overflows f32 (policy: the point is zeroed and flagged NON_FINITE,
 //! `brdf_meter::estimate::guard_estimate`).
+use brdf_meter::nalgebra::SVector;
 use brdf_meter::acquire::{MIN_SIGNAL_COUNTS, RawLine, correct_line, correct_point_into};
 use brdf_meter::blob::{BlobView, Dims};
 use brdf_meter::estimate::guard_estimate;
-use brdf_meter::kernel::estimate_into;
+use brdf_meter::kernel::mat_vec_f32_slice;
 use brdf_meter::protocol::flags;
-use brdf_meter::sim::{SimFlash, test_blob_with};
+use brdf_meter::platform::host_sim::SimFlash;
+use brdf_meter::test_blobs::test_blob_with;
 use host_tools::link::Client;
 use host_tools::link::sim::{analytic_scene, expected_line};
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
@@ -62,7 +64,7 @@ fn each_defect_is_flagged_on_its_own_point_only() {
     raw.lit[2][4] = 60; // negative signal
     white[5][1] = f32::from_bits(1); // smallest subnormal white: 1000 / 1e-45 = inf
     raw.lit[0][6] = 104; // 4 counts: below MIN_SIGNAL_COUNTS
-    let mut v = [[0.0f32; MM]; PX];
+    let mut v = [SVector::<f32, MM>::zeros(); PX];
     let mut fl = [0u8; PX];
     correct_line(&raw, &white, fs, &mut v, &mut fl);
     assert_eq!(fl[0], 0);
@@ -124,7 +126,7 @@ fn guard_zeroes_and_flags_non_finite_estimates_only() {
     let w: Vec<f32> = (0..n * m).map(|k| if k % 3 == 0 { -3.0e38 } else { 3.0e38 }).collect();
     let v = [0.9f32, 1.1, 0.7, 1.3, 0.2, 0.8, 1.0];
     let mut rho = vec![0.0f32; n];
-    estimate_into(&w, &v, &mut rho);
+    mat_vec_f32_slice(&w, &v, &mut rho);
     assert!(rho.iter().any(|x| !x.is_finite()), "the kernel must overflow here: {rho:?}");
     assert_eq!(guard_estimate(&mut rho), flags::NON_FINITE);
     assert!(rho.iter().all(|x| *x == 0.0));
@@ -132,7 +134,7 @@ fn guard_zeroes_and_flags_non_finite_estimates_only() {
 
 const ZONES: usize = 4;
 
-/// A blob like `brdf_meter::sim::test_blob`, but zone `huge_zone`'s W is
+/// A blob like `brdf_meter::test_blobs::test_blob`, but zone `huge_zone`'s W is
 /// +-3e38 (finite, valid, and certain to overflow f32 in `W v`) and pixel
 /// `tiny_white_px` has a subnormal white reference for reading 0.
 fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {

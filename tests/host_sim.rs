@@ -6,7 +6,8 @@ use brdf_meter::protocol::{
     DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode, flags,
 };
 use brdf_meter::hw::SensorError;
-use brdf_meter::sim::{SimFlash, test_blob};
+use brdf_meter::platform::host_sim::SimFlash;
+use brdf_meter::test_blobs::test_blob;
 use host_tools::link::sim::{SceneFrames, analytic_scene, expected_line};
 use host_tools::link::{Client, LinkError, PointRecord, Reply};
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};

@@ -3,7 +3,8 @@
 //! calibration, the old one or the new one, never a mix and never none.
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::estimate::Calibration;
-use brdf_meter::sim::{SimFlash, test_blob};
+use brdf_meter::platform::host_sim::SimFlash;
+use brdf_meter::test_blobs::test_blob;
 use brdf_meter::store::Store;
 use host_tools::link::Client;
 use host_tools::link::sim::{analytic_scene, expected_line};
@@ -20,7 +21,7 @@ fn provision(st: &mut Store<SimFlash>, blob: &[u8]) -> Result<(), brdf_meter::pr
     for c in blob.chunks(512) {
         off = st.write_chunk(off, c)?;
     }
-    st.commit(|v| Calibration::<N, M, P>::check(v)).map(|_| ())
+    st.commit(|v| Calibration::<N, M, P>::check(v)).map(|_| ()).map_err(Into::into)
 }
 
 /// A flash holding the `olds`, provisioned in turn.
@@ -87,7 +88,7 @@ fn a_cut_provisioning_never_writes_the_active_slot() {
     provision(&mut open(f.clone()), &b).unwrap();
     for op in &f.log()[before..] {
         let at = match *op {
-            brdf_meter::sim::FlashOp::Erase(o) | brdf_meter::sim::FlashOp::Write(o, _) => o,
+            brdf_meter::platform::host_sim::FlashOp::Erase(o) | brdf_meter::platform::host_sim::FlashOp::Write(o, _) => o,
         };
         assert!(at >= SLOT_LEN, "operation {op:?} touched the active slot A");
     }

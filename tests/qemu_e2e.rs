@@ -10,7 +10,7 @@ use host_tools::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
 use std::time::Duration;
 use system_tests::qemu::start;
 
-const PIXELS: usize = 32;
+const PIXELS: usize = brdf_meter::shape::qemu::PIXELS;
 const ZONES: usize = 4;
 
 fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRecord], lines: usize, full_scale: u16) {
@@ -49,7 +49,7 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     let q = start(Duration::from_secs(240));
     let mut c = connect(&q);
     let info = c.info().unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
-    assert_eq!((info.bins, info.leds, info.pixels), (81, 7, PIXELS as u16));
+    assert_eq!((info.bins as usize, info.leds as usize, info.pixels as usize), (brdf_meter::shape::BINS, brdf_meter::shape::LEDS, PIXELS));
     assert!(info.simulated && info.calibration.is_none());
 
     let scene = patent_scene(PIXELS);

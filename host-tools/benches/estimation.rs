@@ -53,7 +53,7 @@ fn bench(c: &mut Criterion) {
             g.bench_with_input(BenchmarkId::new("kernel_f32_per_point", points), &points, |b, _| {
                 b.iter(|| {
                     for (vp, op) in v.chunks_exact(m).zip(out.chunks_exact_mut(n)) {
-                        brdf_meter::kernel::estimate_into(black_box(&w32), vp, op);
+                        brdf_meter::kernel::mat_vec_f32_slice(black_box(&w32), vp, op);
                     }
                 })
             });

@@ -20,16 +20,18 @@ use std::fmt::Write as _;
 
 use anyhow::{Context, Result, bail, ensure};
 use brdf_meter::blob::Dims;
+use brdf_meter::shape;
 use brdf_meter::store::SLOT_HEADER_LEN;
 
 use crate::swd::{Region, region};
 
 /// Total flash of the STM32L475VG.
-pub const CHIP_FLASH: Region = Region { origin: 0x0800_0000, length: 1024 * 1024 };
+pub const CHIP_FLASH: Region = Region { origin: shape::FLASH_BASE, length: shape::FLASH_SIZE };
 
 /// The largest calibration the product must run: Z = 128 zones of 81 x 7
 /// matrices for a 128-pixel sensor.
-pub const MAX_DIMS: Dims = Dims { n: 81, m: 7, zones: 128, pixels: 128 };
+pub const MAX_DIMS: Dims =
+    Dims { n: shape::BINS, m: shape::LEDS, zones: shape::board::MAX_ZONES, pixels: shape::board::PIXELS };
 
 /// Stack the firmware needs beyond its statics: interrupt handlers and the
 /// executor's poll frames (task state itself is static). Measured frames are
@@ -191,7 +193,7 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
         }
     }
     for (n, r) in [("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
-        if r.origin % 2048 != 0 || r.length % 2048 != 0 {
+        if r.origin % shape::FLASH_PAGE as u32 != 0 || r.length % shape::FLASH_PAGE as u32 != 0 {
             problems.push(format!("{n} is not whole 2 KiB erase pages"));
         }
         if !(r.origin as usize + SLOT_HEADER_LEN).is_multiple_of(4) {
@@ -278,11 +280,15 @@ mod tests {
 
     #[test]
     fn memory_x_gives_the_documented_map() {
+        // memory.x (the linker's) agrees with the library's shape::board.
+        use shape::board::{IMAGE_LEN, RAM_LEN, RAM_ORIGIN, SLOT_A, SLOT_B, SLOT_LEN};
         let m = board_map();
-        assert_eq!((m.flash.origin, m.flash.length), (0x0800_0000, 256 * 1024));
-        assert_eq!((m.slot_a.origin, m.slot_a.length), (0x0804_0000, 384 * 1024));
-        assert_eq!((m.slot_b.origin, m.slot_b.length), (0x080A_0000, 384 * 1024));
-        assert_eq!((m.ram.origin, m.ram.length), (0x2000_0000, 96 * 1024));
+        assert_eq!((m.flash.origin, m.flash.length), (shape::FLASH_BASE, IMAGE_LEN));
+        assert_eq!((m.slot_a.origin, m.slot_a.length), (SLOT_A, SLOT_LEN));
+        assert_eq!((m.slot_b.origin, m.slot_b.length), (SLOT_B, SLOT_LEN));
+        assert_eq!((m.ram.origin, m.ram.length), (RAM_ORIGIN, RAM_LEN));
+        // And the documented numbers themselves.
+        assert_eq!((SLOT_A, SLOT_B, SLOT_LEN, RAM_LEN), (0x0804_0000, 0x080A_0000, 384 * 1024, 96 * 1024));
     }
 
     #[test]

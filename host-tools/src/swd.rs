@@ -113,9 +113,13 @@ impl SlotMap {
         Ok(Self { a, b })
     }
 
-    /// The board's slots (this repository's memory.x).
+    /// The board's slots (this repository's memory.x, which must agree with
+    /// the library's `shape::board`, as the firmware checks at boot).
     pub fn board() -> Self {
-        Self::from_script(MEMORY_X).expect("memory.x defines two equal, adjacent calibration slots")
+        use brdf_meter::shape::board::{SLOT_A, SLOT_B, SLOT_LEN};
+        let m = Self::from_script(MEMORY_X).expect("memory.x defines two equal, adjacent calibration slots");
+        assert_eq!((m.a.origin, m.b.origin, m.a.length), (SLOT_A, SLOT_B, SLOT_LEN), "memory.x disagrees with shape::board");
+        m
     }
 
     /// Address of slot 0 (A) or 1 (B).
@@ -157,7 +161,7 @@ pub fn plan(found: &[Found], force: Option<u8>) -> (u8, u32) {
 }
 
 /// Flash program granularity of the STM32L4 (bytes).
-pub const WRITE_UNIT: usize = 8;
+pub const WRITE_UNIT: usize = brdf_meter::shape::FLASH_WRITE;
 
 /// The bytes to write at a slot's start: header, blob, padded with erased
 /// bytes (0xFF) to whole flash write units.
@@ -307,106 +311,19 @@ pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use brdf_meter::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
-    use brdf_meter::hw::MappedFlash;
+    use brdf_meter::platform::host_sim::SimFlash;
     use brdf_meter::store::Store;
-    use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
 
-    /// A small valid blob whose contents depend on `seed`.
+    /// A small valid blob whose contents depend on `seed` (the library's
+    /// test-blob builder, n = 9, m = 3, 2 zones, 4 pixels).
     pub(crate) fn test_blob(seed: f32) -> Vec<u8> {
-        let d = Dims { n: 9, m: 3, zones: 2, pixels: 4 };
-        let grid: Vec<f32> = (0..d.n).map(|i| 25.0 + 5.0 * i as f32).collect();
-        let order: Vec<u8> = (0..d.m as u8).collect();
-        let zones = [0u16, 2];
-        let white = vec![1000.0 + seed; d.pixels * d.m];
-        let unc = vec![0.01; d.zones * d.n];
-        let mats: Vec<f32> = (0..d.zones * d.n * d.m).map(|k| seed + k as f32 * 0.25).collect();
-        let c = BlobContents {
-            dims: d,
-            noise_rel: 0.02,
-            estimator: EstimatorKind::Wiener,
-            far_field: false,
-            summary: TrainingSummary::default(),
-            grid_deg: &grid,
-            led_order: &order,
-            zone_start: &zones,
-            white: &white,
-            uncertainty: &unc,
-            matrices: &mats,
-        };
-        let mut out = vec![0u8; d.blob_len()];
-        write_blob(&c, &mut out).unwrap();
-        out
-    }
-
-    /// NOR flash over a leaked buffer, so the library's `Store` can open
-    /// what the host composed.
-    struct LeakedFlash {
-        mem: *mut u8,
-        len: usize,
-    }
-
-    impl LeakedFlash {
-        fn new(content: Vec<u8>) -> Self {
-            let len = content.len();
-            Self { mem: Box::leak(content.into_boxed_slice()).as_mut_ptr(), len }
-        }
-    }
-
-    #[derive(Debug)]
-    struct Oob;
-    impl embedded_storage::nor_flash::NorFlashError for Oob {
-        fn kind(&self) -> NorFlashErrorKind {
-            NorFlashErrorKind::OutOfBounds
-        }
-    }
-    impl ErrorType for LeakedFlash {
-        type Error = Oob;
-    }
-    impl ReadNorFlash for LeakedFlash {
-        const READ_SIZE: usize = 1;
-        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Oob> {
-            let m = self.mapped(offset, bytes.len());
-            bytes.copy_from_slice(m);
-            Ok(())
-        }
-        fn capacity(&self) -> usize {
-            self.len
-        }
-    }
-    impl NorFlash for LeakedFlash {
-        const WRITE_SIZE: usize = 8;
-        const ERASE_SIZE: usize = 2048;
-        fn erase(&mut self, from: u32, to: u32) -> Result<(), Oob> {
-            if to as usize > self.len {
-                return Err(Oob);
-            }
-            // SAFETY: in bounds (checked); the buffer is leaked, never freed.
-            unsafe { core::slice::from_raw_parts_mut(self.mem.add(from as usize), (to - from) as usize) }.fill(0xFF);
-            Ok(())
-        }
-        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Oob> {
-            if offset as usize + bytes.len() > self.len {
-                return Err(Oob);
-            }
-            // SAFETY: as above.
-            unsafe { core::slice::from_raw_parts_mut(self.mem.add(offset as usize), bytes.len()) }.copy_from_slice(bytes);
-            Ok(())
-        }
-    }
-    // SAFETY: the leaked buffer lives for the program and changes only
-    // through write/erase above.
-    unsafe impl MappedFlash for LeakedFlash {
-        fn mapped(&self, offset: u32, len: usize) -> &'static [u8] {
-            assert!(offset as usize + len <= self.len);
-            unsafe { core::slice::from_raw_parts(self.mem.add(offset as usize), len) }
-        }
+        brdf_meter::test_blobs::test_blob(9, 3, 2, 4, seed)
     }
 
     /// Opens the calibration region `cal` (slot A then slot B) with the
     /// device's store and returns the active blob and its sequence number.
     fn device_boot(cal: Vec<u8>, slot_len: u32) -> Option<(u8, u32, Vec<u8>)> {
-        let store = Store::open(LeakedFlash::new(cal), slot_len, |_| true);
+        let store = Store::open(SimFlash::with_contents(cal), slot_len, |_| true);
         let (info, view) = store.active_blob()?;
         Some((info.slot, info.sequence, view.as_bytes().to_vec()))
     }
@@ -414,9 +331,9 @@ pub(crate) mod tests {
     #[test]
     fn memory_x_slots_are_parsed_not_assumed() {
         let m = SlotMap::board();
-        assert_eq!(m.addr(0), 0x0804_0000);
-        assert_eq!(m.addr(1), 0x080A_0000);
-        assert_eq!(m.slot_len(), 384 * 1024);
+        assert_eq!(m.addr(0), brdf_meter::shape::board::SLOT_A);
+        assert_eq!(m.addr(1), brdf_meter::shape::board::SLOT_B);
+        assert_eq!(m.slot_len(), brdf_meter::shape::board::SLOT_LEN);
         assert_eq!(parse_number("0x10").unwrap(), 16);
         assert_eq!(parse_number(" 2K").unwrap(), 2048);
         assert_eq!(parse_number("1M").unwrap(), 1 << 20);
@@ -466,13 +383,13 @@ pub(crate) mod tests {
     #[test]
     fn bad_blobs_and_oversized_images_are_refused_before_any_write() {
         let mut b = test_blob(1.0);
-        assert!(slot_image(1, &b, 384 * 1024).is_ok());
+        assert!(slot_image(1, &b, brdf_meter::shape::board::SLOT_LEN).is_ok());
         assert!(slot_image(1, &b, 64).is_err(), "must not fit a 64-byte slot");
         let mut longer = b.clone();
         longer.push(0);
-        assert!(slot_image(1, &longer, 384 * 1024).is_err(), "trailing bytes are refused");
+        assert!(slot_image(1, &longer, brdf_meter::shape::board::SLOT_LEN).is_err(), "trailing bytes are refused");
         b[70] ^= 1;
-        let e = slot_image(1, &b, 384 * 1024).unwrap_err().to_string();
+        let e = slot_image(1, &b, brdf_meter::shape::board::SLOT_LEN).unwrap_err().to_string();
         assert!(e.contains("refused by the device"), "{e}");
         assert!(parse_header(0, &[0xFF; SLOT_HEADER_LEN]).is_none());
     }
@@ -583,9 +500,9 @@ esac
         let fake = Fake::new();
         let (b1, b2, b3) = (test_blob(1.0), test_blob(2.0), test_blob(3.0));
         let p1 = fake.probe(false).provision(&b1, None).unwrap();
-        assert_eq!((p1.slot, p1.addr, p1.sequence), (0, 0x0804_0000, 1));
+        assert_eq!((p1.slot, p1.addr, p1.sequence), (0, brdf_meter::shape::board::SLOT_A, 1));
         let p2 = fake.probe(false).provision(&b2, None).unwrap();
-        assert_eq!((p2.slot, p2.addr, p2.sequence), (1, 0x080A_0000, 2));
+        assert_eq!((p2.slot, p2.addr, p2.sequence), (1, brdf_meter::shape::board::SLOT_B, 2));
         let slot_len = SlotMap::board().slot_len();
         assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((1, 2, b2.clone())));
         let p3 = fake.probe(false).provision(&b3, None).unwrap();
@@ -605,7 +522,7 @@ esac
         let e = fake.probe(true).provision(&b1, None).unwrap_err().to_string();
         assert!(e.contains("read-back differs"), "{e}");
         let p = fake.probe(false).provision(&b1, Some(1)).unwrap();
-        assert_eq!((p.slot, p.addr), (1, 0x080A_0000));
+        assert_eq!((p.slot, p.addr), (1, brdf_meter::shape::board::SLOT_B));
     }
 
     #[test]

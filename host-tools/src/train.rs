@@ -337,7 +337,7 @@ fn f32_measure(w: &DMatrix<f64>, vs: &[DVector<f64>], exps: &[i32]) -> (f64, boo
     let (mut worst, mut scale, mut finite) = (0.0f64, 0.0f64, true);
     for v in vs {
         let v32: Vec<f32> = v.iter().zip(exps).map(|(x, e)| (x * 2f64.powi(-e)) as f32).collect();
-        brdf_meter::kernel::estimate_into(&w32, &v32, &mut out);
+        brdf_meter::kernel::mat_vec_f32_slice(&w32, &v32, &mut out);
         let e64 = w * v;
         for j in 0..n {
             finite &= out[j].is_finite();

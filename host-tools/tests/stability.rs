@@ -272,7 +272,7 @@ fn f32_gate_rescales_by_powers_of_two_when_w_leaves_the_f32_range() {
         let v: DVector<f64> = &h * prior.samples.column(c);
         let vdev: Vec<f32> = (0..7).map(|i| ((v[i] * 1e30) as f32) / view.white(3, i)).collect();
         let mut out = vec![0.0f32; 81];
-        brdf_meter::kernel::estimate_into(&w, &vdev, &mut out);
+        brdf_meter::kernel::mat_vec_f32_slice(&w, &vdev, &mut out);
         let e64 = &w0 * &v;
         for j in 0..81 {
             assert!(out[j].is_finite());

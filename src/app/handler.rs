@@ -3,13 +3,13 @@
 //! the acquisition task.
 use super::{Job, Shared};
 use crate::estimate::Calibration;
-use crate::hw::{MappedFlash, SceneError, SceneInput};
+use crate::hw::{MappedFlash, FrameLoadError, FrameInput};
 use crate::protocol::{DeviceError, DeviceInfo, MAX_CHUNK, PROTOCOL_VERSION, Request, Response};
 use core::sync::atomic::Ordering;
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
     /// Answers one request.
-    pub fn handle<S: SceneInput>(&self, seq: u32, req: &Request<'_>, scene: &mut S) -> Response<'static> {
+    pub fn handle<S: FrameInput>(&self, seq: u32, req: &Request<'_>, scene: &mut S) -> Response<'static> {
         let r = self.core.lock(|c| {
             let mut guard = c.borrow_mut();
             let c = &mut *guard;
@@ -35,18 +35,19 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 Request::ProvisionBegin { len, crc } => c
                     .store
                     .begin(len, crc)
-                    .map(|slot| Response::ProvisionReady { slot, max_chunk: MAX_CHUNK as u16 }),
+                    .map(|slot| Response::ProvisionReady { slot, max_chunk: MAX_CHUNK as u16 })
+                    .map_err(DeviceError::from),
                 Request::ProvisionChunk { offset, data } => {
-                    c.store.write_chunk(offset, data).map(|next_offset| Response::ChunkAck { next_offset })
+                    c.store.write_chunk(offset, data).map(|next_offset| Response::ChunkAck { next_offset }).map_err(DeviceError::from)
                 }
-                Request::ProvisionCommit => c.store.commit(|v| Calibration::<N, M, P>::check(v)).and_then(|_| {
+                Request::ProvisionCommit => c.store.commit(|v| Calibration::<N, M, P>::check(v)).map_err(DeviceError::from).and_then(|_| {
                     let (info, view) = c.store.active_blob().ok_or(DeviceError::Storage)?;
                     c.cal.load(&view, info)?;
                     let cal = c.cal.active().map(|a| a.info).ok_or(DeviceError::Storage)?;
                     c.status.calibration = Some(cal);
                     Ok(Response::Committed(cal))
                 }),
-                Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted),
+                Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted).map_err(DeviceError::from),
                 Request::Measure { .. } if measuring => Err(DeviceError::Busy),
                 Request::Measure { .. } if c.cal.active().is_none() => Err(DeviceError::NoCalibration),
                 Request::Measure { lines } => {
@@ -85,6 +86,6 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     }
 }
 
-fn sim_err(_: SceneError) -> DeviceError {
+fn sim_err(_: FrameLoadError) -> DeviceError {
     DeviceError::Simulation
 }

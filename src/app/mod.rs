@@ -23,7 +23,8 @@ mod tasks;
 pub use tasks::{acquisition, estimation, transport};
 
 use crate::acquire::{AcqConfig, RawLine};
-use crate::estimate::Calibration;
+use crate::estimate::{Calibration, ZoneMatrix};
+use nalgebra::SVector;
 use crate::hw::MappedFlash;
 use crate::protocol::{DeviceStatus, MAX_FRAME};
 use crate::store::Store;
@@ -52,7 +53,7 @@ pub struct Job {
 
 /// What travels in a line buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Slot {
+pub enum LineState {
     /// Nothing yet.
     Empty,
     /// A corrected line, number `line` of `job`.
@@ -77,11 +78,11 @@ pub enum Slot {
 /// One line buffer: raw frames, corrected readings and flags per pixel.
 pub struct LineBuf<const M: usize, const P: usize> {
     /// What this buffer holds.
-    pub slot: Slot,
+    pub state: LineState,
     /// Raw frames.
     pub raw: RawLine<M, P>,
     /// Corrected readings per pixel.
-    pub v: [[f32; M]; P],
+    pub v: [SVector<f32, M>; P],
     /// Flags per pixel.
     pub flags: [u8; P],
 }
@@ -89,7 +90,7 @@ pub struct LineBuf<const M: usize, const P: usize> {
 impl<const M: usize, const P: usize> LineBuf<M, P> {
     /// An empty buffer.
     pub const fn new() -> Self {
-        Self { slot: Slot::Empty, raw: RawLine::new(), v: [[0.0; M]; P], flags: [0; P] }
+        Self { state: LineState::Empty, raw: RawLine::new(), v: [SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])); P], flags: [0; P] }
     }
 }
 
@@ -135,7 +136,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     pub fn new(
         flash: F,
         slot_len: u32,
-        ram: &'static mut [[[f32; M]; N]],
+        ram: &'static mut [ZoneMatrix<N, M>],
         acq: AcqConfig,
         full_scale: u16,
         simulated: bool,

@@ -1,8 +1,9 @@
 //! The bodies of the three tasks. Each platform wraps them in
 //! `#[embassy_executor::task]` functions with its concrete types.
-use super::{Job, LineBuf, OutFrame, Shared, Slot};
+use super::{Job, LineBuf, OutFrame, Shared, LineState};
 use crate::acquire::{acquire_line, correct_line};
-use crate::hw::{Leds, LineSensor, MappedFlash, SceneInput};
+use nalgebra::SVector;
+use crate::hw::{Leds, LineSensor, MappedFlash, FrameInput};
 use crate::protocol::{
     self, DeviceError, FrameReader, LeBytes, MAX_FRAME, MAX_WIRE_BINS, PointFrame, Pushed, Request, Response, flags,
 };
@@ -34,7 +35,7 @@ where
     F: MappedFlash,
     R: Read,
     W: Write,
-    S: SceneInput,
+    S: FrameInput,
 {
     let reader = async {
         let mut frames = FrameReader::new();
@@ -114,12 +115,12 @@ where
                 error = Some(DeviceError::NoCalibration);
                 break;
             }
-            buf.slot = Slot::Line { job, line };
+            buf.state = LineState::Line { job, line };
             lines_out.send_done();
             line += 1;
         }
         let buf = lines_out.send().await;
-        buf.slot = Slot::End { job, lines: line, error };
+        buf.state = LineState::End { job, lines: line, error };
         lines_out.send_done();
     }
 }
@@ -138,21 +139,21 @@ where
     let mut current: Option<Job> = None;
     loop {
         let buf = lines_in.receive().await;
-        match buf.slot {
-            Slot::Empty => {}
-            Slot::Line { job, line } => {
+        match buf.state {
+            LineState::Empty => {}
+            LineState::Line { job, line } => {
                 if current != Some(job) {
                     current = Some(job);
                     stream_seq = 0;
                 }
                 for p in 0..P {
-                    let mut rho = [0.0f32; N];
+                    let mut rho = SVector::<f32, N>::zeros();
                     let zone = shared.core.lock(|c| {
                         let c = c.borrow();
-                        c.cal.active().is_some().then(|| c.cal.estimate(p, &buf.v[p], &mut rho))
+                        c.cal.active().is_some().then(|| c.cal.estimate_pixel(p, &buf.v[p], &mut rho))
                     });
                     // Never stream NaN/inf: a non-finite point is zeroed and flagged.
-                    let mut fl = buf.flags[p] | crate::estimate::guard_estimate(&mut rho);
+                    let mut fl = buf.flags[p] | crate::estimate::guard_estimate(rho.as_mut_slice());
                     if zone.is_none() {
                         fl |= flags::NON_FINITE;
                     }
@@ -162,7 +163,7 @@ where
                         point: p as u16,
                         zone: zone.unwrap_or(u16::MAX),
                         flags: fl,
-                        values: LeBytes::from_f32(&rho),
+                        values: LeBytes::from_f32(rho.as_slice()),
                     };
                     stream_seq = stream_seq.wrapping_add(1);
                     shared.out.send(frame(job.seq, &Response::Point(pf))).await;
@@ -172,7 +173,7 @@ where
                     c.status.lines_total = c.status.lines_total.wrapping_add(1);
                 });
             }
-            Slot::End { job, lines, error } => {
+            LineState::End { job, lines, error } => {
                 if let Some(e) = error {
                     shared.out.send(frame(job.seq, &Response::Error(e))).await;
                 }
@@ -180,7 +181,7 @@ where
                 shared.out.send(frame(job.seq, &Response::MeasureDone { lines_done: lines })).await;
             }
         }
-        buf.slot = Slot::Empty;
+        buf.state = LineState::Empty;
         lines_in.receive_done();
     }
 }

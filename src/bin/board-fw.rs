@@ -1,6 +1,6 @@
 //! Board firmware for the B-L475E-IOT01A (STM32L475VG).
 //!
-//! The hardware layer is src/board/ (pin map, peripheral choices, drivers
+//! The hardware layer is `brdf_meter::platform::board` (pin map, peripheral choices, drivers
 //! for the library's traits). Everything above it is the shared library's
 //! application (`brdf_meter::app`): the same transport, acquisition and
 //! estimation tasks the QEMU firmware and the host simulation run. This file
@@ -8,35 +8,30 @@
 #![no_std]
 #![no_main]
 
-#[path = "../board/mod.rs"]
-mod board;
-
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
-use brdf_meter::hw::NoScene;
+use brdf_meter::hw::NoFrameInput;
+use brdf_meter::platform::board;
+use brdf_meter::platform::watchdog_health::Health;
+use brdf_meter::shape;
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
 use embassy_time::{Instant, Timer};
 use panic_probe as _;
+use nalgebra::SMatrix;
 use static_cell::StaticCell;
 
 use board::flash::CalFlash;
-use board::leds::{LED_COUNT, PwmLeds};
-use board::sensor::{PIXELS, Tsl1401};
+use board::leds::PwmLeds;
+use board::sensor::Tsl1401;
 use board::usb::{UsbRx, UsbTx};
 
-/// Angle bins of the calibration this build runs (patent profile).
-const N: usize = 81;
-/// Readings per point: one per LED.
-const M: usize = LED_COUNT;
-/// Pixels of the line sensor.
-const P: usize = PIXELS;
-/// Zones whose matrices are copied to RAM; a calibration with more zones
-/// (up to Z = P = 128, about 290 KiB) runs in place from its flash slot.
-/// 8 zones = 18 KiB of RAM.
-const RAM_ZONES: usize = 8;
+const N: usize = shape::BINS;
+const M: usize = shape::LEDS;
+const P: usize = shape::board::PIXELS;
+const RAM_ZONES: usize = shape::board::RAM_ZONES;
 
 /// Acquisition settings: integration per frame and LED settling before it.
 const ACQ: AcqConfig = AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX };
@@ -47,7 +42,7 @@ static SHARED: StaticCell<BoardShared> = StaticCell::new();
 
 #[embassy_executor::task]
 async fn transport(shared: &'static BoardShared, rx: UsbRx, tx: UsbTx) -> ! {
-    app::transport(shared, rx, tx, NoScene).await
+    app::transport(shared, rx, tx, NoFrameInput).await
 }
 
 #[embassy_executor::task]
@@ -69,7 +64,7 @@ async fn estimation(shared: &'static BoardShared, lines: Receiver<'static, Cs, L
 /// `board::watchdog`), and shows it on LED2.
 #[embassy_executor::task]
 async fn supervisor(shared: &'static BoardShared, mut led: embassy_stm32::gpio::Output<'static>) -> ! {
-    let mut health = board::health::Health::default();
+    let mut health = Health::default();
     loop {
         let st = shared.status();
         if health.observe(Instant::now().as_millis(), st.measuring, st.lines_total) {
@@ -91,8 +86,8 @@ async fn main(spawner: Spawner) {
     // a watchdog reset: the supervisor below is the only thing that feeds it.
     board::watchdog::start(iwdg);
 
-    static RAM: StaticCell<[[[f32; M]; N]; RAM_ZONES]> = StaticCell::new();
-    let ram = RAM.init([[[0.0; M]; N]; RAM_ZONES]);
+    static RAM: StaticCell<[SMatrix<f32, M, N>; RAM_ZONES]> = StaticCell::new();
+    let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
     let slot_len = b.cal_flash.slot_len();
     let shared: &'static BoardShared =
         SHARED.init(Shared::new(b.cal_flash, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false));

@@ -1,6 +1,7 @@
 //! The instrument's firmware for QEMU's `b-l475e-iot01a` machine: the shared
-//! application (`brdf_meter::app`) on the QEMU board layer (src/qemu/). This
-//! file wires them with concrete types and the build-time sizes.
+//! application (`brdf_meter::app`) on the QEMU platform layer
+//! (`brdf_meter::platform::qemu`). This file wires them with concrete types
+//! and the build-time sizes (`brdf_meter::shape`).
 //!
 //! Run it with `scripts/qemu-run.sh` (or `cargo qemu-run`), which exposes
 //! USART1 as a TCP serial on 127.0.0.1; talk to it with
@@ -8,35 +9,28 @@
 #![no_std]
 #![no_main]
 
-#[path = "../qemu/mod.rs"]
-mod qemu;
-
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
+use brdf_meter::platform::qemu;
+use brdf_meter::shape;
+use core::fmt::Write as _;
 use embassy_executor::Executor;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
 use qemu::flash::{Memory, RamFlash};
 use qemu::leds::GpioLeds;
-use qemu::sensor::{Scene, SceneIn, SimSensor};
+use qemu::sensor::{FrameSensor, Frames, FramesIn};
 use qemu::usart::{UsartRx, UsartTx};
+use nalgebra::SMatrix;
 use static_cell::StaticCell;
 
-/// Angle bins (patent profile).
-const N: usize = 81;
-/// LEDs, readings per point (patent profile).
-const M: usize = 7;
-/// Pixels of the simulated line sensor.
-const P: usize = 32;
-/// Frames per line: dark + one per LED.
-const F: usize = M + 1;
-/// Scene lines the simulated sensor holds.
-const SCENE_LINES: usize = 4;
-/// Zones whose matrices are copied to RAM (9 KiB); larger calibrations run in
-/// place from the (RAM-backed) slot.
-const RAM_ZONES: usize = 4;
-/// Calibration slot length: 8 pages of 2 KiB, room for a blob of 6 zones.
-const SLOT_LEN: usize = 16 * 1024;
+const N: usize = shape::BINS;
+const M: usize = shape::LEDS;
+const P: usize = shape::qemu::PIXELS;
+const F: usize = shape::FRAMES_PER_LINE;
+const FRAME_LINES: usize = shape::qemu::FRAME_LINES;
+const RAM_ZONES: usize = shape::qemu::RAM_ZONES;
+const SLOT_LEN: usize = shape::qemu::SLOT_LEN as usize;
 /// Simulated 16-bit converter (the scene simulator's counts reach ~48k).
 const FULL_SCALE: u16 = u16::MAX;
 /// Acquisition timing: short, it is a simulation.
@@ -46,22 +40,22 @@ type Flash = RamFlash<{ 2 * SLOT_LEN }>;
 type QemuShared = Shared<Flash, N, M, P>;
 
 static FLASH_MEM: Memory<{ 2 * SLOT_LEN }> = Memory::new();
-static SCENE: Scene<P, F, SCENE_LINES> = Scene::new();
+static FRAMES: Frames<P, F, FRAME_LINES> = Frames::new();
 static SHARED: StaticCell<QemuShared> = StaticCell::new();
-static RAM: StaticCell<[[[f32; M]; N]; RAM_ZONES]> = StaticCell::new();
+static RAM: StaticCell<[SMatrix<f32, M, N>; RAM_ZONES]> = StaticCell::new();
 static LINES: StaticCell<[LineBuf<M, P>; 2]> = StaticCell::new();
 static CHANNEL: StaticCell<Channel<'static, Cs, LineBuf<M, P>>> = StaticCell::new();
 static EXECUTOR: StaticCell<Executor> = StaticCell::new();
 
 #[embassy_executor::task]
 async fn transport(shared: &'static QemuShared, rx: UsartRx, tx: UsartTx) -> ! {
-    app::transport(shared, rx, tx, SceneIn(&SCENE)).await
+    app::transport(shared, rx, tx, FramesIn(&FRAMES)).await
 }
 
 #[embassy_executor::task]
 async fn acquisition(shared: &'static QemuShared, lines: Sender<'static, Cs, LineBuf<M, P>>) -> ! {
-    let sensor = SimSensor { scene: &SCENE, full_scale: FULL_SCALE, lit: qemu::leds::lit::<M> };
-    app::acquisition(shared, GpioLeds::<M>::new(), sensor, lines).await
+    let sensor = FrameSensor { frames: &FRAMES, full_scale: FULL_SCALE, lit: qemu::leds::lit::<M> };
+    app::acquisition(shared, GpioLeds::<M>::configure(), sensor, lines).await
 }
 
 #[embassy_executor::task]
@@ -74,8 +68,8 @@ fn main() -> ! {
     let cp = cortex_m::Peripherals::take().expect("taken once");
     qemu::init();
     qemu::time_driver::init(cp.SYST);
-    let ram = RAM.init([[[0.0; M]; N]; RAM_ZONES]);
-    let flash = RamFlash::take(&FLASH_MEM);
+    let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
+    let flash = qemu::flash::take(&FLASH_MEM);
     let shared: &'static QemuShared =
         SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true));
     let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
@@ -86,4 +80,19 @@ fn main() -> ! {
         spawner.spawn(acquisition(shared, lines_tx).expect("spawned once"));
         spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
     })
+}
+
+/// A panic prints its message on QEMU's stderr and ends QEMU with a failure
+/// exit code (semihosting), so a firmware panic fails the test that ran it
+/// instead of hanging it.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
+    cortex_m::interrupt::disable();
+    if let Ok(mut err) = cortex_m_semihosting::hio::hstderr() {
+        let _ = writeln!(err, "qemu-fw panic: {info}");
+    }
+    cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
 }

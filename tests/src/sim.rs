@@ -1,7 +1,9 @@
 //! The host simulation of the firmware (see the crate docs).
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
-use brdf_meter::sim::{Pipe, SimFlash, SimLeds, SimScene, SimSensor, pipe, sim_optics};
+use brdf_meter::estimate::ZoneMatrix;
+use brdf_meter::shape;
+use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimLeds, SimFrames, SimSensor, pipe, sim_optics};
 use embassy_executor::raw::{Executor, TaskStorage};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::Channel;
@@ -10,16 +12,16 @@ use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
 
-/// Angle bins of the simulated build (the QEMU build's sizes).
-pub const N: usize = 81;
+/// Angle bins of the simulated build (the QEMU build's shape).
+pub const N: usize = shape::BINS;
 /// LEDs.
-pub const M: usize = 7;
+pub const M: usize = shape::LEDS;
 /// Pixels.
-pub const P: usize = 32;
+pub const P: usize = shape::qemu::PIXELS;
 /// Frames per line (dark + LEDs).
-pub const F: usize = M + 1;
-/// Calibration slot length: 8 pages of 2 KiB.
-pub const SLOT_LEN: u32 = 16 * 1024;
+pub const F: usize = shape::FRAMES_PER_LINE;
+/// Calibration slot length.
+pub const SLOT_LEN: u32 = shape::qemu::SLOT_LEN;
 /// Sensor full scale (16-bit, as the QEMU build).
 pub const FULL_SCALE: u16 = u16::MAX;
 
@@ -45,7 +47,7 @@ pub struct SimDevice {
     host: Pipe,
     inbox: VecDeque<u8>,
     /// Scene input and LED log.
-    pub scene: SimScene<P, F>,
+    pub scene: SimFrames<P, F>,
     /// The application's shared state.
     pub shared: &'static Dev,
     /// The flash (shares memory with the device's).
@@ -69,9 +71,9 @@ impl SimDevice {
     pub fn boot(flash: SimFlash, ram_zones: usize) -> Self {
         let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         MockDriver::get().reset();
-        let ram: &'static mut [[[f32; M]; N]] = Box::leak(vec![[[0.0f32; M]; N]; ram_zones].into_boxed_slice());
+        let ram: &'static mut [ZoneMatrix<N, M>] = Box::leak(vec![ZoneMatrix::zeros(); ram_zones].into_boxed_slice());
         let (host, dev_end) = pipe();
-        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) =
+        let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, host.frames_counter());
         let shared: &'static Dev =
             leak(Shared::new(flash.clone(), SLOT_LEN, ram, AcqConfig::default(), FULL_SCALE, true));

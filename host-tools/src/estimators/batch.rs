@@ -4,7 +4,7 @@
 //! output is accumulated as `out = 0; out += W[:, i] * v_i` for i = 0..m.
 //! Per output element that is exactly the library kernel's sequence
 //! (`acc = 0; acc += w_ji * v_i`, i ascending, unfused), so the results are
-//! bit-identical to `brdf_meter::kernel::estimate_into` (tested) and to the
+//! bit-identical to `brdf_meter::kernel::mat_vec_f32_slice` (tested) and to the
 //! device, while the inner loop runs over n contiguous outputs and
 //! vectorises.
 use super::LinearEstimator;
@@ -249,7 +249,7 @@ mod tests {
             let mut buf = vec![f32::NAN; p * n + 8];
             b.estimate_into(&v, &mut buf[shift..shift + p * n]);
             for k in (0..p).step_by(7).chain(p - 9..p) {
-                brdf_meter::kernel::estimate_into(&w, &v[k * m..(k + 1) * m], &mut one);
+                brdf_meter::kernel::mat_vec_f32_slice(&w, &v[k * m..(k + 1) * m], &mut one);
                 for j in 0..n {
                     assert_eq!(buf[shift + k * n + j].to_bits(), one[j].to_bits(), "shift {shift} point {k} bin {j}");
                 }
@@ -269,7 +269,7 @@ mod tests {
             b.estimate_into(&v, &mut out);
             let mut one = vec![0.0f32; n];
             for k in 0..p {
-                brdf_meter::kernel::estimate_into(&w, &v[k * m..(k + 1) * m], &mut one);
+                brdf_meter::kernel::mat_vec_f32_slice(&w, &v[k * m..(k + 1) * m], &mut one);
                 for j in 0..n {
                     assert_eq!(out[k * n + j].to_bits(), one[j].to_bits(), "n={n} m={m} point {k} bin {j}");
                 }

@@ -336,7 +336,7 @@ impl LinearEstimator {
         &self.w * v
     }
     /// W as f32, row-major n x m: the layout of the blob and of
-    /// `brdf_meter::kernel::estimate_into`.
+    /// `brdf_meter::kernel::mat_vec_f32_slice`.
     pub fn w_f32_row_major(&self) -> Vec<f32> {
         let (n, m) = self.w.shape();
         let mut out = Vec::with_capacity(n * m);

@@ -26,7 +26,8 @@ pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
-        .args(["build", "--profile", "firmware", "--target", "thumbv7em-none-eabihf", "--features", "qemu", "--bin", "qemu-fw"])
+        // The `qemu-fw` alias (.cargo/config.toml) is the one firmware build command.
+        .arg("qemu-fw")
         // Host-side variables of an enclosing `cargo test` must not leak into the firmware build.
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")

@@ -7,7 +7,7 @@
 //! with distinct values, which is what the link and bit-exactness checks need.
 use brdf_meter::acquire::correct_point_into;
 use brdf_meter::blob::BlobView;
-use brdf_meter::kernel::estimate_into;
+use brdf_meter::kernel::mat_vec_f32_slice;
 
 /// Raw frames of a scene: `[line][frame][pixel]`, frame 0 dark, 1 + k under LED k.
 pub type SceneFrames = Vec<Vec<Vec<u16>>>;
@@ -55,7 +55,7 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
             let z = blob.zone_of_pixel(p);
             blob.copy_matrix(z, &mut w);
             let mut rho = vec![0.0f32; d.n];
-            estimate_into(&w, &v, &mut rho);
+            mat_vec_f32_slice(&w, &v, &mut rho);
             flags |= brdf_meter::estimate::guard_estimate(&mut rho);
             (z as u16, flags, rho)
         })

@@ -120,16 +120,16 @@ impl Solver for IgnoresNoise {
 /// How the device evaluates `rho = W v` (the f32 invariant judges this).
 pub type DeviceKernel = fn(w: &[f32], v: &[f32], out: &mut [f32]);
 
-/// The device's kernel, `brdf_meter::kernel::estimate_into`.
+/// The device's kernel, `brdf_meter::kernel::mat_vec_f32_slice`.
 pub fn device_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
-    brdf_meter::kernel::estimate_into(w, v, out)
+    brdf_meter::kernel::mat_vec_f32_slice(w, v, out)
 }
 
 /// BROKEN on purpose: a kernel that keeps only 8 mantissa bits of W
 /// (bfloat16 storage, as a flash-saving shortcut would).
 pub fn bf16_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
     let w16: Vec<f32> = w.iter().map(|x| f32::from_bits(x.to_bits() & 0xFFFF_0000)).collect();
-    brdf_meter::kernel::estimate_into(&w16, v, out)
+    brdf_meter::kernel::mat_vec_f32_slice(&w16, v, out)
 }
 
 /// BROKEN on purpose: eq. 22 with the rank decided on the un-whitened

@@ -37,7 +37,7 @@ pub struct KernelCounts {
     pub n: usize,
     /// Readings.
     pub m: usize,
-    /// f32 kernel (`estimate_to`, m = 7 assembly), instructions per point.
+    /// f32 kernel (`mat_vec_f32_into`, m = 7 assembly), instructions per point.
     pub f32_instructions: f64,
     /// Its cycle estimate per point.
     pub f32_cycles: f64,
@@ -277,7 +277,7 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
     for p in 0..vs.len() {
         let v: Vec<f32> = vs[p].iter().map(|b| f32::from_bits(*b)).collect();
         let mut o = vec![0.0f32; n];
-        kernel::estimate_into(&w, &v, &mut o);
+        kernel::mat_vec_f32_slice(&w, &v, &mut o);
         let host_out: Vec<u32> = o.iter().map(|x| x.to_bits()).collect();
         if host_out != outs[p] {
             bail!("point {p}: the device's f32 results differ from the host's");
@@ -285,7 +285,7 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
         let mut vq = vec![0u32; kernel::q15_v_words(m)];
         let k = kernel::quantise_v_q15(&v, &mut vq);
         let mut acc = vec![0i32; kernel::q15_acc_len(n)];
-        kernel::estimate_q15_portable(&packed, &vq, m, &mut acc);
+        kernel::mat_vec_q15_portable(&packed, &vq, m, &mut acc);
         let mut host_acc = vec![k as u32];
         host_acc.extend(acc.iter().map(|a| *a as u32));
         if host_acc != accs[p] {

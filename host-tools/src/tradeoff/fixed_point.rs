@@ -36,7 +36,7 @@ impl Q15Estimator {
         let mut acc = vec![0i32; kernel::q15_acc_len(n)];
         for (v, o) in readings.chunks_exact(m).zip(out.chunks_exact_mut(n)) {
             let k = kernel::quantise_v_q15(v, &mut vq);
-            kernel::estimate_q15(&self.packed, &vq, m, &mut acc);
+            kernel::mat_vec_q15(&self.packed, &vq, m, &mut acc);
             kernel::dequantise_q15(&acc[..n], &self.inv_scale, k, o);
         }
     }

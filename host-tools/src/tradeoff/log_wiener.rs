@@ -80,7 +80,7 @@ impl LogWiener {
             for i in 0..m {
                 x[i + 1] = (v[i].max(0.0) + eps).ln();
             }
-            brdf_meter::kernel::estimate_into(&self.w32, &x, o);
+            brdf_meter::kernel::mat_vec_f32_slice(&self.w32, &x, o);
             for r in o.iter_mut() {
                 *r = r.exp() - eps;
             }

@@ -1,4 +1,4 @@
-//! The QEMU board layer: what the application needs from QEMU 10's
+//! The QEMU platform layer: what the application needs from QEMU 10's
 //! `b-l475e-iot01a` machine, written against the registers QEMU emulates.
 //!
 //! QEMU emulates this chip's RCC, GPIO, USART and the Cortex-M SysTick and
@@ -15,11 +15,9 @@
 //!   loads over the link; it sees which LED is lit by reading GPIOE.
 //! - [`flash`]: the calibration slots in RAM (QEMU's flash is read-only), so
 //!   provisioning works but does not survive a restart of QEMU.
-//! - [`semihosting`]: panic messages and exit codes to the QEMU process.
 pub mod flash;
 pub mod leds;
-pub mod regs;
-pub mod semihosting;
+mod regs;
 pub mod sensor;
 pub mod time_driver;
 pub mod usart;
@@ -33,3 +31,6 @@ pub fn init() {
         modify(RCC_APB2ENR, |v| v | RCC_APB2ENR_USART1EN);
     }
 }
+
+// (Panic messages and exit codes reach the QEMU process through the
+// cortex-m-semihosting crate: see src/bin/qemu-fw.rs's panic handler.)

@@ -2,7 +2,7 @@
 //! DMA channels and clocks. Everything above it (acquisition, estimation,
 //! protocol, calibration store) is the shared library, exercised in QEMU and
 //! in the host simulation; this layer only implements the library's hardware
-//! traits (`brdf_meter::hw::{Leds, LineSensor}`, `embedded_io_async`
+//! traits (`crate::hw::{Leds, LineSensor}`, `embedded_io_async`
 //! `Read`/`Write`, `embedded_storage` `NorFlash`) on embassy-stm32.
 //!
 //! # Pin map (Arduino header of the B-L475E-IOT01A, UM2153)
@@ -33,7 +33,6 @@
 //! the ADC runs from SYSCLK.
 
 pub mod flash;
-pub mod health;
 pub mod leds;
 pub mod sensor;
 pub mod usb;

@@ -1,6 +1,6 @@
 //! When the application counts as healthy, for the watchdog: pure logic, no
-//! hardware, so the library's host tests run it too (src/lib.rs includes
-//! this file under `cfg(test)`).
+//! hardware, so it is built for the library's host tests as well as for the
+//! board firmware (its supervisor, src/bin/board-fw.rs, feeds the watchdog by it).
 
 /// A measurement whose lines stop completing for this long is stuck. The
 /// longest healthy line is 8 frames at the longest exposure (8 x 100 ms) plus

@@ -5,7 +5,7 @@
 //! the integrated light by at most 1/50 of a period's light at mid duty;
 //! full intensity (`u16::MAX`) is steady on with no ripple at all.
 
-use brdf_meter::hw::Leds;
+use crate::hw::Leds;
 use embassy_stm32::Peri;
 use embassy_stm32::gpio::OutputType;
 use embassy_stm32::peripherals::{PA7, PA15, PB0, PB1, PB4, PB8, PB9, TIM2, TIM3, TIM4};
@@ -13,8 +13,8 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm, SimplePwmChannel};
 
-/// LEDs fitted (m of the patent profile).
-pub const LED_COUNT: usize = 7;
+/// LEDs fitted (m of the build shape; seven PWM channels are wired).
+pub const LED_COUNT: usize = crate::shape::LEDS;
 /// PWM carrier frequency: 80 MHz / 50 kHz = 1600 steps of duty resolution.
 pub const PWM_HZ: u32 = 50_000;
 

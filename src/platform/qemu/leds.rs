@@ -1,14 +1,14 @@
 //! The m LEDs as GPIOE pins 0..m (push-pull outputs). QEMU has no PWM timer,
 //! so the drive is on/off: any non-zero intensity lights the LED.
 use super::regs::*;
-use brdf_meter::hw::Leds;
+use crate::hw::Leds;
 
 /// LEDs on GPIOE pins `0..M`.
 pub struct GpioLeds<const M: usize>(());
 
 impl<const M: usize> GpioLeds<M> {
-    /// Configures the pins as outputs, all off.
-    pub fn new() -> Self {
+    /// Configures the pins as outputs, all off (touches GPIOE: once, at boot).
+    pub fn configure() -> Self {
         const { assert!(M <= 16) };
         // SAFETY: boot-time configuration of GPIOE, owned by this driver.
         unsafe {

@@ -1,29 +1,29 @@
-//! The scene store of a simulated line sensor, shared by the QEMU firmware and
+//! The frame store of a simulated line sensor, shared by the QEMU firmware and
 //! the host simulation so both serve frames by the same rule.
 //!
 //! The host loads raw frames (dark + one per LED, P pixels of u16) for up to
-//! `L` scene lines with the simulation-only protocol messages. A read returns
+//! `L` lines with the simulation-only protocol messages. A read returns
 //! the frame of the LED that is lit (the sensor sees the LEDs, as a real one
-//! would); each dark-frame read starts the next scene line, cycling through
-//! the loaded lines, so line k of a measurement sees scene line k mod lines.
-use crate::hw::{SceneError, SensorError};
+//! would); each dark-frame read starts the next loaded line, cycling through
+//! the loaded lines, so line k of a measurement sees loaded line k mod lines.
+use crate::hw::{FrameLoadError, SensorError};
 
-/// Frames of `L` scene lines, `F` frames (dark + LEDs) of `P` pixels each.
-pub struct SceneStore<const P: usize, const F: usize, const L: usize> {
+/// Frames of `L` lines, `F` frames (dark + LEDs) of `P` pixels each.
+pub struct FrameStore<const P: usize, const F: usize, const L: usize> {
     frames: [[[u16; P]; F]; L],
     lines: u8,
     current: usize,
     started: bool,
 }
 
-impl<const P: usize, const F: usize, const L: usize> Default for SceneStore<P, F, L> {
+impl<const P: usize, const F: usize, const L: usize> Default for FrameStore<P, F, L> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const P: usize, const F: usize, const L: usize> SceneStore<P, F, L> {
-    /// An empty scene: reads fail with [`SensorError::NoData`] until
+impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
+    /// An empty store: reads fail with [`SensorError::NoData`] until
     /// [`Self::set_lines`].
     pub const fn new() -> Self {
         Self { frames: [[[0; P]; F]; L], lines: 0, current: 0, started: false }
@@ -36,10 +36,10 @@ impl<const P: usize, const F: usize, const L: usize> SceneStore<P, F, L> {
         frame: u8,
         first_pixel: u16,
         pixels: impl Iterator<Item = u16>,
-    ) -> Result<(), SceneError> {
+    ) -> Result<(), FrameLoadError> {
         let (line, frame, first) = (line as usize, frame as usize, first_pixel as usize);
         if line >= L || frame >= F || first >= P {
-            return Err(SceneError::OutOfRange);
+            return Err(FrameLoadError::OutOfRange);
         }
         let dst = &mut self.frames[line][frame][first..];
         let mut n = 0;
@@ -51,10 +51,10 @@ impl<const P: usize, const F: usize, const L: usize> SceneStore<P, F, L> {
         Ok(())
     }
 
-    /// Sets the number of scene lines in use (1..=L) and restarts at line 0.
-    pub fn set_lines(&mut self, lines: u8) -> Result<(), SceneError> {
+    /// Sets the number of loaded lines in use (1..=L) and restarts at line 0.
+    pub fn set_lines(&mut self, lines: u8) -> Result<(), FrameLoadError> {
         if lines == 0 || lines as usize > L {
-            return Err(SceneError::OutOfRange);
+            return Err(FrameLoadError::OutOfRange);
         }
         self.lines = lines;
         self.current = 0;

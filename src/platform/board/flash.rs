@@ -1,6 +1,6 @@
 //! The calibration region of the chip's flash: the two slots memory.x
 //! reserves (CAL_SLOT_A, CAL_SLOT_B), as one `NorFlash` window whose offset 0
-//! is the start of slot A (the layout `brdf_meter::store::Store` expects),
+//! is the start of slot A (the layout `crate::store::Store` expects),
 //! and as memory (`MappedFlash`) so blobs and matrices are read in place.
 //!
 //! The addresses come from the linker symbols memory.x exports, so they are
@@ -17,12 +17,14 @@ use embassy_stm32::flash::{Blocking, Error, FLASH_BASE, Flash, WRITE_SIZE};
 use embassy_stm32::peripherals::FLASH;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 
-use brdf_meter::hw::MappedFlash;
+use crate::hw::MappedFlash;
 
 use super::watchdog;
 
 /// Erase page size of the STM32L475VG.
-pub const PAGE: u32 = 2048;
+pub const PAGE: u32 = crate::shape::FLASH_PAGE as u32;
+// The chip driver's program unit is the one the fakes and provisioning use.
+const _: () = assert!(WRITE_SIZE == crate::shape::FLASH_WRITE);
 
 unsafe extern "C" {
     static __cal_slot_a_start: u8;
@@ -67,10 +69,13 @@ fn flush_data_cache() {
 }
 
 impl CalFlash {
-    /// Takes the flash controller. Panics if memory.x's slots are not two
-    /// page-aligned, back-to-back regions (a build mistake, caught at boot).
+    /// Takes the flash controller. Panics if memory.x's slots are not where
+    /// `crate::shape::board` says (two page-aligned, back-to-back regions):
+    /// a build mistake, caught at boot.
     pub fn new(flash: Peri<'static, FLASH>) -> Self {
+        use crate::shape::board::{SLOT_A, SLOT_B, SLOT_LEN};
         let (a, b, len) = (slot_a_addr(), slot_b_addr(), slot_len());
+        assert!((a, b, len) == (SLOT_A as usize, SLOT_B as usize, SLOT_LEN as usize), "memory.x disagrees with shape::board");
         assert!(a >= FLASH_BASE && a.is_multiple_of(PAGE as usize) && len.is_multiple_of(PAGE as usize));
         assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
         defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);

@@ -17,7 +17,7 @@
 //! the executor may stretch) does not change the pixel values.
 //! The shortest exposure is the flush's remaining 111 clocks (tens of us).
 
-use brdf_meter::hw::{LineSensor, SensorError};
+use crate::hw::{LineSensor, SensorError};
 use embassy_stm32::Peri;
 use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, SampleTime};
 use embassy_stm32::gpio::{Level, Output, Speed};
@@ -26,8 +26,8 @@ use embassy_time::{Duration, Instant, Timer, with_timeout};
 
 use super::Irqs;
 
-/// Pixels per line.
-pub const PIXELS: usize = 128;
+/// Pixels per line (the build shape's P; the TSL1401 has 128).
+pub const PIXELS: usize = crate::shape::board::PIXELS;
 /// 12-bit ADC: readings at or above this are saturated.
 pub const FULL_SCALE: u16 = 4095;
 /// ADC conversions averaged per pixel.

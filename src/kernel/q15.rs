@@ -1,169 +1,44 @@
-//! The estimator kernel: `rho = W v`, one matrix-vector product per point.
+//! Fixed point (Q15): the device's integer kernel.
 //!
-//! `W` is stored row-major as `n` rows of `m` (each output bin's weights are
-//! contiguous), which on the Cortex-M4F gives one load and one VMLA per
-//! multiply-accumulate. The accumulation order is fixed (`acc = 0; acc += w*v`
-//! for i = 0..m, unfused) and rustc never contracts to FMA on either target, so
-//! the host and the device produce bit-identical f32 results. Keep it so: do not
-//! reorder, unroll across rows or use `mul_add` here.
-
-/// Estimates one point: `out[j] = sum_i w[j*m + i] * v[i]`, for `j < out.len()`.
-///
-/// `w` is row-major `out.len()` x `v.len()`.
-///
-/// # Panics
-/// If `w.len() != out.len() * v.len()`.
-#[inline]
-pub fn estimate_into(w: &[f32], v: &[f32], out: &mut [f32]) {
-    let m = v.len();
-    assert_eq!(w.len(), out.len() * m, "W must be n x m row-major");
-    if m == 0 {
-        out.fill(0.0);
-        return;
-    }
-    #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
-    if m == 7 {
-        // SAFETY: lengths checked above.
-        unsafe { arm_f32::f32_m7(w.as_ptr(), v.as_ptr(), out.as_mut_ptr(), out.len()) };
-        return;
-    }
-    for (row, o) in w.chunks_exact(m).zip(out.iter_mut()) {
-        *o = dot(row, v);
-    }
-}
-
-/// Fixed-size form of [`estimate_into`]: `N` bins from `M` readings.
-#[inline]
-pub fn estimate<const N: usize, const M: usize>(w: &[[f32; M]; N], v: &[f32; M]) -> [f32; N] {
-    let mut out = [0.0f32; N];
-    estimate_to(w, v, &mut out);
-    out
-}
-
-/// [`estimate`] into a caller's buffer (no copy of the result: what the
-/// firmware calls per point).
-#[inline]
-pub fn estimate_to<const N: usize, const M: usize>(w: &[[f32; M]; N], v: &[f32; M], out: &mut [f32; N]) {
-    // The Cortex-M4F (thumbv7em-none-eabihf) runs the assembly form for the
-    // instrument's m = 7: the same accumulation per bin, ~1.2 instructions
-    // per multiply-accumulate instead of ~2 (VLDM of two rows, VSTM of eight).
-    #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
-    if M == 7 {
-        // SAFETY: `w` is N rows of 7 contiguous f32, `v` 7, `out` N.
-        unsafe { arm_f32::f32_m7(w.as_ptr().cast::<f32>(), v.as_ptr(), out.as_mut_ptr(), N) };
-        return;
-    }
-    for (row, o) in w.iter().zip(out.iter_mut()) {
-        *o = dot(row, v);
-    }
-}
-
-/// The one accumulation both targets share. Sequential and unfused on purpose.
-#[inline(always)]
-fn dot(row: &[f32], v: &[f32]) -> f32 {
-    let mut acc = 0.0f32;
-    for (w, x) in row.iter().zip(v.iter()) {
-        acc += *w * *x;
-    }
-    acc
-}
-
-// ---------------------------------------------------------------------------
-// Piecewise (clustered) estimation: which of K matrices a point uses.
-// ---------------------------------------------------------------------------
-
-/// The clustered estimator's selection rule: the index of the centroid
-/// nearest (squared Euclidean distance, first one on ties) to the readings
-/// normalised by their sum, `u = v / sum_i |v_i|` (all-zero readings stay 0).
-/// `centroids` is K x m row-major, in the same normalised space. Cost: m adds,
-/// one division, m multiplies, K*m subtract/multiply-adds and K compares.
-///
-/// # Panics
-/// If `centroids.len()` is not a non-zero multiple of `v.len()`.
-#[inline]
-pub fn select_cluster(centroids: &[f32], v: &[f32]) -> usize {
-    let m = v.len();
-    assert!(m > 0 && !centroids.is_empty() && centroids.len().is_multiple_of(m), "centroids must be K x m");
-    let mut sum = 0.0f32;
-    for x in v {
-        sum += x.abs();
-    }
-    let inv = if sum > 0.0 { 1.0 / sum } else { 0.0 };
-    // Normalise once (same products as inside the loop, so the same bits).
-    let mut ubuf = [0.0f32; 16];
-    let u: &[f32] = if m <= ubuf.len() {
-        for (o, x) in ubuf.iter_mut().zip(v) {
-            *o = *x * inv;
-        }
-        &ubuf[..m]
-    } else {
-        &[]
-    };
-    let (mut best, mut best_d) = (0usize, f32::INFINITY);
-    for (c, row) in centroids.chunks_exact(m).enumerate() {
-        let mut d = 0.0f32;
-        if u.is_empty() {
-            for (x, cx) in v.iter().zip(row) {
-                let e = *x * inv - *cx;
-                d += e * e;
-            }
-        } else {
-            for (x, cx) in u.iter().zip(row) {
-                let e = *x - *cx;
-                d += e * e;
-            }
-        }
-        if d < best_d {
-            best_d = d;
-            best = c;
-        }
-    }
-    best
-}
-
-// ---------------------------------------------------------------------------
-// Fixed point (Q15): the device's integer kernel.
-// ---------------------------------------------------------------------------
-//
-// # Format
-// - **W** (n x m, f32 in the blob) is quantised at load time, row by row:
-//   `wq_ji = round(w_ji * s_j)` with `s_j = min(65000 / L1_j, 32767 / max_i |w_ji|)`
-//   (`L1_j = sum_i |w_ji|`), so every element fits i16 and every row's L1
-//   norm is at most `65000 + m/2 < 65535`. The blob stays f32 (format
-//   version 1): the device quantises when it loads a calibration, with the
-//   same f32 arithmetic as the host ([`quantise_w_q15`]), so both hold the
-//   same integers.
-// - **v** (m readings) is quantised per point in block floating point: with
-//   `E` the binary exponent of `max_i |v_i|`, `k = 14 - E` and
-//   `vq_i = min(round(v_i 2^k), 32767)` (ties away from zero): the largest
-//   reading uses 15 bits ([`quantise_v_q15`]).
-// - **Accumulation**: `acc_j = sum_i wq_ji vq_i` in i32, two products per
-//   SMLAD on the Cortex-M4 (portable integer code elsewhere; integer sums are
-//   exact, so any order gives the same bits).
-// - **Output**: `rho_j = (acc_j as f32 * inv_s_j) * 2^-k` ([`dequantise_q15`]);
-//   the device may also stream `acc_j` and `k` and leave this to the host.
-//
-// # Overflow bound (why a 32-bit accumulator is safe)
-// `|acc_j| <= sum_i |wq_ji| |vq_i| <= (sum_i |wq_ji|) * 32767 <= 65534 * 32767
-// = 2_147_385_378 < 2^31 - 1`, and every partial sum (including the two
-// products SMUAD/SMLAD add at once) is bounded by the same sum, so no step
-// overflows and SMLAD's Q flag never sets. Elements are clamped to
-// [-32767, 32767] (never -32768), so each single product is below 2^30.
-//
-// # Error bound against exact arithmetic
-// With `d_ji = wq_ji / s_j - w_ji` (|d_ji| <= 0.5 / s_j) and
-// `e_i = vq_i 2^-k - v_i` (|e_i| <= 2^-k: half an LSB, one at the clamp),
-// `|rho_j - W_j v| <= sum_i |d_ji| |v_i| + sum_i |wq_ji / s_j| |e_i| + r_j`
-// where `r_j <= 3 * 2^-24 |rho_j|` covers the i32 -> f32 conversion and the
-// two f32 products ([`q15_error_bound`]; tested against f64).
-//
-// # Packed layout of W (what the SMLAD kernel loads with one LDM per row pair)
-// Rows are taken in pairs (a = 2r, b = 2r + 1; an odd n gets a zero row b).
-// Each pair is `m` 32-bit words: the `floor(m/2)` words of row a, each two
-// i16 `(w_2k | w_2k+1 << 16)`, then the `floor(m/2)` words of row b, then for
-// odd m one word holding both rows' last elements `(a_m-1 | b_m-1 << 16)`.
-// The readings are packed the same way: `ceil(m/2)` words `(v_2k | v_2k+1 << 16)`,
-// the last one `(v_m-1 | 0)` for odd m.
+//! # Format
+//! - **W** (n x m, f32 in the blob) is quantised at load time, row by row:
+//!   `wq_ji = round(w_ji * s_j)` with `s_j = min(65000 / L1_j, 32767 / max_i |w_ji|)`
+//!   (`L1_j = sum_i |w_ji|`), so every element fits i16 and every row's L1
+//!   norm is at most `65000 + m/2 < 65535`. The blob stays f32 (format
+//!   version 1): the device quantises when it loads a calibration, with the
+//!   same f32 arithmetic as the host ([`quantise_w_q15`]), so both hold the
+//!   same integers.
+//! - **v** (m readings) is quantised per point in block floating point: with
+//!   `E` the binary exponent of `max_i |v_i|`, `k = 14 - E` and
+//!   `vq_i = min(round(v_i 2^k), 32767)` (ties away from zero): the largest
+//!   reading uses 15 bits ([`quantise_v_q15`]).
+//! - **Accumulation**: `acc_j = sum_i wq_ji vq_i` in i32, two products per
+//!   SMLAD on the Cortex-M4 (portable integer code elsewhere; integer sums are
+//!   exact, so any order gives the same bits).
+//! - **Output**: `rho_j = (acc_j as f32 * inv_s_j) * 2^-k` ([`dequantise_q15`]);
+//!   the device may also stream `acc_j` and `k` and leave this to the host.
+//!
+//! # Overflow bound (why a 32-bit accumulator is safe)
+//! `|acc_j| <= sum_i |wq_ji| |vq_i| <= (sum_i |wq_ji|) * 32767 <= 65534 * 32767
+//! = 2_147_385_378 < 2^31 - 1`, and every partial sum (including the two
+//! products SMUAD/SMLAD add at once) is bounded by the same sum, so no step
+//! overflows and SMLAD's Q flag never sets. Elements are clamped to
+//! [-32767, 32767] (never -32768), so each single product is below 2^30.
+//!
+//! # Error bound against exact arithmetic
+//! With `d_ji = wq_ji / s_j - w_ji` (|d_ji| <= 0.5 / s_j) and
+//! `e_i = vq_i 2^-k - v_i` (|e_i| <= 2^-k: half an LSB, one at the clamp),
+//! `|rho_j - W_j v| <= sum_i |d_ji| |v_i| + sum_i |wq_ji / s_j| |e_i| + r_j`
+//! where `r_j <= 3 * 2^-24 |rho_j|` covers the i32 -> f32 conversion and the
+//! two f32 products ([`q15_error_bound`]; tested against f64).
+//!
+//! # Packed layout of W (what the SMLAD kernel loads with one LDM per row pair)
+//! Rows are taken in pairs (a = 2r, b = 2r + 1; an odd n gets a zero row b).
+//! Each pair is `m` 32-bit words: the `floor(m/2)` words of row a, each two
+//! i16 `(w_2k | w_2k+1 << 16)`, then the `floor(m/2)` words of row b, then for
+//! odd m one word holding both rows' last elements `(a_m-1 | b_m-1 << 16)`.
+//! The readings are packed the same way: `ceil(m/2)` words `(v_2k | v_2k+1 << 16)`,
+//! the last one `(v_m-1 | 0)` for odd m.
 
 /// Largest magnitude of a Q15 element (-32768 is never used).
 pub const Q15_MAX: i32 = 32767;
@@ -309,7 +184,7 @@ fn hi(x: u32) -> i32 {
 /// If the lengths disagree (`w.len() == q15_w_words(n, m)`, `v.len() ==
 /// q15_v_words(m)`).
 #[inline]
-pub fn estimate_q15(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
+pub fn mat_vec_q15(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
     assert!(m > 0 && v.len() == q15_v_words(m), "packed v has the wrong length");
     let pairs = acc.len() / 2;
     assert!(acc.len().is_multiple_of(2) && w.len() == pairs * m, "packed W and acc disagree");
@@ -320,11 +195,11 @@ pub fn estimate_q15(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
         unsafe { arm::q15_m7(w.as_ptr(), v.as_ptr(), acc.as_mut_ptr(), pairs) };
         return;
     }
-    estimate_q15_portable(w, v, m, acc);
+    mat_vec_q15_portable(w, v, m, acc);
 }
 
-/// The portable form of [`estimate_q15`] (same integers on every target).
-pub fn estimate_q15_portable(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
+/// The portable form of [`mat_vec_q15`] (same integers on every target).
+pub fn mat_vec_q15_portable(w: &[u32], v: &[u32], m: usize, acc: &mut [i32]) {
     let half = m / 2;
     for (r, out) in acc.chunks_exact_mut(2).enumerate() {
         let p = &w[r * m..(r + 1) * m];
@@ -372,7 +247,6 @@ pub fn q15_error_bound(w: &[f32], v: &[f32], inv_scale: &[f32], k: i32, rho_j: f
 fn pow2_f64(e: i32) -> f64 {
     f64::from_bits(((e + 1023) as u64) << 52)
 }
-
 #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
 mod arm {
     //! The Cortex-M4 Q15 kernel for m = 7: per row pair one `LDM` of the 7
@@ -438,158 +312,9 @@ mod arm {
     }
 }
 
-#[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
-mod arm_f32 {
-    //! The Cortex-M4F f32 kernel for m = 7 (the instrument's LED count). The
-    //! same sequence as [`super::dot`] for every bin, `acc = 0; acc += w_i
-    //! v_i` for i = 0..7 with VMLA.F32 (multiply rounded, then added: unfused),
-    //! so the bits are those of the portable code. v stays in s0-s6; eight
-    //! rows per iteration: two rows (14 words) per VLDM, accumulators zeroed
-    //! two at a time from a zero core register, eight results per VSTM.
-
-    /// # Safety
-    /// `w` holds `rows * 7` f32, `v` 7, `out` `rows`.
-    // Inlined into its caller, so `estimate::estimate_point` (not inlined)
-    // stays the one symbol holding the whole kernel (scripts/qemu-icount.sh).
-    #[inline(always)]
-    pub(super) unsafe fn f32_m7(w: *const f32, v: *const f32, out: *mut f32, rows: usize) {
-        // SAFETY: the caller guarantees the buffers; every register written is
-        // declared clobbered (s16-s31 are callee-saved: the compiler saves them).
-        unsafe {
-            core::arch::asm!(
-                "vldmia r3, {{s0-s6}}",
-                "movs r3, #0",
-                "subs r2, r2, #8",
-                "blo 2f",
-                "1:",
-                "vmov s8, s9, r3, r3",
-                "vmov s10, s11, r3, r3",
-                "vmov s12, s13, r3, r3",
-                "vmov s14, s15, r3, r3",
-                "vldmia r0!, {{s16-s29}}",
-                "vmla.f32 s8, s16, s0",
-                "vmla.f32 s9, s23, s0",
-                "vmla.f32 s8, s17, s1",
-                "vmla.f32 s9, s24, s1",
-                "vmla.f32 s8, s18, s2",
-                "vmla.f32 s9, s25, s2",
-                "vmla.f32 s8, s19, s3",
-                "vmla.f32 s9, s26, s3",
-                "vmla.f32 s8, s20, s4",
-                "vmla.f32 s9, s27, s4",
-                "vmla.f32 s8, s21, s5",
-                "vmla.f32 s9, s28, s5",
-                "vmla.f32 s8, s22, s6",
-                "vmla.f32 s9, s29, s6",
-                "vldmia r0!, {{s16-s29}}",
-                "vmla.f32 s10, s16, s0",
-                "vmla.f32 s11, s23, s0",
-                "vmla.f32 s10, s17, s1",
-                "vmla.f32 s11, s24, s1",
-                "vmla.f32 s10, s18, s2",
-                "vmla.f32 s11, s25, s2",
-                "vmla.f32 s10, s19, s3",
-                "vmla.f32 s11, s26, s3",
-                "vmla.f32 s10, s20, s4",
-                "vmla.f32 s11, s27, s4",
-                "vmla.f32 s10, s21, s5",
-                "vmla.f32 s11, s28, s5",
-                "vmla.f32 s10, s22, s6",
-                "vmla.f32 s11, s29, s6",
-                "vldmia r0!, {{s16-s29}}",
-                "vmla.f32 s12, s16, s0",
-                "vmla.f32 s13, s23, s0",
-                "vmla.f32 s12, s17, s1",
-                "vmla.f32 s13, s24, s1",
-                "vmla.f32 s12, s18, s2",
-                "vmla.f32 s13, s25, s2",
-                "vmla.f32 s12, s19, s3",
-                "vmla.f32 s13, s26, s3",
-                "vmla.f32 s12, s20, s4",
-                "vmla.f32 s13, s27, s4",
-                "vmla.f32 s12, s21, s5",
-                "vmla.f32 s13, s28, s5",
-                "vmla.f32 s12, s22, s6",
-                "vmla.f32 s13, s29, s6",
-                "vldmia r0!, {{s16-s29}}",
-                "vmla.f32 s14, s16, s0",
-                "vmla.f32 s15, s23, s0",
-                "vmla.f32 s14, s17, s1",
-                "vmla.f32 s15, s24, s1",
-                "vmla.f32 s14, s18, s2",
-                "vmla.f32 s15, s25, s2",
-                "vmla.f32 s14, s19, s3",
-                "vmla.f32 s15, s26, s3",
-                "vmla.f32 s14, s20, s4",
-                "vmla.f32 s15, s27, s4",
-                "vmla.f32 s14, s21, s5",
-                "vmla.f32 s15, s28, s5",
-                "vmla.f32 s14, s22, s6",
-                "vmla.f32 s15, s29, s6",
-                "vstmia r1!, {{s8-s15}}",
-                "subs r2, r2, #8",
-                "bhs 1b",
-                "2:",
-                "adds r2, r2, #8",
-                "beq 4f",
-                "3:",
-                "vmov s8, r3",
-                "vldmia r0!, {{s16-s22}}",
-                "vmla.f32 s8, s16, s0", "vmla.f32 s8, s17, s1", "vmla.f32 s8, s18, s2", "vmla.f32 s8, s19, s3", "vmla.f32 s8, s20, s4", "vmla.f32 s8, s21, s5", "vmla.f32 s8, s22, s6", 
-                "vstmia r1!, {{s8}}",
-                "subs r2, r2, #1",
-                "bne 3b",
-                "4:",
-                inout("r0") w => _,
-                inout("r1") out => _,
-                inout("r2") rows => _,
-                inout("r3") v => _,
-                out("s0") _, out("s1") _, out("s2") _, out("s3") _, out("s4") _, out("s5") _, out("s6") _, out("s7") _, out("s8") _, out("s9") _, out("s10") _, out("s11") _, out("s12") _, out("s13") _, out("s14") _, out("s15") _, out("s16") _, out("s17") _, out("s18") _, out("s19") _, out("s20") _, out("s21") _, out("s22") _, out("s23") _, out("s24") _, out("s25") _, out("s26") _, out("s27") _, out("s28") _, out("s29") _,
-                options(nostack),
-            );
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn slice_and_fixed_forms_agree_bit_for_bit() {
-        let mut w = [[0.0f32; 3]; 4];
-        for (j, row) in w.iter_mut().enumerate() {
-            for (i, x) in row.iter_mut().enumerate() {
-                *x = (j as f32 + 1.0) * 0.37 - i as f32 * 1.13;
-            }
-        }
-        let v = [0.25f32, -3.5, 7.125];
-        let fixed = estimate(&w, &v);
-        let flat: [f32; 12] = bytemuck::cast(w);
-        let mut out = [0.0f32; 4];
-        estimate_into(&flat, &v, &mut out);
-        assert_eq!(fixed.map(f32::to_bits), out.map(f32::to_bits));
-        // Against an explicit f64 evaluation, within f32 rounding.
-        for j in 0..4 {
-            let exact: f64 = (0..3).map(|i| w[j][i] as f64 * v[i] as f64).sum();
-            assert!((fixed[j] as f64 - exact).abs() <= 1e-5 * exact.abs().max(1.0));
-        }
-    }
-
-    #[test]
-    fn identity_matrix_returns_readings() {
-        let w = [[1.0, 0.0], [0.0, 1.0]];
-        assert_eq!(estimate(&w, &[3.0, -2.0]), [3.0, -2.0]);
-    }
-
-    #[test]
-    #[should_panic(expected = "n x m")]
-    fn wrong_shape_panics() {
-        let mut out = [0.0; 2];
-        estimate_into(&[1.0; 5], &[1.0, 2.0], &mut out);
-    }
-
-    // ---- Q15 ----
 
     fn lcg(seed: &mut u64) -> f32 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -626,7 +351,7 @@ mod tests {
             let vq: std::vec::Vec<i64> = (0..m).map(|i| if i % 2 == 0 { lo(pv[i / 2]) } else { hi(pv[i / 2]) } as i64).collect();
             let wq = unpack_w(&pw, n, m);
             let mut acc = std::vec![0i32; q15_acc_len(n)];
-            estimate_q15(&pw, &pv, m, &mut acc);
+            mat_vec_q15(&pw, &pv, m, &mut acc);
             for j in 0..n {
                 let l1: i64 = (0..m).map(|i| (wq[j * m + i] as i64).abs()).sum();
                 assert!(l1 <= 65534, "row {j} L1 {l1}");
@@ -662,7 +387,7 @@ mod tests {
             let mut pv = std::vec![0u32; q15_v_words(m)];
             quantise_v_q15(&v, &mut pv);
             let mut acc = std::vec![0i32; q15_acc_len(n)];
-            estimate_q15(&pw, &pv, m, &mut acc);
+            mat_vec_q15(&pw, &pv, m, &mut acc);
             let wq = unpack_w(&pw, n, m);
             let exact: i64 = (0..m).map(|i| wq[i] as i64 * 32767).sum();
             assert_eq!(acc[0] as i64, exact);
@@ -691,7 +416,7 @@ mod tests {
             let mut pv = std::vec![0u32; q15_v_words(m)];
             let k = quantise_v_q15(&v, &mut pv);
             let mut acc = std::vec![0i32; q15_acc_len(n)];
-            estimate_q15(&pw, &pv, m, &mut acc);
+            mat_vec_q15(&pw, &pv, m, &mut acc);
             let mut rho = std::vec![0f32; n];
             dequantise_q15(&acc, &inv, k, &mut rho);
             let mut worst = 0.0f64;
@@ -707,19 +432,5 @@ mod tests {
                 assert!(worst > 0.01, "bound far too loose: {worst}");
             }
         }
-    }
-
-    #[test]
-    fn selection_picks_the_nearest_normalised_centroid() {
-        // Three centroids in the normalised space of m = 3 readings.
-        let c = [1.0f32, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0];
-        assert_eq!(select_cluster(&c, &[5.0, 0.1, 0.2]), 0);
-        assert_eq!(select_cluster(&c, &[0.0, 900.0, 1.0]), 1);
-        // Scale does not matter: only the shape of the readings.
-        assert_eq!(select_cluster(&c, &[2.0, 2.1, 1.9]), 2);
-        assert_eq!(select_cluster(&c, &[2e-6, 2.1e-6, 1.9e-6]), 2);
-        // Ties go to the first centroid; zero readings are the origin.
-        assert_eq!(select_cluster(&[0.5, 0.5, 0.5, 0.5], &[1.0, 1.0]), 0);
-        assert_eq!(select_cluster(&c, &[0.0, 0.0, 0.0]), 2);
     }
 }

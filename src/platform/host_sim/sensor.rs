@@ -1,8 +1,8 @@
 //! Simulated LEDs and line sensor for the host simulation. The sensor serves
-//! frames from a [`SceneStore`] (the same one the QEMU firmware uses) and sees
+//! frames from a [`FrameStore`] (the same one the QEMU firmware uses) and sees
 //! which LED is lit through the shared state, as a real sensor sees light.
-use crate::hw::{Leds, LineSensor, SceneError, SceneInput, SensorError};
-use crate::scene::SceneStore;
+use crate::hw::{Leds, LineSensor, FrameLoadError, FrameInput, SensorError};
+use crate::frame_store::FrameStore;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 pub const SIM_LINES: usize = 4;
 
 struct State<const P: usize, const F: usize> {
-    scene: SceneStore<P, F, SIM_LINES>,
+    scene: FrameStore<P, F, SIM_LINES>,
     lit: Option<u8>,
     /// LED switch log, per `Leds::set`: the LED lit and how many frames the
     /// device had written to the link by then (for tests of the pipeline).
@@ -19,14 +19,14 @@ struct State<const P: usize, const F: usize> {
 }
 
 /// Shared handle on the simulated optics: give [`SimLeds`], [`SimSensor`] and
-/// [`SimScene`] to the application; all three see one state. `frames_out`
+/// [`SimFrames`] to the application; all three see one state. `frames_out`
 /// counts the frames the device has sent ([`super::Pipe::frames_counter`]).
 pub fn sim_optics<const P: usize, const F: usize>(
     full_scale: u16,
     frames_out: Arc<AtomicUsize>,
-) -> (SimLeds<P, F>, SimSensor<P, F>, SimScene<P, F>) {
-    let st = Arc::new(Mutex::new(State { scene: SceneStore::new(), lit: None, switches: Vec::new(), frames_out }));
-    (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale }, SimScene { st })
+) -> (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) {
+    let st = Arc::new(Mutex::new(State { scene: FrameStore::new(), lit: None, switches: Vec::new(), frames_out }));
+    (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale }, SimFrames { st })
 }
 
 /// Simulated LEDs (F - 1 of them).
@@ -42,11 +42,11 @@ pub struct SimSensor<const P: usize, const F: usize> {
 
 /// The simulation's scene input (and a test's view of the optics).
 #[derive(Clone)]
-pub struct SimScene<const P: usize, const F: usize> {
+pub struct SimFrames<const P: usize, const F: usize> {
     st: Arc<Mutex<State<P, F>>>,
 }
 
-impl<const P: usize, const F: usize> SimScene<P, F> {
+impl<const P: usize, const F: usize> SimFrames<P, F> {
     /// LED switches so far (`None` = all off).
     pub fn switches(&self) -> Vec<Option<u8>> {
         self.st.lock().unwrap().switches.iter().map(|s| s.0).collect()
@@ -86,11 +86,11 @@ impl<const P: usize, const F: usize> LineSensor for SimSensor<P, F> {
     }
 }
 
-impl<const P: usize, const F: usize> SceneInput for SimScene<P, F> {
-    fn load(&mut self, line: u8, frame: u8, first: u16, px: impl Iterator<Item = u16>) -> Result<(), SceneError> {
+impl<const P: usize, const F: usize> FrameInput for SimFrames<P, F> {
+    fn load(&mut self, line: u8, frame: u8, first: u16, px: impl Iterator<Item = u16>) -> Result<(), FrameLoadError> {
         self.st.lock().unwrap().scene.load(line, frame, first, px)
     }
-    fn set_lines(&mut self, lines: u8) -> Result<(), SceneError> {
+    fn set_lines(&mut self, lines: u8) -> Result<(), FrameLoadError> {
         self.st.lock().unwrap().scene.set_lines(lines)
     }
     fn simulated(&self) -> bool {

@@ -3,7 +3,7 @@
 //!
 //! It is fed only as a consequence of healthy work:
 //! - [`healthy`] by the firmware's supervisor loop, and only while
-//!   [`super::health::Health`] says the application is healthy: the executor runs (the loop
+//!   [`crate::platform::watchdog_health::Health`] says the application is healthy: the executor runs (the loop
 //!   itself gets polled) and, during a measurement, lines keep completing;
 //! - [`progress`] by flash operations, once per 2 KiB page or write.
 //!

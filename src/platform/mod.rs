@@ -1,0 +1,21 @@
+//! The platforms the application runs on, each behind its feature; the
+//! firmware binaries (src/bin/) wire one of them to `crate::app`.
+//!
+//! - [`board`] (feature `board`, bare-metal target only): the B-L475E-IOT01A
+//!   board layer on embassy-stm32.
+//! - [`qemu`] (feature `qemu`, bare-metal target only): the board layer for
+//!   QEMU's b-l475e-iot01a machine, written against the registers QEMU emulates.
+//! - [`host_sim`] (feature `sim`): the host simulation's fakes (power-cut
+//!   flash, in-memory link, simulated optics), used by tests/.
+//! - [`nor_fake`]: the NOR flash rules both flash fakes share.
+//! - [`watchdog_health`]: the board's watchdog rule, pure logic tested on the host.
+#[cfg(all(feature = "board", target_os = "none"))]
+pub mod board;
+#[cfg(any(test, feature = "sim"))]
+pub mod host_sim;
+#[cfg(any(test, feature = "sim", all(feature = "qemu", target_os = "none")))]
+pub mod nor_fake;
+#[cfg(all(feature = "qemu", target_os = "none"))]
+pub mod qemu;
+#[cfg(any(test, all(feature = "board", target_os = "none")))]
+pub mod watchdog_health;

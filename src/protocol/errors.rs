@@ -1,0 +1,211 @@
+//! The errors that travel: why a frame could not be read ([`FrameError`])
+//! and the typed error replies ([`DeviceError`], [`BlobFault`]).
+use super::BlobSection;
+use crate::blob::BlobError;
+use crate::hw::SensorError;
+use serde::{Deserialize, Serialize};
+
+/// Why a frame could not be read.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FrameError {
+    /// The COBS encoding is invalid.
+    Cobs,
+    /// More bytes than [`MAX_FRAME`] before a delimiter.
+    Oversized,
+    /// Fewer bytes than the header declares (or than a header).
+    Truncated {
+        /// Payload length declared (0 if no header).
+        declared: u16,
+        /// Payload length received.
+        got: u16,
+    },
+    /// The CRC does not match.
+    BadCrc,
+    /// A protocol version this side does not speak.
+    UnsupportedVersion {
+        /// Version found.
+        got: u16,
+    },
+    /// The body is not a valid message (unknown variant, bad field, trailing bytes).
+    Malformed,
+    /// The message does not fit [`MAX_PAYLOAD`] (sender side).
+    TooLarge,
+}
+
+/// Which build-time size a blob disagreed with.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SizeField {
+    /// Angle bins n.
+    Bins,
+    /// LEDs m.
+    Leds,
+    /// Pixels P.
+    Pixels,
+}
+
+/// A blob rejection, as it travels (mirrors [`BlobError`]).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BlobFault {
+    /// Truncated.
+    TooShort,
+    /// Bad magic.
+    BadMagic,
+    /// Unsupported blob format version.
+    UnsupportedVersion,
+    /// Bad header length.
+    BadHeaderLen,
+    /// Bad dimension.
+    BadDimension,
+    /// Length mismatch.
+    LengthMismatch,
+    /// Internal CRC mismatch.
+    CrcMismatch,
+    /// Reserved bits set.
+    ReservedNotZero,
+    /// Unknown estimator.
+    UnknownEstimator,
+    /// NaN or infinity.
+    NonFinite,
+    /// Out of range value.
+    OutOfRange,
+    /// Grid not ascending.
+    GridNotAscending,
+    /// LED order not a permutation.
+    BadLedOrder,
+    /// Zone map invalid.
+    BadZoneMap,
+    /// Other.
+    Other,
+}
+
+/// A typed error reply.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DeviceError {
+    /// The request frame could not be read; the device discarded it.
+    Frame(FrameError),
+    /// A measurement needs a calibration and none is provisioned.
+    NoCalibration,
+    /// Refused while a measurement runs (stop it first).
+    Busy,
+    /// A provisioning request arrived with no provisioning in progress.
+    NotProvisioning,
+    /// A chunk arrived at the wrong offset; resend from `expected`.
+    OutOfOrder {
+        /// Offset the device expects.
+        expected: u32,
+        /// Offset received.
+        got: u32,
+    },
+    /// A chunk is larger than [`MAX_CHUNK`] or runs past the declared length.
+    ChunkTooLarge {
+        /// Largest acceptable.
+        max: u32,
+    },
+    /// The blob does not fit a calibration slot.
+    BlobTooLarge {
+        /// Declared length.
+        len: u32,
+        /// Largest a slot holds.
+        max: u32,
+    },
+    /// Commit before all bytes arrived.
+    Incomplete {
+        /// Bytes received.
+        received: u32,
+        /// Bytes declared.
+        len: u32,
+    },
+    /// The received blob's CRC differs from the one declared at begin.
+    CrcMismatch {
+        /// Declared at [`Request::ProvisionBegin`].
+        declared: u32,
+        /// Computed over the bytes stored in flash.
+        computed: u32,
+    },
+    /// The blob is malformed.
+    BlobRejected {
+        /// Why.
+        fault: BlobFault,
+        /// Section concerned, when known.
+        section: Option<BlobSection>,
+        /// Index or value detail.
+        detail: u32,
+    },
+    /// The blob is valid but made for another instrument build.
+    Mismatch {
+        /// Which size.
+        field: SizeField,
+        /// The device's.
+        device: u16,
+        /// The blob's.
+        blob: u16,
+    },
+    /// The flash reported an error (the previous calibration is kept).
+    Storage,
+    /// The sensor failed.
+    Sensor(SensorError),
+    /// Simulation request on a device without a simulated sensor, or out of range.
+    Simulation,
+}
+
+impl From<BlobError> for DeviceError {
+    fn from(e: BlobError) -> Self {
+        let (fault, section, detail) = match e {
+            BlobError::TooShort { got, .. } => (BlobFault::TooShort, None, got),
+            BlobError::BadMagic => (BlobFault::BadMagic, None, 0),
+            BlobError::UnsupportedVersion(v) => (BlobFault::UnsupportedVersion, None, v as usize),
+            BlobError::BadHeaderLen(l) => (BlobFault::BadHeaderLen, None, l as usize),
+            BlobError::BadDimension { value, .. } => (BlobFault::BadDimension, None, value as usize),
+            BlobError::LengthMismatch { got, .. } => (BlobFault::LengthMismatch, None, got),
+            BlobError::CrcMismatch { .. } => (BlobFault::CrcMismatch, None, 0),
+            BlobError::ReservedNotZero => (BlobFault::ReservedNotZero, None, 0),
+            BlobError::UnknownEstimator(c) => (BlobFault::UnknownEstimator, None, c as usize),
+            BlobError::NonFinite { section, index } => (BlobFault::NonFinite, Some(section), index),
+            BlobError::OutOfRange { section, index } => (BlobFault::OutOfRange, Some(section), index),
+            BlobError::GridNotAscending { index } => (BlobFault::GridNotAscending, Some(BlobSection::Grid), index),
+            BlobError::BadLedOrder { index } => (BlobFault::BadLedOrder, Some(BlobSection::LedOrder), index),
+            BlobError::BadZoneMap { index } => (BlobFault::BadZoneMap, Some(BlobSection::Zones), index),
+            BlobError::BufferTooSmall { .. } | BlobError::ContentMismatch { .. } => (BlobFault::Other, None, 0),
+        };
+        DeviceError::BlobRejected { fault, section, detail: detail as u32 }
+    }
+}
+
+impl core::fmt::Display for DeviceError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::Frame(e) => write!(f, "the device could not read the request frame: {e:?}"),
+            Self::NoCalibration => write!(f, "no calibration is provisioned: run `host-tools provision` first"),
+            Self::Busy => write!(f, "a measurement is running: stop it first"),
+            Self::NotProvisioning => write!(f, "no provisioning in progress (begin first)"),
+            Self::OutOfOrder { expected, got } => {
+                write!(f, "chunk at offset {got} out of order: the device expects offset {expected}")
+            }
+            Self::ChunkTooLarge { max } => write!(f, "chunk too large or past the declared end (max {max} bytes)"),
+            Self::BlobTooLarge { len, max } => write!(f, "blob of {len} bytes does not fit a slot ({max} bytes)"),
+            Self::Incomplete { received, len } => write!(f, "commit after {received} of {len} bytes"),
+            Self::CrcMismatch { declared, computed } => write!(
+                f,
+                "blob CRC mismatch: declared {declared:#010x}, device computed {computed:#010x} (transfer corrupted); the previous calibration is kept"
+            ),
+            Self::BlobRejected { fault, section, detail } => write!(
+                f,
+                "the device rejected the blob: {fault:?} in {section:?} (detail {detail}); the previous calibration is kept"
+            ),
+            Self::Mismatch { field, device, blob } => write!(
+                f,
+                "blob made for another instrument: {field:?} is {blob} in the blob but {device} on the device; the previous calibration is kept"
+            ),
+            Self::Storage => write!(f, "flash error; the previous calibration is kept"),
+            Self::Sensor(e) => write!(f, "sensor error: {e:?}"),
+            Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for DeviceError {}

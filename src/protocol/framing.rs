@@ -1,0 +1,123 @@
+//! Framing: `COBS(version | length | sequence | postcard body | CRC-32) 0x00`
+//! (layout in the module docs of [`super`]), and the reader that cuts a byte
+//! stream into frames.
+use super::{FrameError, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION};
+use serde::{Deserialize, Serialize};
+
+/// Header bytes before the body: version, length, sequence.
+pub(crate) const HEADER: usize = 8;
+/// CRC bytes after the body.
+pub(crate) const CRC_LEN: usize = 4;
+
+/// Encodes `msg` with sequence number `seq` into `out` as one complete frame
+/// (COBS + delimiter); returns the frame length.
+pub fn encode<T: Serialize>(seq: u32, msg: &T, out: &mut [u8]) -> Result<usize, FrameError> {
+    let mut raw = [0u8; MAX_PAYLOAD];
+    let body_len = postcard::to_slice(msg, &mut raw[HEADER..MAX_PAYLOAD - CRC_LEN])
+        .map_err(|_| FrameError::TooLarge)?
+        .len();
+    let len = HEADER + body_len + CRC_LEN;
+    raw[0..2].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+    raw[2..4].copy_from_slice(&(len as u16).to_le_bytes());
+    raw[4..8].copy_from_slice(&seq.to_le_bytes());
+    let crc = crate::blob::CRC32.checksum(&raw[..len - CRC_LEN]);
+    raw[len - CRC_LEN..len].copy_from_slice(&crc.to_le_bytes());
+    let n = cobs::try_encode(&raw[..len], out).map_err(|_| FrameError::TooLarge)?;
+    if n >= out.len() {
+        return Err(FrameError::TooLarge);
+    }
+    out[n] = 0;
+    Ok(n + 1)
+}
+
+/// Decodes one frame's bytes (without the `0x00` delimiter), in place.
+pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<(u32, T), FrameError> {
+    if frame.len() > MAX_FRAME {
+        return Err(FrameError::Oversized);
+    }
+    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+    let raw = &frame[..n];
+    if n < HEADER + CRC_LEN {
+        let declared = if n >= 4 { u16::from_le_bytes([raw[2], raw[3]]) } else { 0 };
+        return Err(FrameError::Truncated { declared, got: n as u16 });
+    }
+    let declared = u16::from_le_bytes([raw[2], raw[3]]) as usize;
+    if n < declared {
+        return Err(FrameError::Truncated { declared: declared as u16, got: n as u16 });
+    }
+    // Longer than declared, or shorter than a header: a corrupted length (the
+    // CRC check below would also fail, but this says more).
+    if n != declared {
+        return Err(FrameError::BadCrc);
+    }
+    let stored = u32::from_le_bytes([raw[n - 4], raw[n - 3], raw[n - 2], raw[n - 1]]);
+    if crate::blob::CRC32.checksum(&raw[..n - CRC_LEN]) != stored {
+        return Err(FrameError::BadCrc);
+    }
+    let version = u16::from_le_bytes([raw[0], raw[1]]);
+    if version != PROTOCOL_VERSION {
+        return Err(FrameError::UnsupportedVersion { got: version });
+    }
+    let seq = u32::from_le_bytes([raw[4], raw[5], raw[6], raw[7]]);
+    let (msg, rest) = postcard::take_from_bytes(&frame[HEADER..n - CRC_LEN]).map_err(|_| FrameError::Malformed)?;
+    if !rest.is_empty() {
+        return Err(FrameError::Malformed);
+    }
+    Ok((seq, msg))
+}
+
+/// Collects bytes from a stream into frames, delimited by `0x00`.
+///
+/// Bytes beyond [`MAX_FRAME`] are dropped until the next delimiter, which then
+/// yields [`FrameError::Oversized`]: a flood of garbage costs a bounded buffer
+/// and one error reply, and the next frame is read normally.
+pub struct FrameReader {
+    buf: [u8; MAX_FRAME],
+    len: usize,
+    overflow: bool,
+}
+
+impl Default for FrameReader {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What [`FrameReader::push`] found.
+pub enum Pushed<'a> {
+    /// Need more bytes.
+    More,
+    /// A complete frame (COBS-encoded, delimiter stripped), to [`decode`].
+    Frame(&'a mut [u8]),
+    /// A frame that was too long was dropped.
+    Oversized,
+}
+
+impl FrameReader {
+    /// An empty reader.
+    pub const fn new() -> Self {
+        Self { buf: [0; MAX_FRAME], len: 0, overflow: false }
+    }
+
+    /// Feeds one byte.
+    pub fn push(&mut self, byte: u8) -> Pushed<'_> {
+        if byte != 0 {
+            if self.len < self.buf.len() {
+                self.buf[self.len] = byte;
+                self.len += 1;
+            } else {
+                self.overflow = true;
+            }
+            return Pushed::More;
+        }
+        let len = core::mem::take(&mut self.len);
+        if core::mem::take(&mut self.overflow) {
+            return Pushed::Oversized;
+        }
+        if len == 0 {
+            // Empty frames are padding (a host may send 0x00 to resynchronise).
+            return Pushed::More;
+        }
+        Pushed::Frame(&mut self.buf[..len])
+    }
+}

@@ -1,0 +1,251 @@
+//! The messages: what the host asks ([`Request`]), what the device answers
+//! or streams ([`Response`], [`PointFrame`]) and the records they carry.
+use super::DeviceError;
+use serde::{Deserialize, Serialize};
+
+/// Raw little-endian bytes of a numeric array, borrowed from the frame.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeBytes<'a>(#[serde(borrow)] pub &'a [u8]);
+
+impl<'a> LeBytes<'a> {
+    /// Wraps f32 values without copying (both our targets are little-endian).
+    #[cfg(target_endian = "little")]
+    pub fn from_f32(values: &'a [f32]) -> Self {
+        Self(bytemuck::cast_slice(values))
+    }
+    /// Wraps u16 values without copying.
+    #[cfg(target_endian = "little")]
+    pub fn from_u16(values: &'a [u16]) -> Self {
+        Self(bytemuck::cast_slice(values))
+    }
+    /// The values as f32 (ignores a trailing partial value, which a well-formed
+    /// frame never has: see [`Self::is_whole`]).
+    pub fn f32s(&self) -> impl Iterator<Item = f32> + 'a {
+        self.0.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+    }
+    /// The values as u16.
+    pub fn u16s(&self) -> impl Iterator<Item = u16> + 'a {
+        self.0.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]]))
+    }
+    /// Whether the length is a whole number of `size`-byte values.
+    pub fn is_whole(&self, size: usize) -> bool {
+        self.0.len().is_multiple_of(size)
+    }
+}
+
+/// What the host asks.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum Request<'a> {
+    /// Device identity, build-time sizes and active calibration.
+    Info,
+    /// Measurement and provisioning state, counters.
+    Status,
+    /// Starts provisioning a blob of `len` bytes whose CRC-32 over all its
+    /// bytes is `crc`. Erases nothing the active calibration uses.
+    ProvisionBegin {
+        /// Blob length in bytes.
+        len: u32,
+        /// CRC-32 (ISO-HDLC) of the whole blob.
+        crc: u32,
+    },
+    /// The blob bytes at `offset`; chunks must arrive in order.
+    ProvisionChunk {
+        /// Byte offset of `data` in the blob.
+        offset: u32,
+        /// At most [`MAX_CHUNK`] bytes.
+        #[serde(borrow)]
+        data: &'a [u8],
+    },
+    /// Verifies the whole blob and makes it the active calibration.
+    ProvisionCommit,
+    /// Abandons a provisioning; the active calibration is untouched.
+    ProvisionAbort,
+    /// Measures `lines` lines; 0 measures continuously until [`Request::Stop`].
+    Measure {
+        /// Number of lines, 0 for continuous.
+        lines: u32,
+    },
+    /// Stops a measurement after the line in progress.
+    Stop,
+    /// Simulation only: loads part of one raw frame of the simulated scene.
+    /// `frame` 0 is the dark frame, `1 + k` the frame under LED k (physical
+    /// index, not reading order); `line` selects one of the scene's lines.
+    SimFrame {
+        /// Scene line slot.
+        line: u8,
+        /// 0 = dark, 1 + LED index.
+        frame: u8,
+        /// First pixel that `pixels` covers.
+        first_pixel: u16,
+        /// Pixel values, u16 little-endian.
+        #[serde(borrow)]
+        pixels: LeBytes<'a>,
+    },
+    /// Simulation only: sets how many scene lines the sensor cycles through.
+    SimLines {
+        /// Number of loaded lines (1..=capacity).
+        lines: u8,
+    },
+}
+
+/// What the device answers or streams.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum Response<'a> {
+    /// Reply to [`Request::Info`].
+    Info(DeviceInfo),
+    /// Reply to [`Request::Status`].
+    Status(DeviceStatus),
+    /// Provisioning accepted; send chunks from offset 0.
+    ProvisionReady {
+        /// Slot being written (0 = A, 1 = B).
+        slot: u8,
+        /// Largest chunk the device accepts.
+        max_chunk: u16,
+    },
+    /// A chunk was written; the next must start at `next_offset`.
+    ChunkAck {
+        /// Offset expected next.
+        next_offset: u32,
+    },
+    /// The blob was verified, committed and is now the active calibration.
+    Committed(CalInfo),
+    /// Provisioning abandoned; the previous calibration is still active.
+    Aborted,
+    /// Measurement started.
+    MeasureStarted {
+        /// Lines requested (0 = continuous).
+        lines: u32,
+    },
+    /// Reply to [`Request::Stop`]: a running measurement stops after the line
+    /// in progress and its `MeasureDone` follows; with none running, nothing
+    /// follows.
+    StopRequested,
+    /// The measurement is over (all requested lines sent, stopped, or ended by
+    /// an error sent just before).
+    MeasureDone {
+        /// Lines measured.
+        lines_done: u32,
+    },
+    /// A simulated frame part was stored.
+    SimLoaded,
+    /// One point's BRDF estimate.
+    Point(#[serde(borrow)] PointFrame<'a>),
+    /// The request (or the measurement) failed; nothing was changed unless the
+    /// error says so.
+    Error(DeviceError),
+}
+
+impl<'a> Response<'a> {
+    /// Every reply but a point frame owns its data: returns it with a
+    /// `'static` life, or the point frame (which borrows the frame buffer).
+    pub fn detach(self) -> Result<Response<'static>, PointFrame<'a>> {
+        Ok(match self {
+            Self::Point(p) => return Err(p),
+            Self::Info(x) => Response::Info(x),
+            Self::Status(x) => Response::Status(x),
+            Self::ProvisionReady { slot, max_chunk } => Response::ProvisionReady { slot, max_chunk },
+            Self::ChunkAck { next_offset } => Response::ChunkAck { next_offset },
+            Self::Committed(x) => Response::Committed(x),
+            Self::Aborted => Response::Aborted,
+            Self::MeasureStarted { lines } => Response::MeasureStarted { lines },
+            Self::StopRequested => Response::StopRequested,
+            Self::MeasureDone { lines_done } => Response::MeasureDone { lines_done },
+            Self::SimLoaded => Response::SimLoaded,
+            Self::Error(e) => Response::Error(e),
+        })
+    }
+}
+
+/// Build-time sizes and identity of the device.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceInfo {
+    /// Protocol version the device speaks.
+    pub protocol: u16,
+    /// Firmware version, major/minor/patch.
+    pub firmware: [u8; 3],
+    /// Angle bins n this build estimates.
+    pub bins: u16,
+    /// LEDs m.
+    pub leds: u16,
+    /// Pixels P of the line sensor.
+    pub pixels: u16,
+    /// Sensor full scale: raw readings at or above it are saturated.
+    pub full_scale: u16,
+    /// Largest blob a slot holds, bytes.
+    pub max_blob: u32,
+    /// Matrices up to this many f32 words are copied to RAM; above, read in place.
+    pub ram_matrix_words: u32,
+    /// Whether the sensor is simulated (accepts [`Request::SimFrame`]).
+    pub simulated: bool,
+    /// Active calibration, if any.
+    pub calibration: Option<CalInfo>,
+}
+
+/// The active calibration.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CalInfo {
+    /// Slot it lives in (0 = A, 1 = B).
+    pub slot: u8,
+    /// Slot sequence number (higher is newer).
+    pub sequence: u32,
+    /// The blob's own CRC (identifies it).
+    pub blob_crc: u32,
+    /// Blob length.
+    pub blob_len: u32,
+    /// Zones.
+    pub zones: u16,
+    /// Whether the matrices were copied to RAM (else read in place from flash).
+    pub in_ram: bool,
+}
+
+/// Device state.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceStatus {
+    /// A measurement is running.
+    pub measuring: bool,
+    /// Lines measured since boot.
+    pub lines_total: u32,
+    /// Provisioning in progress: bytes received so far.
+    pub provisioning: Option<u32>,
+    /// Frames rejected since boot (bad CRC, truncated, ...).
+    pub bad_frames: u32,
+    /// Requests refused since boot.
+    pub refused: u32,
+    /// Active calibration.
+    pub calibration: Option<CalInfo>,
+}
+
+/// Per-point quality flags.
+pub mod flags {
+    /// A raw reading (dark or lit) reached the sensor's full scale.
+    pub const SATURATED: u8 = 1 << 0;
+    /// A dark-corrected reading is below the minimum usable signal.
+    pub const UNDER_EXPOSED: u8 = 1 << 1;
+    /// A corrected reading or an estimated value is NaN or infinite.
+    pub const NON_FINITE: u8 = 1 << 2;
+}
+
+/// One point's estimate, streamed during a measurement.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct PointFrame<'a> {
+    /// Line number within the measurement (0-based).
+    pub line: u32,
+    /// Stream sequence number: counts point frames of this measurement, so a
+    /// host sees any lost frame.
+    pub seq: u32,
+    /// Pixel index along the line.
+    pub point: u16,
+    /// Zone of the pixel (selects the matrix).
+    pub zone: u16,
+    /// [`flags`] bits.
+    pub flags: u8,
+    /// The n estimated values, f32 little-endian.
+    #[serde(borrow)]
+    pub values: LeBytes<'a>,
+}
+
+/// A blob section, as it travels: the blob's own [`crate::blob::Section`].
+pub use crate::blob::Section as BlobSection;

@@ -1,0 +1,58 @@
+//! The wire protocol between the instrument and the host, defined once here and
+//! used by the firmware, the host simulation and host-tools.
+//!
+//! # Framing
+//! Every message travels as one frame: `COBS(payload) 0x00`. The decoded payload
+//! is
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 2 | protocol version ([`PROTOCOL_VERSION`]), little-endian |
+//! | 2 | 2 | payload length in bytes, CRC included |
+//! | 4 | 4 | sequence number (requests: the host's; replies echo it) |
+//! | 8 | .. | the postcard-encoded [`Request`] or [`Response`] |
+//! | end-4 | 4 | CRC-32 (ISO-HDLC) of everything before it |
+//!
+//! COBS gives resynchronisation (a receiver that lost bytes recovers at the next
+//! `0x00`); the length field tells a truncated frame from a corrupted one; the
+//! CRC catches corruption that still decodes; the version is checked before the
+//! body, so a host and a device of different protocol versions get
+//! [`FrameError::UnsupportedVersion`] rather than a misread message.
+//!
+//! # Compatibility rules
+//! - Any change to a message's encoding bumps [`PROTOCOL_VERSION`]; postcard
+//!   is not self-describing, so there is no "compatible addition".
+//! - Variants are only appended, never reordered, within one version's life.
+//!
+//! # Numbers on the wire
+//! f32 values (BRDF vectors) and u16 pixel values (simulated frames) travel as
+//! raw little-endian bytes ([`LeBytes`]) so they arrive bit for bit and cost no
+//! encoding time on the device.
+//!
+//! # Where
+//! - [`messages`]: the requests, replies and streamed points, and what they carry.
+//! - [`errors`]: the typed errors that travel (frame, blob, device).
+//! - [`framing`]: header + CRC + COBS around a message, and the frame reader.
+mod errors;
+mod framing;
+mod messages;
+
+pub use errors::*;
+pub use framing::*;
+pub use messages::*;
+
+/// The protocol version this library speaks.
+pub const PROTOCOL_VERSION: u16 = 1;
+/// Largest decoded payload (header + body + CRC) either side sends or accepts.
+pub const MAX_PAYLOAD: usize = 640;
+/// Largest frame on the wire: COBS overhead plus the `0x00` delimiter.
+pub const MAX_FRAME: usize = MAX_PAYLOAD + MAX_PAYLOAD / 254 + 2;
+/// Largest data a [`Request::ProvisionChunk`] may carry.
+pub const MAX_CHUNK: usize = 512;
+/// Largest data a [`Request::SimFrame`] may carry.
+pub const MAX_SIM_BYTES: usize = 512;
+/// Largest number of bins a [`PointFrame`] can carry within [`MAX_PAYLOAD`].
+pub const MAX_WIRE_BINS: usize = 128;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,258 @@
+//! Round trips and wire bytes of every message, framing and its errors.
+use super::*;
+use crate::blob::BlobError;
+use crate::hw::SensorError;
+use serde::Serialize;
+
+fn frame_of<T: Serialize>(seq: u32, msg: &T) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME];
+    let n = encode(seq, msg, &mut out).unwrap();
+    assert_eq!(out[n - 1], 0);
+    assert!(out[..n - 1].iter().all(|b| *b != 0), "COBS leaves no zero inside a frame");
+    out[..n].to_vec()
+}
+
+fn round_trip_req(req: Request<'_>) {
+    let mut f = frame_of(42, &req);
+    f.pop();
+    let (seq, back): (u32, Request<'_>) = decode(&mut f).unwrap();
+    assert_eq!(seq, 42);
+    assert_eq!(back, req);
+}
+
+fn round_trip_resp(resp: Response<'_>) {
+    let mut f = frame_of(7, &resp);
+    f.pop();
+    let (seq, back): (u32, Response<'_>) = decode(&mut f).unwrap();
+    assert_eq!(seq, 7);
+    assert_eq!(back, resp);
+}
+
+fn cal() -> CalInfo {
+    CalInfo { slot: 1, sequence: 9, blob_crc: 0xDEAD_BEEF, blob_len: 11_000, zones: 4, in_ram: true }
+}
+
+#[test]
+fn every_request_round_trips() {
+    let chunk = [0u8, 1, 2, 255, 0, 0];
+    let px = [1u16, 0, 65535, 300];
+    for req in [
+        Request::Info,
+        Request::Status,
+        Request::ProvisionBegin { len: 123_456, crc: 0x1234_5678 },
+        Request::ProvisionChunk { offset: 512, data: &chunk },
+        Request::ProvisionChunk { offset: 0, data: &[0xAB; MAX_CHUNK] },
+        Request::ProvisionCommit,
+        Request::ProvisionAbort,
+        Request::Measure { lines: 0 },
+        Request::Measure { lines: u32::MAX },
+        Request::Stop,
+        Request::SimFrame { line: 3, frame: 7, first_pixel: 96, pixels: LeBytes::from_u16(&px) },
+        Request::SimLines { lines: 2 },
+    ] {
+        round_trip_req(req);
+    }
+}
+
+#[test]
+fn every_response_round_trips() {
+    let vals = [0.5f32, -0.0, f32::MAX, f32::MIN_POSITIVE, 1.0e-40, f32::NAN];
+    let status = DeviceStatus {
+        measuring: true,
+        lines_total: 5,
+        provisioning: Some(77),
+        bad_frames: 2,
+        refused: 1,
+        calibration: Some(cal()),
+    };
+    let errors = [
+        DeviceError::Frame(FrameError::Truncated { declared: 30, got: 12 }),
+        DeviceError::Frame(FrameError::UnsupportedVersion { got: 9 }),
+        DeviceError::NoCalibration,
+        DeviceError::Busy,
+        DeviceError::NotProvisioning,
+        DeviceError::OutOfOrder { expected: 512, got: 1024 },
+        DeviceError::ChunkTooLarge { max: 512 },
+        DeviceError::BlobTooLarge { len: 1 << 20, max: 12_000 },
+        DeviceError::Incomplete { received: 5, len: 10 },
+        DeviceError::CrcMismatch { declared: 1, computed: 2 },
+        DeviceError::BlobRejected { fault: BlobFault::NonFinite, section: Some(BlobSection::Matrices), detail: 3 },
+        DeviceError::Mismatch { field: SizeField::Pixels, device: 32, blob: 16 },
+        DeviceError::Storage,
+        DeviceError::Sensor(SensorError::NoData),
+        DeviceError::Simulation,
+    ];
+    let mut all = vec![
+        Response::Info(DeviceInfo {
+            protocol: PROTOCOL_VERSION,
+            firmware: [0, 1, 0],
+            bins: 81,
+            leds: 7,
+            pixels: 32,
+            full_scale: 4095,
+            max_blob: 12_000,
+            ram_matrix_words: 9072,
+            simulated: true,
+            calibration: None,
+        }),
+        Response::Status(status),
+        Response::Status(DeviceStatus::default()),
+        Response::ProvisionReady { slot: 1, max_chunk: MAX_CHUNK as u16 },
+        Response::ChunkAck { next_offset: 1024 },
+        Response::Committed(cal()),
+        Response::Aborted,
+        Response::MeasureStarted { lines: 3 },
+        Response::MeasureDone { lines_done: 3 },
+        Response::StopRequested,
+        Response::SimLoaded,
+    ];
+    all.extend(errors.map(Response::Error));
+    for r in all {
+        round_trip_resp(r);
+    }
+    // Point frames carry their values bit for bit, NaN and -0.0 included.
+    let p = Response::Point(PointFrame {
+        line: 4,
+        seq: 99,
+        point: 31,
+        zone: 3,
+        flags: flags::SATURATED | flags::NON_FINITE,
+        values: LeBytes::from_f32(&vals),
+    });
+    let mut f = frame_of(1, &p);
+    f.pop();
+    let (_, back): (u32, Response<'_>) = decode(&mut f).unwrap();
+    let Response::Point(pf) = back else { panic!("not a point") };
+    let bits: Vec<u32> = pf.values.f32s().map(f32::to_bits).collect();
+    assert_eq!(bits, vals.map(f32::to_bits));
+    assert_eq!((pf.line, pf.seq, pf.point, pf.zone), (4, 99, 31, 3));
+}
+
+#[test]
+fn largest_point_frame_fits() {
+    let vals = [1.0f32; MAX_WIRE_BINS];
+    let p = Response::Point(PointFrame {
+        line: u32::MAX,
+        seq: u32::MAX,
+        point: u16::MAX,
+        zone: u16::MAX,
+        flags: 0xFF,
+        values: LeBytes::from_f32(&vals),
+    });
+    let mut out = [0u8; MAX_FRAME];
+    encode(u32::MAX, &p, &mut out).unwrap();
+    let big = Request::ProvisionChunk { offset: u32::MAX, data: &[0xFF; MAX_CHUNK] };
+    encode(u32::MAX, &big, &mut out).unwrap();
+    let sim = Request::SimFrame { line: 255, frame: 255, first_pixel: 65535, pixels: LeBytes(&[0xFF; MAX_SIM_BYTES]) };
+    encode(u32::MAX, &sim, &mut out).unwrap();
+}
+
+#[test]
+fn every_truncation_is_a_typed_error() {
+    let chunk = [7u8; 40];
+    let f = frame_of(3, &Request::ProvisionChunk { offset: 8, data: &chunk });
+    for cut in 1..f.len() - 1 {
+        let mut t = f[..cut].to_vec();
+        let r: Result<(u32, Request<'_>), _> = decode(&mut t);
+        assert!(
+            matches!(r, Err(FrameError::Truncated { .. } | FrameError::Cobs | FrameError::BadCrc)),
+            "cut at {cut}: {r:?}"
+        );
+    }
+    // A cut that keeps the COBS structure valid is reported as truncated.
+    let mut raw = [0u8; MAX_PAYLOAD];
+    let mut enc = [0u8; MAX_FRAME];
+    let n = encode(3, &Request::Measure { lines: 2 }, &mut enc).unwrap();
+    let m = cobs::decode(&enc[..n - 1], &mut raw).unwrap();
+    let mut re = [0u8; MAX_FRAME];
+    let k = cobs::encode(&raw[..m - 2], &mut re);
+    let r: Result<(u32, Request<'_>), _> = decode(&mut re[..k]);
+    assert_eq!(r, Err(FrameError::Truncated { declared: m as u16, got: (m - 2) as u16 }));
+}
+
+#[test]
+fn every_single_byte_corruption_is_a_typed_error() {
+    let f = frame_of(3, &Request::ProvisionBegin { len: 1000, crc: 5 });
+    for pos in 0..f.len() - 1 {
+        for x in [0x01u8, 0x80, 0xFF] {
+            let mut t = f[..f.len() - 1].to_vec();
+            t[pos] ^= x;
+            if t[pos] == 0 {
+                continue; // a zero byte is a delimiter: it splits the frame, tested elsewhere
+            }
+            let r: Result<(u32, Request<'_>), _> = decode(&mut t);
+            assert!(r.is_err(), "corruption at {pos} accepted: {r:?}");
+        }
+    }
+}
+
+#[test]
+fn wrong_version_is_reported_before_the_body() {
+    let mut raw = [0u8; 32];
+    raw[0..2].copy_from_slice(&2u16.to_le_bytes());
+    raw[2..4].copy_from_slice(&13u16.to_le_bytes());
+    raw[8] = 0xEE; // not a variant of version 1
+    let crc = crate::blob::CRC32.checksum(&raw[..9]);
+    raw[9..13].copy_from_slice(&crc.to_le_bytes());
+    let mut enc = [0u8; 64];
+    let k = cobs::encode(&raw[..13], &mut enc);
+    let r: Result<(u32, Request<'_>), _> = decode(&mut enc[..k]);
+    assert_eq!(r, Err(FrameError::UnsupportedVersion { got: 2 }));
+}
+
+#[test]
+fn unknown_variant_and_trailing_bytes_are_malformed() {
+    for body in [&[0xEEu8][..], &[0u8, 0][..]] {
+        let mut raw = [0u8; 32];
+        let len = 8 + body.len() + 4;
+        raw[0..2].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+        raw[2..4].copy_from_slice(&(len as u16).to_le_bytes());
+        raw[8..8 + body.len()].copy_from_slice(body);
+        let crc = crate::blob::CRC32.checksum(&raw[..len - 4]);
+        raw[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        let mut enc = [0u8; 64];
+        let k = cobs::encode(&raw[..len], &mut enc);
+        let r: Result<(u32, Request<'_>), _> = decode(&mut enc[..k]);
+        assert_eq!(r, Err(FrameError::Malformed), "body {body:?}");
+    }
+}
+
+#[test]
+fn reader_splits_frames_and_survives_oversized_garbage() {
+    let a = frame_of(1, &Request::Info);
+    let b = frame_of(2, &Request::Status);
+    let mut stream = vec![0u8, 0];
+    stream.extend_from_slice(&a);
+    stream.extend(core::iter::repeat_n(0x55, MAX_FRAME * 3));
+    stream.push(0);
+    stream.extend_from_slice(&b);
+    let mut rd = FrameReader::new();
+    let mut got = Vec::new();
+    for byte in stream {
+        match rd.push(byte) {
+            Pushed::More => {}
+            Pushed::Oversized => got.push(Err(FrameError::Oversized)),
+            Pushed::Frame(f) => {
+                let r: Result<(u32, Request<'_>), _> = decode(f);
+                got.push(r.map(|(s, _)| s));
+            }
+        }
+    }
+    assert_eq!(got, vec![Ok(1), Err(FrameError::Oversized), Ok(2)]);
+}
+
+#[test]
+fn too_large_a_message_is_refused_by_the_sender() {
+    let big = [0u8; MAX_PAYLOAD];
+    let mut out = [0u8; MAX_FRAME];
+    assert_eq!(encode(0, &Request::ProvisionChunk { offset: 0, data: &big }, &mut out), Err(FrameError::TooLarge));
+}
+
+#[test]
+fn blob_errors_map_to_typed_faults() {
+    let e: DeviceError = BlobError::NonFinite { section: BlobSection::White, index: 12 }.into();
+    assert_eq!(
+        e,
+        DeviceError::BlobRejected { fault: BlobFault::NonFinite, section: Some(BlobSection::White), detail: 12 }
+    );
+}

@@ -1,0 +1,88 @@
+//! Valid calibration blobs with deterministic contents, for the tests of the
+//! library, of host-tools and of tests/ (one builder for all of them). Built
+//! with `std` (host users) and for this crate's own tests; never in firmware.
+use crate::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
+
+/// The sections of a test blob, owned, so a test can change one before
+/// encoding (the blob format's own tests corrupt them one at a time).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestBlobParts {
+    /// Sizes.
+    pub dims: Dims,
+    /// Angle grid, n ascending values.
+    pub grid: Vec<f32>,
+    /// LED order, m.
+    pub order: Vec<u8>,
+    /// First pixel of each zone.
+    pub zones: Vec<u16>,
+    /// White references, P x m.
+    pub white: Vec<f32>,
+    /// Uncertainty, Z x n.
+    pub unc: Vec<f32>,
+    /// Matrices, Z x n x m.
+    pub mats: Vec<f32>,
+}
+
+impl TestBlobParts {
+    /// `zones` equal zones of `pixels`, white references around 1000,
+    /// matrices from `seed`.
+    pub fn new(n: usize, m: usize, zones: usize, pixels: usize, seed: f32) -> Self {
+        let white: Vec<f32> = (0..pixels * m).map(|k| 900.0 + ((k * 37) % 200) as f32).collect();
+        let mats: Vec<f32> = (0..zones * n * m).map(|k| ((k as f32 + seed) * 0.731).sin() * 0.5).collect();
+        let order: Vec<u8> = (0..m as u8).rev().collect();
+        Self::with(Dims { n, m, zones, pixels }, order, white, mats)
+    }
+
+    /// The given LED order (m), white references (P x m) and matrices
+    /// (Z x n x m); grid, zones and uncertainty as in [`Self::new`].
+    pub fn with(dims: Dims, order: Vec<u8>, white: Vec<f32>, mats: Vec<f32>) -> Self {
+        let Dims { n, zones, pixels, .. } = dims;
+        Self {
+            dims,
+            grid: (0..n).map(|i| 25.0 + 40.0 * i as f32 / n.max(2) as f32).collect(),
+            order,
+            zones: (0..zones).map(|z| (z * pixels / zones) as u16).collect(),
+            white,
+            unc: (0..zones * n).map(|k| 0.01 + 0.001 * (k % 17) as f32).collect(),
+            mats,
+        }
+    }
+
+    /// The blob writer's view of these parts.
+    pub fn contents(&self) -> BlobContents<'_> {
+        BlobContents {
+            dims: self.dims,
+            noise_rel: 0.02,
+            estimator: EstimatorKind::Wiener,
+            far_field: false,
+            summary: TrainingSummary { prior_samples: 16, condition: 10.0, regularisation: 0.0, predicted_rmse: 0.1, f32_rel_error: 1e-6 },
+            grid_deg: &self.grid,
+            led_order: &self.order,
+            zone_start: &self.zones,
+            white: &self.white,
+            uncertainty: &self.unc,
+            matrices: &self.mats,
+        }
+    }
+
+    /// The encoded blob. Panics if the parts do not make a valid blob.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = vec![0u8; self.dims.blob_len()];
+        let len = write_blob(&self.contents(), &mut out).expect("test blob is valid");
+        out.truncate(len);
+        out
+    }
+}
+
+/// A valid blob with deterministic contents for tests: `zones` equal zones of
+/// `pixels`, white references around 1000, matrices from `seed`.
+pub fn test_blob(n: usize, m: usize, zones: usize, pixels: usize, seed: f32) -> Vec<u8> {
+    TestBlobParts::new(n, m, zones, pixels, seed).encode()
+}
+
+/// A valid blob for tests with the given LED order (m), white references
+/// (P x m) and matrices (Z x n x m); grid, zones and uncertainty as in
+/// [`test_blob`]. Panics if the contents do not make a valid blob.
+pub fn test_blob_with(dims: Dims, order: &[u8], white: &[f32], mats: &[f32]) -> Vec<u8> {
+    TestBlobParts::with(dims, order.to_vec(), white.to_vec(), mats.to_vec()).encode()
+}
