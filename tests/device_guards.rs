@@ -9,8 +9,9 @@ use brdf_meter::estimate::guard_estimate;
 use brdf_meter::kernel::estimate_into;
 use brdf_meter::protocol::flags;
 use brdf_meter::sim::{SimFlash, test_blob_with};
-use host_tools::link::Client;
-use host_tools::link::sim::{analytic_scene, expected_line};
+use host_tools::device::link::Client;
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::analytic_scene;
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 /// A tiny deterministic generator (the tests package has no rand).

@@ -1,6 +1,6 @@
 //! `host-tools measure`: measure lines and write every point as CSV and JSON.
-use crate::link::sim::{SceneFrames, analytic_scene, scene_frames};
-use crate::link::{Endpoint, PointRecord};
+use crate::device::link::{Endpoint, PointRecord};
+use crate::forward::scene::frames::{SceneFrames, analytic_scene, patent_scene, scene_frames};
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::flags;
@@ -70,8 +70,8 @@ fn flag_names(f: u8) -> Vec<&'static str> {
 }
 
 /// Loads scene `spec` into a simulated device.
-pub fn load_scene<T: crate::link::Transport>(
-    c: &mut crate::link::Client<T>,
+pub fn load_scene<T: crate::device::link::Transport>(
+    c: &mut crate::device::link::Client<T>,
     view: &BlobView<'_>,
     spec: &str,
     lines: usize,
@@ -83,9 +83,9 @@ pub fn load_scene<T: crate::link::Transport>(
     let pixels = view.dims().pixels;
     let frames = match spec {
         "analytic" => analytic_scene(view, lines, full_scale),
-        "patent" => scene_frames(&crate::link::sim::patent_scene(pixels), lines)?,
+        "patent" => scene_frames(&patent_scene(pixels), lines)?,
         path => {
-            let mut s = crate::scene::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
+            let mut s = crate::forward::scene::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
             if s.instrument.sensor.pixels != pixels {
                 eprintln!("note: scene {path} has {} pixels; simulating {pixels} for this device", s.instrument.sensor.pixels);
                 s.instrument.sensor.pixels = pixels;
@@ -104,7 +104,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let bytes = std::fs::read(&a.blob).with_context(|| format!("reading {}", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{} is not a valid blob: {e}", a.blob.display()))?;
-    let mut c = crate::link::Client::new(a.device.open()?)?;
+    let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
     match info.calibration {
         None => bail!("the device has no calibration: provision {} first (`host-tools provision`)", a.blob.display()),
@@ -162,8 +162,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             })
             .collect(),
     };
-    crate::io::write_atomic(&a.csv, csv.as_bytes())?;
-    crate::io::write_json(&a.json, &json)?;
+    crate::output::io::write_atomic(&a.csv, csv.as_bytes())?;
+    crate::output::io::write_json(&a.json, &json)?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();
     println!(
         "measured {} lines, {} points ({} flagged): {} and {}",

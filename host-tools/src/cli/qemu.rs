@@ -1,5 +1,5 @@
 //! `host-tools qemu`: start the QEMU instrument for a person to play with.
-use crate::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
+use crate::device::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
 use anyhow::Context;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -56,22 +56,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let addr = q.addr.clone();
     let link = if a.pty { format!("--port {addr}") } else { format!("--tcp {addr}") };
     if let Some(blob_path) = &a.demo {
-        let mut c: crate::link::Client<Box<dyn crate::link::Transport>> = if a.pty {
-            let mut c = crate::link::Client::new(Box::new(crate::link::SerialTransport::open(&addr)?) as Box<dyn crate::link::Transport>)?;
+        let mut c: crate::device::link::Client<Box<dyn crate::device::link::Transport>> = if a.pty {
+            let mut c = crate::device::link::Client::new(Box::new(crate::device::link::SerialTransport::open(&addr)?) as Box<dyn crate::device::link::Transport>)?;
             c.wait_ready(Duration::from_secs(20))?;
             c
         } else {
-            let mut c = crate::link::Client::new(Box::new(crate::link::TcpTransport::connect(&addr)?) as Box<dyn crate::link::Transport>)?;
+            let mut c = crate::device::link::Client::new(Box::new(crate::device::link::TcpTransport::connect(&addr)?) as Box<dyn crate::device::link::Transport>)?;
             c.wait_ready(Duration::from_secs(20))?;
             c
         };
         let info = c.info()?;
-        let scene = crate::link::sim::patent_scene(info.pixels as usize);
+        let scene = crate::forward::scene::frames::patent_scene(info.pixels as usize);
         eprintln!("training a 4-zone calibration for the simulated optics ...");
-        let trained = crate::link::sim::train_for_scene(&scene, 4, 0.02)?;
-        crate::io::write_atomic(blob_path, &trained.blob)?;
+        let trained = crate::calibration::demo::train_for_scene(&scene, 4, 0.02)?;
+        crate::output::io::write_atomic(blob_path, &trained.blob)?;
         let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
-        c.load_scene(&crate::link::sim::scene_frames(&scene, 4)?)?;
+        c.load_scene(&crate::forward::scene::frames::scene_frames(&scene, 4)?)?;
         eprintln!(
             "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line patent-profile scene",
             blob_path.display(),

@@ -1,8 +1,9 @@
 //! `host-tools train`: train the estimator matrices and write the calibration blob.
-use crate::estimators::kind_name;
-use crate::optics::Instrument;
-use crate::prior::PriorSpec;
-use crate::train::{TrainSpec, train, uniform_zones};
+use crate::calibration::estimators::kind_name;
+use crate::forward::optics::Instrument;
+use crate::forward::prior::PriorSpec;
+use crate::calibration::train::{TrainSpec, train};
+use crate::forward::zone_optics::uniform_zones;
 use anyhow::Context;
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use std::path::{Path, PathBuf};
@@ -82,13 +83,13 @@ pub struct Args {
 /// shot + read noise sqrt(white / e_per_count + read^2) / white, with the
 /// median white count over pixels and LEDs. A scene without noise trains
 /// noise-free: the estimator models what the scene says and no more.
-fn scene_noise_level(scene: &crate::scene::Scene) -> anyhow::Result<f64> {
-    use crate::scene::{EffectSpec, NoiseModel};
+fn scene_noise_level(scene: &crate::forward::scene::Scene) -> anyhow::Result<f64> {
+    use crate::forward::scene::{EffectSpec, NoiseModel};
     let Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) = scene.noise() else {
         return Ok(0.0);
     };
     let white = || -> anyhow::Result<f64> {
-        let mut w: Vec<f32> = crate::scene::white_reference(scene)?;
+        let mut w: Vec<f32> = crate::forward::scene::white_reference(scene)?;
         w.sort_by(f32::total_cmp);
         Ok(w[w.len() / 2] as f64)
     };
@@ -107,7 +108,7 @@ fn scene_noise_level(scene: &crate::scene::Scene) -> anyhow::Result<f64> {
 /// Runs the command. Nothing is written unless training succeeds.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let scene = match &a.scene {
-        Some(p) => Some(crate::scene::Scene::load(p)?),
+        Some(p) => Some(crate::forward::scene::Scene::load(p)?),
         None => None,
     };
     let noise = match (a.noise, &scene) {
@@ -120,7 +121,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let inst: Instrument = match (&scene, &a.instrument) {
         (Some(s), _) => s.instrument.clone(),
-        (None, Some(p)) => crate::config::load_toml(p)?,
+        (None, Some(p)) => crate::output::config::load_toml(p)?,
         (None, None) => Instrument::patent_profile(),
     };
     let grid = inst.grid().context("the instrument's angle grid")?;
@@ -138,7 +139,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
     let (zones, pixels, white, far_field) = match &scene {
         Some(s) => {
-            let t = crate::scene::training_optics(s, a.zones).context("--zones with --scene")?;
+            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
             (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
         }
         None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
@@ -156,9 +157,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     })?;
     // Everything is computed; serialise before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
-    crate::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
+    crate::output::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
     if let (Some(p), Some(j)) = (&a.json, &json) {
-        crate::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
+        crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
     let view = BlobView::parse(&trained.blob).expect("validated");
     // Report the worst-conditioned zone: it is what limits the calibration
@@ -200,7 +201,7 @@ mod tests {
     #[test]
     fn scene_noise_follows_the_scenes_noise_effect() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
-        let load = |f: &str| crate::scene::Scene::load(&dir.join(f)).unwrap();
+        let load = |f: &str| crate::forward::scene::Scene::load(&dir.join(f)).unwrap();
         assert_eq!(scene_noise_level(&load("patent-profile.toml")).unwrap(), 0.02);
         assert_eq!(scene_noise_level(&load("far-field.toml")).unwrap(), 0.0);
         assert_eq!(scene_noise_level(&load("hard/noise-0.2.toml")).unwrap(), 0.2);
