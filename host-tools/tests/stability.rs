@@ -1,4 +1,4 @@
-//! Issue 6: the hard cases stay numerically stable.
+//! The hard cases stay numerically stable.
 //!
 //! - Property tests (proptest, fixed seed, [`CASES`] cases per family) over
 //!   every family of `host_tools::evaluation::stability`: all invariants hold for the
@@ -131,7 +131,7 @@ fn a_bf16_kernel_is_caught_by_the_f32_bound() {
 fn rank_decided_before_whitening_is_caught_by_gain_covariance() {
     let n = failures(&TruncateThenWhiten, device_kernel, Family::Gain, 0..24, "I6")
         + failures(&TruncateThenWhiten, device_kernel, Family::Gain, 0..24, "I2");
-    assert!(n >= 3, "the pre-issue-6 algorithm was flagged only {n} times on gains 1e-6..1e6");
+    assert!(n >= 3, "the old truncate-then-whiten algorithm was flagged only {n} times on gains 1e-6..1e6");
 }
 
 /// `R^1/2` by the symmetric eigendecomposition (eigenvalues below the

@@ -1,5 +1,5 @@
-//! `host-tools stability`: the long run of the hard-case property checks
-//! (issue 6). Runs every family with the production solver and the device
+//! `host-tools stability`: the long run of the hard-case property checks.
+//! Runs every family with the production solver and the device
 //! kernel, prints one summary row per family, optionally writes the summary
 //! and every failing case as JSON, and exits non-zero if any case failed.
 //!

@@ -1,4 +1,4 @@
-//! Numerical stability on hard cases (issue 6): reusable generators of
+//! Numerical stability on hard cases: reusable generators of
 //! hard-case families ([`families`]), the invariants every case must satisfy
 //! with their stated tolerances ([`invariants`]), the solvers under test
 //! including deliberately broken ones ([`solvers`]), and a runner that

@@ -135,7 +135,7 @@ pub fn bf16_kernel(w: &[f32], v: &[f32], out: &mut [f32]) {
 /// BROKEN on purpose: eq. 22 with the rank decided on the un-whitened
 /// `B = H L` and readings whose noise variance is below `m eps` of the
 /// largest treated as noise-free (dropped from the whitening) - the product's
-/// algorithm before issue 6. Fine for gains of one order, but per-reading
+/// algorithm before the gain-covariant whitening. Fine for gains of one order, but per-reading
 /// gains 1e-6..1e6 push whole readings below the cut-off, so W is not
 /// gain-covariant and is far from optimal.
 pub struct TruncateThenWhiten;

@@ -7,7 +7,7 @@
 //! of the whole set (seeds `seed..seed+draws`), so the RMSEs rest on
 //! `120 * draws` points. Every row below estimates exactly these readings.
 //!
-//! # The rows
+//! # The rows (the table in [`rows`])
 //! - linear estimators through the device's f32 kernel arithmetic
 //!   (`BatchEstimator`): interpolation, pseudo-inverse, Wiener with the
 //!   patent's 16-sample prior, with a denser Ward prior over the same ranges,
@@ -27,16 +27,16 @@
 //! Host time per point: the estimator runs over all test readings, repeated
 //! until a block lasts at least `block`; the median of 7 blocks after a
 //! warm-up, divided by the points. Fits: median of `fit_runs` full runs.
-//! One thread.
+//! One thread. Both from [`crate::evaluation::timing`].
 pub mod device;
 pub mod led_count;
 pub mod report;
+pub mod rows;
 pub mod speed;
 pub mod zones;
 
 use crate::forward::brdf::BrdfSpec;
-use crate::calibration::estimators::{self, BatchEstimator, EstimatorInputs, NoiseModel};
-use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};
+use crate::calibration::estimators::{self, EstimatorInputs, NoiseModel};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::{Instrument, system_matrix};
 use crate::forward::prior::{Prior, PriorSpec, WardGridSpec};
@@ -44,10 +44,8 @@ use anyhow::Context;
 use brdf_meter::blob::EstimatorKind;
 use nalgebra::DMatrix;
 use serde::Serialize;
-use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
-use crate::evaluation::timing::{errors, median_of_runs, time_per_point};
 
 pub use crate::calibration::estimators::clustered::Clustered;
 pub use crate::calibration::estimators::fixed_point::Q15Estimator;
@@ -178,7 +176,7 @@ pub struct Row {
     pub pareto: bool,
 }
 
-/// Where issue 5's accuracy target stands.
+/// Where the accuracy target stands (condition 2's RMSE at 1e5 x its speed).
 #[derive(Clone, Debug, Serialize)]
 pub struct Target {
     /// Condition 2's RMSE (the bar).
@@ -340,65 +338,6 @@ fn wiener(h: &DMatrix<f64>, prior: &Prior, noise_rel: f64) -> anyhow::Result<est
     Ok(estimators::build(EstimatorKind::Wiener, &inputs)?)
 }
 
-/// f64 evaluation of a linear W on the readings (points x n row-major).
-fn f64_estimates(w: &DMatrix<f64>, readings: &[Vec<f64>]) -> Vec<f64> {
-    let n = w.nrows();
-    let mut out = Vec::with_capacity(readings.len() * n);
-    for v in readings {
-        for j in 0..n {
-            out.push(w.row(j).iter().zip(v).map(|(a, b)| a * b).sum::<f64>());
-        }
-    }
-    out
-}
-
-struct RowBuilder<'a> {
-    data: &'a Data,
-    block: Duration,
-    rms_true: f64,
-    rows: Vec<Row>,
-}
-
-impl RowBuilder<'_> {
-    #[allow(clippy::too_many_arguments)]
-    fn linear_like(
-        &mut self,
-        id: &str,
-        group: &str,
-        label: &str,
-        cost: String,
-        macs: Option<usize>,
-        flash: Option<usize>,
-        vs_f64: Option<&[f64]>,
-        mut est: impl FnMut(&[f32], &mut [f32]),
-    ) -> Vec<f32> {
-        let d = self.data;
-        let n = d.truth.nrows();
-        let mut out = vec![0.0f32; d.points() * n];
-        est(&d.readings_f32, &mut out);
-        let (rmse, max_abs) = errors(&out, &d.truth);
-        let vs = vs_f64.map(|r| crate::calibration::estimators::fixed_point::max_rel_diff(&out, r));
-        let mut scratch = vec![0.0f32; d.points() * n];
-        let t = time_per_point(d.points(), self.block, || est(black_box(&d.readings_f32), black_box(&mut scratch)));
-        self.rows.push(Row {
-            id: id.into(),
-            group: group.into(),
-            label: label.into(),
-            rmse,
-            nrmse: rmse / self.rms_true,
-            max_abs_error: max_abs,
-            host_seconds_per_point: t,
-            cost,
-            macs_per_point: macs,
-            device: None,
-            flash_bytes: flash,
-            vs_f64: vs,
-            pareto: false,
-        });
-        out
-    }
-}
-
 /// Runs everything.
 pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     let mut notes = Vec::new();
@@ -408,174 +347,7 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     let k = data.points();
     let rms_true = (data.truth.norm_squared() / (n * k) as f64).sqrt();
     let pri = priors(&data.grid, inst.view_deg, cfg.dense)?;
-    let mut rb = RowBuilder { data: &data, block: cfg.block, rms_true, rows: Vec::new() };
-    let nm = n * m;
-    let matvec = |extra: &str| format!("mat-vec {n}x{m}{extra}");
-    let f32_bytes = 4 * nm;
-
-    // Linear estimators with the patent's prior, then the prior variants.
-    let base_inputs = EstimatorInputs {
-        h: &data.h,
-        r_pp: &pri.patent.r_pp,
-        prior_samples: pri.patent.samples.ncols(),
-        noise: NoiseModel::Relative(cfg.noise_rel),
-        bins_deg: data.grid.bins_deg(),
-        centres_deg: &inst.centre_angles_deg(),
-    };
-    for (id, label, kind) in [
-        ("interpolation", "linear interpolation [0004]", EstimatorKind::Interpolation),
-        ("pseudo-inverse", "pseudo-inverse (claim 4)", EstimatorKind::PseudoInverse),
-    ] {
-        let e = estimators::build(kind, &base_inputs)?;
-        let b = BatchEstimator::from_estimator(&e);
-        let r64 = f64_estimates(&e.w, &data.readings);
-        rb.linear_like(id, "linear", label, matvec(""), Some(nm), Some(f32_bytes), Some(&r64), |v, o| b.estimate_into(v, o));
-    }
-    let mut wieners = Vec::new();
-    for (id, label, prior) in [
-        ("wiener-patent16", "Wiener eq. 22, patent prior (16 Ward)".to_string(), &pri.patent),
-        ("wiener-dense", format!("Wiener, dense Ward prior ({})", pri.dense.samples.ncols()), &pri.dense),
-        ("wiener-wrong-range", "Wiener, Ward prior alpha 0.1..0.3 (mismatched)".to_string(), &pri.wrong_range),
-        ("wiener-ggx", format!("Wiener, GGX prior ({}, mismatched model)", pri.ggx.samples.ncols()), &pri.ggx),
-    ] {
-        let e = wiener(&data.h, prior, cfg.noise_rel).with_context(|| format!("training {id}"))?;
-        let b = BatchEstimator::from_estimator(&e);
-        let r64 = f64_estimates(&e.w, &data.readings);
-        let group = if id == "wiener-patent16" { "linear" } else { "prior" };
-        rb.linear_like(id, group, &label, matvec(""), Some(nm), Some(f32_bytes), Some(&r64), |v, o| b.estimate_into(v, o));
-        wieners.push((id, e, r64));
-    }
-
-    // Fits.
-    let more = FitOptions { alpha_grid: 96, starts: 4, ftol: 1e-12, xtol: 1e-12, gtol: 1e-12, ..FitOptions::default() };
-    for (id, label, model, opts) in [
-        ("fit-cond1", "Ward fit, light distribution ignored (cond. 1)", ForwardModel::far_field(&inst), FitOptions::default()),
-        ("fit-cond2", "Ward fit, light distribution modelled (cond. 2)", ForwardModel::near_field(&inst), FitOptions::default()),
-        ("fit-cond2-more", "Ward fit cond. 2, 96-alpha scan, 4 starts, tol 1e-12", ForwardModel::near_field(&inst), more.clone()),
-    ] {
-        let (results, run_s) =
-            median_of_runs(cfg.fit_runs, || data.readings.iter().map(|v| fit_ward(&model, v, &opts)).collect::<Result<Vec<_>, _>>()).context("fitting")?;
-        let t = run_s / k as f64;
-        let mut est = vec![0.0f32; k * n];
-        for (p, r) in results.iter().enumerate() {
-            let b = r.params.brdf();
-            for j in 0..n {
-                est[p * n + j] = crate::forward::brdf::Brdf::reflectance(&b, data.grid.bins_deg()[j], inst.view_deg) as f32;
-            }
-        }
-        let (rmse, max_abs) = errors(&est, &data.truth);
-        let evals = results.iter().map(|r| r.residual_evals + r.jacobian_evals).sum::<usize>() as f64 / k as f64;
-        rb.rows.push(Row {
-            id: id.into(),
-            group: "fit".into(),
-            label: label.into(),
-            rmse,
-            nrmse: rmse / rms_true,
-            max_abs_error: max_abs,
-            host_seconds_per_point: t,
-            cost: format!("LM, {evals:.0} evaluations + {}-alpha scan, {} starts", opts.alpha_grid, opts.starts),
-            macs_per_point: None,
-            device: None,
-            flash_bytes: None,
-            vs_f64: None,
-            pareto: false,
-        });
-    }
-
-    // Clustered Wiener on the dense prior.
-    let mut clustered_best: Option<(f64, Clustered)> = None;
-    for &kk in &cfg.ks {
-        let c = Clustered::train(&pri.dense, &data.h, cfg.noise_rel, kk, cfg.margin, 1).with_context(|| format!("clustered K = {kk}"))?;
-        let got = c.k();
-        let out = rb.linear_like(
-            &format!("clustered-k{kk}"),
-            "clustered",
-            &format!("piecewise Wiener, K = {got}, dense prior"),
-            matvec(&format!(" + select K={got}")),
-            Some(nm + got * m),
-            Some(got * (f32_bytes + 4 * m)),
-            None,
-            |v, o| c.estimate_into(v, o),
-        );
-        let (rmse, _) = errors(&out, &data.truth);
-        if clustered_best.as_ref().is_none_or(|(r, _)| rmse < *r) {
-            clustered_best = Some((rmse, c));
-        }
-    }
-
-    // Affine piecewise Wiener (a constant term per cluster: + n adds).
-    for &kk in cfg.ks.iter().filter(|k| [4usize, 8, 12, 16].contains(k)) {
-        let c = Clustered::train_with(&pri.dense, &data.h, cfg.noise_rel, kk, cfg.margin, 1, true)
-            .with_context(|| format!("affine clustered K = {kk}"))?;
-        let got = c.k();
-        let out = rb.linear_like(
-            &format!("clustered-affine-k{kk}"),
-            "clustered",
-            &format!("piecewise affine Wiener (mean + covariance), K = {got}, dense prior"),
-            matvec(&format!(" + {n} adds + select K={got}")),
-            Some(nm + got * m),
-            Some(got * (f32_bytes + 4 * n + 4 * m)),
-            None,
-            |v, o| c.estimate_into(v, o),
-        );
-        let (rmse, _) = errors(&out, &data.truth);
-        if clustered_best.as_ref().is_none_or(|(r, _)| rmse < *r) {
-            clustered_best = Some((rmse, c));
-        }
-    }
-
-    // The best piecewise estimator in Q15.
-    if let Some((_, c)) = &clustered_best {
-        let qs: Vec<Q15Estimator> = c.estimators.iter().map(|e| Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m)).collect();
-        let kk = c.k();
-        let affine = !c.offsets.is_empty();
-        let kind = if affine { "clustered-affine" } else { "clustered" };
-        rb.linear_like(
-            &format!("{kind}-k{kk}-q15"),
-            "format",
-            &format!("{kind} K = {kk} in Q15"),
-            format!("select K={kk} + quantise v + Q15 mat-vec {n}x{m} + scale{}", if affine { " + offset" } else { "" }),
-            Some(nm + kk * m),
-            Some(qs.iter().map(|q| q.bytes()).sum::<usize>() + 4 * kk * m + if affine { 4 * kk * n } else { 0 }),
-            None,
-            |v, o| {
-                for (vv, oo) in v.chunks_exact(m).zip(o.chunks_exact_mut(n)) {
-                    let sel = c.select(vv);
-                    qs[sel].estimate_into(vv, oo);
-                    if let Some(b) = c.offsets.get(sel) {
-                        for (x, bj) in oo.iter_mut().zip(b) {
-                            *x += *bj;
-                        }
-                    }
-                }
-            },
-        );
-    }
-
-    // Log-domain Wiener.
-    for (id, label, prior) in [("log-wiener-dense", "log-domain Wiener, dense prior", &pri.dense), ("log-wiener-patent16", "log-domain Wiener, patent prior", &pri.patent)] {
-        let lw = LogWiener::train(prior, &data.h, cfg.noise_rel, 0.01)?;
-        rb.linear_like(id, "log", label, format!("{m} ln + mat-vec {n}x{} + {n} exp", m + 1), Some(n * (m + 1)), Some(4 * n * (m + 1)), None, |v, o| {
-            lw.estimate_into(v, o)
-        });
-    }
-
-    // Number formats: Q15 on the device path for Wiener (patent, dense) and
-    // the best clustered estimator; f32 is every row above.
-    for (id, e, r64) in wieners.iter().filter(|(id, _, _)| *id == "wiener-patent16" || *id == "wiener-dense") {
-        let q = Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m);
-        rb.linear_like(
-            &format!("{id}-q15"),
-            "format",
-            &format!("{id} in Q15 (SMLAD kernel)"),
-            format!("quantise v + Q15 mat-vec {n}x{m} + scale"),
-            Some(nm),
-            Some(q.bytes()),
-            Some(r64),
-            |v, o| q.estimate_into(v, o),
-        );
-    }
-    let mut rows = rb.rows;
+    let mut rows = rows::measure_rows(rows::row_specs(cfg, &data, &pri), cfg, &data, &pri, rms_true)?;
 
     // Device costs from QEMU.
     let kernels = if cfg.qemu {
