@@ -4,12 +4,14 @@
 //! the `brdf_meter` no_std library) -> device -> frames -> host.
 //!
 //! Imports run one way: `cli` -> `evaluation` -> `calibration` -> `forward`
-//! -> `brdf_meter`; `device` sits beside `calibration` (it may use
-//! `calibration` and `forward`); `output` is the leaf everyone writes through.
+//! -> `brdf_meter`, with `device` beside `calibration` (it may use
+//! `calibration` and `forward`, never `evaluation`). `output::io` and
+//! `output::config` are leaves any layer may use; `output::plot` draws the
+//! forward model's and evaluation's results for the CLI.
 
 pub mod forward; // the forward model: BRDFs, angle grid, optics, priors, per-zone optics, scenes
 pub mod calibration; // estimators and training: H + prior + noise -> W per zone -> blob
-pub mod device; // the device: link, provisioning, memory map, reference computation, firmware budget
+pub mod device; // link, provisioning (USB, SWD), memory map, reference computation, firmware budget
 pub mod evaluation; // accuracy and cost: fitting, reproduce, tradeoff, stability, one timing harness
-pub mod output; // files written atomically, plots, TOML/CSV description parsing
+pub mod output; // atomic file writes, plots, TOML/CSV description parsing
 pub mod cli; // one file per subcommand: parse arguments, call the library

@@ -408,6 +408,17 @@ fn rows(a: &DMatrix<f64>) -> Vec<Vec<f64>> {
 }
 
 impl Trained {
+    /// The worst-conditioned zone and its summary: what limits the
+    /// calibration (and what the blob's training summary records).
+    pub fn worst_zone(&self) -> (usize, &EstimatorSummary) {
+        self.zones
+            .iter()
+            .map(|z| &z.estimator.summary)
+            .enumerate()
+            .max_by(|a, b| a.1.condition_system.total_cmp(&b.1.condition_system))
+            .expect("training yields at least one zone")
+    }
+
     /// The inspection JSON.
     pub fn to_json(&self) -> TrainJson {
         let zones: Vec<ZoneJson> = self

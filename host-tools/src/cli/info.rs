@@ -32,7 +32,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             cal.blob_crc,
             cal.blob_len,
             cal.zones,
-            if cal.slot == 0 { "A" } else { "B" },
+            crate::device::provision::slot_name(cal.slot),
             cal.sequence,
             if cal.in_ram { "in RAM" } else { "read in place from flash" }
         ),

@@ -171,6 +171,22 @@ impl PriorSpec {
         Ok((spec, base))
     }
 
+    /// The prior named on the command line: `patent` (Table 5, built in), a
+    /// measured sample CSV (`angle_deg,value` rows) or a prior TOML file;
+    /// with the directory its CSV paths are resolved against.
+    pub fn from_arg(arg: &str) -> anyhow::Result<(Self, PathBuf)> {
+        use anyhow::Context;
+        if arg == "patent" {
+            return Ok((Self::patent(), PathBuf::from(".")));
+        }
+        let p = Path::new(arg);
+        if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+            Ok((Self { csv: vec![p.to_path_buf()], ..Default::default() }, PathBuf::new()))
+        } else {
+            Self::load(p).with_context(|| format!("reading the prior {}", p.display()))
+        }
+    }
+
     /// Samples every listed BRDF on the grid at `view_deg` and builds the prior.
     /// CSV paths are resolved against `base`.
     pub fn build(&self, grid: &AngleGrid, view_deg: f64, base: &Path) -> anyhow::Result<Prior> {

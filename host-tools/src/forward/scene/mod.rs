@@ -32,6 +32,7 @@
 //!   lines and the synthetic analytic pattern.
 pub mod effects;
 pub mod frames;
+pub mod noise_level;
 pub mod pipeline;
 pub mod readings;
 

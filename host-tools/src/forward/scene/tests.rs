@@ -585,40 +585,6 @@ fn an_unlisted_effect_costs_nothing_far_field_is_over_ten_times_faster() {
 }
 
 #[test]
-fn train_scene_puts_the_scene_optics_and_white_reference_in_the_blob() {
-    use clap::Parser;
-    let dir = tempfile::tempdir().unwrap();
-    let blob = dir.path().join("cal.blob");
-    let scene = scenes_dir().join("handheld.toml");
-    let cli = crate::cli::Cli::try_parse_from([
-        "host-tools",
-        "train",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--zones",
-        "4",
-        "--out",
-        blob.to_str().unwrap(),
-    ])
-    .unwrap();
-    crate::cli::run(cli).unwrap();
-    let bytes = std::fs::read(&blob).unwrap();
-    let v = brdf_meter::blob::BlobView::parse(&bytes).unwrap();
-    assert_eq!((v.dims().pixels, v.dims().zones, v.dims().m, v.dims().n), (128, 4, 7, 81));
-    assert_eq!((0..4).map(|z| v.zone_start(z)).collect::<Vec<_>>(), [0, 32, 64, 96]);
-    assert!(!v.far_field());
-    let white = white_reference(&load("handheld.toml")).unwrap();
-    for p in [0, 77, 127] {
-        for i in 0..7 {
-            assert_eq!(v.white(p, i), white[p * 7 + i]);
-        }
-    }
-    // --scene replaces --instrument and --far-field.
-    let clash = crate::cli::Cli::try_parse_from(["host-tools", "train", "--scene", "a.toml", "--far-field"]);
-    assert!(clash.is_err());
-}
-
-#[test]
 fn scenes_survive_a_toml_round_trip() {
     for (path, s) in library() {
         let text = toml::to_string(&s).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
