@@ -21,14 +21,14 @@
 //!
 //! Separate tables: zones along the line sensor ([`zones`]) and the number of
 //! LEDs ([`led_count`]). The kernels' instruction counts come from QEMU
-//! ([`device`]); the host batch speed against numpy from [`speed`].
+//! ([`kernel_bench`]); the host batch speed against numpy from [`speed`].
 //!
 //! # Timing
 //! Host time per point: the estimator runs over all test readings, repeated
 //! until a block lasts at least `block`; the median of 7 blocks after a
 //! warm-up, divided by the points. Fits: median of `fit_runs` full runs.
 //! One thread. Both from [`crate::evaluation::timing`].
-pub mod device;
+pub mod kernel_bench;
 pub mod led_count;
 pub mod report;
 pub mod rows;
@@ -136,7 +136,7 @@ impl Config {
 pub struct DeviceCost {
     /// Instructions per point, counted exactly in QEMU.
     pub instructions: f64,
-    /// Cycle estimate from the Cortex-M4 instruction timings ([`device`]).
+    /// Cycle estimate from the Cortex-M4 instruction timings ([`kernel_bench`]).
     pub cycles: f64,
     /// `cycles / 80 MHz`, seconds.
     pub seconds_at_80mhz: f64,
@@ -228,7 +228,7 @@ pub struct Report {
     /// LED counts.
     pub leds: Vec<led_count::LedRow>,
     /// QEMU kernel counts, if run.
-    pub kernels: Option<device::KernelCounts>,
+    pub kernels: Option<kernel_bench::KernelCounts>,
     /// Host batch speed and the numpy comparison.
     pub speed: speed::SpeedReport,
     /// The accuracy target.
@@ -351,7 +351,7 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
 
     // Device costs from QEMU.
     let kernels = if cfg.qemu {
-        match device::run_bench(&cfg.root) {
+        match kernel_bench::run_bench(&cfg.root) {
             Ok(kc) => Some(kc),
             Err(e) => {
                 notes.push(format!("QEMU kernel bench not run: {e:#}"));
@@ -363,7 +363,7 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
         None
     };
     if let Some(kc) = &kernels {
-        device::attach(&mut rows, kc);
+        kernel_bench::attach(&mut rows, kc);
     }
     mark_pareto(&mut rows);
 
