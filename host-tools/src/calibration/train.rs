@@ -2,7 +2,8 @@
 //!
 //! Each zone of pixels has its own system matrix (the optics as seen from the
 //! zone's centre pixel, [`ZoneOptics`] from the forward model) and so its own
-//! W; [`uniform_zones`] gives every zone the same H, a scene one per position. The blob is
+//! W; [`crate::forward::zone_optics::uniform_zones`] gives every zone the
+//! same H, a scene one per position. The blob is
 //! written by the one layout in `brdf_meter::blob` and parsed back before it
 //! is returned. Before that, every zone's matrix goes through the f32 gate
 //! ([`f32_gate`]): the device kernel (`brdf_meter::kernel`) is run on the

@@ -4,7 +4,8 @@
 //! For each m: Wiener with the patent's and the dense prior, the piecewise
 //! Wiener (K = 8, dense prior) and the condition-2 fit, with the host time
 //! per point (a mat-vec costs n m multiply-accumulates).
-use super::{Clustered, patent_data, priors, wiener};
+use super::{patent_data, priors, wiener};
+use crate::calibration::estimators::clustered::Clustered;
 use crate::evaluation::timing::{errors, time_per_point, timed};
 use crate::calibration::estimators::BatchEstimator;
 use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};

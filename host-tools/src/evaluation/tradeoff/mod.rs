@@ -14,9 +14,9 @@
 //!   and with mismatched priors (Ward with the wrong roughness range; GGX);
 //! - Ward fits, condition 1 and 2, and condition 2 with more starts and a
 //!   finer start scan;
-//! - piecewise (clustered) Wiener, K = 1..16 ([`Clustered`]);
-//! - log-domain Wiener ([`LogWiener`]);
-//! - device number formats: f32 and Q15 ([`Q15Estimator`]), with the error
+//! - piecewise (clustered) Wiener, K = 1..16 ([`Clustered`](crate::calibration::estimators::clustered::Clustered));
+//! - log-domain Wiener ([`LogWiener`](crate::calibration::estimators::log_wiener::LogWiener));
+//! - device number formats: f32 and Q15 ([`Q15Estimator`](crate::calibration::estimators::fixed_point::Q15Estimator)), with the error
 //!   against f64 evaluation of the same W.
 //!
 //! Separate tables: zones along the line sensor ([`zones`]) and the number of
@@ -47,9 +47,6 @@ use serde::Serialize;
 use std::path::Path;
 use std::time::Duration;
 
-pub use crate::calibration::estimators::clustered::Clustered;
-pub use crate::calibration::estimators::fixed_point::Q15Estimator;
-pub use crate::calibration::estimators::log_wiener::LogWiener;
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -70,7 +67,7 @@ pub struct Config {
     pub ks: Vec<usize>,
     /// Dense prior: number of rho_d and alpha values over the Table 5 ranges.
     pub dense: (usize, usize),
-    /// Training margin of the clusters (see [`clustered`]).
+    /// Training margin of the clusters (see [`Clustered`](crate::calibration::estimators::clustered::Clustered)).
     pub margin: f64,
     /// Zone counts for the line sensor.
     pub zones: Vec<usize>,

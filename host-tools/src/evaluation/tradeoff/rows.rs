@@ -3,7 +3,9 @@
 //! [`measure_rows`] builds and measures each one the same way (accuracy
 //! against the truth, host time per point, device cost terms).
 use super::{Config, Data, Priors, Row, wiener};
-use crate::calibration::estimators::fixed_point::max_rel_diff;
+use crate::calibration::estimators::clustered::Clustered;
+use crate::calibration::estimators::fixed_point::{Q15Estimator, max_rel_diff};
+use crate::calibration::estimators::log_wiener::LogWiener;
 use crate::calibration::estimators::{self, BatchEstimator, EstimatorInputs, LinearEstimator, NoiseModel};
 use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};
 use crate::evaluation::timing::{errors, median_of_runs, time_per_point};
@@ -14,11 +16,9 @@ use nalgebra::DMatrix;
 use std::collections::HashMap;
 use std::hint::black_box;
 
-use super::{Clustered, LogWiener, Q15Estimator};
-
 /// What a row runs.
 pub enum RowEstimator<'a> {
-    /// A linear estimator of `kind` with the patent's prior.
+    /// A linear estimator of this kind with the patent's prior; the label.
     Linear(EstimatorKind, &'static str),
     /// Wiener (eq. 22) with `prior`; the label.
     Wiener(&'a Prior, String),
