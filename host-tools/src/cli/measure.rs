@@ -40,8 +40,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.lines == 0 {
         bail!("--lines must be at least 1");
     }
-    let bytes = std::fs::read(&a.blob).with_context(|| format!("reading {}", a.blob.display()))?;
-    let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{} is not a valid blob: {e}", a.blob.display()))?;
+    let bytes = crate::device::provision::read_blob(&a.blob)?;
+    let view = BlobView::parse(&bytes).expect("read_blob checked it");
     let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
     match info.calibration {
