@@ -77,5 +77,5 @@ done
 # Z = 128 blob, RAM after statics and stack) is host-tools' test
 # tests/firmware_budget.rs, run by the cargo tests right after this script on
 # this same image (no second host-tools build). By hand:
-#   cargo run --release -p host-tools -- firmware-budget target/thumbv7em-none-eabihf/release/board-fw
+#   cargo test --release -p host-tools --test firmware_budget -- --nocapture
 echo "[firmware] ok: ${#elfs[@]} firmware image(s) built warning-free, clippy clean"

@@ -168,7 +168,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
 /// cannot be trusted either, and a host that ignores flags then sees a flat
 /// zero curve rather than a wild one. The device applies this to every point
 /// before it is framed, so no NaN or infinity is ever streamed; the host's
-/// reproduction of the device (`host_tools::link::sim::expected_line`) calls
+/// reproduction of the device (`host_tools::device::reference::expected_line`) calls
 /// the same function.
 pub fn guard_estimate(rho: &mut [f32]) -> u8 {
     if rho.iter().all(|x| x.is_finite()) {

@@ -11,8 +11,9 @@ use brdf_meter::kernel::mat_vec_f32_slice;
 use brdf_meter::protocol::flags;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::test_blobs::test_blob_with;
-use host_tools::link::Client;
-use host_tools::link::sim::{analytic_scene, expected_line};
+use host_tools::device::link::Client;
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::analytic_scene;
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 /// A tiny deterministic generator (the tests package has no rand).

@@ -8,8 +8,9 @@ use brdf_meter::protocol::{
 use brdf_meter::hw::SensorError;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::test_blobs::test_blob;
-use host_tools::link::sim::{SceneFrames, analytic_scene, expected_line};
-use host_tools::link::{Client, LinkError, PointRecord, Reply};
+use host_tools::device::link::{Client, LinkError, PointRecord, Reply};
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 const ZONES: usize = 4;

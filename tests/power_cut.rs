@@ -6,8 +6,9 @@ use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::test_blobs::test_blob;
 use brdf_meter::store::Store;
-use host_tools::link::Client;
-use host_tools::link::sim::{analytic_scene, expected_line};
+use host_tools::device::link::Client;
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::analytic_scene;
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 fn open(flash: SimFlash) -> Store<SimFlash> {

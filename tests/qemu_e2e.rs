@@ -5,8 +5,10 @@
 //! bit against the host's f32 computation on the same corrected readings.
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::protocol::{DeviceError, FrameError, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode};
-use host_tools::link::sim::{expected_line, patent_scene, scene_frames, train_for_scene};
-use host_tools::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
+use host_tools::calibration::demo::train_for_scene;
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::{patent_scene, scene_frames};
+use host_tools::device::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
 use std::time::Duration;
 use system_tests::qemu::start;
 
@@ -38,7 +40,7 @@ fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
     }
 }
 
-fn connect(q: &host_tools::link::qemu::QemuInstrument) -> Client<TcpTransport> {
+fn connect(q: &host_tools::device::link::qemu::QemuInstrument) -> Client<TcpTransport> {
     let mut c = q.connect().unwrap();
     c.timeout = Duration::from_secs(20);
     c
@@ -138,7 +140,7 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
 fn qemu_serves_the_same_protocol_over_a_serial_port() {
     // QEMU's serial on a pseudo-terminal, opened with the serialport crate
     // exactly as a real instrument on /dev/ttyACM* is.
-    let q = host_tools::link::qemu::QemuInstrument::start_pty(&system_tests::qemu::firmware(), Duration::from_secs(240), &[])
+    let q = host_tools::device::link::qemu::QemuInstrument::start_pty(&system_tests::qemu::firmware(), Duration::from_secs(240), &[])
         .unwrap();
     let mut c = q.connect_serial().unwrap();
     c.timeout = Duration::from_secs(20);

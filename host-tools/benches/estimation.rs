@@ -4,9 +4,9 @@
 //! `cargo bench -p host-tools --bench estimation`
 use brdf_meter::blob::EstimatorKind;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use host_tools::estimators::{self, BatchEstimator, EstimatorInputs, NoiseModel};
-use host_tools::optics::{Instrument, system_matrix};
-use host_tools::prior::PriorSpec;
+use host_tools::calibration::estimators::{self, BatchEstimator, EstimatorInputs, NoiseModel};
+use host_tools::forward::optics::{Instrument, system_matrix};
+use host_tools::forward::prior::PriorSpec;
 use nalgebra::DMatrix;
 use std::hint::black_box;
 use std::path::Path;

@@ -6,8 +6,8 @@
 //! `cargo bench -p host-tools --bench scene`; the ratio in one run:
 //! `cargo run --release -p host-tools --example scene_speed`.
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::scene::pipeline::Mode;
-use host_tools::scene::{Scene, Simulator};
+use host_tools::forward::scene::pipeline::Mode;
+use host_tools::forward::scene::{Scene, Simulator};
 use std::hint::black_box;
 use std::path::Path;
 

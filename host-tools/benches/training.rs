@@ -3,10 +3,11 @@
 //! `cargo bench -p host-tools --bench training`
 use brdf_meter::blob::EstimatorKind;
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::estimators::{self, EstimatorInputs, NoiseModel};
-use host_tools::optics::{Instrument, system_matrix};
-use host_tools::prior::PriorSpec;
-use host_tools::train::{TrainSpec, train, uniform_zones};
+use host_tools::calibration::estimators::{self, EstimatorInputs, NoiseModel};
+use host_tools::forward::optics::{Instrument, system_matrix};
+use host_tools::forward::prior::PriorSpec;
+use host_tools::calibration::train::{TrainSpec, train};
+use host_tools::forward::zone_optics::uniform_zones;
 use std::hint::black_box;
 use std::path::Path;
 

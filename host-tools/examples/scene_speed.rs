@@ -2,7 +2,7 @@
 //! full near-field handheld scene with extended LEDs (issue: at least 10x).
 //!
 //! `cargo run --release -p host-tools --example scene_speed [FAST.toml FULL.toml]`
-use host_tools::scene::{Scene, time_simulation};
+use host_tools::forward::scene::{Scene, time_simulation};
 use std::path::PathBuf;
 
 fn main() -> anyhow::Result<()> {
@@ -23,6 +23,6 @@ fn main() -> anyhow::Result<()> {
 }
 
 fn stages(s: &Scene) -> String {
-    let n = host_tools::scene::Pipeline::new(s).names();
+    let n = host_tools::forward::scene::Pipeline::new(s).names();
     if n.is_empty() { "none".into() } else { n.join(", ") }
 }

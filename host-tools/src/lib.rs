@@ -1,25 +1,17 @@
-//! Host tools for the BRDF meter: optics, BRDF models, priors, training,
-//! baselines, evaluation, the device link and the command line.
+//! Host tools for the BRDF meter. The modules follow the data flow: optics
+//! (instrument -> system matrix H) + prior (sample BRDFs -> R_pp) + noise
+//! model (R_nn) -> training (W per zone) -> calibration blob (format owned by
+//! the `brdf_meter` no_std library) -> device -> frames -> host.
 //!
-//! Data flow: optics (instrument -> system matrix H) + prior (sample BRDFs ->
-//! R_pp) + noise model (R_nn) -> training (W per zone) -> calibration blob
-//! (format owned by the `brdf_meter` no_std library) -> device -> frames -> host.
+//! Imports run one way: `cli` -> `evaluation` -> `calibration` -> `forward`
+//! -> `brdf_meter`, with `device` beside `calibration` (it may use
+//! `calibration` and `forward`, never `evaluation`). `output::io` and
+//! `output::config` are leaves any layer may use; `output::plot` draws the
+//! forward model's and evaluation's results for the CLI.
 
-pub mod brdf;
-pub mod cli;
-pub mod config;
-pub mod estimators;
-pub mod firmware_budget;
-pub mod fitting;
-pub mod grid;
-pub mod io;
-pub mod link;
-pub mod optics;
-pub mod plot;
-pub mod prior;
-pub mod scene;
-pub mod stability;
-pub mod reproduce;
-pub mod tradeoff;
-pub mod train;
-pub mod swd;
+pub mod forward; // the forward model: BRDFs, angle grid, optics, priors, per-zone optics, scenes
+pub mod calibration; // estimators and training: H + prior + noise -> W per zone -> blob
+pub mod device; // link, provisioning (USB, SWD), memory map, reference computation, firmware budget
+pub mod evaluation; // accuracy and cost: fitting, reproduce, tradeoff, stability, one timing harness
+pub mod output; // atomic file writes, plots, TOML/CSV description parsing
+pub mod cli; // one file per subcommand: parse arguments, call the library

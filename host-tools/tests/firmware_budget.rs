@@ -31,11 +31,11 @@ fn board_firmware_fits_its_budget_with_the_z128_calibration() {
     let root = root();
     let elf = build_board_fw(&root);
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
-    let budget = host_tools::firmware_budget::check_file(&elf, &script).expect("reading the firmware image");
+    let budget = host_tools::device::budget::check_file(&elf, &script).expect("reading the firmware image");
     println!("{}", budget.table());
     assert!(budget.ok(), "board-fw is over budget:\n{}", budget.table());
     // The image really is the board firmware and really has the sections the
     // budget is about (a check on an empty or wrong file must not pass).
     assert!(budget.lines[0].used > 16 * 1024, "an implausibly small image: {}", budget.lines[0].used);
-    assert!(budget.lines[2].used > host_tools::firmware_budget::STACK_RESERVE);
+    assert!(budget.lines[2].used > host_tools::device::budget::STACK_RESERVE);
 }

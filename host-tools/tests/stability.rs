@@ -1,7 +1,7 @@
-//! Issue 6: the hard cases stay numerically stable.
+//! The hard cases stay numerically stable.
 //!
 //! - Property tests (proptest, fixed seed, [`CASES`] cases per family) over
-//!   every family of `host_tools::stability`: all invariants hold for the
+//!   every family of `host_tools::evaluation::stability`: all invariants hold for the
 //!   product's solver and the device kernel.
 //! - Every invariant is shown to fail for a deliberately broken solver or
 //!   kernel on hard cases (so none of them is vacuous).
@@ -13,15 +13,16 @@
 //! The long run (>= 10,000 cases) is `cargo run --release -p host-tools --
 //! stability --cases 10000 --json out/stability.json`.
 use brdf_meter::blob::{BlobView, EstimatorKind};
-use host_tools::estimators::{self, EstimatorInputs, NoiseModel};
-use host_tools::grid::AngleGrid;
-use host_tools::optics::Instrument;
-use host_tools::prior::{Prior, PriorSpec};
-use host_tools::stability::solvers::{
+use host_tools::calibration::estimators::{self, EstimatorInputs, NoiseModel};
+use host_tools::forward::grid::AngleGrid;
+use host_tools::forward::optics::Instrument;
+use host_tools::forward::prior::{Prior, PriorSpec};
+use host_tools::evaluation::stability::solvers::{
     ExplicitInverse, F32Only, FixedFloor, IgnoresNoise, Solver, TruncateThenWhiten, bf16_kernel,
 };
-use host_tools::stability::{CaseReport, Family, Production, check_case, device_kernel, generate};
-use host_tools::train::{F32_TOLERANCE, TrainSpec, ZoneOptics, f32_gate, train, uniform_zones};
+use host_tools::evaluation::stability::{CaseReport, Family, Production, check_case, device_kernel, generate};
+use host_tools::calibration::train::{F32_TOLERANCE, TrainSpec, f32_gate, train};
+use host_tools::forward::zone_optics::{ZoneOptics, uniform_zones};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
@@ -70,7 +71,7 @@ family_property!(sensor_gains_1e_6_to_1e6_stay_stable, Family::Gain, 9);
 
 /// How many of `seeds` cases of `family` fail the invariant tagged `tag`
 /// (e.g. "I5") for `solver` and `kernel`.
-fn failures(solver: &dyn Solver, kernel: host_tools::stability::DeviceKernel, family: Family, seeds: std::ops::Range<u64>, tag: &str) -> usize {
+fn failures(solver: &dyn Solver, kernel: host_tools::evaluation::stability::DeviceKernel, family: Family, seeds: std::ops::Range<u64>, tag: &str) -> usize {
     seeds
         .map(|s| check_case(&generate(family, s), solver, kernel))
         .filter(|r| r.failures.iter().any(|f| f.starts_with(tag)))
@@ -130,7 +131,7 @@ fn a_bf16_kernel_is_caught_by_the_f32_bound() {
 fn rank_decided_before_whitening_is_caught_by_gain_covariance() {
     let n = failures(&TruncateThenWhiten, device_kernel, Family::Gain, 0..24, "I6")
         + failures(&TruncateThenWhiten, device_kernel, Family::Gain, 0..24, "I2");
-    assert!(n >= 3, "the pre-issue-6 algorithm was flagged only {n} times on gains 1e-6..1e6");
+    assert!(n >= 3, "the old truncate-then-whiten algorithm was flagged only {n} times on gains 1e-6..1e6");
 }
 
 /// `R^1/2` by the symmetric eigendecomposition (eigenvalues below the
@@ -154,7 +155,7 @@ fn noise_free_wiener_is_the_minimum_norm_limit_on_singular_systems() {
     // The patent profile's H (cond(H R_pp H^T) ~ 1e10) made singular two ways:
     // LED 4 duplicated exactly (8 readings), and a prior of 5 samples (< 8).
     let grid = AngleGrid::patent();
-    let h7 = host_tools::optics::system_matrix(&Instrument::patent_profile(), &grid, false).unwrap();
+    let h7 = host_tools::forward::optics::system_matrix(&Instrument::patent_profile(), &grid, false).unwrap();
     let mut h = DMatrix::zeros(8, 81);
     h.rows_mut(0, 7).copy_from(&h7);
     h.set_row(7, &h7.row(3));
@@ -222,7 +223,7 @@ fn f32_gate_refuses_an_ill_conditioned_matrix_with_the_reason() {
     let grid = AngleGrid::patent();
     let prior = patent_prior(&grid);
     let centres = [55.0, 55.2, 55.4, 55.6, 55.8, 56.0, 56.2];
-    let h = host_tools::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
+    let h = host_tools::evaluation::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
     let zones = vec![ZoneOptics { first_pixel: 0, h, centres_deg: centres.to_vec() }];
     let e = train(&spec(&prior, grid.bins_deg(), zones, 1e-10, EstimatorKind::Wiener)).unwrap_err();
     let msg = format!("{e:#}");
@@ -232,14 +233,14 @@ fn f32_gate_refuses_an_ill_conditioned_matrix_with_the_reason() {
     assert!(msg.contains("--noise"), "{msg}");
     // The advice is right: at the advised noise the gate passes.
     let advised: f64 = msg.split("--noise ").nth(1).unwrap().split_whitespace().next().unwrap().parse().unwrap();
-    let h = host_tools::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
+    let h = host_tools::evaluation::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
     let zones = vec![ZoneOptics { first_pixel: 0, h, centres_deg: centres.to_vec() }];
     let t = train(&spec(&prior, grid.bins_deg(), zones, advised, EstimatorKind::Wiener)).unwrap();
     assert!(t.f32_rel_error <= F32_TOLERANCE);
 }
 
-fn grid_spec() -> host_tools::grid::GridSpec {
-    host_tools::grid::GridSpec::patent()
+fn grid_spec() -> host_tools::forward::grid::GridSpec {
+    host_tools::forward::grid::GridSpec::patent()
 }
 
 #[test]
@@ -316,7 +317,7 @@ fn no_explicit_inverse_in_production_code() {
 /// zone, the measured error and the tolerance - never NaN, never a panic.
 #[test]
 fn scene_library_hard_cases_stay_stable() {
-    use host_tools::scene::{EffectSpec, Scene, training_optics, zone_system_matrices};
+    use host_tools::forward::scene::{EffectSpec, Scene, training_optics, zone_system_matrices};
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/hard");
     let Ok(entries) = std::fs::read_dir(&dir) else {
         eprintln!("no {} yet: skipped", dir.display());
@@ -335,7 +336,7 @@ fn scene_library_hard_cases_stay_stable() {
             _ => 0.02,
         };
         let h = zone_system_matrices(&scene, 1).unwrap().remove(0).h;
-        let case = host_tools::stability::Case {
+        let case = host_tools::evaluation::stability::Case {
             family: Family::Noise,
             seed: 0,
             label: scene.name.clone(),

@@ -4,7 +4,7 @@
 //!   tasks on an embassy executor polled by the test, with embassy-time's mock
 //!   driver (simulated time advances only when the device is idle, so runs are
 //!   deterministic), an in-memory NOR flash and an in-memory link. It is a
-//!   `host_tools::link::Transport`, so host-tools' own client drives it.
+//!   `host_tools::device::link::Transport`, so host-tools' own client drives it.
 //! - [`qemu`]: building the QEMU firmware once and running it under QEMU.
 pub mod qemu;
 pub mod sim;

@@ -1,5 +1,5 @@
 //! Building the QEMU firmware once per test binary and running it under QEMU.
-use host_tools::link::qemu::{QemuInstrument, build_firmware, workspace_root};
+use host_tools::device::link::qemu::{QemuInstrument, build_firmware, workspace_root};
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::Duration;

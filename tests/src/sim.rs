@@ -111,7 +111,7 @@ impl SimDevice {
 /// Simulated time a `recv` waits before reporting nothing, in 100 us steps.
 const RECV_STEPS: usize = 200_000;
 
-impl host_tools::link::Transport for SimDevice {
+impl host_tools::device::link::Transport for SimDevice {
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
         self.host.send(bytes);
         self.run_until_idle();

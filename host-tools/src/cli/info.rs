@@ -1,5 +1,5 @@
 //! `host-tools info`: what a device is, and what it runs on.
-use crate::link::Endpoint;
+use crate::device::link::Endpoint;
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -16,7 +16,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let mut c = crate::link::Client::new(a.device.open()?)?;
+    let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
     let status = c.status().context("asking the device for its status")?;
     let fw = info.firmware;
@@ -32,7 +32,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             cal.blob_crc,
             cal.blob_len,
             cal.zones,
-            if cal.slot == 0 { "A" } else { "B" },
+            crate::device::provision::slot_name(cal.slot),
             cal.sequence,
             if cal.in_ram { "in RAM" } else { "read in place from flash" }
         ),
@@ -58,7 +58,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "status": { "measuring": status.measuring, "lines_total": status.lines_total,
                         "bad_frames": status.bad_frames, "refused": status.refused },
         });
-        crate::io::write_json(p, &j)?;
+        crate::output::io::write_json(p, &j)?;
     }
     Ok(())
 }

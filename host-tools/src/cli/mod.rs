@@ -1,19 +1,19 @@
-//! The command line: one file per subcommand, each with its `Args` and `run`.
-//! Register a new subcommand here (one enum variant, one match arm).
+//! The command line: one file per subcommand, each with its `Args` and a
+//! `run` that parses nothing further and calls the library. Listed in the
+//! order a user meets them. Register a new subcommand here (one enum
+//! variant, one match arm).
 use clap::{Parser, Subcommand};
-
-pub mod firmware_budget;
-pub mod info;
-pub mod measure;
-pub mod provision;
-pub mod qemu;
-pub mod provision_swd;
 
 pub mod reproduce;
 pub mod simulate;
-pub mod stability;
-pub mod tradeoff;
 pub mod train;
+pub mod qemu;
+pub mod info;
+pub mod provision;
+pub mod provision_swd;
+pub mod measure;
+pub mod tradeoff;
+pub mod stability;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
@@ -27,43 +27,40 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Write a calibration blob into the board's flash over SWD (probe-rs).
-    ProvisionSwd(provision_swd::Args),
-    /// Check firmware images against the flash/RAM budget for Z = 128 zones.
-    FirmwareBudget(firmware_budget::Args),
     /// Reproduce the patent's Table 6 on the patent profile (every method, timed).
     Reproduce(reproduce::Args),
-    /// Train the estimator matrices (one per zone) and write the calibration blob.
-    Train(train::Args),
     /// Simulate a scene's readings (CSV, JSON and a plot), truth beside them.
     Simulate(simulate::Args),
+    /// Train the estimator matrices (one per zone) and write the calibration blob.
+    Train(train::Args),
+    /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
+    Qemu(qemu::Args),
     /// Show a device's identity, sizes, calibration and status.
     Info(info::Args),
     /// Provision a calibration blob onto a device over its link.
     Provision(provision::Args),
+    /// Write a calibration blob into the board's flash over SWD (probe-rs).
+    ProvisionSwd(provision_swd::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
-    /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
-    Qemu(qemu::Args),
-    /// Run the hard-case numerical stability checks over many generated cases (issue 6).
-    Stability(stability::Args),
-    /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts (issue 5).
+    /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts.
     Tradeoff(tradeoff::Args),
+    /// Run the hard-case numerical stability checks over many generated cases.
+    Stability(stability::Args),
 }
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::ProvisionSwd(a) => provision_swd::run(a),
-        Command::FirmwareBudget(a) => firmware_budget::run(a),
         Command::Reproduce(a) => reproduce::run(a),
-        Command::Train(a) => train::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Train(a) => train::run(a),
+        Command::Qemu(a) => qemu::run(a),
         Command::Info(a) => info::run(a),
         Command::Provision(a) => provision::run(a),
+        Command::ProvisionSwd(a) => provision_swd::run(a),
         Command::Measure(a) => measure::run(a),
-        Command::Qemu(a) => qemu::run(a),
-        Command::Stability(a) => stability::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),
+        Command::Stability(a) => stability::run(a),
     }
 }

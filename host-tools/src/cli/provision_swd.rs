@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args as ClapArgs;
 
-use crate::swd::{self, ProbeRs, SlotMap};
+use crate::device::memory_map::SlotMap;
+use crate::device::provision::{self, swd::{self, ProbeRs}};
 
 /// Writes a calibration blob into the board's calibration flash over SWD.
 ///
@@ -38,12 +39,10 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
-    let map = SlotMap::board();
-    let blob = swd::read_blob(&args.blob)?;
+    let blob = provision::read_blob(&args.blob)?;
     if let Some(out) = &args.image_out {
-        let image = swd::slot_image(1, &blob, map.slot_len())?;
-        crate::io::write_atomic(out, &image)?;
-        println!("slot image: {} bytes for address {:#010x} -> {}", image.len(), map.addr(0), out.display());
+        let (len, addr) = swd::write_slot_image(&blob, out)?;
+        println!("slot image: {len} bytes for address {addr:#010x} -> {}", out.display());
         return Ok(());
     }
     let force = args.slot.as_deref().map(|s| if s.eq_ignore_ascii_case("a") { 0 } else { 1 });
@@ -54,10 +53,10 @@ pub fn run(args: Args) -> Result<()> {
         probe: args.probe,
         scratch: scratch.path().to_path_buf(),
     };
-    let done = swd::provision(&probe, &map, &blob, force)?;
+    let done = swd::provision(&probe, &SlotMap::board(), &blob, force)?;
     println!(
         "provisioned slot {} at {:#010x}: {} bytes, sequence {}, verified by read-back",
-        swd::slot_name(done.slot),
+        provision::slot_name(done.slot),
         done.addr,
         done.len,
         done.sequence
@@ -84,7 +83,7 @@ mod tests {
     #[test]
     fn image_out_writes_the_slot_image_and_touches_no_device() {
         let dir = tempfile::tempdir().unwrap();
-        let blob = crate::swd::tests::test_blob(4.0);
+        let blob = crate::device::provision::swd::tests::test_blob(4.0);
         let blob_path = dir.path().join("cal.blob");
         std::fs::write(&blob_path, &blob).unwrap();
         let out = dir.path().join("slot.bin");

@@ -1,5 +1,6 @@
 //! `host-tools qemu`: start the QEMU instrument for a person to play with.
-use crate::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
+use crate::device::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
+use crate::device::qemu_demo::{connect, set_up};
 use anyhow::Context;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -56,22 +57,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let addr = q.addr.clone();
     let link = if a.pty { format!("--port {addr}") } else { format!("--tcp {addr}") };
     if let Some(blob_path) = &a.demo {
-        let mut c: crate::link::Client<Box<dyn crate::link::Transport>> = if a.pty {
-            let mut c = crate::link::Client::new(Box::new(crate::link::SerialTransport::open(&addr)?) as Box<dyn crate::link::Transport>)?;
-            c.wait_ready(Duration::from_secs(20))?;
-            c
-        } else {
-            let mut c = crate::link::Client::new(Box::new(crate::link::TcpTransport::connect(&addr)?) as Box<dyn crate::link::Transport>)?;
-            c.wait_ready(Duration::from_secs(20))?;
-            c
-        };
-        let info = c.info()?;
-        let scene = crate::link::sim::patent_scene(info.pixels as usize);
+        let mut c = connect(&addr, a.pty)?;
         eprintln!("training a 4-zone calibration for the simulated optics ...");
-        let trained = crate::link::sim::train_for_scene(&scene, 4, 0.02)?;
-        crate::io::write_atomic(blob_path, &trained.blob)?;
-        let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
-        c.load_scene(&crate::link::sim::scene_frames(&scene, 4)?)?;
+        let (blob, cal) = set_up(&mut c, blob_path)?;
         eprintln!(
             "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line patent-profile scene",
             blob_path.display(),
@@ -81,7 +69,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if let Some(lines) = a.measure_and_exit {
             c.timeout = Duration::from_secs(600);
             let pts = c.measure(lines).context("measuring")?;
-            let d = brdf_meter::blob::BlobView::parse(&trained.blob).expect("trained blobs parse").dims();
+            let d = brdf_meter::blob::BlobView::parse(&blob).expect("trained blobs parse").dims();
             println!("measured {lines} lines: {} points, {} multiply-accumulates", pts.len(), pts.len() * d.n * d.m);
             q.stop();
             return Ok(());

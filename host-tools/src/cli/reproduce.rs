@@ -1,5 +1,5 @@
 //! `host-tools reproduce`: the patent's experiment (Table 6) on the patent profile.
-use crate::reproduce::{Config, format_table, run as run_experiment, write_json};
+use crate::evaluation::reproduce::{Config, format_table, run as run_experiment, write_json};
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -40,18 +40,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     cfg.noise_rel = a.noise;
     cfg.fit_runs = a.fit_runs.max(1);
     if let Some(p) = &a.instrument {
-        cfg.instrument = crate::config::load_toml(p)?;
+        cfg.instrument = crate::output::config::load_toml(p)?;
     }
     if let Some(p) = &a.prior {
-        let (spec, base) = crate::prior::PriorSpec::load(p)?;
+        let (spec, base) = crate::forward::prior::PriorSpec::load(p)?;
         cfg.prior = spec;
         cfg.prior_base = base;
     }
     let report = run_experiment(&cfg).context("running the reproduction")?;
     print!("{}", format_table(&report));
     if let Some(p) = &a.dump_fit_problem {
-        let v = crate::reproduce::fit_problem_json(&cfg)?;
-        crate::io::write_json(p, &v).with_context(|| format!("writing {}", p.display()))?;
+        let v = crate::evaluation::reproduce::fit_problem_json(&cfg)?;
+        crate::output::io::write_json(p, &v).with_context(|| format!("writing {}", p.display()))?;
         println!("wrote {}", p.display());
     }
     if let Some(p) = &a.json {

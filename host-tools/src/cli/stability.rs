@@ -1,12 +1,12 @@
-//! `host-tools stability`: the long run of the hard-case property checks
-//! (issue 6). Runs every family with the production solver and the device
+//! `host-tools stability`: the long run of the hard-case property checks.
+//! Runs every family with the production solver and the device
 //! kernel, prints one summary row per family, optionally writes the summary
 //! and every failing case as JSON, and exits non-zero if any case failed.
 //!
 //! ```text
 //! cargo run --release -p host-tools -- stability --cases 10000 --json out/stability.json
 //! ```
-use crate::stability::{self, Family, Production};
+use crate::evaluation::stability::{self, Family, Production};
 use anyhow::bail;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -64,7 +64,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             summary: &summary,
             failing_cases: reports.iter().filter(|r| !r.failures.is_empty()).collect(),
         };
-        crate::io::write_json(p, &j)?;
+        crate::output::io::write_json(p, &j)?;
         println!("wrote {}", p.display());
     }
     if summary.total_failures > 0 {

@@ -1,7 +1,8 @@
 //! `host-tools tradeoff`: every estimator on the same data, accuracy against
 //! time per point, with the Pareto front; device kernels counted in QEMU; the
-//! host batch kernel against numpy. See `host_tools::tradeoff`.
-use crate::tradeoff::{Config, plot, report, run as run_tradeoff};
+//! host batch kernel against numpy. See `host_tools::evaluation::tradeoff`.
+use crate::evaluation::tradeoff::{Config, report, run as run_tradeoff};
+use crate::output::plot::tradeoff as plot;
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -90,8 +91,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let md = report::markdown(&rep);
     print!("{md}");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    crate::io::write_atomic(&a.out.join("tradeoff.md"), md.as_bytes())?;
-    crate::io::write_json(&a.out.join("tradeoff.json"), &rep)?;
+    crate::output::io::write_atomic(&a.out.join("tradeoff.md"), md.as_bytes())?;
+    crate::output::io::write_json(&a.out.join("tradeoff.json"), &rep)?;
     let title = format!("BRDF estimation: accuracy vs host time per point ({} points, patent profile)", rep.points);
     let (svg, png) = plot::write(&a.out.join("tradeoff"), &rep.rows, &title).context("plotting")?;
     println!("\nwrote {}, {}, {}, {}", a.out.join("tradeoff.md").display(), a.out.join("tradeoff.json").display(), svg.display(), png.display());

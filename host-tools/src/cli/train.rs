@@ -1,11 +1,12 @@
 //! `host-tools train`: train the estimator matrices and write the calibration blob.
-use crate::estimators::kind_name;
-use crate::optics::Instrument;
-use crate::prior::PriorSpec;
-use crate::train::{TrainSpec, train, uniform_zones};
+use crate::calibration::estimators::kind_name;
+use crate::forward::optics::Instrument;
+use crate::forward::prior::PriorSpec;
+use crate::calibration::train::{TrainSpec, train};
+use crate::forward::zone_optics::uniform_zones;
 use anyhow::Context;
 use brdf_meter::blob::{BlobView, EstimatorKind};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Estimators on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -76,43 +77,15 @@ pub struct Args {
     pub scene: Option<PathBuf>,
 }
 
-/// The relative noise level a scene's `noise` effect implies for a perfect
-/// diffuser's reading (the white level, where calibrated readings are 1):
-/// proportional noise is its sigma; additive noise sigma_counts / white;
-/// shot + read noise sqrt(white / e_per_count + read^2) / white, with the
-/// median white count over pixels and LEDs. A scene without noise trains
-/// noise-free: the estimator models what the scene says and no more.
-fn scene_noise_level(scene: &crate::scene::Scene) -> anyhow::Result<f64> {
-    use crate::scene::{EffectSpec, NoiseModel};
-    let Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) = scene.noise() else {
-        return Ok(0.0);
-    };
-    let white = || -> anyhow::Result<f64> {
-        let mut w: Vec<f32> = crate::scene::white_reference(scene)?;
-        w.sort_by(f32::total_cmp);
-        Ok(w[w.len() / 2] as f64)
-    };
-    Ok(match model {
-        NoiseModel::Proportional => sigma.unwrap_or(0.0),
-        NoiseModel::Additive => sigma_counts.unwrap_or(0.0) / white()?,
-        NoiseModel::ShotRead => {
-            let w = white()?;
-            let e = electrons_per_count.unwrap_or(f64::INFINITY);
-            let r = read_sigma_counts.unwrap_or(0.0);
-            (w / e + r * r).sqrt() / w
-        }
-    })
-}
-
 /// Runs the command. Nothing is written unless training succeeds.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let scene = match &a.scene {
-        Some(p) => Some(crate::scene::Scene::load(p)?),
+        Some(p) => Some(crate::forward::scene::Scene::load(p)?),
         None => None,
     };
     let noise = match (a.noise, &scene) {
         (Some(x), _) => x,
-        (None, Some(s)) => scene_noise_level(s)?,
+        (None, Some(s)) => crate::forward::scene::noise_level::relative_noise_level(s)?,
         (None, None) => 0.02,
     };
     if !noise.is_finite() || !(0.0..1.0).contains(&noise) {
@@ -120,25 +93,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let inst: Instrument = match (&scene, &a.instrument) {
         (Some(s), _) => s.instrument.clone(),
-        (None, Some(p)) => crate::config::load_toml(p)?,
+        (None, Some(p)) => crate::output::config::load_toml(p)?,
         (None, None) => Instrument::patent_profile(),
     };
     let grid = inst.grid().context("the instrument's angle grid")?;
-    let (spec, base) = if a.prior == "patent" {
-        (PriorSpec::patent(), PathBuf::from("."))
-    } else {
-        let p = Path::new(&a.prior);
-        let is_csv = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-        if is_csv {
-            (PriorSpec { csv: vec![p.to_path_buf()], ..Default::default() }, PathBuf::new())
-        } else {
-            PriorSpec::load(p).with_context(|| format!("reading the prior {}", p.display()))?
-        }
-    };
+    let (spec, base) = PriorSpec::from_arg(&a.prior)?;
     let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
     let (zones, pixels, white, far_field) = match &scene {
         Some(s) => {
-            let t = crate::scene::training_optics(s, a.zones).context("--zones with --scene")?;
+            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
             (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
         }
         None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
@@ -156,20 +119,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     })?;
     // Everything is computed; serialise before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
-    crate::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
+    crate::output::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
     if let (Some(p), Some(j)) = (&a.json, &json) {
-        crate::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
+        crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
     let view = BlobView::parse(&trained.blob).expect("validated");
-    // Report the worst-conditioned zone: it is what limits the calibration
-    // (and what the blob's training summary records).
-    let (worst, s) = trained
-        .zones
-        .iter()
-        .map(|z| &z.estimator.summary)
-        .enumerate()
-        .max_by(|a, b| a.1.condition_system.total_cmp(&b.1.condition_system))
-        .expect("training yields at least one zone");
+    let (worst, s) = trained.worst_zone();
     println!(
         "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, prior {} samples (rank {}), noise {}",
         kind_name(a.estimator.into()),
@@ -196,17 +151,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn scene_noise_follows_the_scenes_noise_effect() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
-        let load = |f: &str| crate::scene::Scene::load(&dir.join(f)).unwrap();
-        assert_eq!(scene_noise_level(&load("patent-profile.toml")).unwrap(), 0.02);
-        assert_eq!(scene_noise_level(&load("far-field.toml")).unwrap(), 0.0);
-        assert_eq!(scene_noise_level(&load("hard/noise-0.2.toml")).unwrap(), 0.2);
-        let handheld = scene_noise_level(&load("handheld.toml")).unwrap();
-        assert!(handheld > 0.0 && handheld < 0.2, "{handheld}");
-    }
+    use std::path::Path;
 
     fn args(dir: &Path) -> Args {
         Args {
@@ -257,5 +202,39 @@ mod tests {
             assert!(e.contains(want), "{e:?} should mention {want:?}");
             assert!(!dir.path().join("out").exists(), "output written despite: {e}");
         }
+    }
+
+    #[test]
+    fn train_scene_puts_the_scene_optics_and_white_reference_in_the_blob() {
+        use clap::Parser;
+        let dir = tempfile::tempdir().unwrap();
+        let blob = dir.path().join("cal.blob");
+        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml");
+        let cli = crate::cli::Cli::try_parse_from([
+            "host-tools",
+            "train",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--zones",
+            "4",
+            "--out",
+            blob.to_str().unwrap(),
+        ])
+        .unwrap();
+        crate::cli::run(cli).unwrap();
+        let bytes = std::fs::read(&blob).unwrap();
+        let v = brdf_meter::blob::BlobView::parse(&bytes).unwrap();
+        assert_eq!((v.dims().pixels, v.dims().zones, v.dims().m, v.dims().n), (128, 4, 7, 81));
+        assert_eq!((0..4).map(|z| v.zone_start(z)).collect::<Vec<_>>(), [0, 32, 64, 96]);
+        assert!(!v.far_field());
+        let white = crate::forward::scene::white_reference(&crate::forward::scene::Scene::load(&scene).unwrap()).unwrap();
+        for p in [0, 77, 127] {
+            for i in 0..7 {
+                assert_eq!(v.white(p, i), white[p * 7 + i]);
+            }
+        }
+        // --scene replaces --instrument and --far-field.
+        let clash = crate::cli::Cli::try_parse_from(["host-tools", "train", "--scene", "a.toml", "--far-field"]);
+        assert!(clash.is_err());
     }
 }

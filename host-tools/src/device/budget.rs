@@ -1,0 +1,342 @@
+//! The firmware's flash and RAM budget, checked against the build.
+//!
+//! The numbers that must agree come from their single sources: the memory
+//! map from `memory.x` (the linker script the firmware is linked with), the
+//! image and static RAM sizes from the firmware ELF's section headers, the
+//! blob size from `brdf_meter::blob::Dims::blob_len` and the slot header from
+//! `brdf_meter::store::SLOT_HEADER_LEN`.
+//!
+//! The calibration for the largest configuration (Z = 128 zones of 81 x 7
+//! matrices, P = 128 pixels: about 328 KiB) cannot live in the 96 KiB of RAM;
+//! the firmware reads its matrices in place from the memory-mapped slot
+//! (`BlobView::matrix_in_place`), which needs the blob 4-byte aligned in
+//! flash. So the budget is:
+//! - image (vector table, code, read-only data, .data's initial values) <=
+//!   the FLASH region, which memory.x keeps below the calibration slots;
+//! - slot header + blob <= one calibration slot;
+//! - static RAM (.data, .bss, .uninit; the executor's task futures and every
+//!   buffer are statics) + the stack reserve <= RAM.
+use std::fmt::Write as _;
+
+use anyhow::{Context, Result, anyhow, bail};
+use brdf_meter::blob::Dims;
+use brdf_meter::shape;
+use brdf_meter::store::SLOT_HEADER_LEN;
+
+use crate::device::memory_map::{MemoryMap, Region};
+
+/// Total flash of the STM32L475VG.
+pub const CHIP_FLASH: Region = Region { origin: shape::FLASH_BASE, length: shape::FLASH_SIZE };
+
+/// The largest calibration the product must run: Z = 128 zones of 81 x 7
+/// matrices for a 128-pixel sensor.
+pub const MAX_DIMS: Dims =
+    Dims { n: shape::BINS, m: shape::LEDS, zones: shape::board::MAX_ZONES, pixels: shape::board::PIXELS };
+
+/// Stack the firmware needs beyond its statics: interrupt handlers and the
+/// executor's poll frames (task state itself is static). Measured frames are
+/// well below this; it is the margin the check enforces.
+pub const STACK_RESERVE: u64 = 8 * 1024;
+
+/// One allocated section of an ELF image.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Section {
+    /// Name.
+    pub name: String,
+    /// Run-time address.
+    pub addr: u32,
+    /// Size in bytes.
+    pub size: u32,
+    /// Whether the file holds its bytes (false for .bss-like sections).
+    pub has_bytes: bool,
+}
+
+/// The allocated (loaded or zero-initialised) sections of a 32-bit
+/// little-endian ELF file.
+pub fn elf_sections(elf: &[u8]) -> Result<Vec<Section>> {
+    use object::read::elf::{ElfFile32, SectionHeader as _};
+    use object::{Object as _, ObjectSection as _};
+    let file = ElfFile32::<object::LittleEndian>::parse(elf)
+        .map_err(|e| anyhow!("not a 32-bit little-endian ELF (a Cortex-M image): {e}"))?;
+    let endian = file.endian();
+    let mut out = Vec::new();
+    for s in file.sections() {
+        let h = s.elf_section_header();
+        if (h.sh_flags(endian) & object::elf::SHF_ALLOC).0 == 0 || h.sh_size(endian) == 0 {
+            continue;
+        }
+        let name = s.name().map_err(|e| anyhow!("malformed ELF section name: {e}"))?;
+        out.push(Section {
+            name: name.to_string(),
+            addr: h.sh_addr(endian),
+            size: h.sh_size(endian),
+            has_bytes: h.sh_type(endian) != object::elf::SHT_NOBITS,
+        });
+    }
+    Ok(out)
+}
+
+/// Use of one resource against its limit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Line {
+    /// What is measured.
+    pub what: String,
+    /// Bytes used.
+    pub used: u64,
+    /// Bytes available.
+    pub limit: u64,
+}
+
+impl Line {
+    /// Whether it fits.
+    pub fn ok(&self) -> bool {
+        self.used <= self.limit
+    }
+}
+
+/// The budget of one firmware image.
+#[derive(Clone, Debug)]
+pub struct Budget {
+    /// Firmware name.
+    pub name: String,
+    /// The lines; all must fit.
+    pub lines: Vec<Line>,
+    /// Layout problems (overlaps, misalignment), each a failure.
+    pub problems: Vec<String>,
+    /// Facts printed with the table.
+    pub notes: Vec<String>,
+}
+
+impl Budget {
+    /// Whether every line fits and the layout is sound.
+    pub fn ok(&self) -> bool {
+        self.problems.is_empty() && self.lines.iter().all(Line::ok)
+    }
+
+    /// A plain-text table.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):", self.name, MAX_DIMS.zones, MAX_DIMS.n, MAX_DIMS.m, MAX_DIMS.pixels);
+        let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>6}", "resource", "used", "limit", "free", "use%");
+        for l in &self.lines {
+            let free = l.limit as i64 - l.used as i64;
+            let pct = if l.limit == 0 { 100.0 } else { 100.0 * l.used as f64 / l.limit as f64 };
+            let verdict = if l.ok() { "ok" } else { "OVER BUDGET" };
+            let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>5.1}%  {}", l.what, l.used, l.limit, free, pct, verdict);
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "  note: {n}");
+        }
+        for p in &self.problems {
+            let _ = writeln!(s, "  LAYOUT PROBLEM: {p}");
+        }
+        s
+    }
+}
+
+fn inside(r: &Region, addr: u32) -> bool {
+    (r.origin as u64..r.end()).contains(&(addr as u64))
+}
+
+/// Checks one firmware image's sections against the memory map.
+pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stack_reserve: u64) -> Budget {
+    let mut problems = Vec::new();
+    // The layout memory.x promises: image, then the slots, all in the chip.
+    if map.flash.end() > map.slot_a.origin as u64 {
+        problems.push(format!("FLASH (image) ends at {:#x}, past CAL_SLOT_A at {:#x}", map.flash.end(), map.slot_a.origin));
+    }
+    if map.slot_a.end() > map.slot_b.origin as u64 {
+        problems.push("CAL_SLOT_A overlaps CAL_SLOT_B".into());
+    }
+    for (n, r) in [("FLASH", map.flash), ("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
+        if r.origin < CHIP_FLASH.origin || r.end() > CHIP_FLASH.end() {
+            problems.push(format!("{n} is outside the chip's flash"));
+        }
+    }
+    for (n, r) in [("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
+        if r.origin % shape::FLASH_PAGE as u32 != 0 || r.length % shape::FLASH_PAGE as u32 != 0 {
+            problems.push(format!("{n} is not whole 2 KiB erase pages"));
+        }
+        if !(r.origin as usize + SLOT_HEADER_LEN).is_multiple_of(4) {
+            problems.push(format!("the blob in {n} would not be 4-byte aligned: matrices cannot be read in place"));
+        }
+    }
+    let mut image = 0u64;
+    let mut statics = 0u64;
+    for s in sections {
+        let in_flash = inside(&map.flash, s.addr);
+        let in_ram = inside(&map.ram, s.addr);
+        if inside(&map.slot_a, s.addr) || inside(&map.slot_b, s.addr) {
+            problems.push(format!("section {} at {:#x} lies in a calibration slot", s.name, s.addr));
+        }
+        if in_ram {
+            statics += s.size as u64;
+        }
+        // Loaded bytes live in flash: code and constants at their address,
+        // .data's initial values right after them.
+        if s.has_bytes && (in_flash || in_ram) {
+            image += s.size as u64;
+        }
+        if !in_flash && !in_ram {
+            problems.push(format!("section {} at {:#x} is in neither FLASH nor RAM", s.name, s.addr));
+        }
+    }
+    let blob = dims.blob_len() as u64;
+    let lines = vec![
+        Line { what: "flash: firmware image (outside calibration)".into(), used: image, limit: map.flash.length as u64 },
+        Line {
+            what: format!("flash: slot header + blob ({} B) per slot", blob),
+            used: SLOT_HEADER_LEN as u64 + blob,
+            limit: map.slot_a.length.min(map.slot_b.length) as u64,
+        },
+        Line {
+            what: format!("RAM: statics + {} B stack reserve", stack_reserve),
+            used: statics + stack_reserve,
+            limit: map.ram.length as u64,
+        },
+    ];
+    let matrices = 4 * (dims.zones * dims.n * dims.m) as u64;
+    let notes = vec![format!(
+        "the {} B of matrices stay in flash and are read in place; the RAM left after statics and stack is {} B",
+        matrices,
+        (map.ram.length as u64).saturating_sub(statics + stack_reserve)
+    )];
+    Budget { name: name.into(), lines, problems, notes }
+}
+
+/// Reads an ELF file and checks it against `memory.x`.
+pub fn check_file(path: &std::path::Path, script: &str) -> Result<Budget> {
+    let elf = std::fs::read(path).with_context(|| format!("cannot read firmware {}", path.display()))?;
+    let sections = elf_sections(&elf).with_context(|| format!("{}", path.display()))?;
+    if sections.is_empty() {
+        bail!("{}: no allocated sections", path.display());
+    }
+    let map = MemoryMap::from_script(script)?;
+    let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    Ok(check(&name, &sections, &map, MAX_DIMS, STACK_RESERVE))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::memory_map::MEMORY_X;
+
+    fn sec(name: &str, addr: u32, size: u32, has_bytes: bool) -> Section {
+        Section { name: name.into(), addr, size, has_bytes }
+    }
+
+    fn board_map() -> MemoryMap {
+        MemoryMap::board()
+    }
+
+    fn typical() -> Vec<Section> {
+        vec![
+            sec(".vector_table", 0x0800_0000, 0x188, true),
+            sec(".text", 0x0800_0188, 60_000, true),
+            sec(".rodata", 0x0801_0000, 8_000, true),
+            sec(".data", 0x2000_0000, 100, true),
+            sec(".bss", 0x2000_0064, 30_000, false),
+            sec(".uninit", 0x2000_8000, 1_024, false),
+        ]
+    }
+
+    #[test]
+    fn a_typical_image_fits_and_the_numbers_add_up() {
+        let b = check("fw", &typical(), &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(b.ok(), "{}", b.table());
+        assert_eq!(b.lines[0].used, 0x188 + 60_000 + 8_000 + 100);
+        assert_eq!(b.lines[1].used, SLOT_HEADER_LEN as u64 + MAX_DIMS.blob_len() as u64);
+        assert_eq!(b.lines[2].used, 100 + 30_000 + 1_024 + STACK_RESERVE);
+    }
+
+    #[test]
+    fn the_z128_blob_is_what_the_slots_are_sized_for() {
+        // 64 + 4*81 + 8 + 256 + 4*128*7 + 4*128*81 + 4*128*81*7 + 4
+        assert_eq!(MAX_DIMS.blob_len(), 336_016);
+        assert!(MAX_DIMS.blob_len() + SLOT_HEADER_LEN <= 384 * 1024);
+        // and its matrices could never be copied to RAM:
+        let d = MAX_DIMS;
+        assert!(4 * d.zones * d.n * d.m > board_map().ram.length as usize);
+    }
+
+    #[test]
+    fn an_image_past_the_flash_region_fails() {
+        let mut s = typical();
+        s[1].size = 256 * 1024;
+        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(!b.ok());
+        assert!(!b.lines[0].ok());
+        assert!(b.table().contains("OVER BUDGET"));
+    }
+
+    #[test]
+    fn statics_that_leave_no_stack_fail() {
+        let mut s = typical();
+        s[4].size = 90 * 1024;
+        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(!b.lines[2].ok() && !b.ok());
+    }
+
+    #[test]
+    fn a_blob_larger_than_a_slot_fails() {
+        let dims = Dims { n: 200, m: 7, zones: 128, pixels: 128 };
+        let b = check("fw", &typical(), &board_map(), dims, STACK_RESERVE);
+        assert!(!b.lines[1].ok() && !b.ok());
+    }
+
+    #[test]
+    fn a_memory_map_where_the_image_could_reach_the_calibration_fails() {
+        let script = MEMORY_X.replace("FLASH      : ORIGIN = 0x08000000, LENGTH = 256K", "FLASH : ORIGIN = 0x08000000, LENGTH = 300K");
+        assert_ne!(script, MEMORY_X, "the test must change memory.x");
+        let map = MemoryMap::from_script(&script).unwrap();
+        let b = check("fw", &typical(), &map, MAX_DIMS, STACK_RESERVE);
+        assert!(!b.ok());
+        assert!(b.problems.iter().any(|p| p.contains("past CAL_SLOT_A")), "{:?}", b.problems);
+        let mut s = typical();
+        s.push(sec(".cal", 0x0804_0000, 4, true));
+        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(b.problems.iter().any(|p| p.contains("calibration slot")));
+    }
+
+    /// A minimal ELF32 LE with sections: null, .text (PROGBITS, alloc),
+    /// .bss (NOBITS, alloc), .comment (not alloc), .shstrtab.
+    fn tiny_elf() -> Vec<u8> {
+        let strtab = b"\0.text\0.bss\0.comment\0.shstrtab\0".to_vec();
+        let mut elf = vec![0u8; 52];
+        elf[0..4].copy_from_slice(b"\x7fELF");
+        elf[4] = 1; // 32-bit
+        elf[5] = 1; // little-endian
+        elf[6] = 1; // ELF version 1 (current)
+        let str_off = elf.len() as u32;
+        elf.extend_from_slice(&strtab);
+        while !elf.len().is_multiple_of(4) {
+            elf.push(0);
+        }
+        let shoff = elf.len() as u32;
+        let mut sh = |name: u32, kind: u32, flags: u32, addr: u32, off: u32, size: u32| {
+            for v in [name, kind, flags, addr, off, size, 0, 0, 4, 0] {
+                elf.extend_from_slice(&v.to_le_bytes());
+            }
+        };
+        sh(0, 0, 0, 0, 0, 0);
+        sh(1, 1, 2 | 4, 0x0800_0000, 0, 1234); // .text
+        sh(7, 8, 2 | 1, 0x2000_0000, 0, 4321); // .bss
+        sh(12, 1, 0, 0, 0, 99); // .comment
+        sh(21, 3, 0, 0, str_off, strtab.len() as u32); // .shstrtab
+        elf[0x20..0x24].copy_from_slice(&shoff.to_le_bytes());
+        elf[0x2E..0x30].copy_from_slice(&40u16.to_le_bytes());
+        elf[0x30..0x32].copy_from_slice(&5u16.to_le_bytes());
+        elf[0x32..0x34].copy_from_slice(&4u16.to_le_bytes());
+        elf
+    }
+
+    #[test]
+    fn elf_sections_reads_allocated_sections_only() {
+        let s = elf_sections(&tiny_elf()).unwrap();
+        assert_eq!(s, vec![sec(".text", 0x0800_0000, 1234, true), sec(".bss", 0x2000_0000, 4321, false)]);
+        assert!(elf_sections(b"not an elf at all, certainly not one for a Cortex-M4F target").is_err());
+        let mut truncated = tiny_elf();
+        truncated.truncate(80);
+        assert!(elf_sections(&truncated).is_err());
+    }
+}

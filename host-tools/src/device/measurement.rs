@@ -1,0 +1,86 @@
+//! A measurement as files: one CSV row and one JSON object per point, with
+//! its BRDF vector, flags and the calibration's predicted per-bin
+//! uncertainty for the point's zone.
+use crate::device::link::PointRecord;
+use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::flags;
+use serde::Serialize;
+
+/// One point in the JSON.
+#[derive(Serialize)]
+pub struct PointJson<'a> {
+    pub line: u32,
+    pub point: u16,
+    pub zone: u16,
+    pub flags: Vec<&'static str>,
+    pub values: &'a [f32],
+    pub uncertainty: Vec<f32>,
+}
+
+/// The JSON document.
+#[derive(Serialize)]
+pub struct MeasureJson<'a> {
+    pub blob_crc: u32,
+    pub lines: u32,
+    pub angles_deg: Vec<f32>,
+    pub points: Vec<PointJson<'a>>,
+}
+
+/// The names of the point flags set in `f`.
+pub fn flag_names(f: u8) -> Vec<&'static str> {
+    let mut v = Vec::new();
+    if f & flags::SATURATED != 0 {
+        v.push("saturated");
+    }
+    if f & flags::UNDER_EXPOSED != 0 {
+        v.push("under-exposed");
+    }
+    if f & flags::NON_FINITE != 0 {
+        v.push("non-finite");
+    }
+    v
+}
+
+/// The CSV text and the JSON document of `points`, measured over `lines`
+/// lines with the calibration `view`.
+pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [PointRecord]) -> (String, MeasureJson<'a>) {
+    let d = view.dims();
+    let angles: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
+    let unc = |z: u16| -> Vec<f32> { (0..d.n).map(|j| view.uncertainty(z as usize, j)).collect() };
+    // CSV: one row per point, rho then uncertainty for each angle.
+    let mut csv = String::from("line,point,zone,flags");
+    for g in &angles {
+        csv.push_str(&format!(",rho_{g}"));
+    }
+    for g in &angles {
+        csv.push_str(&format!(",u_{g}"));
+    }
+    csv.push('\n');
+    for p in points {
+        csv.push_str(&format!("{},{},{},{}", p.line, p.point, p.zone, flag_names(p.flags).join("|")));
+        for v in &p.values {
+            csv.push_str(&format!(",{v:e}"));
+        }
+        for u in unc(p.zone) {
+            csv.push_str(&format!(",{u:e}"));
+        }
+        csv.push('\n');
+    }
+    let json = MeasureJson {
+        blob_crc: view.crc(),
+        lines,
+        angles_deg: angles,
+        points: points
+            .iter()
+            .map(|p| PointJson {
+                line: p.line,
+                point: p.point,
+                zone: p.zone,
+                flags: flag_names(p.flags),
+                values: &p.values,
+                uncertainty: unc(p.zone),
+            })
+            .collect(),
+    };
+    (csv, json)
+}

@@ -1,0 +1,32 @@
+//! The QEMU instrument's demo: a calibration trained for its simulated
+//! optics (the patent-profile scene at the device's pixel count),
+//! provisioned, and a 4-line scene loaded, so `measure` works at once.
+use crate::calibration::demo::train_for_scene;
+use crate::device::link::{Client, SerialTransport, TcpTransport, Transport};
+use crate::forward::scene::frames::{patent_scene, scene_frames};
+use anyhow::Context;
+use brdf_meter::protocol::CalInfo;
+use std::path::Path;
+use std::time::Duration;
+
+/// Connects to the QEMU instrument's serial (a pseudo-terminal path when
+/// `pty`, else TCP `HOST:PORT`) and waits until the firmware answers.
+pub fn connect(addr: &str, pty: bool) -> anyhow::Result<Client<Box<dyn Transport>>> {
+    let t: Box<dyn Transport> = if pty { Box::new(SerialTransport::open(addr)?) } else { Box::new(TcpTransport::connect(addr)?) };
+    let mut c = Client::new(t)?;
+    c.wait_ready(Duration::from_secs(20))?;
+    Ok(c)
+}
+
+/// Trains the demo calibration for the device behind `c`, writes it to
+/// `blob_path`, provisions it and loads the scene; returns the blob and what
+/// the device reports for it.
+pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path) -> anyhow::Result<(Vec<u8>, CalInfo)> {
+    let info = c.info()?;
+    let scene = patent_scene(info.pixels as usize);
+    let trained = train_for_scene(&scene, 4, 0.02)?;
+    crate::output::io::write_atomic(blob_path, &trained.blob)?;
+    let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
+    c.load_scene(&scene_frames(&scene, 4)?)?;
+    Ok((trained.blob, cal))
+}

@@ -1,0 +1,9 @@
+//! The forward model: what the instrument reads for a surface.
+//! BRDF models -> angle grid -> optics (rays, system matrix H) -> priors ->
+//! per-zone optics -> scenes (the scene simulator and raw frames).
+pub mod brdf;
+pub mod grid;
+pub mod optics;
+pub mod prior;
+pub mod zone_optics;
+pub mod scene;

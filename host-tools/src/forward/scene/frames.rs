@@ -1,0 +1,72 @@
+//! Raw frames as the instrument's sensor delivers them, `[line][frame][pixel]`
+//! (frame 0 dark, 1 + k under LED k), for a simulated instrument (the QEMU
+//! firmware, the host simulation): lines of a scene from the scene simulator,
+//! and a simple analytic pattern.
+//!
+//! The analytic pattern (a diffuse base plus a specular lobe that moves along
+//! the line) exercises every pixel, zone and LED with distinct values, which
+//! is what the link and bit-exactness checks need.
+use brdf_meter::blob::BlobView;
+
+/// Raw frames of a scene: `[line][frame][pixel]`, frame 0 dark, 1 + k under LED k.
+pub type SceneFrames = Vec<Vec<Vec<u16>>>;
+
+/// A scene of `lines` lines for the instrument `blob` describes: raw counts
+/// are `dark + white * reflectance`, with the blob's white reference (so a
+/// perfect diffuser reads its white value), clamped to `full_scale`.
+#[allow(clippy::needless_range_loop)] // p indexes every frame of the line
+pub fn analytic_scene(blob: &BlobView<'_>, lines: usize, full_scale: u16) -> SceneFrames {
+    let d = blob.dims();
+    let order = blob.led_order();
+    (0..lines)
+        .map(|l| {
+            let mut frames = vec![vec![0u16; d.pixels]; d.m + 1];
+            for p in 0..d.pixels {
+                let dark = 40 + ((p * 7 + l * 3) % 23) as u16;
+                frames[0][p] = dark;
+                for (i, &led) in order.iter().enumerate() {
+                    let x = p as f32 / d.pixels.max(2) as f32;
+                    let lobe_at = (l as f32 * 0.37 + x) * (d.m as f32 - 1.0) % d.m as f32;
+                    let diff = 0.15 + 0.5 * x;
+                    let spec = 0.6 * (-((i as f32 - lobe_at).powi(2)) / 0.8).exp();
+                    let counts = dark as f32 + blob.white(p, i) * (diff + spec);
+                    frames[led as usize + 1][p] = counts.round().clamp(0.0, full_scale as f32) as u16;
+                }
+            }
+            frames
+        })
+        .collect()
+}
+
+/// The patent-profile scene (host-tools' scene simulator) with a line sensor
+/// of `pixels` pixels: what the QEMU instrument simulates by default.
+pub fn patent_scene(pixels: usize) -> super::Scene {
+    let mut s = super::Scene::patent_profile();
+    s.instrument.sensor.pixels = pixels;
+    s
+}
+
+/// Raw frames of `lines` lines of `scene` from host-tools' scene simulator.
+pub fn scene_frames(scene: &super::Scene, lines: usize) -> anyhow::Result<SceneFrames> {
+    (0..lines as u64).map(|l| super::raw_frames(scene, l)).collect()
+}
+
+/// Frames for a simulated device from a scene named on the command line:
+/// `analytic` ([`analytic_scene`]), `patent` ([`patent_scene`]) or a scene
+/// TOML file, simulated for the calibration's pixel count.
+pub fn named_scene_frames(spec: &str, blob: &BlobView<'_>, lines: usize, full_scale: u16) -> anyhow::Result<SceneFrames> {
+    use anyhow::Context;
+    let pixels = blob.dims().pixels;
+    Ok(match spec {
+        "analytic" => analytic_scene(blob, lines, full_scale),
+        "patent" => scene_frames(&patent_scene(pixels), lines)?,
+        path => {
+            let mut s = super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
+            if s.instrument.sensor.pixels != pixels {
+                eprintln!("note: scene {path} has {} pixels; simulating {pixels} for this device", s.instrument.sensor.pixels);
+                s.instrument.sensor.pixels = pixels;
+            }
+            scene_frames(&s, lines)?
+        }
+    })
+}

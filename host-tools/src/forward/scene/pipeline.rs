@@ -1,0 +1,469 @@
+//! The readings pipeline of a scene, built from its effect list.
+//!
+//! Per pixel and LED: geometry (the rays [`Optics`] makes for the scene's
+//! [`RayModel`]) -> irradiance weights -> BRDF -> light stages (drift) ->
+//! sensor stages (ambient, nonlinearity, dark offset, noise, saturation,
+//! quantisation) -> raw counts; plus a dark frame through the same stages.
+//! The host then white-calibrates: `corrected = (raw - dark) / white`, where
+//! `white` is the same pipeline's noise-free, drift-free reading of a perfect
+//! diffuser, dark-corrected (so a perfect diffuser reads 1 in every geometry).
+//!
+//! Geometric effects configure the optics (a flag that is off is a
+//! computation that never runs); the others are boxed [`Stage`]s, one per
+//! listed effect and none for an unlisted one.
+use super::effects::{EffectSpec, NoiseModel, STAGE_ORDER};
+use super::Scene;
+use crate::forward::brdf::Brdf;
+use crate::forward::optics::{Optics, RayModel};
+use anyhow::bail;
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// Where a frame sits in time and what lights it.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameCtx {
+    /// Scene line (0 = the first line after calibration).
+    pub line: u64,
+    /// 0 = dark frame, 1 + k = LED k.
+    pub frame: usize,
+    /// LEDs per line.
+    pub m: usize,
+}
+
+impl FrameCtx {
+    /// Frames elapsed since calibration (dark frame of line 0 = 0).
+    pub fn time(&self) -> u64 {
+        self.line * (self.m as u64 + 1) + self.frame as u64
+    }
+}
+
+/// Which stages run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Every listed stage.
+    Full,
+    /// Every listed stage but noise (the "noise-free" readings beside the truth).
+    NoNoise,
+    /// The calibration: no noise, no drift (the white reference).
+    Reference,
+}
+
+/// A light or sensor stage acting on one frame of counts (P pixels).
+pub trait Stage: Send + Sync + std::fmt::Debug {
+    /// The effect's name.
+    fn name(&self) -> &'static str;
+    /// Applies the stage.
+    fn apply(&self, frame: &mut [f64], ctx: &FrameCtx);
+    /// Whether the stage runs in `mode`.
+    fn runs_in(&self, _mode: Mode) -> bool {
+        true
+    }
+}
+
+#[derive(Debug)]
+struct Drift {
+    rate: f64,
+}
+impl Stage for Drift {
+    fn name(&self) -> &'static str {
+        "led-drift"
+    }
+    fn apply(&self, frame: &mut [f64], ctx: &FrameCtx) {
+        if ctx.frame > 0 {
+            let f = 1.0 + self.rate * ctx.time() as f64;
+            frame.iter_mut().for_each(|x| *x *= f);
+        }
+    }
+    fn runs_in(&self, mode: Mode) -> bool {
+        mode != Mode::Reference
+    }
+}
+
+#[derive(Debug)]
+struct Ambient {
+    counts: f64,
+}
+impl Stage for Ambient {
+    fn name(&self) -> &'static str {
+        "ambient-light"
+    }
+    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
+        frame.iter_mut().for_each(|x| *x += self.counts);
+    }
+}
+
+#[derive(Debug)]
+struct Nonlinearity {
+    gamma: f64,
+    full_scale: f64,
+}
+impl Stage for Nonlinearity {
+    fn name(&self) -> &'static str {
+        "nonlinearity"
+    }
+    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
+        for x in frame.iter_mut().filter(|x| **x > 0.0) {
+            *x = self.full_scale * (*x / self.full_scale).powf(self.gamma);
+        }
+    }
+}
+
+#[derive(Debug)]
+struct DarkOffset {
+    counts: f64,
+    /// Per-pixel pattern; empty when the scene gives none.
+    pattern: Vec<f64>,
+}
+impl Stage for DarkOffset {
+    fn name(&self) -> &'static str {
+        "dark-offset"
+    }
+    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
+        frame.iter_mut().for_each(|x| *x += self.counts);
+        for (x, p) in frame.iter_mut().zip(&self.pattern) {
+            *x += p;
+        }
+    }
+}
+
+#[derive(Debug)]
+struct Noise {
+    model: NoiseModel,
+    /// sigma (proportional), sigma_counts (additive) or e-/count (shot-read).
+    a: f64,
+    /// read sigma (shot-read).
+    b: f64,
+    seed: u64,
+}
+impl Stage for Noise {
+    fn name(&self) -> &'static str {
+        "noise"
+    }
+    fn apply(&self, frame: &mut [f64], ctx: &FrameCtx) {
+        // One stream per (seed, line, frame): a frame's draw does not depend
+        // on which other frames were simulated.
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, ctx.line, ctx.frame as u64));
+        for x in frame.iter_mut() {
+            let sd = match self.model {
+                NoiseModel::Additive => self.a,
+                NoiseModel::Proportional => self.a * x.abs(),
+                NoiseModel::ShotRead => (x.max(0.0) / self.a + self.b * self.b).sqrt(),
+            };
+            let z: f64 = StandardNormal.sample(&mut rng);
+            *x += sd * z;
+        }
+    }
+    fn runs_in(&self, mode: Mode) -> bool {
+        mode == Mode::Full
+    }
+}
+
+#[derive(Debug)]
+struct Saturation {
+    full_scale: f64,
+}
+impl Stage for Saturation {
+    fn name(&self) -> &'static str {
+        "saturation"
+    }
+    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
+        frame.iter_mut().for_each(|x| *x = x.clamp(0.0, self.full_scale));
+    }
+}
+
+#[derive(Debug)]
+struct Quantisation {
+    step: f64,
+}
+impl Stage for Quantisation {
+    fn name(&self) -> &'static str {
+        "quantisation"
+    }
+    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
+        frame.iter_mut().for_each(|x| *x = (*x / self.step).round() * self.step);
+    }
+}
+
+fn mix(seed: u64, line: u64, frame: u64) -> u64 {
+    // SplitMix64 finaliser over the three inputs.
+    let mut z = seed ^ line.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ frame.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The stages a scene's effect list builds, in stage order.
+#[derive(Debug)]
+pub struct Pipeline {
+    model: RayModel,
+    per_pixel: bool,
+    geometry: Vec<&'static str>,
+    stages: Vec<Box<dyn Stage>>,
+}
+
+impl Pipeline {
+    /// Builds the pipeline of `scene`: exactly one stage per listed effect.
+    pub fn new(scene: &Scene) -> Self {
+        let mut effects: Vec<&EffectSpec> = scene.effects.iter().collect();
+        effects.sort_by_key(|e| e.order());
+        let s = &scene.instrument.sensor;
+        let mut geometry = Vec::new();
+        let mut stages: Vec<Box<dyn Stage>> = Vec::new();
+        for e in effects {
+            match e {
+                EffectSpec::NearField {}
+                | EffectSpec::ThreeDGeometry {}
+                | EffectSpec::PerPixelGeometry {}
+                | EffectSpec::InverseSquare {}
+                | EffectSpec::EmissionProfile {} => geometry.push(e.name()),
+                EffectSpec::LedDrift { rate_per_frame } => stages.push(Box::new(Drift { rate: *rate_per_frame })),
+                EffectSpec::AmbientLight { counts } => stages.push(Box::new(Ambient { counts: *counts })),
+                EffectSpec::Nonlinearity { gamma } => stages.push(Box::new(Nonlinearity { gamma: *gamma, full_scale: s.full_scale })),
+                EffectSpec::DarkOffset { counts, fixed_pattern_rms, seed } => {
+                    let pattern = if *fixed_pattern_rms > 0.0 {
+                        let mut rng = ChaCha8Rng::seed_from_u64(mix(*seed, u64::MAX, u64::MAX));
+                        (0..s.pixels)
+                            .map(|_| {
+                                let z: f64 = StandardNormal.sample(&mut rng);
+                                fixed_pattern_rms * z
+                            })
+                            .collect()
+                    } else {
+                        Vec::new()
+                    };
+                    stages.push(Box::new(DarkOffset { counts: *counts, pattern }))
+                }
+                EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, seed } => {
+                    let (a, b) = match model {
+                        NoiseModel::Additive => (sigma_counts.unwrap_or(0.0), 0.0),
+                        NoiseModel::Proportional => (sigma.unwrap_or(0.0), 0.0),
+                        NoiseModel::ShotRead => (electrons_per_count.unwrap_or(1.0), read_sigma_counts.unwrap_or(0.0)),
+                    };
+                    stages.push(Box::new(Noise { model: *model, a, b, seed: *seed }))
+                }
+                EffectSpec::Saturation {} => stages.push(Box::new(Saturation { full_scale: s.full_scale })),
+                EffectSpec::Quantisation { step_counts } => stages.push(Box::new(Quantisation { step: *step_counts })),
+            }
+        }
+        Self { model: scene.ray_model(), per_pixel: scene.has("per-pixel-geometry"), geometry, stages }
+    }
+
+    /// Names of the stages, in the order they run.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.geometry.iter().copied().chain(self.stages.iter().map(|s| s.name())).collect()
+    }
+
+    /// The ray model of the geometric stages.
+    pub fn ray_model(&self) -> RayModel {
+        self.model
+    }
+
+    /// Runs the light and sensor stages on one frame.
+    pub fn run(&self, frame: &mut [f64], ctx: &FrameCtx, mode: Mode) {
+        for s in self.stages.iter().filter(|s| s.runs_in(mode)) {
+            s.apply(frame, ctx);
+        }
+    }
+}
+
+/// One simulated line.
+#[derive(Clone, Debug)]
+pub struct LineReadings {
+    /// Scene line.
+    pub line: u64,
+    /// Raw counts: frame 0 is dark, frame 1 + k is LED k; P values each.
+    pub raw: Vec<Vec<f64>>,
+    /// White-calibrated readings `(raw - dark) / white`, index `p * m + k`.
+    pub corrected: Vec<f64>,
+}
+
+/// A scene prepared for simulation: the pipeline, the light reaching each
+/// pixel under each LED (computed once) and the white reference.
+#[derive(Debug)]
+pub struct Simulator {
+    pipeline: Pipeline,
+    m: usize,
+    p: usize,
+    /// Counts of light before the light and sensor stages, `p * m + k`.
+    signal: Vec<f64>,
+    /// White reference, `p * m + k`.
+    white: Vec<f64>,
+}
+
+impl Simulator {
+    /// Prepares `scene` (validated). Fails, naming the pixel and the LED,
+    /// when a pixel gets no light from an LED (a white reference of 0).
+    pub fn new(scene: &Scene) -> anyhow::Result<Self> {
+        let pipeline = Pipeline::new(scene);
+        let inst = &scene.instrument;
+        let (m, p) = (inst.m(), inst.pixels());
+        let optics = Optics::new(inst, pipeline.model);
+        let (brdfs, of_pixel) = scene.surface_brdfs()?;
+        let gain = inst.sensor.gain;
+        // Light per (point, model): computed once per distinct pair. Without
+        // per-pixel geometry there is one point, so one evaluation per LED
+        // and model serves every pixel.
+        let npoints = if pipeline.per_pixel { p } else { 1 };
+        let mut memo: Vec<Option<Vec<f64>>> = vec![None; npoints * brdfs.len()];
+        let mut white_memo: Vec<Option<Vec<f64>>> = vec![None; npoints];
+        let mut signal = vec![0.0; p * m];
+        let mut white_signal = vec![0.0; p * m];
+        for px in 0..p {
+            let pt = if pipeline.per_pixel { px } else { 0 };
+            let b = of_pixel[px];
+            let key = pt * brdfs.len() + b;
+            if memo[key].is_none() || white_memo[pt].is_none() {
+                // One pass over the rays gives the surface's light and the white tile's.
+                let (l, w) = light(&optics, &scene.pixel_point(px as f64), &pixel_view(scene, px), brdfs[b].as_ref(), gain);
+                memo[key].get_or_insert(l);
+                white_memo[pt].get_or_insert(w);
+            }
+            signal[px * m..(px + 1) * m].copy_from_slice(memo[key].as_deref().unwrap());
+            white_signal[px * m..(px + 1) * m].copy_from_slice(white_memo[pt].as_deref().unwrap());
+        }
+        let white = reference(&pipeline, &white_signal, m, p);
+        for px in 0..p {
+            for k in 0..m {
+                let w = white[px * m + k];
+                if w.is_nan() || w <= 0.0 || !w.is_finite() {
+                    bail!(
+                        "scene `{}`: pixel {px} gets no usable light from instrument.leds[{k}] (white reference {w}); \
+                         check the LED's position, emission profile and the sensor's gain and saturation",
+                        scene.name
+                    );
+                }
+            }
+        }
+        Ok(Self { pipeline, m, p, signal, white })
+    }
+
+    /// The pipeline.
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+
+    /// LEDs m.
+    pub fn m(&self) -> usize {
+        self.m
+    }
+
+    /// Pixels P.
+    pub fn pixels(&self) -> usize {
+        self.p
+    }
+
+    /// Light reaching the sensor before drift and the sensor stages, counts,
+    /// `p * m + k`.
+    pub fn signal(&self) -> &[f64] {
+        &self.signal
+    }
+
+    /// White reference, `p * m + k`.
+    pub fn white(&self) -> &[f64] {
+        &self.white
+    }
+
+    /// The raw frames of `line` in `mode`: dark, then one per LED.
+    pub fn frames(&self, line: u64, mode: Mode) -> Vec<Vec<f64>> {
+        (0..=self.m)
+            .map(|f| {
+                let mut frame = if f == 0 { vec![0.0; self.p] } else { (0..self.p).map(|px| self.signal[px * self.m + f - 1]).collect() };
+                self.pipeline.run(&mut frame, &FrameCtx { line, frame: f, m: self.m }, mode);
+                frame
+            })
+            .collect()
+    }
+
+    /// Simulates line `line`: raw frames and white-calibrated readings.
+    pub fn simulate_line(&self, line: u64, mode: Mode) -> LineReadings {
+        let raw = self.frames(line, mode);
+        let corrected = self.correct(&raw);
+        LineReadings { line, raw, corrected }
+    }
+
+    /// `(raw - dark) / white` for frames laid out as [`Self::frames`] gives.
+    pub fn correct(&self, raw: &[Vec<f64>]) -> Vec<f64> {
+        let mut out = vec![0.0; self.p * self.m];
+        for px in 0..self.p {
+            for k in 0..self.m {
+                out[px * self.m + k] = (raw[1 + k][px] - raw[0][px]) / self.white[px * self.m + k];
+            }
+        }
+        out
+    }
+
+    /// Raw frames of `line` as the simulated sensor serves them: u16,
+    /// rounded, negative counts read as 0; dark first, then LEDs in order.
+    /// A count above 65535 cannot cross the link: that is an error naming
+    /// the pixel and LED (lower `instrument.sensor.gain` or list `saturation`).
+    pub fn raw_frames(&self, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
+        let frames = self.frames(line, Mode::Full);
+        let mut out = Vec::with_capacity(frames.len());
+        for (f, frame) in frames.into_iter().enumerate() {
+            let mut px_out = Vec::with_capacity(frame.len());
+            for (px, x) in frame.into_iter().enumerate() {
+                let r = x.round();
+                if r.is_nan() || r > 65535.0 {
+                    let what = if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
+                    bail!(
+                        "line {line}, pixel {px}, {what}: {x} counts do not fit the u16 link; lower instrument.sensor.gain or list the `saturation` effect"
+                    );
+                }
+                px_out.push(r.max(0.0) as u16);
+            }
+            out.push(px_out);
+        }
+        Ok(out)
+    }
+}
+
+/// Per LED: gain x sum over rays of weight x R(ray, view), and the same for
+/// a perfect diffuser (R = 1 wherever the viewer sees the surface).
+fn light(optics: &Optics, point: &Vector3<f64>, wo: &Vector3<f64>, brdf: &dyn Brdf, gain: f64) -> (Vec<f64>, Vec<f64>) {
+    let seen = if wo.z > 0.0 { 1.0 } else { 0.0 };
+    (0..optics.m())
+        .map(|led| {
+            let (mut s, mut w) = (0.0, 0.0);
+            optics.for_each_ray(led, point, |r| {
+                s += r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, wo);
+                w += r.weight;
+            });
+            (gain * s, gain * w * seen)
+        })
+        .unzip()
+}
+
+/// Dark-corrected reference readings of the white signal (`p * m + k`).
+fn reference(pipeline: &Pipeline, white_signal: &[f64], m: usize, p: usize) -> Vec<f64> {
+    let mut dark = vec![0.0; p];
+    pipeline.run(&mut dark, &FrameCtx { line: 0, frame: 0, m }, Mode::Reference);
+    let mut out = vec![0.0; p * m];
+    for k in 0..m {
+        let mut f: Vec<f64> = (0..p).map(|px| white_signal[px * m + k]).collect();
+        pipeline.run(&mut f, &FrameCtx { line: 0, frame: 1 + k, m }, Mode::Reference);
+        for px in 0..p {
+            out[px * m + k] = f[px] - dark[px];
+        }
+    }
+    out
+}
+
+/// The view direction (surface frame) of pixel `px` under the scene's geometry.
+pub fn pixel_view(scene: &Scene, px: usize) -> Vector3<f64> {
+    let optics_frame = crate::forward::optics::surface_frame(&scene.instrument.normal());
+    let inst = &scene.instrument;
+    match (scene.has("per-pixel-geometry"), inst.view_distance_cm) {
+        (true, Some(d)) => {
+            let c = Vector3::from(inst.point.position_cm) + inst.view_dir() * d;
+            optics_frame * (c - scene.pixel_point(px as f64)).normalize()
+        }
+        _ => optics_frame * inst.view_dir(),
+    }
+}
+
+/// Every effect name, for messages.
+pub fn effect_names() -> String {
+    STAGE_ORDER.join(", ")
+}
