@@ -27,7 +27,6 @@
 //!
 //! The firmware binaries (src/bin/) only wire a platform to [`app`].
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
-#![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
 pub mod acquire;

@@ -1,4 +1,4 @@
-//! Device guards (issue 6, part 3): corrected readings that are saturated,
+//! Device guards: corrected readings that are saturated,
 //! zero, negative or non-finite are flagged per point, and no NaN or infinity
 //! ever reaches a streamed frame - including when W itself is so large that
 //! `W v` overflows f32 (policy: the point is zeroed and flagged NON_FINITE,
