@@ -11,11 +11,14 @@ use serde::{Deserialize, Serialize};
 
 mod ggx;
 mod lambert;
+pub mod merl_binary;
+pub mod nbrdf;
 mod tabulated;
 mod ward;
 
 pub use ggx::Ggx;
 pub use lambert::Lambertian;
+pub use nbrdf::{Nbrdf, NbrdfSet};
 pub use tabulated::Tabulated;
 pub use ward::Ward;
 
