@@ -19,6 +19,7 @@ pub mod acquire;
 pub mod app;
 pub mod estimate;
 pub mod protocol;
+pub mod scale_free;
 pub mod scene;
 #[cfg(any(test, feature = "sim"))]
 pub mod sim;
