@@ -53,6 +53,7 @@ pub mod batch;
 pub mod interpolation;
 pub mod inverse;
 pub mod pseudo_inverse;
+pub mod scale_free;
 pub mod wiener;
 
 pub use batch::BatchEstimator;
@@ -247,6 +248,8 @@ pub fn kind_name(kind: EstimatorKind) -> &'static str {
         EstimatorKind::PseudoInverse => "pseudo-inverse",
         EstimatorKind::Interpolation => "interpolation",
         EstimatorKind::LogWiener => "log-wiener",
+        EstimatorKind::ScaleFree => "scale-free",
+        EstimatorKind::ScaleFreePiecewise => "scale-free-piecewise",
     }
 }
 
@@ -294,7 +297,10 @@ pub fn build(kind: EstimatorKind, inputs: &EstimatorInputs<'_>) -> Result<Linear
         EstimatorKind::Inverse => inverse::build(h)?,
         EstimatorKind::PseudoInverse => pseudo_inverse::build(h),
         EstimatorKind::Interpolation => interpolation::build(inputs.bins_deg, inputs.centres_deg, m)?,
-        EstimatorKind::LogWiener => return Err(EstimatorError::Unsupported(kind_name(kind))),
+        // Not one linear W: trained by `scale_free::train_zone`.
+        EstimatorKind::LogWiener | EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
+            return Err(EstimatorError::Unsupported(kind_name(kind)));
+        }
     };
     let var = error_variance(&built.w, h, &prior, &noise_f);
     let predicted_rmse = (var.sum() / n as f64).sqrt();
