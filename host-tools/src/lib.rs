@@ -17,6 +17,7 @@ pub mod link;
 pub mod optics;
 pub mod plot;
 pub mod prior;
+pub mod prior_measured;
 pub mod scene;
 pub mod stability;
 pub mod reproduce;
