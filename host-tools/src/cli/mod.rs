@@ -3,7 +3,9 @@
 use clap::{Parser, Subcommand};
 
 pub mod firmware_budget;
+pub mod estimate;
 pub mod info;
+pub mod materials;
 pub mod measure;
 pub mod provision;
 pub mod qemu;
@@ -14,6 +16,7 @@ pub mod simulate;
 pub mod stability;
 pub mod tradeoff;
 pub mod train;
+pub mod train_measured;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
@@ -49,6 +52,10 @@ pub enum Command {
     Stability(stability::Args),
     /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts (issue 5).
     Tradeoff(tradeoff::Args),
+    /// Apply a calibration blob to logged readings offline, exactly as the device does.
+    Estimate(estimate::Args),
+    /// Leave-one-material-out over measured materials: errors, flags, worst-case plot.
+    Materials(materials::Args),
 }
 
 /// Runs one parsed command line.
@@ -65,5 +72,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Qemu(a) => qemu::run(a),
         Command::Stability(a) => stability::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),
+        Command::Estimate(a) => estimate::run(a),
+        Command::Materials(a) => materials::run(a),
     }
 }

@@ -1,0 +1,80 @@
+//! `host-tools train` with a measured or mixed prior (`--prior merl`, files,
+//! directories, `merl@0.8+patent@0.2`) or a scale-free estimator: the
+//! weighted samples of `prior_measured`, then `train` (linear kinds, R_pp of
+//! the weighted samples) or `train_scale_free` (format 2 blob).
+use super::train::Args;
+use crate::estimators::kind_name;
+use crate::grid::AngleGrid;
+use crate::optics::Instrument;
+use crate::prior_measured::{PriorMix, weighted_prior};
+use crate::train::{TrainSpec, train, uniform_zones};
+use crate::train_scale_free::train_scale_free;
+use anyhow::{Context, ensure};
+use brdf_meter::blob::{BlobView, EstimatorKind};
+
+/// Runs `train` for a measured/mixed prior or a scale-free kind.
+pub fn run(a: Args, scene: Option<crate::scene::Scene>, noise: f64, inst: Instrument, grid: AngleGrid) -> anyhow::Result<()> {
+    let kind: EstimatorKind = a.estimator.into();
+    ensure!(a.false_alarm > 0.0 && a.false_alarm < 1.0, "--false-alarm {}: must be in (0, 1)", a.false_alarm);
+    let mix = PriorMix::parse(&a.prior)?;
+    let (ws, _) = mix.samples(&grid, inst.view_deg, inst.spectral_weights).context("building the prior")?;
+    let (zones, pixels, white, far_field) = match &scene {
+        Some(s) => {
+            let t = crate::scene::training_optics(s, a.zones).context("--zones with --scene")?;
+            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
+        }
+        None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
+    };
+    let prior = weighted_prior(&ws);
+    let spec = TrainSpec { bins_deg: grid.bins_deg(), zones, pixels, prior: &prior, noise_rel: noise, estimator: kind, far_field, led_order: None, white };
+    let families: Vec<String> = mix.families.iter().map(|(l, _, w)| format!("{l} (weight {w})")).collect();
+    let (blob, json) = if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+        let t = train_scale_free(&spec, &ws, a.false_alarm)?;
+        let j = a.json.as_ref().map(|_| serde_json::to_value(t.to_json(kind, grid.bins_deg()))).transpose()?;
+        let z0 = &t.zones[0];
+        println!(
+            "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, K = {}, prior {} samples from {}, noise {noise}",
+            kind_name(kind),
+            t.dims.zones,
+            t.dims.pixels,
+            t.dims.n,
+            t.dims.m,
+            z0.maps.len(),
+            ws.samples.ncols(),
+            families.join(" + ")
+        );
+        println!(
+            "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior threshold {:.2} at {:.0} % false alarms on held-out samples; f32 vs f64 {:.1e}",
+            z0.ridge,
+            z0.cv_error,
+            t.threshold,
+            100.0 * a.false_alarm,
+            t.f32_rel_error
+        );
+        (t.blob, j)
+    } else {
+        let t = train(&spec)?;
+        let j = a.json.as_ref().map(|_| serde_json::to_value(t.to_json())).transpose()?;
+        let s = &t.zones[0].estimator.summary;
+        println!(
+            "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, prior {} samples (rank {}) from {}, noise {noise}; predicted RMSE {:.4}",
+            kind_name(kind),
+            t.dims.zones,
+            t.dims.pixels,
+            t.dims.n,
+            t.dims.m,
+            s.prior_samples,
+            s.prior_rank,
+            families.join(" + "),
+            s.predicted_rmse
+        );
+        (t.blob, j)
+    };
+    crate::io::write_atomic(&a.out, &blob).with_context(|| format!("writing {}", a.out.display()))?;
+    if let (Some(p), Some(j)) = (&a.json, &json) {
+        crate::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
+    }
+    let view = BlobView::parse(&blob).expect("validated");
+    println!("wrote {} ({} bytes, format {}, CRC {:#010x})", a.out.display(), blob.len(), view.version(), view.crc());
+    Ok(())
+}
