@@ -237,3 +237,76 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cli::train::{Estimator, run as train_run};
+
+    fn blob(dir: &Path, est: Estimator, prior: &str) -> PathBuf {
+        let a = crate::cli::train_measured::tests::args(dir, est, prior);
+        let out = a.out.clone();
+        train_run(a).unwrap();
+        out
+    }
+
+    fn args(dir: &Path, cal: &Path, readings: &str) -> Args {
+        let r = dir.join("r.csv");
+        std::fs::write(&r, readings).unwrap();
+        Args { blob: cal.to_path_buf(), readings: r, out: dir.join("e.csv"), json: Some(dir.join("e.json")), zone: 0 }
+    }
+
+    #[test]
+    fn applies_the_blob_as_the_device_does_and_flags_an_unknown_material() {
+        let dir = tempfile::tempdir().unwrap();
+        let cal = blob(dir.path(), Estimator::ScaleFree, "merl");
+        // A MERL material's readings (in the prior), and light from one LED only (unlike any).
+        let inst = crate::optics::Instrument::patent_profile();
+        let mat = crate::brdf::NbrdfSet::merl().by_name("white-paint", inst.spectral_weights).unwrap();
+        let v = crate::optics::simulate_readings(&inst, &mat, false);
+        let row: Vec<String> = v.iter().map(|x| (*x as f32).to_string()).collect();
+        let text = format!("a,b,c,d,e,f,g\n{}\n5,0.001,0.001,0.001,0.001,0.001,0.001\n", row.join(","));
+        run(args(dir.path(), &cal, &text)).unwrap();
+        let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("e.json")).unwrap()).unwrap();
+        assert_eq!(j["bins_deg"].as_array().unwrap().len(), 81);
+        let pts = j["points"].as_array().unwrap();
+        assert_eq!(pts.len(), 2);
+        assert_eq!(pts[0]["flags"].as_array().unwrap().len(), 0);
+        assert_eq!(pts[1]["flags"][0], "out-of-prior");
+        // Bit for bit the library's function on the blob's matrix.
+        let bytes = std::fs::read(&cal).unwrap();
+        let view = BlobView::parse(&bytes).unwrap();
+        let mut w = vec![0.0f32; 81 * 7];
+        view.copy_matrix(0, &mut w);
+        let v32: Vec<f32> = row.iter().map(|x| x.parse().unwrap()).collect();
+        let mut out = vec![0.0f32; 81];
+        brdf_meter::scale_free::estimate_scale_free(&w, &v32, &mut out);
+        let got: Vec<f32> = pts[0]["rho"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect();
+        assert_eq!(got, out);
+        let csv = std::fs::read_to_string(dir.path().join("e.csv")).unwrap();
+        assert_eq!(csv.lines().count(), 3);
+        assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81);
+        assert!(csv.lines().nth(2).unwrap().starts_with("1,out-of-prior,"));
+    }
+
+    #[test]
+    fn bad_input_gets_a_clear_error_and_writes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let cal = blob(dir.path(), Estimator::ScaleFree, "merl");
+        for (text, why) in [
+            ("1,2,3,4,5,6,7\n1,2,3\n", "r.csv:2: 3 column(s), but the blob is for m = 7"),
+            ("1,2,3,4,5,6,7\n1,2,x,4,5,6,7\n", "r.csv:2: column 3: \"x\" is not a number"),
+            ("a,b,c,d,e,f,g\n", "no readings"),
+        ] {
+            let e = format!("{:#}", run(args(dir.path(), &cal, text)).unwrap_err());
+            assert!(e.contains(why), "{e}");
+            assert!(!dir.path().join("e.csv").exists() && !dir.path().join("e.json").exists());
+        }
+        // A blob for another m: an instrument with 5 LEDs.
+        let e = format!("{:#}", run(args(dir.path(), &cal, "1,2,3,4,5\n")).unwrap_err());
+        assert!(e.contains("r.csv:1: 5 column(s), but the blob is for m = 7"), "{e}");
+        let e = format!("{:#}", run(Args { zone: 3, ..args(dir.path(), &cal, "1,2,3,4,5,6,7\n") }).unwrap_err());
+        assert!(e.contains("--zone 3"), "{e}");
+        assert!(!dir.path().join("e.csv").exists());
+    }
+}

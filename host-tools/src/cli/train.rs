@@ -239,6 +239,7 @@ mod tests {
             instrument: None,
             far_field: false,
             scene: None,
+            false_alarm: 0.05,
         }
     }
 

@@ -78,3 +78,57 @@ pub fn run(a: Args, scene: Option<crate::scene::Scene>, noise: f64, inst: Instru
     println!("wrote {} ({} bytes, format {}, CRC {:#010x})", a.out.display(), blob.len(), view.version(), view.crc());
     Ok(())
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::super::train::{Args, Estimator, run as train_run};
+    use brdf_meter::blob::{BlobView, EstimatorKind};
+    use std::path::Path;
+
+    pub(crate) fn args(dir: &Path, estimator: Estimator, prior: &str) -> Args {
+        Args {
+            out: dir.join("cal.blob"),
+            json: Some(dir.join("cal.json")),
+            zones: 1,
+            pixels: 8,
+            noise: Some(0.02),
+            estimator,
+            prior: prior.into(),
+            instrument: None,
+            far_field: false,
+            scene: None,
+            false_alarm: 0.05,
+        }
+    }
+
+    #[test]
+    fn measured_and_mixed_priors_train_every_kind_into_the_right_format() {
+        let dir = tempfile::tempdir().unwrap();
+        for (est, prior, kind, version) in [
+            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 2),
+            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 2),
+            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 1),
+        ] {
+            train_run(args(dir.path(), est, prior)).unwrap();
+            let blob = std::fs::read(dir.path().join("cal.blob")).unwrap();
+            let v = BlobView::parse(&blob).unwrap();
+            assert_eq!((v.estimator(), v.version()), (kind, version), "{prior}");
+            assert_eq!(v.out_of_prior_threshold().is_some(), version == 2);
+            assert!(dir.path().join("cal.json").exists());
+        }
+    }
+
+    #[test]
+    fn bad_priors_are_refused_and_nothing_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        for (prior, why) in [("merl+patent", "needs its weight"), ("merl@0.5+patent@0.4", "sum to"), ("nope.xyz", "not `patent`")] {
+            let e = format!("{:#}", train_run(args(dir.path(), Estimator::ScaleFree, prior)).unwrap_err());
+            assert!(e.contains(why), "{prior}: {e}");
+        }
+        // Fewer samples than the cross-validation needs.
+        std::fs::write(dir.path().join("a.csv"), "20,1.0\n70,2.0\n").unwrap();
+        let e = format!("{:#}", train_run(args(dir.path(), Estimator::ScaleFree, &dir.path().join("a.csv").display().to_string())).unwrap_err());
+        assert!(e.contains("at least"), "{e}");
+        assert!(!dir.path().join("cal.blob").exists());
+    }
+}
