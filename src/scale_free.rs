@@ -98,8 +98,8 @@ pub const fn whitening_len(m: usize) -> usize {
 pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
     let m = v.len();
     assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
-    // `!(s > 0)` also catches NaN.
-    if !(s > 0.0) || !s.is_finite() {
+    // NaN is neither positive nor finite: caught here too.
+    if !s.is_finite() || s <= 0.0 || s.is_nan() {
         return f32::INFINITY;
     }
     let inv = 1.0 / s;

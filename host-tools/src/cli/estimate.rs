@@ -141,7 +141,8 @@ impl<'a> Applier<'a> {
         let mut stat = f32::NAN;
         if let Some((mean, g, t)) = &self.oop {
             stat = brdf_meter::scale_free::out_of_prior_stat(g, mean, v, scale);
-            if !(stat <= *t) {
+            // A NaN statistic is not "within the prior" either.
+            if stat.is_nan() || stat > *t {
                 bits |= flags::OUT_OF_PRIOR;
             }
         }

@@ -292,7 +292,8 @@ impl Fitted {
     }
 }
 
-fn fit(h: &DMatrix<f64>, nz: &Normalised, weights: &[f64], idx: &[usize], noise_rel: f64, ridge: f64, clusters: usize, seed: u64) -> anyhow::Result<Fitted> {
+fn fit(h: &DMatrix<f64>, nz: &Normalised, weights: &[f64], idx: &[usize], opts: &ScaleFreeOptions, ridge: f64, clusters: usize) -> anyhow::Result<Fitted> {
+    let (noise_rel, seed) = (opts.noise_rel, opts.seed);
     let m = h.nrows();
     if clusters <= 1 {
         return Ok(Fitted { maps: vec![fit_map(&moments(nz, weights, idx, noise_rel), ridge)?], centroids: Vec::new() });
@@ -307,11 +308,11 @@ fn fit(h: &DMatrix<f64>, nz: &Normalised, weights: &[f64], idx: &[usize], noise_
     // enough samples for a stable covariance, the nearest others.
     let min_members = (3 * m).max(idx.len() / k_eff).min(idx.len());
     let mut maps = Vec::with_capacity(k_eff);
-    for c in 0..k_eff {
+    for (c, cent) in cents.iter().enumerate() {
         let mut by_dist: Vec<(f64, usize)> = idx
             .iter()
             .zip(&feats)
-            .map(|(&k, f)| (f.iter().zip(&cents[c]).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), k))
+            .map(|(&k, f)| (f.iter().zip(cent).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), k))
             .collect();
         by_dist.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut members: Vec<usize> = idx
@@ -359,7 +360,7 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
             let mut ok = true;
             for f in 0..FOLDS.min(k) {
                 let train_idx: Vec<usize> = (0..k).filter(|s| fold[*s] != f).collect();
-                let Ok(fitted) = fit(h, &nz, &prior.weights, &train_idx, opts.noise_rel, ridge, kc, opts.seed) else {
+                let Ok(fitted) = fit(h, &nz, &prior.weights, &train_idx, opts, ridge, kc) else {
                     ok = false;
                     break;
                 };
@@ -378,7 +379,7 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
     let (cv_error, ridge, kc) = best;
     ensure!(cv_error.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
     let all: Vec<usize> = (0..k).collect();
-    let fitted = fit(h, &nz, &prior.weights, &all, opts.noise_rel, ridge, kc, opts.seed)?;
+    let fitted = fit(h, &nz, &prior.weights, &all, opts, ridge, kc)?;
     // Out-of-prior: held-out statistics -> threshold.
     let mut stats: Vec<(f32, f64)> = Vec::with_capacity(k * draws);
     for f in 0..FOLDS.min(k) {
