@@ -16,7 +16,10 @@
 //! the measured prior (the others' R_pp), scale-free, scale-free piecewise,
 //! log-domain Wiener (offset chosen by cross-validation in the training
 //! materials), and the conventional Ward fit with the light distribution
-//! modelled (condition 2), which needs no prior.
+//! modelled (condition 2), which needs no prior. Last, the scale-free
+//! estimator trained on the Table 5 Ward prior: every measured material is
+//! new to it, so it shows whether the out-of-prior flag catches the
+//! materials such a calibration gets badly wrong.
 use crate::brdf::{Brdf, NbrdfSet};
 use crate::estimators::scale_free::{ScaleFreeOptions, WeightedSamples, peak_error, train_zone};
 use crate::estimators::{self, EstimatorInputs, NoiseModel};
@@ -36,7 +39,8 @@ use serde::Serialize;
 use std::path::Path;
 
 /// The estimators compared, in table order.
-pub const ESTIMATORS: [&str; 6] = ["wiener-table5", "wiener-measured", "scale-free", "scale-free-piecewise", "log-wiener", "ward-fit-2"];
+pub const ESTIMATORS: [&str; 7] =
+    ["wiener-table5", "wiener-measured", "scale-free", "scale-free-piecewise", "log-wiener", "ward-fit-2", "scale-free-table5"];
 /// Error above which a material counts as badly estimated (for the flag's hit rate).
 pub const BAD_ERROR: f64 = 0.15;
 /// Offsets of the log mapping tried by cross-validation.
@@ -79,6 +83,8 @@ pub struct MaterialRow {
     pub errors: Vec<f64>,
     /// Out-of-prior flag of the scale-free estimator (most draws above the threshold).
     pub flagged: bool,
+    /// The same for the scale-free estimator with the Table 5 prior.
+    pub flagged_table5: bool,
     /// Median statistic over the draws and the threshold it was compared with.
     pub stat: f64,
     /// Threshold.
@@ -210,6 +216,8 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         )
     };
     let w_t5 = wiener(&t5.r_pp, 16)?;
+    let sf_opts = ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, false_alarm: cfg.false_alarm, seed: cfg.seed };
+    let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts).context("scale-free with the Table 5 prior")?;
     let fit_model = ForwardModel::near_field(&inst);
     let fit_opts = FitOptions::default();
     let held = cfg.limit.unwrap_or(set.len()).min(set.len());
@@ -228,14 +236,15 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         let train = WeightedSamples { samples: DMatrix::from_columns(&cols), weights };
         let measured = weighted_prior(&train);
         let w_meas = wiener(&measured.r_pp, train.samples.ncols())?;
-        let opts = ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, false_alarm: cfg.false_alarm, seed: cfg.seed };
+        let opts = sf_opts.clone();
         let sf = train_zone(&h, &train, &opts).with_context(|| format!("scale-free without {}", mats[k].name()))?;
         let sfp = train_zone(&h, &train, &ScaleFreeOptions { piecewise: true, ..opts })?;
         let lw = log_wiener_cv(&h, &train, cfg.noise_rel, cfg.seed)?;
         let t = &truth[k];
         let peak = t.amax();
-        let mut sq = [0.0f64; 6];
+        let mut sq = [0.0f64; 7];
         let mut stats = Vec::new();
+        let mut t5_flags = 0usize;
         let mut pred = 0.0;
         let (mut est0, mut sig0) = (Vec::new(), Vec::new());
         for (d, v) in reads[k].iter().enumerate() {
@@ -254,6 +263,9 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
             }
             let (e, _, _, _) = sfp.estimate_f32(&v32);
             add(3, &to64(&e));
+            let (e, _, st, _) = sf_t5.estimate_f32(&v32);
+            add(6, &to64(&e));
+            t5_flags += usize::from(st.is_nan() || st > sf_t5.out_of_prior.threshold);
             let mut out = vec![0.0f32; n];
             lw.estimate_into(&v32, &mut out);
             add(4, &to64(&out));
@@ -281,6 +293,7 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
             peak,
             errors,
             flagged,
+            flagged_table5: t5_flags * 2 > cfg.draws,
             stat: percentile(&stats, 0.5),
             threshold: thr,
             predicted: (pred / dn).sqrt() / peak,
@@ -296,7 +309,9 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
             let errs: Vec<f64> = rows.iter().map(|r| r.errors[i]).collect();
             let bad: Vec<&MaterialRow> = rows.iter().filter(|r| r.errors[i] > BAD_ERROR).collect();
             let good: Vec<&MaterialRow> = rows.iter().filter(|r| r.errors[i] <= BAD_ERROR).collect();
-            let rate = |xs: &[&MaterialRow]| (!xs.is_empty()).then(|| xs.iter().filter(|r| r.flagged).count() as f64 / xs.len() as f64);
+            let t5 = *name == "scale-free-table5";
+            let flag = |r: &MaterialRow| if t5 { r.flagged_table5 } else { r.flagged };
+            let rate = |xs: &[&MaterialRow]| (!xs.is_empty()).then(|| xs.iter().filter(|r| flag(r)).count() as f64 / xs.len() as f64);
             let has_flag = name.starts_with("scale-free");
             let mut by_err: Vec<&MaterialRow> = rows.iter().collect();
             by_err.sort_by(|a, b| b.errors[i].total_cmp(&a.errors[i]));
@@ -351,7 +366,14 @@ impl HeldOutReport {
         for r in order {
             s += &format!("| {} | {:.3} | ", r.name, r.peak);
             s += &r.errors.iter().map(|e| format!("{e:.4}")).collect::<Vec<_>>().join(" | ");
-            s += &format!(" | {} | {:.1} / {:.1} | {:.4} |\n", if r.flagged { "yes" } else { "" }, r.stat, r.threshold, r.predicted);
+            s += &format!(
+                " | {}{} | {:.1} / {:.1} | {:.4} |\n",
+                if r.flagged { "yes" } else { "" },
+                if r.flagged_table5 { " (t5)" } else { "" },
+                r.stat,
+                r.threshold,
+                r.predicted
+            );
         }
         s
     }
