@@ -32,6 +32,33 @@
 //! | .. | 4Znm | W per zone, row-major n x m |
 //! | end-4 | 4 | CRC-32 (ISO-HDLC) of everything before it |
 //!
+//! # Format version 2
+//! Written only when a blob needs it (a scale-free estimator, K > 1 clusters
+//! or the out-of-prior data); everything else is still written as version 1,
+//! byte for byte as before, and version 1 blobs are read as before.
+//! Version 2 is version 1 with:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present |
+//! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
+//! | 50 | 2 | reserved, 0 |
+//! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
+//! | 56 | 8 | reserved, 0 |
+//!
+//! and sections sized by K: the uncertainty is Z x K x n (for the scale-free
+//! kinds per unit scale: the device multiplies by the point's scale), the
+//! matrices Z x K x n x m (zone-major, then cluster), then
+//!
+//! | size | field |
+//! |---|---|
+//! | 4ZKm (piecewise only) | centroids per zone, K x m, in `v / sum|v|` space |
+//! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of `u' = v'/s` (m-1), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
+//!
+//! before the CRC. A scale-free matrix is `[W' | b]`: its last column
+//! multiplies the readings' scale (`crate::kernel::scale_free`).
+//!
 //! # Compatibility rules
 //! - A parser accepts exactly the format versions it knows; a new field that
 //!   old firmware could misread bumps the version.
@@ -42,8 +69,11 @@ use core::fmt;
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"BRDW";
-/// The format version this library writes and reads.
-pub const FORMAT_VERSION: u16 = 1;
+/// The newest format version this library writes and reads (it also reads
+/// [`FORMAT_VERSION_1`], and writes it whenever a blob does not need more).
+pub const FORMAT_VERSION: u16 = 2;
+/// The first format version, still written for blobs that need nothing newer.
+pub const FORMAT_VERSION_1: u16 = 1;
 /// Length of the fixed header.
 pub const HEADER_LEN: usize = 64;
 /// Largest number of angle bins a blob may carry.
@@ -54,6 +84,7 @@ pub const MAX_LEDS: usize = 64;
 pub const MAX_PIXELS: usize = 4096;
 
 const FLAG_FAR_FIELD: u16 = 1;
+const FLAG_OUT_OF_PRIOR: u16 = 2;
 
 /// CRC used for blobs (and by the calibration store and wire protocol).
 pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
@@ -75,6 +106,12 @@ pub enum EstimatorKind {
     Interpolation = 4,
     /// Wiener estimation in a log-mapped space, linearised.
     LogWiener = 5,
+    /// Scale-free affine Wiener: the shape from readings divided by their
+    /// scale, multiplied back (`crate::kernel::scale_free`). Format version 2.
+    ScaleFree = 6,
+    /// Scale-free, one matrix per cluster of normalised readings, chosen by
+    /// `crate::kernel::select_cluster`. Format version 2.
+    ScaleFreePiecewise = 7,
 }
 
 impl EstimatorKind {
@@ -87,6 +124,8 @@ impl EstimatorKind {
             3 => Self::PseudoInverse,
             4 => Self::Interpolation,
             5 => Self::LogWiener,
+            6 => Self::ScaleFree,
+            7 => Self::ScaleFreePiecewise,
             _ => return None,
         })
     }
@@ -128,6 +167,10 @@ pub enum Section {
     Uncertainty,
     /// The matrices.
     Matrices,
+    /// The piecewise estimator's centroids (format version 2).
+    Centroids,
+    /// The out-of-prior means, whitening matrices and threshold (format version 2).
+    OutOfPrior,
 }
 
 /// Why a blob was rejected.
@@ -219,7 +262,7 @@ impl fmt::Display for BlobError {
             Self::TooShort { need, got } => write!(f, "blob truncated: need {need} bytes, got {got}"),
             Self::BadMagic => write!(f, "not a calibration blob (magic is not \"BRDW\")"),
             Self::UnsupportedVersion(v) => {
-                write!(f, "blob format version {v} is not supported (this build reads {FORMAT_VERSION})")
+                write!(f, "blob format version {v} is not supported (this build reads {FORMAT_VERSION_1} and {FORMAT_VERSION})")
             }
             Self::BadHeaderLen(l) => write!(f, "header length {l} is not {HEADER_LEN}"),
             Self::BadDimension { field, value } => write!(f, "dimension {field} = {value} is zero or too large"),
@@ -268,8 +311,11 @@ struct Layout {
     white: usize,
     uncertainty: usize,
     matrices: usize,
+    centroids: usize,
+    out_of_prior: usize,
     crc: usize,
     total: usize,
+    clusters: usize,
 }
 
 const fn pad4(x: usize) -> usize {
@@ -278,19 +324,31 @@ const fn pad4(x: usize) -> usize {
 
 impl Dims {
     fn layout(&self) -> Layout {
+        self.layout_with(&Extras::NONE)
+    }
+
+    fn layout_with(&self, x: &Extras) -> Layout {
+        let k = x.clusters.max(1);
         let grid = HEADER_LEN;
         let led_order = grid + 4 * self.n;
         let zones = led_order + pad4(self.m);
         let white = zones + pad4(2 * self.zones);
         let uncertainty = white + 4 * self.pixels * self.m;
-        let matrices = uncertainty + 4 * self.zones * self.n;
-        let crc = matrices + 4 * self.zones * self.n * self.m;
-        Layout { grid, led_order, zones, white, uncertainty, matrices, crc, total: crc + 4 }
+        let matrices = uncertainty + 4 * self.zones * k * self.n;
+        let centroids = matrices + 4 * self.zones * k * self.n * self.m;
+        let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
+        let crc = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
+        Layout { grid, led_order, zones, white, uncertainty, matrices, centroids, out_of_prior, crc, total: crc + 4, clusters: k }
     }
 
-    /// Total length in bytes of a blob with these dimensions.
+    /// Total length in bytes of a version 1 blob with these dimensions.
     pub fn blob_len(&self) -> usize {
         self.layout().total
+    }
+
+    /// Total length in bytes of a blob with these dimensions and `extras`.
+    pub fn blob_len_with(&self, extras: &BlobExtras<'_>) -> usize {
+        self.layout_with(&Extras::of(extras, EstimatorKind::Wiener)).total
     }
 
     fn check(&self) -> Result<(), BlobError> {
@@ -305,6 +363,72 @@ impl Dims {
         lim("m", self.m, MAX_LEDS)?;
         lim("pixels", self.pixels, MAX_PIXELS)?;
         lim("zones", self.zones, self.pixels)
+    }
+}
+
+/// Largest number of clusters (matrices per zone) a blob may carry.
+pub const MAX_CLUSTERS: usize = 64;
+
+/// Values per zone of the out-of-prior section for m readings: the mean of
+/// `u'` (m-1) and the packed whitening matrix (m(m-1)/2).
+pub const fn out_of_prior_len(m: usize) -> usize {
+    (m - 1) + m * (m - 1) / 2
+}
+
+/// The out-of-prior data of a blob.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutOfPriorData<'a> {
+    /// Threshold on the statistic (`crate::kernel::scale_free::out_of_prior_stat`).
+    pub threshold: f32,
+    /// Per zone, [`out_of_prior_len`] values: mean, then packed G.
+    pub data: &'a [f32],
+}
+
+/// What format version 2 adds to [`BlobContents`]; [`BlobExtras::NONE`]
+/// writes version 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlobExtras<'a> {
+    /// K, matrices per zone (1 unless the estimator is piecewise).
+    pub clusters: usize,
+    /// Centroids, Z x K x m (piecewise only; empty otherwise).
+    pub centroids: &'a [f32],
+    /// The out-of-prior section, if any.
+    pub out_of_prior: Option<OutOfPriorData<'a>>,
+}
+
+impl BlobExtras<'_> {
+    /// Nothing added.
+    pub const NONE: BlobExtras<'static> = BlobExtras { clusters: 1, centroids: &[], out_of_prior: None };
+}
+
+/// The layout-relevant part of the extras.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Extras {
+    clusters: usize,
+    piecewise: bool,
+    out_of_prior: bool,
+}
+
+impl Extras {
+    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false };
+
+    fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
+        Extras {
+            clusters: x.clusters,
+            piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
+            out_of_prior: x.out_of_prior.is_some(),
+        }
+    }
+
+    fn needs_v2(&self, kind: EstimatorKind) -> bool {
+        self.clusters != 1 || self.piecewise || self.out_of_prior || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
+    }
+
+    /// K agrees with the kind: >= 2 for the piecewise kind, 1 otherwise.
+    fn check(&self, kind: EstimatorKind) -> Result<(), BlobError> {
+        let k = self.clusters;
+        let ok = if kind == EstimatorKind::ScaleFreePiecewise { (2..=MAX_CLUSTERS).contains(&k) } else { k == 1 && !self.piecewise };
+        if ok { Ok(()) } else { Err(BlobError::BadDimension { field: "clusters", value: k.min(u16::MAX as usize) as u16 }) }
     }
 }
 
@@ -340,23 +464,38 @@ pub struct BlobContents<'a> {
 /// The result always parses: the same checks [`BlobView::parse`] applies are
 /// applied here before anything is written.
 pub fn write_blob(c: &BlobContents<'_>, out: &mut [u8]) -> Result<usize, BlobError> {
+    write_blob_with(c, &BlobExtras::NONE, out)
+}
+
+/// [`write_blob`] with the sections of format version 2 (written as version
+/// 1 when `extras` adds nothing and the estimator kind is a version 1 kind).
+/// For K > 1, `c.uncertainty` is Z x K x n and `c.matrices` Z x K x n x m.
+pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut [u8]) -> Result<usize, BlobError> {
     let d = c.dims;
     d.check()?;
-    let lay = d.layout();
+    let ex = Extras::of(extras, c.estimator);
+    ex.check(c.estimator)?;
+    let v2 = ex.needs_v2(c.estimator);
+    let lay = d.layout_with(&ex);
+    let k = lay.clusters;
     let sized = |ok: bool, section| if ok { Ok(()) } else { Err(BlobError::ContentMismatch { section }) };
     sized(c.grid_deg.len() == d.n, Section::Grid)?;
     sized(c.led_order.len() == d.m, Section::LedOrder)?;
     sized(c.zone_start.len() == d.zones, Section::Zones)?;
     sized(c.white.len() == d.pixels * d.m, Section::White)?;
-    sized(c.uncertainty.len() == d.zones * d.n, Section::Uncertainty)?;
-    sized(c.matrices.len() == d.zones * d.n * d.m, Section::Matrices)?;
+    sized(c.uncertainty.len() == d.zones * k * d.n, Section::Uncertainty)?;
+    sized(c.matrices.len() == d.zones * k * d.n * d.m, Section::Matrices)?;
+    sized(extras.centroids.len() == if ex.piecewise { d.zones * k * d.m } else { 0 }, Section::Centroids)?;
+    if let Some(o) = &extras.out_of_prior {
+        sized(d.m >= 2 && o.data.len() == d.zones * out_of_prior_len(d.m), Section::OutOfPrior)?;
+    }
     if out.len() < lay.total {
         return Err(BlobError::BufferTooSmall { need: lay.total });
     }
     let out = &mut out[..lay.total];
     out.fill(0);
     out[0..4].copy_from_slice(&MAGIC);
-    put_u16(out, 4, FORMAT_VERSION);
+    put_u16(out, 4, if v2 { FORMAT_VERSION } else { FORMAT_VERSION_1 });
     put_u16(out, 6, HEADER_LEN as u16);
     put_u16(out, 8, d.n as u16);
     put_u16(out, 10, d.m as u16);
@@ -364,7 +503,12 @@ pub fn write_blob(c: &BlobContents<'_>, out: &mut [u8]) -> Result<usize, BlobErr
     put_u16(out, 14, d.pixels as u16);
     put_f32(out, 16, c.noise_rel);
     put_u16(out, 20, c.estimator as u16);
-    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 });
+    let oop_flag = if ex.out_of_prior { FLAG_OUT_OF_PRIOR } else { 0 };
+    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag);
+    if v2 {
+        put_u16(out, 48, k as u16);
+        put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
+    }
     put_u32(out, 24, c.summary.prior_samples);
     put_f32(out, 28, c.summary.condition);
     put_f32(out, 32, c.summary.regularisation);
@@ -378,7 +522,14 @@ pub fn write_blob(c: &BlobContents<'_>, out: &mut [u8]) -> Result<usize, BlobErr
     for (i, z) in c.zone_start.iter().enumerate() {
         put_u16(out, lay.zones + 2 * i, *z);
     }
-    for (off, xs) in [(lay.white, c.white), (lay.uncertainty, c.uncertainty), (lay.matrices, c.matrices)] {
+    let oop: &[f32] = extras.out_of_prior.map_or(&[], |o| o.data);
+    for (off, xs) in [
+        (lay.white, c.white),
+        (lay.uncertainty, c.uncertainty),
+        (lay.matrices, c.matrices),
+        (lay.centroids, extras.centroids),
+        (lay.out_of_prior, oop),
+    ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);
         }
@@ -410,7 +561,7 @@ impl<'a> BlobView<'a> {
             return Err(BlobError::BadMagic);
         }
         let version = get_u16(bytes, 4);
-        if version != FORMAT_VERSION {
+        if version != FORMAT_VERSION && version != FORMAT_VERSION_1 {
             return Err(BlobError::UnsupportedVersion(version));
         }
         let hl = get_u16(bytes, 6);
@@ -424,7 +575,26 @@ impl<'a> BlobView<'a> {
             pixels: get_u16(bytes, 14) as usize,
         };
         dims.check()?;
-        let lay = dims.layout();
+        let flags = get_u16(bytes, 22);
+        let code = get_u16(bytes, 20);
+        let kind = EstimatorKind::from_code(code).ok_or(BlobError::UnknownEstimator(code))?;
+        let ex = if version == FORMAT_VERSION_1 {
+            if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+                return Err(BlobError::UnknownEstimator(code));
+            }
+            Extras::NONE
+        } else {
+            Extras {
+                clusters: get_u16(bytes, 48) as usize,
+                piecewise: kind == EstimatorKind::ScaleFreePiecewise,
+                out_of_prior: flags & FLAG_OUT_OF_PRIOR != 0,
+            }
+        };
+        ex.check(kind)?;
+        if ex.out_of_prior && dims.m < 2 {
+            return Err(BlobError::BadDimension { field: "m", value: dims.m as u16 });
+        }
+        let lay = dims.layout_with(&ex);
         let declared = get_u32(bytes, 44) as usize;
         if declared != lay.total {
             return Err(BlobError::LengthMismatch { expected: lay.total, got: declared });
@@ -440,12 +610,26 @@ impl<'a> BlobView<'a> {
         }
         // Semantic checks: a blob with a valid CRC can still be wrong if the
         // host that wrote it was; the device must never run on such a blob.
-        if bytes[48..64].iter().any(|b| *b != 0) || get_u16(bytes, 22) & !FLAG_FAR_FIELD != 0 {
+        let reserved_ok = if version == FORMAT_VERSION_1 {
+            bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
+        } else {
+            bytes[50..52].iter().chain(&bytes[56..64]).all(|b| *b == 0)
+                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR) == 0
+                && (ex.out_of_prior || get_u32(bytes, 52) == 0)
+        };
+        if !reserved_ok {
             return Err(BlobError::ReservedNotZero);
         }
-        let code = get_u16(bytes, 20);
-        EstimatorKind::from_code(code).ok_or(BlobError::UnknownEstimator(code))?;
         let view = Self { bytes, dims, lay };
+        if ex.out_of_prior {
+            let t = get_f32(bytes, 52);
+            if !t.is_finite() {
+                return Err(BlobError::NonFinite { section: Section::OutOfPrior, index: 0 });
+            }
+            if t <= 0.0 {
+                return Err(BlobError::OutOfRange { section: Section::OutOfPrior, index: 0 });
+            }
+        }
         let noise = view.noise_rel();
         if !noise.is_finite() {
             return Err(BlobError::NonFinite { section: Section::Header, index: 16 });
@@ -487,8 +671,11 @@ impl<'a> BlobView<'a> {
             prev_start = Some(s);
         }
         view.check_finite(Section::White, lay.white, dims.pixels * dims.m, true)?;
-        view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * dims.n, false)?;
-        view.check_finite(Section::Matrices, lay.matrices, dims.zones * dims.n * dims.m, false)?;
+        let k = lay.clusters;
+        view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * k * dims.n, false)?;
+        view.check_finite(Section::Matrices, lay.matrices, dims.zones * k * dims.n * dims.m, false)?;
+        view.check_finite(Section::Centroids, lay.centroids, (lay.out_of_prior - lay.centroids) / 4, false)?;
+        view.check_finite(Section::OutOfPrior, lay.out_of_prior, (lay.crc - lay.out_of_prior) / 4, false)?;
         Ok(view)
     }
 
@@ -567,32 +754,78 @@ impl<'a> BlobView<'a> {
         assert!(p < self.dims.pixels && i < self.dims.m);
         get_f32(self.bytes, self.lay.white + 4 * (p * self.dims.m + i))
     }
-    /// Predicted standard uncertainty of zone `z`, bin `j`.
+    /// Predicted standard uncertainty of zone `z`, bin `j` (cluster 0; for
+    /// the scale-free kinds per unit scale).
     pub fn uncertainty(&self, z: usize, j: usize) -> f32 {
-        assert!(z < self.dims.zones && j < self.dims.n);
-        get_f32(self.bytes, self.lay.uncertainty + 4 * (z * self.dims.n + j))
+        self.uncertainty_of(z, 0, j)
     }
-    /// Element (j, i) of zone `z`'s matrix.
+    /// Predicted standard uncertainty of zone `z`, cluster `c`, bin `j`.
+    pub fn uncertainty_of(&self, z: usize, c: usize, j: usize) -> f32 {
+        assert!(z < self.dims.zones && c < self.lay.clusters && j < self.dims.n);
+        get_f32(self.bytes, self.lay.uncertainty + 4 * ((z * self.lay.clusters + c) * self.dims.n + j))
+    }
+    /// Element (j, i) of zone `z`'s matrix (cluster 0).
     pub fn w(&self, z: usize, j: usize, i: usize) -> f32 {
         assert!(z < self.dims.zones && j < self.dims.n && i < self.dims.m);
-        get_f32(self.bytes, self.lay.matrices + 4 * ((z * self.dims.n + j) * self.dims.m + i))
+        get_f32(self.bytes, self.matrix_offset(z, 0) + 4 * (j * self.dims.m + i))
     }
-    /// Copies zone `z`'s matrix (row-major n x m) into `out`.
+    fn matrix_offset(&self, z: usize, c: usize) -> usize {
+        self.lay.matrices + 4 * (z * self.lay.clusters + c) * self.dims.n * self.dims.m
+    }
+    /// Copies zone `z`'s matrix (row-major n x m; cluster 0) into `out`.
     pub fn copy_matrix(&self, z: usize, out: &mut [f32]) {
+        self.copy_matrix_of(z, 0, out)
+    }
+    /// Copies zone `z`'s matrix of cluster `c` (row-major n x m) into `out`.
+    pub fn copy_matrix_of(&self, z: usize, c: usize, out: &mut [f32]) {
         let nm = self.dims.n * self.dims.m;
-        assert!(z < self.dims.zones && out.len() == nm);
-        let off = self.lay.matrices + 4 * z * nm;
+        assert!(z < self.dims.zones && c < self.lay.clusters && out.len() == nm);
+        let off = self.matrix_offset(z, c);
         for (k, o) in out.iter_mut().enumerate() {
             *o = get_f32(self.bytes, off + 4 * k);
         }
     }
-    /// Zone `z`'s matrix as an `f32` slice in place, when the blob sits at a
-    /// 4-byte aligned address (little-endian targets only).
+    /// Zone `z`'s matrix (cluster 0) as an `f32` slice in place, when the
+    /// blob sits at a 4-byte aligned address (little-endian targets only).
     #[cfg(target_endian = "little")]
     pub fn matrix_in_place(&self, z: usize) -> Option<&'a [f32]> {
         let nm = self.dims.n * self.dims.m;
-        let off = self.lay.matrices + 4 * z * nm;
+        let off = self.matrix_offset(z, 0);
         bytemuck::try_cast_slice(self.bytes.get(off..off + 4 * nm)?).ok()
+    }
+    /// Format version of this blob (1 or 2).
+    pub fn version(&self) -> u16 {
+        get_u16(self.bytes, 4)
+    }
+    /// K, matrices per zone (1 unless piecewise).
+    pub fn clusters(&self) -> usize {
+        self.lay.clusters
+    }
+    /// Copies zone `z`'s centroids (K x m) into `out` (piecewise blobs only).
+    pub fn copy_centroids(&self, z: usize, out: &mut [f32]) {
+        let km = self.lay.clusters * self.dims.m;
+        assert!(z < self.dims.zones && out.len() == km && self.lay.out_of_prior - self.lay.centroids == 4 * self.dims.zones * km);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = get_f32(self.bytes, self.lay.centroids + 4 * (z * km + k));
+        }
+    }
+    /// The out-of-prior threshold, when the blob carries the section.
+    pub fn out_of_prior_threshold(&self) -> Option<f32> {
+        (get_u16(self.bytes, 22) & FLAG_OUT_OF_PRIOR != 0).then(|| get_f32(self.bytes, 52))
+    }
+    /// Copies zone `z`'s out-of-prior mean (m-1) and packed whitening matrix
+    /// (m(m-1)/2); false when the blob carries no such section.
+    pub fn copy_out_of_prior(&self, z: usize, mean: &mut [f32], g: &mut [f32]) -> bool {
+        let m = self.dims.m;
+        if self.out_of_prior_threshold().is_none() {
+            return false;
+        }
+        assert!(z < self.dims.zones && mean.len() == m - 1 && g.len() == m * (m - 1) / 2);
+        let off = self.lay.out_of_prior + 4 * z * out_of_prior_len(m);
+        for (k, o) in mean.iter_mut().chain(g.iter_mut()).enumerate() {
+            *o = get_f32(self.bytes, off + 4 * k);
+        }
+        true
     }
 }
 
@@ -746,5 +979,88 @@ mod tests {
         let v = BlobView::parse(bytemuck::cast_slice(&aligned)).unwrap();
         let w = v.matrix_in_place(1).unwrap();
         assert_eq!(w, &o.mats[56..112]);
+    }
+
+    fn v2_extras(o: &Owned, k: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>) {
+        let d = o.dims;
+        let unc = (0..d.zones * k * d.n).map(|x| 0.001 * x as f32).collect();
+        let mats = (0..d.zones * k * d.n * d.m).map(|x| (x as f32).cos()).collect();
+        let cents = (0..d.zones * k * d.m).map(|x| 0.1 * x as f32).collect();
+        let oop = (0..d.zones * out_of_prior_len(d.m)).map(|x| 1.0 + x as f32).collect();
+        (unc, mats, cents, oop)
+    }
+
+    #[test]
+    fn version_2_round_trips_piecewise_matrices_centroids_and_out_of_prior_data() {
+        let o = sample(6, 4, 2, 5);
+        let (unc, mats, cents, oop) = v2_extras(&o, 3);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let ex = BlobExtras { clusters: 3, centroids: &cents, out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }) };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!((v.version(), v.clusters(), v.estimator()), (2, 3, EstimatorKind::ScaleFreePiecewise));
+        assert_eq!(v.out_of_prior_threshold(), Some(12.5));
+        let mut w = vec![0.0; 24];
+        v.copy_matrix_of(1, 2, &mut w);
+        assert_eq!(w, mats[(3 + 2) * 24..(3 + 3) * 24]);
+        assert_eq!(v.uncertainty_of(1, 2, 5), unc[(3 + 2) * 6 + 5]);
+        let mut ce = vec![0.0; 12];
+        v.copy_centroids(1, &mut ce);
+        assert_eq!(ce, cents[12..24]);
+        let (mut mean, mut g) = (vec![0.0; 3], vec![0.0; 6]);
+        assert!(v.copy_out_of_prior(1, &mut mean, &mut g));
+        assert_eq!(mean, oop[9..12]);
+        assert_eq!(g, oop[12..18]);
+        for pos in 0..buf.len() {
+            let mut bad = buf.clone();
+            bad[pos] ^= 0x5A;
+            assert!(BlobView::parse(&bad).is_err(), "corruption at byte {pos} accepted");
+        }
+        // Scale-free with one matrix per zone and no out-of-prior data.
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFree;
+        let mut buf = vec![0u8; o.dims.blob_len()];
+        write_blob(&c, &mut buf).unwrap();
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!((v.version(), v.clusters(), v.out_of_prior_threshold()), (2, 1, None));
+        assert!(!v.copy_out_of_prior(0, &mut mean, &mut g));
+    }
+
+    #[test]
+    fn version_1_is_still_written_and_read_as_before_and_v2_rules_hold() {
+        let o = sample(6, 4, 2, 5);
+        let buf = encode(&o);
+        assert_eq!(get_u16(&buf, 4), FORMAT_VERSION_1);
+        assert_eq!(BlobView::parse(&buf).unwrap().version(), 1);
+        // A version 1 blob cannot carry a scale-free kind.
+        let mut bad = buf.clone();
+        put_u16(&mut bad, 20, EstimatorKind::ScaleFree as u16);
+        let crc_at = bad.len() - 4;
+        let crc = CRC32.checksum(&bad[..crc_at]);
+        put_u32(&mut bad, crc_at, crc);
+        assert_eq!(BlobView::parse(&bad).unwrap_err(), BlobError::UnknownEstimator(6));
+        // Piecewise needs K >= 2; other kinds K = 1.
+        let (unc, mats, cents, _) = v2_extras(&o, 1);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None };
+        let mut out = vec![0u8; 4096];
+        assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
+        // The threshold must be positive.
+        let oop = vec![0.5; 2 * out_of_prior_len(4)];
+        let c = contents(&o);
+        let ex = BlobExtras { clusters: 1, centroids: &[], out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }) };
+        assert_eq!(
+            write_blob_with(&c, &ex, &mut out),
+            Err(BlobError::OutOfRange { section: Section::OutOfPrior, index: 0 })
+        );
+        let ex = BlobExtras { clusters: 1, centroids: &[], out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }) };
+        assert_eq!(write_blob_with(&c, &ex, &mut out), Err(BlobError::ContentMismatch { section: Section::OutOfPrior }));
     }
 }

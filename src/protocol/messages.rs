@@ -226,6 +226,9 @@ pub mod flags {
     pub const UNDER_EXPOSED: u8 = 1 << 1;
     /// A corrected reading or an estimated value is NaN or infinite.
     pub const NON_FINITE: u8 = 1 << 2;
+    /// The readings are unlike the calibration's prior (out-of-prior
+    /// statistic above the blob's threshold): the estimate is not to be trusted.
+    pub const OUT_OF_PRIOR: u8 = 1 << 3;
 }
 
 /// One point's estimate, streamed during a measurement.

@@ -3,4 +3,5 @@
 //! model; knows nothing of the device link or of evaluation.
 pub mod estimators;
 pub mod train;
+pub mod train_scale_free;
 pub mod demo;

@@ -7,12 +7,15 @@ use clap::{Parser, Subcommand};
 pub mod reproduce;
 pub mod simulate;
 pub mod train;
+pub mod train_measured;
 pub mod qemu;
 pub mod info;
 pub mod provision;
 pub mod provision_swd;
 pub mod measure;
+pub mod estimate;
 pub mod tradeoff;
+pub mod materials;
 pub mod stability;
 
 /// Host tools for the handheld gloss/BRDF meter.
@@ -43,8 +46,12 @@ pub enum Command {
     ProvisionSwd(provision_swd::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
+    /// Apply a calibration blob to logged readings offline, exactly as the device does.
+    Estimate(estimate::Args),
     /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts.
     Tradeoff(tradeoff::Args),
+    /// Leave-one-material-out over measured materials: errors, flags, worst-case plot.
+    Materials(materials::Args),
     /// Run the hard-case numerical stability checks over many generated cases.
     Stability(stability::Args),
 }
@@ -60,7 +67,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Provision(a) => provision::run(a),
         Command::ProvisionSwd(a) => provision_swd::run(a),
         Command::Measure(a) => measure::run(a),
+        Command::Estimate(a) => estimate::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),
+        Command::Materials(a) => materials::run(a),
         Command::Stability(a) => stability::run(a),
     }
 }

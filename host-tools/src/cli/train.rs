@@ -6,7 +6,7 @@ use crate::calibration::train::{TrainSpec, train};
 use crate::forward::zone_optics::uniform_zones;
 use anyhow::Context;
 use brdf_meter::blob::{BlobView, EstimatorKind};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Estimators on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -21,6 +21,11 @@ pub enum Estimator {
     Inverse,
     /// Linear interpolation between the LEDs' centre angles ([0004]).
     Interpolation,
+    /// Scale-free affine Wiener: shape from readings / their sum, times the sum
+    /// (format 2 blob, with the out-of-prior flag data).
+    ScaleFree,
+    /// Scale-free, one map per cluster of normalised readings (K by cross-validation).
+    ScaleFreePiecewise,
 }
 
 impl From<Estimator> for EstimatorKind {
@@ -31,6 +36,8 @@ impl From<Estimator> for EstimatorKind {
             Estimator::PseudoInverse => Self::PseudoInverse,
             Estimator::Inverse => Self::Inverse,
             Estimator::Interpolation => Self::Interpolation,
+            Estimator::ScaleFree => Self::ScaleFree,
+            Estimator::ScaleFreePiecewise => Self::ScaleFreePiecewise,
         }
     }
 }
@@ -58,10 +65,15 @@ pub struct Args {
     /// Estimator.
     #[arg(long, value_enum, default_value_t = Estimator::Wiener)]
     pub estimator: Estimator,
-    /// Prior: `patent` (Table 5, built in), a prior TOML file, or a measured
-    /// sample CSV (`angle_deg,value` rows).
-    #[arg(long, value_name = "patent|PATH", default_value = "patent")]
+    /// Prior: `patent` (Table 5, built in), `merl` (the vendored measured
+    /// set), a prior TOML file, a measured file (.csv `angle_deg,value`,
+    /// .binary MERL, .json NBRDF), a directory or comma list of them, or a
+    /// mixture with explicit weights: `merl@0.8+patent@0.2`.
+    #[arg(long, value_name = "patent|merl|PATH|MIX", default_value = "patent")]
     pub prior: String,
+    /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.
+    #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
+    pub false_alarm: f64,
     /// Instrument description (TOML); default: the built-in patent profile.
     #[arg(long, value_name = "PATH")]
     pub instrument: Option<PathBuf>,
@@ -97,6 +109,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (None, None) => Instrument::patent_profile(),
     };
     let grid = inst.grid().context("the instrument's angle grid")?;
+    let kind: EstimatorKind = a.estimator.into();
+    let legacy_prior = a.prior == "patent"
+        || (!a.prior.contains(['+', ',', '@'])
+            && Path::new(&a.prior).extension().is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("toml")));
+    if !legacy_prior || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+        return crate::cli::train_measured::run(a, scene, noise, inst, grid);
+    }
     let (spec, base) = PriorSpec::from_arg(&a.prior)?;
     let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
     let (zones, pixels, white, far_field) = match &scene {
@@ -165,6 +184,7 @@ mod tests {
             instrument: None,
             far_field: false,
             scene: None,
+            false_alarm: 0.05,
         }
     }
 

@@ -7,3 +7,4 @@ pub mod fitting;
 pub mod reproduce;
 pub mod tradeoff;
 pub mod stability;
+pub mod held_out;

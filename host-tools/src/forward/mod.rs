@@ -5,5 +5,6 @@ pub mod brdf;
 pub mod grid;
 pub mod optics;
 pub mod prior;
+pub mod prior_measured;
 pub mod zone_optics;
 pub mod scene;

@@ -56,6 +56,7 @@ pub mod interpolation;
 pub mod inverse;
 pub mod log_wiener;
 pub mod pseudo_inverse;
+pub mod scale_free;
 pub mod wiener;
 
 pub use batch::BatchEstimator;
@@ -250,6 +251,8 @@ pub fn kind_name(kind: EstimatorKind) -> &'static str {
         EstimatorKind::PseudoInverse => "pseudo-inverse",
         EstimatorKind::Interpolation => "interpolation",
         EstimatorKind::LogWiener => "log-wiener",
+        EstimatorKind::ScaleFree => "scale-free",
+        EstimatorKind::ScaleFreePiecewise => "scale-free-piecewise",
     }
 }
 
@@ -297,7 +300,10 @@ pub fn build(kind: EstimatorKind, inputs: &EstimatorInputs<'_>) -> Result<Linear
         EstimatorKind::Inverse => inverse::build(h)?,
         EstimatorKind::PseudoInverse => pseudo_inverse::build(h),
         EstimatorKind::Interpolation => interpolation::build(inputs.bins_deg, inputs.centres_deg, m)?,
-        EstimatorKind::LogWiener => return Err(EstimatorError::Unsupported(kind_name(kind))),
+        // Not one linear W: trained by `scale_free::train_zone`.
+        EstimatorKind::LogWiener | EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
+            return Err(EstimatorError::Unsupported(kind_name(kind)));
+        }
     };
     let var = error_variance(&built.w, h, &prior, &noise_f);
     let predicted_rmse = (var.sum() / n as f64).sqrt();

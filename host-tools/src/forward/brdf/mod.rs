@@ -11,11 +11,14 @@ use serde::{Deserialize, Serialize};
 
 mod ggx;
 mod lambert;
+pub mod merl_binary;
+pub mod nbrdf;
 mod tabulated;
 mod ward;
 
 pub use ggx::Ggx;
 pub use lambert::Lambertian;
+pub use nbrdf::{Nbrdf, NbrdfSet};
 pub use tabulated::Tabulated;
 pub use ward::Ward;
 
@@ -74,6 +77,12 @@ pub enum BrdfSpec {
         #[serde(default = "Ggx::default_f0")]
         f0: f64,
     },
+    /// A measured material of the vendored MERL set (NBRDF network), seen
+    /// through the instrument's spectral weights.
+    Merl {
+        /// Material name, e.g. `"blue-acrylic"` (host-tools/data/merl-nbrdf.json).
+        material: String,
+    },
 }
 
 /// Why a model description was refused.
@@ -99,12 +108,27 @@ pub(crate) fn check(model: &'static str, field: &'static str, value: f64, lo: f6
 }
 
 impl BrdfSpec {
-    /// Builds the model, validating every parameter.
+    /// Builds the model, validating every parameter (RGB data seen with
+    /// luminance weights).
     pub fn build(&self) -> Result<Box<dyn Brdf>, BrdfParamError> {
+        self.build_for(nbrdf::LUMINANCE)
+    }
+
+    /// Builds the model for a sensor whose spectral weights of R, G, B are `spectral`.
+    pub fn build_for(&self, spectral: [f64; 3]) -> Result<Box<dyn Brdf>, BrdfParamError> {
+        if let BrdfSpec::Merl { material } = self {
+            return NbrdfSet::merl().by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| BrdfParamError {
+                model: "merl",
+                field: "material",
+                value: f64::NAN,
+                why: "not a material of the vendored MERL set (names as in host-tools/data/merl-nbrdf.json)",
+            });
+        }
         Ok(match *self {
             BrdfSpec::Ward { rho_d, rho_s, alpha } => Box::new(Ward::new(rho_d, rho_s.unwrap_or(1.0 - rho_d), alpha)?),
             BrdfSpec::Lambertian { rho } => Box::new(Lambertian::new(rho)?),
             BrdfSpec::Ggx { rho_d, k_s, alpha, f0 } => Box::new(Ggx::new(rho_d, k_s, alpha, f0)?),
+            BrdfSpec::Merl { .. } => unreachable!("built above"),
         })
     }
 }
@@ -125,5 +149,12 @@ mod tests {
         assert!(toml::from_str::<W>("b = { model = \"ward\", rho_d = 0.3, alpha = 0.05, beta = 1 }").is_err());
         let err = BrdfSpec::Ward { rho_d: 0.3, rho_s: None, alpha: -1.0 }.build().unwrap_err();
         assert_eq!(err.field, "alpha");
+        let w: W = toml::from_str("b = { model = \"merl\", material = \"white-paint\" }").unwrap();
+        let b = w.b.build().unwrap();
+        assert!((b.reflectance(45.0, 45.0) - 1.14481).abs() < 1e-4);
+        let red_only = w.b.build_for([1.0, 0.0, 0.0]).unwrap();
+        assert_ne!(red_only.reflectance(45.0, 45.0), b.reflectance(45.0, 45.0));
+        let err = BrdfSpec::Merl { material: "unobtainium".into() }.build().unwrap_err();
+        assert_eq!(err.field, "material");
     }
 }

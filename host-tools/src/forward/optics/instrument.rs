@@ -271,6 +271,14 @@ pub struct Instrument {
     pub point: PointSpec,
     /// The illuminations, in firing order.
     pub leds: Vec<LedSpec>,
+    /// The sensor's spectral weighting of R, G, B (measured RGB BRDFs are
+    /// seen as their weighted sum); default: luminance (0.2126, 0.7152, 0.0722).
+    #[serde(default = "luminance")]
+    pub spectral_weights: [f64; 3],
+}
+
+fn luminance() -> [f64; 3] {
+    crate::forward::brdf::nbrdf::LUMINANCE
 }
 
 impl Instrument {
@@ -299,6 +307,7 @@ impl Instrument {
             grid: GridSpec::patent(),
             point: PointSpec::default(),
             leds,
+            spectral_weights: luminance(),
         }
     }
 
@@ -409,6 +418,9 @@ impl Validate for Instrument {
         }
         if !self.point.position_cm.iter().all(|x| x.is_finite()) {
             return Err(FieldError::new("point.position_cm", "must be finite"));
+        }
+        if !self.spectral_weights.iter().all(|w| w.is_finite() && *w >= 0.0) || self.spectral_weights.iter().sum::<f64>() <= 0.0 {
+            return Err(FieldError::new("spectral_weights", "must be three finite weights >= 0 with a positive sum"));
         }
         if self.leds.is_empty() {
             return Err(FieldError::new("leds", "at least one illumination is needed"));

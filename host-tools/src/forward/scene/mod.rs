@@ -220,10 +220,11 @@ impl Scene {
 
     /// The BRDF of each pixel: (distinct models, model index per pixel).
     pub fn surface_brdfs(&self) -> anyhow::Result<SurfaceModels> {
-        let mut models = vec![self.surface.brdf.build().context("surface.brdf")?];
+        let spectral = self.instrument.spectral_weights;
+        let mut models = vec![self.surface.brdf.build_for(spectral).context("surface.brdf")?];
         let mut of_pixel = vec![0; self.instrument.sensor.pixels];
         for (k, s) in self.surface.segments.iter().enumerate() {
-            models.push(s.brdf.build().with_context(|| format!("surface.segments[{k}].brdf"))?);
+            models.push(s.brdf.build_for(spectral).with_context(|| format!("surface.segments[{k}].brdf"))?);
             for p in &mut of_pixel[s.first_pixel..=s.last_pixel] {
                 *p = k + 1;
             }

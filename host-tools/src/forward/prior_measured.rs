@@ -1,0 +1,270 @@
+//! Priors that cover real materials: measured sample sets and mixtures of
+//! families with explicit weights (claim 2: the correction comes from samples
+//! of real BRDFs and measured goniometric reflectance).
+//!
+//! A prior argument is one family, or a mixture of families joined by `+`,
+//! each with its weight after `@` (required for a mixture; they must sum to
+//! 1, so the weight of each family is what the user wrote):
+//!
+//! - `patent`: the patent's Table 5 (16 Ward samples);
+//! - `merl`: the vendored MERL set (100 measured materials);
+//! - a prior TOML file (`ward_grid`, `samples`, `csv`);
+//! - a measured file: `.csv` goniometric (`angle_deg,value`), `.binary`
+//!   (MERL), `.json` (NBRDF networks: every material in it);
+//! - a directory: every such file in it, in name order;
+//! - a comma-separated list of measured files.
+//!
+//! For example `merl@0.8+patent@0.2`. Inside a family the samples share its
+//! weight equally. RGB data is seen through the instrument's spectral
+//! weights.
+use crate::forward::brdf::merl_binary::MerlTable;
+use crate::forward::brdf::{Brdf, NbrdfSet};
+use crate::calibration::estimators::scale_free::WeightedSamples;
+use crate::forward::grid::AngleGrid;
+use crate::forward::prior::{Prior, PriorSpec, read_measured_csv};
+use anyhow::{Context, bail, ensure};
+use nalgebra::{DMatrix, DVector};
+use std::path::{Path, PathBuf};
+
+/// One family of samples.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Family {
+    /// The patent's Table 5.
+    Patent,
+    /// The vendored MERL set.
+    Merl,
+    /// A prior TOML file.
+    Toml(PathBuf),
+    /// Measured files (`.csv`, `.binary`, `.json`).
+    Files(Vec<PathBuf>),
+}
+
+/// A parsed prior argument: families with weights summing to 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PriorMix {
+    /// (label, family, weight).
+    pub families: Vec<(String, Family, f64)>,
+}
+
+const MEASURED_EXTS: [&str; 3] = ["csv", "binary", "json"];
+
+fn ext_of(p: &Path) -> String {
+    p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+fn family_of(text: &str) -> anyhow::Result<Family> {
+    Ok(match text {
+        "patent" => Family::Patent,
+        "merl" => Family::Merl,
+        _ if text.contains(',') => {
+            let files: Vec<PathBuf> = text.split(',').map(|s| PathBuf::from(s.trim())).collect();
+            for f in &files {
+                ensure!(MEASURED_EXTS.contains(&ext_of(f).as_str()), "{}: a list holds measured files (.csv, .binary, .json)", f.display());
+            }
+            Family::Files(files)
+        }
+        _ => {
+            let p = PathBuf::from(text);
+            if p.is_dir() {
+                let mut files: Vec<PathBuf> = std::fs::read_dir(&p)
+                    .with_context(|| format!("{}: cannot list the directory", p.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|f| MEASURED_EXTS.contains(&ext_of(f).as_str()))
+                    .collect();
+                files.sort();
+                ensure!(!files.is_empty(), "{}: no measured files (.csv, .binary, .json) in the directory", p.display());
+                Family::Files(files)
+            } else if ext_of(&p) == "toml" {
+                Family::Toml(p)
+            } else if MEASURED_EXTS.contains(&ext_of(&p).as_str()) {
+                Family::Files(vec![p])
+            } else {
+                bail!("prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json file")
+            }
+        }
+    })
+}
+
+impl PriorMix {
+    /// Parses a prior argument (see the module docs).
+    pub fn parse(arg: &str) -> anyhow::Result<Self> {
+        let parts: Vec<&str> = arg.split('+').map(str::trim).collect();
+        ensure!(parts.iter().all(|p| !p.is_empty()), "prior {arg:?}: an empty family");
+        let mut families = Vec::new();
+        for part in &parts {
+            let (text, weight) = match part.rsplit_once('@') {
+                Some((t, w)) => {
+                    let w: f64 = w.trim().parse().with_context(|| format!("prior {arg:?}: weight {w:?} of {t:?} is not a number"))?;
+                    ensure!(w.is_finite() && w > 0.0 && w <= 1.0, "prior {arg:?}: weight {w} of {t:?} must be in (0, 1]");
+                    (t, Some(w))
+                }
+                None => (*part, None),
+            };
+            families.push((text.to_string(), family_of(text)?, weight));
+        }
+        if families.len() == 1 {
+            let (l, f, w) = families.pop().unwrap();
+            ensure!(w.is_none_or(|w| w == 1.0), "prior {arg:?}: a single family has weight 1");
+            return Ok(Self { families: vec![(l, f, 1.0)] });
+        }
+        let mut out = Vec::new();
+        for (l, f, w) in families {
+            let Some(w) = w else { bail!("prior {arg:?}: in a mixture every family needs its weight (`{l}@0.5`)") };
+            out.push((l, f, w));
+        }
+        let total: f64 = out.iter().map(|x| x.2).sum();
+        ensure!((total - 1.0).abs() < 1e-9, "prior {arg:?}: the weights sum to {total}, not 1");
+        Ok(Self { families: out })
+    }
+
+    /// The samples on the grid (reflectance factors at `view_deg`, RGB data
+    /// weighted by `spectral`) with their weights, and the names.
+    pub fn samples(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(WeightedSamples, Vec<String>)> {
+        let mut cols: Vec<DVector<f64>> = Vec::new();
+        let mut weights = Vec::new();
+        let mut names = Vec::new();
+        for (label, fam, w) in &self.families {
+            let (c, nm) = family_samples(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
+            ensure!(!c.is_empty(), "prior family {label:?} has no samples");
+            let each = w / c.len() as f64;
+            weights.extend(std::iter::repeat_n(each, c.len()));
+            cols.extend(c);
+            names.extend(nm);
+        }
+        let samples = DMatrix::from_columns(&cols);
+        if let Some((idx, x)) = samples.iter().enumerate().find(|(_, x)| !x.is_finite() || **x < 0.0) {
+            bail!("prior sample {} ({}), bin {}: value {x} is not a finite, non-negative reflectance factor", idx / grid.n(), names[idx / grid.n()], idx % grid.n());
+        }
+        Ok((WeightedSamples { samples, weights }, names))
+    }
+
+    /// The Wiener prior of the mixture: `R_pp = sum_k w_k rho_k rho_k^T`.
+    pub fn prior(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(Prior, WeightedSamples)> {
+        let (ws, _) = self.samples(grid, view_deg, spectral)?;
+        Ok((weighted_prior(&ws), ws))
+    }
+}
+
+/// `Prior` (R_pp and samples) of weighted samples.
+pub fn weighted_prior(ws: &WeightedSamples) -> Prior {
+    let scaled = DMatrix::from_fn(ws.samples.nrows(), ws.samples.ncols(), |j, k| ws.samples[(j, k)] * ws.weights[k].sqrt());
+    Prior { samples: ws.samples.clone(), r_pp: &scaled * scaled.transpose() }
+}
+
+fn on_grid(b: &dyn Brdf, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
+    DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg)))
+}
+
+/// A family's samples on the grid and their names.
+pub fn family_samples(fam: &Family, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(Vec<DVector<f64>>, Vec<String>)> {
+    let mut cols = Vec::new();
+    let mut names = Vec::new();
+    let add_set = |set: &NbrdfSet, origin: &str, cols: &mut Vec<DVector<f64>>, names: &mut Vec<String>| {
+        for i in 0..set.len() {
+            let mat = set.material(i, spectral);
+            cols.push(on_grid(&mat, grid, view_deg));
+            names.push(format!("{origin}:{}", mat.name()));
+        }
+    };
+    match fam {
+        Family::Patent => {
+            let p = PriorSpec::patent().build(grid, view_deg, Path::new("."))?;
+            for c in 0..p.samples.ncols() {
+                cols.push(p.sample(c));
+                names.push(format!("patent:{c}"));
+            }
+        }
+        Family::Merl => add_set(&NbrdfSet::merl(), "merl", &mut cols, &mut names),
+        Family::Toml(p) => {
+            let (spec, base) = PriorSpec::load(p).with_context(|| format!("reading the prior {}", p.display()))?;
+            let pr = spec.build(grid, view_deg, &base)?;
+            for c in 0..pr.samples.ncols() {
+                cols.push(pr.sample(c));
+                names.push(format!("{}:{c}", p.display()));
+            }
+        }
+        Family::Files(files) => {
+            for f in files {
+                match ext_of(f).as_str() {
+                    "csv" => {
+                        let t = read_measured_csv(f)?;
+                        let mut col = DVector::zeros(grid.n());
+                        for (j, th) in grid.bins_deg().iter().enumerate() {
+                            col[j] = t.at(*th).with_context(|| {
+                                format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", f.display())
+                            })?;
+                        }
+                        cols.push(col);
+                        names.push(f.display().to_string());
+                    }
+                    "binary" => {
+                        let mut t = MerlTable::load(f)?;
+                        t.channel_weights = spectral;
+                        cols.push(on_grid(&t, grid, view_deg));
+                        names.push(f.display().to_string());
+                    }
+                    "json" => add_set(&NbrdfSet::load(f)?, &f.display().to_string(), &mut cols, &mut names),
+                    _ => bail!("{}: not a measured file (.csv, .binary, .json)", f.display()),
+                }
+            }
+        }
+    }
+    Ok((cols, names))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forward::brdf::nbrdf::LUMINANCE;
+
+    #[test]
+    fn mixtures_parse_with_explicit_weights_and_refuse_the_rest() {
+        let m = PriorMix::parse("merl@0.8+patent@0.2").unwrap();
+        assert_eq!(m.families.len(), 2);
+        assert_eq!(m.families[0].1, Family::Merl);
+        assert_eq!(m.families[1].2, 0.2);
+        assert_eq!(PriorMix::parse("merl").unwrap().families[0].2, 1.0);
+        for (bad, why) in [
+            ("merl+patent", "needs its weight"),
+            ("merl@0.7+patent@0.2", "sum to"),
+            ("merl@x+patent@0.5", "not a number"),
+            ("merl@0.5", "weight 1"),
+            ("nothing.xyz", "not `patent`"),
+            ("merl@0.5+", "empty family"),
+        ] {
+            let e = format!("{:#}", PriorMix::parse(bad).unwrap_err());
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn families_from_files_directories_and_lists_with_weights() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.csv"), "20,1.0\n70,2.0\n").unwrap();
+        std::fs::write(dir.path().join("b.csv"), "20,0.5\n70,0.5\n").unwrap();
+        std::fs::write(dir.path().join("notes.txt"), "ignored").unwrap();
+        let t = MerlTable { dims: [4, 4, 8], values: vec![1500.0; 3 * 128], channel_weights: LUMINANCE };
+        t.save(&dir.path().join("c.binary")).unwrap();
+        let grid = AngleGrid::patent();
+        let arg = format!("{}@0.5+patent@0.5", dir.path().display());
+        let (ws, names) = PriorMix::parse(&arg).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap();
+        assert_eq!(ws.samples.ncols(), 3 + 16);
+        assert!(names[0].ends_with("a.csv") && names[2].ends_with("c.binary"));
+        assert!((ws.weights[0] - 0.5 / 3.0).abs() < 1e-15 && (ws.weights[3] - 0.5 / 16.0).abs() < 1e-15);
+        // Every stored value 1500: f_r = the channel scales x 1500, luminance-weighted.
+        let want = std::f64::consts::PI * (0.2126 + 0.7152 * 1.15 + 0.0722 * 1.66);
+        assert!((ws.samples[(40, 2)] - want).abs() < 1e-12, "{}", ws.samples[(40, 2)]);
+        let list = format!("{},{}", dir.path().join("a.csv").display(), dir.path().join("b.csv").display());
+        let (ws, _) = PriorMix::parse(&list).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap();
+        assert_eq!(ws.samples.ncols(), 2);
+        let (p, _) = PriorMix::parse("merl").unwrap().prior(&grid, 45.0, LUMINANCE).unwrap();
+        assert_eq!(p.samples.ncols(), 100);
+        // Malformed measured input names file:line.
+        std::fs::write(dir.path().join("bad.csv"), "20,1.0\n30,abc\n").unwrap();
+        let e = format!("{:#}", PriorMix::parse(&dir.path().join("bad.csv").display().to_string()).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap_err());
+        assert!(e.contains("bad.csv:2"), "{e}");
+        std::fs::write(dir.path().join("bad.binary"), [0u8; 20]).unwrap();
+        let e = format!("{:#}", PriorMix::parse(&dir.path().join("bad.binary").display().to_string()).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap_err());
+        assert!(e.contains("bad.binary"), "{e}");
+    }
+}

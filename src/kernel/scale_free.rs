@@ -1,0 +1,229 @@
+//! Scale-free estimation and the out-of-prior statistic, per point, in f32
+//! with one fixed accumulation order, so the device and the host (which
+//! calls these same functions) give the same bits.
+//!
+//! # Scale-free estimation
+//! Real materials span orders of magnitude in peak reflectance; one linear
+//! map trained on them is dominated by the shiniest. So the shape is
+//! estimated from the readings divided by their scale and multiplied back:
+//!
+//! - scale `s = sum_i v_i` (plain sum, sequential). Why the sum: every LED
+//!   contributes, so it is the least noisy scale of the readings themselves
+//!   (a max would follow one noisy reading), and with it the normalised
+//!   readings `u = v / s` lie exactly on the hyperplane `sum u = 1`: one
+//!   coordinate is redundant, which is the singular direction of their
+//!   covariance. Training drops the last coordinate, so the shape estimate is
+//!   the affine Wiener map `y = mu_y + W' (u' - mu')` of `u' = u_0..u_{m-2}`.
+//! - multiplied back, `rho = s y = W' v' + s (mu_y - W' mu')`. The blob's
+//!   n x m matrix is `[W' | b]` with `b = mu_y - W' mu'`: its last column
+//!   multiplies the scale instead of the last reading. So the estimate costs
+//!   exactly the plain Wiener's n*m multiply-adds plus m-1 adds for s, and
+//!   no division; and it scales with the readings (`rho(c v) = c rho(v)`,
+//!   bit for bit when c is a power of two).
+//!
+//! # Out-of-prior statistic
+//! How typical the normalised readings are for the prior: the squared
+//! Mahalanobis distance `d2 = |G (u' - mu')|^2` of `u'` under the prior's
+//! predictive covariance `C' = cov(u') + noise` (singular direction already
+//! removed), `G = chol(C')^-1` lower triangular, (m-1) x (m-1), stored packed
+//! row by row (row k holds k+1 entries). Training sets the threshold from
+//! cross-validated prior samples at a stated false-alarm rate; a point above
+//! it is flagged. Readings whose sum is not positive and finite give `+inf`.
+//! Cost: one division, m-1 multiplies and subtracts, (m-1)m/2 multiply-adds
+//! and m-1 squares accumulated.
+
+/// The scale of the readings: `s = sum_i v_i`, summed in index order.
+#[inline]
+pub fn scale(v: &[f32]) -> f32 {
+    let mut s = 0.0f32;
+    for x in v {
+        s += *x;
+    }
+    s
+}
+
+/// Scale-free estimate of one point: `out[j] = sum_{i<m-1} w[j*m+i] v[i] +
+/// w[j*m+m-1] s`, with `s = scale(v)`, accumulated in that order (unfused).
+/// Returns `s`. `w` is the blob's row-major n x m matrix `[W' | b]`.
+///
+/// # Panics
+/// If `w.len() != out.len() * v.len()` or `v` is empty.
+#[inline]
+pub fn estimate_scale_free(w: &[f32], v: &[f32], out: &mut [f32]) -> f32 {
+    let m = v.len();
+    assert!(m > 0 && w.len() == out.len() * m, "w must be n x m");
+    let s = scale(v);
+    let head = &v[..m - 1];
+    for (row, o) in w.chunks_exact(m).zip(out.iter_mut()) {
+        let mut acc = 0.0f32;
+        for (wi, x) in row[..m - 1].iter().zip(head) {
+            acc += *wi * *x;
+        }
+        acc += row[m - 1] * s;
+        *o = acc;
+    }
+    s
+}
+
+/// Piecewise scale-free estimate: picks the cluster with the device's rule
+/// ([`crate::kernel::select_cluster`], nearest centroid of `v / sum|v|`),
+/// then [`estimate_scale_free`] with that cluster's matrix. `ws` holds K
+/// matrices n x m back to back, `centroids` K x m. Returns (cluster, scale).
+///
+/// # Panics
+/// If the lengths disagree.
+#[inline]
+pub fn estimate_scale_free_piecewise(ws: &[f32], centroids: &[f32], v: &[f32], out: &mut [f32]) -> (usize, f32) {
+    let nm = out.len() * v.len();
+    let c = crate::kernel::select_cluster(centroids, v);
+    assert!(ws.len() == nm * (centroids.len() / v.len()), "ws must be K x n x m");
+    let s = estimate_scale_free(&ws[c * nm..(c + 1) * nm], v, out);
+    (c, s)
+}
+
+/// Number of packed entries of the whitening matrix for m readings.
+pub const fn whitening_len(m: usize) -> usize {
+    m * (m - 1) / 2
+}
+
+/// The out-of-prior statistic `d2 = |G (v'/s - mean)|^2` (see the module
+/// docs). `g` is packed lower triangular (m-1) x (m-1)
+/// ([`whitening_len`]), `mean` the prior's mean of `u'` (m-1 values), `s`
+/// the readings' scale ([`scale`]; [`estimate_scale_free`] returns it).
+/// Not positive or not finite `s`: `+inf`.
+///
+/// # Panics
+/// If `mean.len() + 1 != v.len()` or `g.len() != whitening_len(v.len())`.
+#[inline]
+pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
+    let m = v.len();
+    assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
+    // NaN is neither positive nor finite: caught here too.
+    if !s.is_finite() || s <= 0.0 || s.is_nan() {
+        return f32::INFINITY;
+    }
+    let inv = 1.0 / s;
+    let mut x = [0.0f32; 64];
+    for i in 0..m - 1 {
+        x[i] = v[i] * inv - mean[i];
+    }
+    let mut d2 = 0.0f32;
+    let mut off = 0;
+    for k in 0..m - 1 {
+        let mut y = 0.0f32;
+        for i in 0..=k {
+            y += g[off + i] * x[i];
+        }
+        off += k + 1;
+        d2 += y * y;
+    }
+    d2
+}
+
+/// Per-bin standard uncertainty of a scale-free estimate: the blob's
+/// uncertainty per unit scale times `|s|`.
+#[inline]
+pub fn scaled_uncertainty(sigma_unit: &[f32], s: f32, out: &mut [f32]) {
+    assert_eq!(sigma_unit.len(), out.len());
+    let a = s.abs();
+    for (o, x) in out.iter_mut().zip(sigma_unit) {
+        *o = *x * a;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_w(n: usize, m: usize) -> alloc_free::Buf {
+        let mut w = alloc_free::Buf::default();
+        for k in 0..n * m {
+            w.0[k] = ((k * 37 % 11) as f32 - 5.0) * 0.125;
+        }
+        w
+    }
+
+    // Fixed-size buffers: the library allocates nothing, nor do its tests need to.
+    mod alloc_free {
+        pub struct Buf(pub [f32; 256]);
+        impl Default for Buf {
+            fn default() -> Self {
+                Self([0.0; 256])
+            }
+        }
+    }
+
+    #[test]
+    fn estimate_is_w_prime_v_plus_scale_times_offset() {
+        let (n, m) = (9, 4);
+        let w = sample_w(n, m);
+        let w = &w.0[..n * m];
+        let v = [0.5f32, 1.25, 0.75, 2.0];
+        let mut out = [0.0f32; 9];
+        let s = estimate_scale_free(w, &v, &mut out);
+        assert_eq!(s, 4.5);
+        for j in 0..n {
+            let r = &w[j * m..(j + 1) * m];
+            let want = r[0] as f64 * 0.5 + r[1] as f64 * 1.25 + r[2] as f64 * 0.75 + r[3] as f64 * 4.5;
+            assert!((out[j] as f64 - want).abs() < 1e-5, "{j}");
+        }
+    }
+
+    #[test]
+    fn estimate_scales_with_the_readings() {
+        let (n, m) = (9, 4);
+        let w = sample_w(n, m);
+        let w = &w.0[..n * m];
+        let v = [0.31f32, 1.7, 0.05, 0.9];
+        let (mut a, mut b) = ([0.0f32; 9], [0.0f32; 9]);
+        estimate_scale_free(w, &v, &mut a);
+        // A power of two: exactly, bit for bit.
+        let v4 = v.map(|x| x * 4.0);
+        estimate_scale_free(w, &v4, &mut b);
+        for j in 0..n {
+            assert_eq!(b[j], a[j] * 4.0);
+        }
+        // Any other factor: within f32 rounding.
+        let v3 = v.map(|x| x * 3.7);
+        estimate_scale_free(w, &v3, &mut b);
+        for j in 0..n {
+            assert!((b[j] - 3.7 * a[j]).abs() <= 1e-5 * (1.0 + (3.7 * a[j]).abs()), "{j}");
+        }
+    }
+
+    #[test]
+    fn statistic_is_the_whitened_distance_and_scale_free() {
+        // m = 3: G = diag(2, 4) (packed: 2, 0, 4), mean (0.25, 0.25).
+        let g = [2.0f32, 0.0, 4.0];
+        let mean = [0.25f32, 0.25];
+        let v = [0.5f32, 0.25, 0.25]; // s = 1, x = (0.25, 0)
+        assert_eq!(out_of_prior_stat(&g, &mean, &v, scale(&v)), 0.25);
+        let v8 = v.map(|x| x * 8.0);
+        assert_eq!(out_of_prior_stat(&g, &mean, &v8, scale(&v8)), 0.25);
+        let at_mean = [0.25f32, 0.25, 0.5];
+        assert_eq!(out_of_prior_stat(&g, &mean, &at_mean, scale(&at_mean)), 0.0);
+        // Off-diagonal term: G = [[1, 0], [1, 1]], x = (0.25, 0) -> y = (0.25, 0.25).
+        let g2 = [1.0f32, 1.0, 1.0];
+        assert_eq!(out_of_prior_stat(&g2, &mean, &v, 1.0), 0.125);
+        assert_eq!(out_of_prior_stat(&g, &mean, &[0.0; 3], 0.0), f32::INFINITY);
+        assert_eq!(out_of_prior_stat(&g, &mean, &[1.0, -2.0, 0.5], -0.5), f32::INFINITY);
+        assert_eq!(out_of_prior_stat(&g, &mean, &[f32::NAN, 0.0, 0.0], f32::NAN), f32::INFINITY);
+    }
+
+    #[test]
+    fn piecewise_uses_the_selected_clusters_matrix() {
+        let (n, m) = (3, 2);
+        // Cluster 0: rho = s * 1; cluster 1: rho = s * 2 (last column multiplies s).
+        let ws = [0.0f32, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 2.0, 0.0, 2.0, 0.0, 2.0];
+        let centroids = [1.0f32, 0.0, 0.0, 1.0];
+        let mut out = [0.0f32; 3];
+        assert_eq!(estimate_scale_free_piecewise(&ws, &centroids, &[3.0, 1.0], &mut out), (0, 4.0));
+        assert_eq!(out, [4.0; 3]);
+        assert_eq!(estimate_scale_free_piecewise(&ws, &centroids, &[1.0, 3.0], &mut out), (1, 4.0));
+        assert_eq!(out, [8.0; 3]);
+        let _ = (n, m);
+        let mut sig = [0.0f32; 2];
+        scaled_uncertainty(&[0.5, 0.25], -4.0, &mut sig);
+        assert_eq!(sig, [2.0, 1.0]);
+    }
+}
