@@ -10,10 +10,18 @@
 # `host-tools qemu --demo ... --measure-and-exit LINES` (train, provision,
 # load a scene, measure), and the count is divided by the points measured.
 #
-#   scripts/qemu-icount.sh [LINES]     (default 1 line = 32 points)
+# It also counts the whole per-point estimation path: the instructions of
+# `Calibration::estimate_pixel` (not inlined) and of every function it calls
+# (matrix selection, the kernel, cluster selection, the scale and the
+# out-of-prior statistic), per call; with a scale-free demo calibration this
+# is the cost the scale-free estimators add to the plain kernel.
+#
+#   scripts/qemu-icount.sh [LINES] [wiener|scale-free|scale-free-piecewise]
+#   (default 1 line = 32 points, Wiener)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 lines=${1:-1}
+estimator=${2:-wiener}
 cargo qemu-fw >&2
 cargo build --release -p host-tools >&2
 elf=target/thumbv7em-none-eabihf/firmware/qemu-fw
@@ -21,6 +29,9 @@ sym=$(arm-none-eabi-nm -S "$elf" | awk '/point_kernel/ {print $4}')
 [ -n "$sym" ] || { echo "icount: no point_kernel symbol in $elf" >&2; exit 1; }
 read -r start size < <(arm-none-eabi-nm -S "$elf" | awk '/point_kernel/ {print $1, $2}')
 echo "icount: kernel symbol $sym at 0x$start, $((16#$size)) bytes" >&2
+path_sym=$(arm-none-eabi-nm -S "$elf" | awk '/estimate_pixel/ {print $4}')
+[ -n "$path_sym" ] || { echo "icount: no estimate_pixel symbol in $elf" >&2; exit 1; }
+read -r path_start _ < <(arm-none-eabi-nm -S "$elf" | awk '/estimate_pixel/ {print $1, $2}')
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 mkfifo "$work/trace"
@@ -31,18 +42,24 @@ mkfifo "$work/trace"
 # the kernel never does (it has no branch to itself, and consecutive calls end
 # on a return, not on the entry), so a repeat is dropped. Every call then
 # counts the same, exactly.
-awk -v sym="$sym" -v st="${start#"${start%%[!0]*}"}" '
-  /^Trace / && index($0, sym) {
+# The whole path: every traced instruction in estimate_pixel or a function it
+# calls (by symbol), a new call at estimate_pixel's first address.
+awk -v sym="$sym" -v st="${start#"${start%%[!0]*}"}" -v psym="$path_sym" -v pst="${path_start#"${path_start%%[!0]*}"}" -v calls="$work/calls" -v paths="$work/paths" '
+  /^Trace / {
     split($0, f, "/"); pc = f[2]; sub(/^0+/, "", pc)
     if (pc == last) next
     last = pc
-    if (pc == st) { if (n) print n; n = 0 }
-    n++
+    if (index($0, sym)) {
+      if (pc == st) { if (n) print n > calls; n = 0 }
+      n++
+    }
+    if (pc == pst) { if (p) print p > paths; p = 0; inpath = 1 }
+    if (inpath && (index($0, psym) || index($0, sym) || index($0, "matrix_of") || index($0, "select_cluster") || index($0, "scale_free"))) p++
   }
-  END { if (n) print n }' "$work/trace" > "$work/calls" &
+  END { if (n) print n > calls; if (p) print p > paths }' "$work/trace" &
 counter=$!
 out=$(./target/release/host-tools qemu --elf "$elf" --port "${QEMU_PORT:-4571}" --minutes 20 \
-  --demo "$work/demo.blob" --measure-and-exit "$lines" \
+  --demo "$work/demo.blob" --demo-estimator "$estimator" --measure-and-exit "$lines" \
   --qemu-arg=-accel --qemu-arg=tcg,one-insn-per-tb=on \
   --qemu-arg=-d --qemu-arg=exec,nochain --qemu-arg=-D --qemu-arg="$work/trace")
 wait "$counter" || true
@@ -58,3 +75,6 @@ distinct=$(sort -u "$work/calls" | wc -l)
 exact=$(head -1 "$work/calls")
 echo "kernel: $exact instructions per point, every call (n x m = $((macs / points)) multiply-accumulates)"
 awk -v c="$exact" -v m="$((macs / points))" 'BEGIN { printf "instructions per multiply-accumulate: %.3f\n", c / m }'
+paths_n=$(wc -l < "$work/paths")
+[ "$paths_n" -eq "$points" ] || { echo "icount: $paths_n estimation paths for $points points" >&2; exit 1; }
+sort -n "$work/paths" | awk -v est="$estimator" '{ a[NR] = $1; s += $1 } END { printf "per-point estimation path (%s): min %d, median %d, max %d, mean %.1f instructions\n", est, a[1], a[int((NR + 1) / 2)], a[NR], s / NR }'

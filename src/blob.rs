@@ -793,6 +793,23 @@ impl<'a> BlobView<'a> {
         let off = self.matrix_offset(z, 0);
         bytemuck::try_cast_slice(self.bytes.get(off..off + 4 * nm)?).ok()
     }
+    /// All zones' centroids (Z x K x m) as an `f32` slice in place (piecewise
+    /// blobs at a 4-byte aligned address); `None` otherwise.
+    #[cfg(target_endian = "little")]
+    pub fn centroids_in_place(&self) -> Option<&'a [f32]> {
+        if self.lay.out_of_prior == self.lay.centroids {
+            return None;
+        }
+        bytemuck::try_cast_slice(self.bytes.get(self.lay.centroids..self.lay.out_of_prior)?).ok()
+    }
+    /// All zones' out-of-prior data (per zone: the mean, m-1, then the packed
+    /// whitening matrix, m(m-1)/2) as an `f32` slice in place, when the blob
+    /// carries it and sits at a 4-byte aligned address; `None` otherwise.
+    #[cfg(target_endian = "little")]
+    pub fn out_of_prior_in_place(&self) -> Option<&'a [f32]> {
+        self.out_of_prior_threshold()?;
+        bytemuck::try_cast_slice(self.bytes.get(self.lay.out_of_prior..self.lay.crc)?).ok()
+    }
     /// Format version of this blob (1 or 2).
     pub fn version(&self) -> u16 {
         get_u16(self.bytes, 4)

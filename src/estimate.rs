@@ -15,7 +15,8 @@
 //! cannot be copied into its 128 KiB of RAM and runs in place; the QEMU build
 //! and the host simulation copy to RAM (and the host simulation tests the
 //! in-place case too, with a small budget).
-use crate::blob::BlobView;
+use crate::blob::{BlobView, EstimatorKind};
+use crate::kernel::scale_free::{out_of_prior_stat, scale, whitening_len};
 use crate::protocol::{CalInfo, DeviceError, SizeField};
 use crate::store::SlotInfo;
 use nalgebra::{SMatrix, SMatrixView, SVector};
@@ -45,8 +46,33 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     pub zone_of: [u16; P],
     zones: usize,
     home: MatrixHome,
-    /// The blob's matrices in flash (Z x n x m f32), when read in place.
+    /// The blob's matrices in flash (Z x K x n x m f32), when read in place.
     in_place: &'static [f32],
+    /// Which rule turns readings into an estimate.
+    kind: EstimatorKind,
+    /// K, matrices per zone (piecewise: one per cluster of readings).
+    clusters: usize,
+    /// Piecewise: the blob's centroids in flash, Z x K x m.
+    centroids: &'static [f32],
+    /// The blob's out-of-prior data in flash (per zone: mean m-1, then the
+    /// packed whitening), with its threshold; empty when it has none.
+    out_of_prior: &'static [f32],
+    out_of_prior_threshold: f32,
+}
+
+/// What one point's estimate adds to its frame besides the values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointMeta {
+    /// The pixel's zone (selects the matrices).
+    pub zone: u16,
+    /// The cluster whose matrix was used (piecewise kinds; 0 otherwise).
+    pub cluster: u8,
+    /// [`crate::protocol::flags`] raised by the estimate itself
+    /// (`OUT_OF_PRIOR`); the caller adds the readings' and the guard's.
+    pub flags: u8,
+    /// What the calibration's per-bin uncertainty is multiplied by for this
+    /// point: the readings' scale for the scale-free kinds, 1 otherwise.
+    pub sigma_scale: f32,
 }
 
 /// The calibration holder: the RAM budget buffer and the active calibration.
@@ -77,21 +103,51 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         Ok(())
     }
 
+    /// Whether the estimator runs on this device: a log-domain blob has no
+    /// device form (its estimate is not `W v`); the scale-free kinds need
+    /// m >= 2 (the last reading's place carries the scale). The parser has
+    /// already checked every other rule of the kind.
+    fn check_kind(view: &BlobView<'_>) -> Result<(), DeviceError> {
+        if view.estimator() == EstimatorKind::LogWiener {
+            return Err(DeviceError::BlobRejected {
+                fault: crate::protocol::BlobFault::UnknownEstimator,
+                section: Some(crate::blob::Section::Header),
+                detail: EstimatorKind::LogWiener as u32,
+            });
+        }
+        let scale_free = matches!(view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise);
+        if (scale_free || view.out_of_prior_threshold().is_some()) && M < 2 {
+            return Err(DeviceError::Mismatch { field: SizeField::Leds, device: M as u16, blob: view.dims().m as u16 });
+        }
+        Ok(())
+    }
+
     /// Makes `view` (a validated blob in slot `slot`) the active calibration.
     /// Nothing changes on error.
     pub fn load(&mut self, view: &BlobView<'static>, slot: SlotInfo) -> Result<(), DeviceError> {
         Self::check(view)?;
+        Self::check_kind(view)?;
         let z = view.dims().zones;
+        let k = view.clusters();
         let bytes = view.as_bytes();
-        // W is the last section before the CRC (blob.rs layout table).
-        let w_len = 4 * z * N * M;
-        let w_off = bytes.len() - 4 - w_len;
-        let in_ram = z <= self.ram.len();
+        let in_ram = z * k <= self.ram.len();
+        // A slot that is not 4-byte aligned is a build error.
         let in_place: &'static [f32] = if in_ram {
             &[]
         } else {
-            // A slot that is not 4-byte aligned is a build error.
-            bytemuck::try_cast_slice(&bytes[w_off..w_off + w_len]).map_err(|_| DeviceError::Storage)?
+            let first = view.matrix_in_place(0).ok_or(DeviceError::Storage)?;
+            // The Z x K matrices are contiguous from zone 0's first.
+            let start = first.as_ptr() as usize - bytes.as_ptr() as usize;
+            bytemuck::try_cast_slice(&bytes[start..start + 4 * z * k * N * M]).map_err(|_| DeviceError::Storage)?
+        };
+        let centroids: &'static [f32] = if view.estimator() == EstimatorKind::ScaleFreePiecewise {
+            view.centroids_in_place().ok_or(DeviceError::Storage)?
+        } else {
+            &[]
+        };
+        let (out_of_prior, out_of_prior_threshold): (&'static [f32], f32) = match view.out_of_prior_threshold() {
+            Some(t) => (view.out_of_prior_in_place().ok_or(DeviceError::Storage)?, t),
+            None => (&[], f32::INFINITY),
         };
         let mut white = [[0.0f32; M]; P];
         for (p, wp) in white.iter_mut().enumerate() {
@@ -102,8 +158,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         let zone_of = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
-            for (zi, dst) in self.ram[..z].iter_mut().enumerate() {
-                view.copy_matrix(zi, dst.as_mut_slice());
+            for (i, dst) in self.ram[..z * k].iter_mut().enumerate() {
+                view.copy_matrix_of(i / k, i % k, dst.as_mut_slice());
             }
         }
         self.active = Some(Active {
@@ -121,6 +177,11 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             zones: z,
             home: if in_ram { MatrixHome::Ram } else { MatrixHome::InPlace },
             in_place,
+            kind: view.estimator(),
+            clusters: k,
+            centroids,
+            out_of_prior,
+            out_of_prior_threshold,
         });
         Ok(())
     }
@@ -130,16 +191,25 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         self.active.as_ref()
     }
 
-    /// Zone `z`'s matrix, wherever it lives.
+    /// Zone `z`'s matrix (cluster 0), wherever it lives.
     ///
     /// # Panics
     /// If there is no active calibration or `z` is not one of its zones.
     pub fn matrix(&self, z: usize) -> SMatrixView<'_, f32, M, N> {
+        self.matrix_of(z, 0)
+    }
+
+    /// Zone `z`'s matrix for cluster `c`, wherever it lives.
+    ///
+    /// # Panics
+    /// If there is no active calibration or `(z, c)` is not one of its matrices.
+    pub fn matrix_of(&self, z: usize, c: usize) -> SMatrixView<'_, f32, M, N> {
         let a = self.active.as_ref().expect("no active calibration");
-        assert!(z < a.zones);
+        assert!(z < a.zones && c < a.clusters);
+        let i = z * a.clusters + c;
         match a.home {
-            MatrixHome::Ram => self.ram[z].as_view(),
-            MatrixHome::InPlace => SMatrixView::from_slice(&a.in_place[z * N * M..(z + 1) * N * M]),
+            MatrixHome::Ram => self.ram[i].as_view(),
+            MatrixHome::InPlace => SMatrixView::from_slice(&a.in_place[i * N * M..(i + 1) * N * M]),
         }
     }
 
@@ -149,11 +219,56 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     }
 
     /// Estimates pixel `p`'s BRDF from its corrected readings with its
-    /// zone's matrix; returns the zone.
-    pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> u16 {
-        let z = self.active.as_ref().expect("no active calibration").zone_of[p];
-        point_kernel(self.matrix(z as usize), v, out);
-        z
+    /// zone's matrix, by the calibration's rule:
+    /// - the linear kinds: `rho = W v`;
+    /// - scale-free: `rho = [W' | b] [v_0 .. v_{m-2}, s]` with `s = sum v`
+    ///   (`crate::kernel::scale_free`: the same kernel, its last reading
+    ///   replaced by the scale, so no extra multiply-adds);
+    /// - scale-free piecewise: the same with the matrix of the cluster
+    ///   [`crate::kernel::select_cluster`] picks from the zone's centroids;
+    ///
+    /// and, when the blob carries out-of-prior data, flags the point whose
+    /// statistic is above the threshold (or not a number).
+    ///
+    /// Not inlined, so the firmware has one symbol for the whole per-point
+    /// path, whose instructions scripts/qemu-icount.sh counts with those of
+    /// the functions it calls.
+    #[inline(never)]
+    pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> PointMeta {
+        let a = self.active.as_ref().expect("no active calibration");
+        let z = a.zone_of[p] as usize;
+        let mut meta = PointMeta { zone: z as u16, cluster: 0, flags: 0, sigma_scale: 1.0 };
+        let s = match a.kind {
+            EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
+                let s = scale(v.as_slice());
+                let c = if a.centroids.is_empty() {
+                    0
+                } else {
+                    let km = a.clusters * M;
+                    crate::kernel::select_cluster(&a.centroids[z * km..(z + 1) * km], v.as_slice())
+                };
+                let mut vs = *v;
+                vs[M - 1] = s;
+                point_kernel(self.matrix_of(z, c), &vs, out);
+                meta.cluster = c as u8;
+                meta.sigma_scale = s;
+                s
+            }
+            _ => {
+                point_kernel(self.matrix(z), v, out);
+                if a.out_of_prior.is_empty() {
+                    return meta;
+                }
+                scale(v.as_slice())
+            }
+        };
+        if !a.out_of_prior.is_empty() {
+            let per = M - 1 + whitening_len(M);
+            let data = &a.out_of_prior[z * per..(z + 1) * per];
+            let stat = out_of_prior_stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
+            meta.flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
+        }
+        meta
     }
 }
 
@@ -176,6 +291,14 @@ pub fn guard_estimate(rho: &mut [f32]) -> u8 {
     }
     rho.fill(0.0);
     crate::protocol::flags::NON_FINITE
+}
+
+/// The out-of-prior rule, once for device and host: a statistic above the
+/// calibration's threshold, or not a number, raises
+/// [`crate::protocol::flags::OUT_OF_PRIOR`] (NaN is not "within the prior").
+#[inline]
+pub fn out_of_prior_flag(stat: f32, threshold: f32) -> u8 {
+    if stat.is_nan() || stat > threshold { crate::protocol::flags::OUT_OF_PRIOR } else { 0 }
 }
 
 /// `out = W v` for one point, with the shared kernel (`wt` is W's
@@ -217,9 +340,12 @@ mod tests {
         for p in 0..6 {
             let v = SVector::from([0.3f32 + p as f32, -1.25, 7.5]);
             let (mut a, mut b) = (SVector::zeros(), SVector::zeros());
-            let za = ram.estimate_pixel(p, &v, &mut a);
-            let zb = flash.estimate_pixel(p, &v, &mut b);
-            assert_eq!(za, zb);
+            let ma = ram.estimate_pixel(p, &v, &mut a);
+            let mb = flash.estimate_pixel(p, &v, &mut b);
+            assert_eq!(ma, mb);
+            // A linear calibration without out-of-prior data: no flag, unscaled uncertainty.
+            assert_eq!((ma.flags, ma.sigma_scale), (0, 1.0));
+            let za = ma.zone;
             assert_eq!(za as usize, view.zone_of_pixel(p));
             assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
             // And against the blob's own accessor.

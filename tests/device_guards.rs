@@ -183,9 +183,9 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
         assert!(p.values.iter().all(|x| x.is_finite()), "point {px} of line {} streamed {:?}", p.line, p.values);
         // The host's reproduction (same correction, kernel and guard) agrees bit for bit.
         let want = &expected_line(&view, &scene[k / P], FULL_SCALE)[px];
-        assert_eq!((p.zone, p.flags), (want.0, want.1), "point {px}");
+        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "point {px}");
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
-        let exp: Vec<u32> = want.2.iter().map(|x| x.to_bits()).collect();
+        let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "point {px}");
         let in_huge = view.zone_of_pixel(px) == huge_zone;
         let expect = match px {

@@ -36,9 +36,9 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let line = k / P;
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
-        assert_eq!((p.zone, p.flags), (want.0, want.1), "point {k}");
+        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "point {k}");
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
-        let exp: Vec<u32> = want.2.iter().map(|x| x.to_bits()).collect();
+        let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "values of point {k} differ");
     }
 }
@@ -327,4 +327,45 @@ fn line_k_plus_1_is_acquired_while_line_k_is_estimated_and_sent() {
     // And line 2 starts before line 1's points are all out.
     let during = sent_at_line_start(2) - sent_at_line_start(1);
     assert!(during < 1 + P + P / 2, "{during}");
+}
+
+/// Scale-free calibrations (plain and piecewise, trained by host-tools on the
+/// MERL prior for the patent-profile scene) run on the device exactly as the
+/// host's reference computes them: values, zone, cluster, flags (including
+/// the out-of-prior flag) and the uncertainty's scale, bit for bit. The
+/// scale is the sum of the point's readings, so the estimate and its
+/// uncertainty scale with the point; synthetic readings unlike any material
+/// are flagged out-of-prior on the device.
+#[test]
+fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_prior() {
+    use host_tools::calibration::demo::train_scale_free_for_scene;
+    use host_tools::forward::scene::frames::{patent_scene, scene_frames};
+    let scene = patent_scene(P);
+    // (piecewise, zones, RAM budget in matrices): the last runs in place.
+    for (piecewise, zones, ram) in [(false, 2, ZONES), (true, 1, ZONES), (true, 1, 1)] {
+        let t = train_scale_free_for_scene(&scene, zones, 0.02, piecewise).unwrap();
+        let view = BlobView::parse(&t.blob).unwrap();
+        let mut c = client(flash(), ram);
+        let cal = c.provision(&t.blob, |_, _| {}).unwrap();
+        assert_eq!(cal.blob_crc, view.crc());
+        assert_eq!(cal.in_ram, zones * view.clusters() <= ram);
+
+        let frames = scene_frames(&scene, 2).unwrap();
+        c.load_scene(&frames).unwrap();
+        let pts = c.measure(2).unwrap();
+        check_points(&t.blob, &frames, &pts, 2);
+        assert!(pts.iter().all(|p| p.sigma_scale > 0.0 && p.sigma_scale != 1.0), "the scale is the readings' sum");
+        assert!(pts.iter().any(|p| p.values.iter().any(|v| *v > 0.1)));
+        if piecewise {
+            assert!(view.clusters() >= 2);
+        }
+
+        // Synthetic readings (a pattern no material makes): flagged.
+        let odd = analytic_scene(&view, 1, FULL_SCALE);
+        c.load_scene(&odd).unwrap();
+        let pts = c.measure(1).unwrap();
+        check_points(&t.blob, &odd, &pts, 1);
+        let flagged = pts.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
+        assert!(flagged > 0, "no synthetic point flagged out-of-prior (piecewise {piecewise})");
+    }
 }

@@ -120,7 +120,7 @@ fn after_a_cut_the_application_boots_and_measures_with_the_surviving_calibration
         let pts = c.measure(1).unwrap();
         let want = expected_line(&view, &scene[0], FULL_SCALE);
         for (p, w) in pts.iter().zip(&want) {
-            assert_eq!(p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), w.2.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+            assert_eq!(p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), w.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
         }
     }
 }

@@ -23,12 +23,12 @@ fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRec
         let line = k / PIXELS;
         let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
-        assert_eq!((p.zone, p.flags), (want.0, want.1), "zone/flags of point {k}");
-        for (j, (g, w)) in p.values.iter().zip(&want.2).enumerate() {
+        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "zone/flags of point {k}");
+        for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {
             assert_eq!(g.to_bits(), w.to_bits(), "point {k} bin {j}: device {g:e}, host {w:e}");
             compared += 1;
         }
-        assert_eq!(p.values.len(), want.2.len());
+        assert_eq!(p.values.len(), want.values.len());
     }
     assert_eq!(compared, lines * PIXELS * view.dims().n);
 }
@@ -72,6 +72,15 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     assert!(points.iter().any(|p| p.values.iter().any(|v| *v > 0.1)));
     let st = c.status().unwrap();
     assert_eq!((st.lines_total, st.bad_frames, st.measuring), (lines as u32, 0, false));
+
+    // A scale-free piecewise calibration on the MERL prior: the Cortex-M4F
+    // gives the host's bits too (values, cluster, out-of-prior flag, scale).
+    let sf = host_tools::calibration::demo::train_scale_free_for_scene(&scene, 1, 0.02, true).unwrap();
+    c.provision(&sf.blob, |_, _| {}).unwrap();
+    c.load_scene(&frames).unwrap(); // a measurement starts at the scene's first line
+    let points = c.measure(2).unwrap();
+    check_bit_identical(&sf.blob, &frames, &points, 2, info.full_scale);
+    assert!(points.iter().all(|p| p.sigma_scale > 0.0 && p.sigma_scale != 1.0));
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
 

@@ -148,21 +148,24 @@ where
                 }
                 for p in 0..P {
                     let mut rho = SVector::<f32, N>::zeros();
-                    let zone = shared.core.lock(|c| {
+                    let meta = shared.core.lock(|c| {
                         let c = c.borrow();
                         c.cal.active().is_some().then(|| c.cal.estimate_pixel(p, &buf.v[p], &mut rho))
                     });
                     // Never stream NaN/inf: a non-finite point is zeroed and flagged.
                     let mut fl = buf.flags[p] | crate::estimate::guard_estimate(rho.as_mut_slice());
-                    if zone.is_none() {
-                        fl |= flags::NON_FINITE;
+                    match meta {
+                        Some(m) => fl |= m.flags,
+                        None => fl |= flags::NON_FINITE,
                     }
                     let pf = PointFrame {
                         line,
                         seq: stream_seq,
                         point: p as u16,
-                        zone: zone.unwrap_or(u16::MAX),
+                        zone: meta.map_or(u16::MAX, |m| m.zone),
+                        cluster: meta.map_or(0, |m| m.cluster),
                         flags: fl,
+                        sigma_scale: meta.map_or(1.0, |m| m.sigma_scale),
                         values: LeBytes::from_f32(rho.as_slice()),
                     };
                     stream_seq = stream_seq.wrapping_add(1);

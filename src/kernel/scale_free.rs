@@ -103,16 +103,24 @@ pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
         return f32::INFINITY;
     }
     let inv = 1.0 / s;
-    let mut x = [0.0f32; 64];
-    for i in 0..m - 1 {
-        x[i] = v[i] * inv - mean[i];
+    // The centred normalised readings, computed once into a small buffer
+    // (zeroing a larger one costs the device more than the statistic); more
+    // readings than it holds are recomputed per use, with the same bits.
+    const HELD: usize = 16;
+    let mut held = [0.0f32; HELD];
+    let fits = m - 1 <= HELD;
+    if fits {
+        for i in 0..m - 1 {
+            held[i] = v[i] * inv - mean[i];
+        }
     }
+    let x = |i: usize| if fits { held[i] } else { v[i] * inv - mean[i] };
     let mut d2 = 0.0f32;
     let mut off = 0;
     for k in 0..m - 1 {
         let mut y = 0.0f32;
         for i in 0..=k {
-            y += g[off + i] * x[i];
+            y += g[off + i] * x(i);
         }
         off += k + 1;
         d2 += y * y;
@@ -134,6 +142,31 @@ pub fn scaled_uncertainty(sigma_unit: &[f32], s: f32, out: &mut [f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// More readings than the statistic's buffer holds: the recomputed path
+    /// gives the same bits as the straightforward definition.
+    #[test]
+    fn the_statistic_is_the_same_for_many_readings() {
+        for m in [7usize, 17, 18, 24] {
+            let v: [f32; 24] = core::array::from_fn(|i| 0.5 + ((i * 7) % 5) as f32 * 0.25);
+            let mean: [f32; 23] = core::array::from_fn(|i| 0.03 + (i % 3) as f32 * 0.01);
+            let g: [f32; 276] = core::array::from_fn(|k| ((k * 13 % 7) as f32 - 3.0) * 0.5);
+            let (v, mean, g) = (&v[..m], &mean[..m - 1], &g[..whitening_len(m)]);
+            let s = scale(v);
+            let inv = 1.0 / s;
+            let (mut want, mut off) = (0.0f32, 0);
+            for k in 0..m - 1 {
+                let mut y = 0.0f32;
+                for i in 0..=k {
+                    y += g[off + i] * (v[i] * inv - mean[i]);
+                }
+                off += k + 1;
+                want += y * y;
+            }
+            assert_eq!(out_of_prior_stat(g, mean, v, s).to_bits(), want.to_bits(), "m = {m}");
+            assert!(want > 0.0);
+        }
+    }
 
     fn sample_w(n: usize, m: usize) -> alloc_free::Buf {
         let mut w = alloc_free::Buf::default();

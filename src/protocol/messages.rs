@@ -243,8 +243,16 @@ pub struct PointFrame<'a> {
     pub point: u16,
     /// Zone of the pixel (selects the matrix).
     pub zone: u16,
+    /// Cluster within the zone whose matrix made the estimate (piecewise
+    /// calibrations; 0 otherwise): selects the per-bin uncertainty.
+    pub cluster: u8,
     /// [`flags`] bits.
     pub flags: u8,
+    /// What the calibration's per-bin standard uncertainty is multiplied by
+    /// for this point: the readings' scale for the scale-free estimators (the
+    /// estimate scales with the point, and so does its uncertainty), 1 for
+    /// the linear ones.
+    pub sigma_scale: f32,
     /// The n estimated values, f32 little-endian.
     #[serde(borrow)]
     pub values: LeBytes<'a>,

@@ -116,7 +116,9 @@ fn every_response_round_trips() {
         seq: 99,
         point: 31,
         zone: 3,
-        flags: flags::SATURATED | flags::NON_FINITE,
+        cluster: 2,
+        flags: flags::SATURATED | flags::NON_FINITE | flags::OUT_OF_PRIOR,
+        sigma_scale: 0.375,
         values: LeBytes::from_f32(&vals),
     });
     let mut f = frame_of(1, &p);
@@ -125,7 +127,8 @@ fn every_response_round_trips() {
     let Response::Point(pf) = back else { panic!("not a point") };
     let bits: Vec<u32> = pf.values.f32s().map(f32::to_bits).collect();
     assert_eq!(bits, vals.map(f32::to_bits));
-    assert_eq!((pf.line, pf.seq, pf.point, pf.zone), (4, 99, 31, 3));
+    assert_eq!((pf.line, pf.seq, pf.point, pf.zone, pf.cluster, pf.sigma_scale), (4, 99, 31, 3, 2, 0.375));
+    assert_eq!(pf.flags, flags::SATURATED | flags::NON_FINITE | flags::OUT_OF_PRIOR);
 }
 
 #[test]
@@ -136,7 +139,9 @@ fn largest_point_frame_fits() {
         seq: u32::MAX,
         point: u16::MAX,
         zone: u16::MAX,
+        cluster: u8::MAX,
         flags: 0xFF,
+        sigma_scale: f32::MAX,
         values: LeBytes::from_f32(&vals),
     });
     let mut out = [0u8; MAX_FRAME];

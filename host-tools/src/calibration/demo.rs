@@ -27,3 +27,34 @@ pub fn train_for_scene(scene: &Scene, zones: usize, noise_rel: f64) -> anyhow::R
         white: Some(optics.white),
     })
 }
+
+/// Trains a scale-free calibration for `scene` (piecewise when `piecewise`)
+/// on the built-in measured prior (the MERL materials), as
+/// `host-tools train --scene S --prior merl --estimator scale-free[-piecewise]`
+/// does: the zones' optics and white reference from the scene, the
+/// out-of-prior threshold at a 5 % false-alarm rate.
+pub fn train_scale_free_for_scene(
+    scene: &Scene,
+    zones: usize,
+    noise_rel: f64,
+    piecewise: bool,
+) -> anyhow::Result<crate::calibration::train_scale_free::TrainedScaleFree> {
+    use crate::forward::prior_measured::{PriorMix, weighted_prior};
+    let inst = &scene.instrument;
+    let grid = inst.grid().context("the scene's angle grid")?;
+    let (samples, _) = PriorMix::parse("merl")?.samples(&grid, inst.view_deg, inst.spectral_weights).context("building the MERL prior")?;
+    let prior = weighted_prior(&samples);
+    let optics = training_optics(scene, zones)?;
+    let spec = TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones: optics.zones,
+        pixels: optics.pixels,
+        prior: &prior,
+        noise_rel,
+        estimator: if piecewise { EstimatorKind::ScaleFreePiecewise } else { EstimatorKind::ScaleFree },
+        far_field: false,
+        led_order: None,
+        white: Some(optics.white),
+    };
+    crate::calibration::train_scale_free::train_scale_free(&spec, &samples, 0.05)
+}

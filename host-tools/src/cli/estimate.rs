@@ -10,8 +10,9 @@
 //! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "flags": [...]}]}`.
 //! Everything is checked and computed before anything is written.
 use anyhow::{Context, bail, ensure};
-use brdf_meter::blob::{BlobView, EstimatorKind};
+use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::flags;
+use crate::device::reference::{PointEstimate, PointEstimator};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -33,131 +34,6 @@ pub struct Args {
     /// Zone whose matrices to use (the readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
-}
-
-/// One point's result.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct PointEstimate {
-    /// The n bin values.
-    pub rho: Vec<f32>,
-    /// Per-bin standard uncertainty (for the scale-free kinds scaled by the point).
-    pub sigma: Vec<f32>,
-    /// Flag names.
-    pub flags: Vec<&'static str>,
-    /// Flag bits as the device frames them.
-    #[serde(skip)]
-    pub flag_bits: u8,
-    /// The out-of-prior statistic (NaN when the blob has no such data).
-    #[serde(skip)]
-    pub stat: f32,
-}
-
-/// Names of the flag bits, in bit order.
-pub fn flag_names(bits: u8) -> Vec<&'static str> {
-    let mut v = Vec::new();
-    for (b, name) in [
-        (flags::SATURATED, "saturated"),
-        (flags::UNDER_EXPOSED, "under-exposed"),
-        (flags::NON_FINITE, "non-finite"),
-        (flags::OUT_OF_PRIOR, "out-of-prior"),
-    ] {
-        if bits & b != 0 {
-            v.push(name);
-        }
-    }
-    v
-}
-
-/// A blob ready to apply to one zone's points.
-pub struct Applier<'a> {
-    view: BlobView<'a>,
-    zone: usize,
-    mats: Vec<Vec<f32>>,
-    sigma: Vec<Vec<f32>>,
-    centroids: Vec<f32>,
-    oop: Option<(Vec<f32>, Vec<f32>, f32)>,
-}
-
-impl<'a> Applier<'a> {
-    /// Prepares zone `zone` of `view`.
-    pub fn new(view: BlobView<'a>, zone: usize) -> anyhow::Result<Self> {
-        let d = view.dims();
-        ensure!(zone < d.zones, "--zone {zone}: the blob has {} zone(s)", d.zones);
-        ensure!(view.estimator() != EstimatorKind::LogWiener, "a log-wiener blob cannot be applied (it has no device form)");
-        let k = view.clusters();
-        let mats = (0..k)
-            .map(|c| {
-                let mut w = vec![0.0f32; d.n * d.m];
-                view.copy_matrix_of(zone, c, &mut w);
-                w
-            })
-            .collect();
-        let sigma = (0..k).map(|c| (0..d.n).map(|j| view.uncertainty_of(zone, c, j)).collect()).collect();
-        let mut centroids = Vec::new();
-        if view.estimator() == EstimatorKind::ScaleFreePiecewise {
-            centroids = vec![0.0f32; k * d.m];
-            view.copy_centroids(zone, &mut centroids);
-        }
-        let oop = view.out_of_prior_threshold().map(|t| {
-            let (mut mean, mut g) = (vec![0.0f32; d.m - 1], vec![0.0f32; d.m * (d.m - 1) / 2]);
-            view.copy_out_of_prior(zone, &mut mean, &mut g);
-            (mean, g, t)
-        });
-        Ok(Self { view, zone, mats, sigma, centroids, oop })
-    }
-
-    /// Readings per point m.
-    pub fn m(&self) -> usize {
-        self.view.dims().m
-    }
-
-    /// Estimates one point as the device does.
-    pub fn apply(&self, v: &[f32]) -> PointEstimate {
-        let n = self.view.dims().n;
-        assert_eq!(v.len(), self.m());
-        let mut rho = vec![0.0f32; n];
-        let mut sigma = vec![0.0f32; n];
-        let mut bits = 0u8;
-        if v.iter().any(|x| !x.is_finite()) {
-            bits |= flags::NON_FINITE;
-        }
-        let scale = match self.view.estimator() {
-            EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
-                let (c, s) = if self.centroids.is_empty() {
-                    (0, brdf_meter::kernel::scale_free::estimate_scale_free(&self.mats[0], v, &mut rho))
-                } else {
-                    let all: Vec<f32> = self.mats.concat();
-                    brdf_meter::kernel::scale_free::estimate_scale_free_piecewise(&all, &self.centroids, v, &mut rho)
-                };
-                brdf_meter::kernel::scale_free::scaled_uncertainty(&self.sigma[c], s, &mut sigma);
-                s
-            }
-            _ => {
-                brdf_meter::kernel::mat_vec_f32_slice(&self.mats[0], v, &mut rho);
-                sigma.copy_from_slice(&self.sigma[0]);
-                brdf_meter::kernel::scale_free::scale(v)
-            }
-        };
-        let mut stat = f32::NAN;
-        if let Some((mean, g, t)) = &self.oop {
-            stat = brdf_meter::kernel::scale_free::out_of_prior_stat(g, mean, v, scale);
-            // A NaN statistic is not "within the prior" either.
-            if stat.is_nan() || stat > *t {
-                bits |= flags::OUT_OF_PRIOR;
-            }
-        }
-        bits |= brdf_meter::estimate::guard_estimate(&mut rho);
-        if bits & flags::NON_FINITE != 0 {
-            rho.fill(0.0);
-            sigma.fill(0.0);
-        }
-        PointEstimate { rho, sigma, flags: flag_names(bits), flag_bits: bits, stat }
-    }
-
-    /// The zone applied.
-    pub fn zone(&self) -> usize {
-        self.zone
-    }
 }
 
 /// Reads the readings CSV: every row exactly `m` numbers; a non-numeric
@@ -205,7 +81,7 @@ struct JsonOut<'a> {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let bytes = std::fs::read(&a.blob).with_context(|| format!("{}: cannot read the blob", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
-    let app = Applier::new(view, a.zone)?;
+    let app = PointEstimator::new(view, a.zone)?;
     let rows = read_readings(&a.readings, app.m())?;
     let points: Vec<PointEstimate> = rows.iter().map(|v| app.apply(v)).collect();
     let d = view.dims();

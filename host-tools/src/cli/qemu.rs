@@ -1,6 +1,6 @@
 //! `host-tools qemu`: start the QEMU instrument for a person to play with.
 use crate::device::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
-use crate::device::qemu_demo::{connect, set_up};
+use crate::device::qemu_demo::{DemoEstimator, connect, set_up};
 use anyhow::Context;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -24,6 +24,9 @@ pub struct Args {
     /// (patent-profile scene), write it here, provision it and load the scene.
     #[arg(long, value_name = "PATH")]
     pub demo: Option<PathBuf>,
+    /// The demo calibration's estimator.
+    #[arg(long, value_enum, default_value_t = DemoEstimator::Wiener, requires = "demo")]
+    pub demo_estimator: DemoEstimator,
     /// Stop QEMU after this many minutes.
     #[arg(long, default_value_t = 60)]
     pub minutes: u64,
@@ -58,8 +61,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let link = if a.pty { format!("--port {addr}") } else { format!("--tcp {addr}") };
     if let Some(blob_path) = &a.demo {
         let mut c = connect(&addr, a.pty)?;
-        eprintln!("training a 4-zone calibration for the simulated optics ...");
-        let (blob, cal) = set_up(&mut c, blob_path)?;
+        eprintln!("training a {:?} calibration for the simulated optics ...", a.demo_estimator);
+        let (blob, cal) = set_up(&mut c, blob_path, a.demo_estimator)?;
         eprintln!(
             "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line patent-profile scene",
             blob_path.display(),

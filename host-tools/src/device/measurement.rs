@@ -3,7 +3,7 @@
 //! uncertainty for the point's zone.
 use crate::device::link::PointRecord;
 use brdf_meter::blob::BlobView;
-use brdf_meter::protocol::flags;
+use crate::device::reference::flag_names;
 use serde::Serialize;
 
 /// One point in the JSON.
@@ -26,27 +26,17 @@ pub struct MeasureJson<'a> {
     pub points: Vec<PointJson<'a>>,
 }
 
-/// The names of the point flags set in `f`.
-pub fn flag_names(f: u8) -> Vec<&'static str> {
-    let mut v = Vec::new();
-    if f & flags::SATURATED != 0 {
-        v.push("saturated");
-    }
-    if f & flags::UNDER_EXPOSED != 0 {
-        v.push("under-exposed");
-    }
-    if f & flags::NON_FINITE != 0 {
-        v.push("non-finite");
-    }
-    v
-}
-
 /// The CSV text and the JSON document of `points`, measured over `lines`
 /// lines with the calibration `view`.
 pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [PointRecord]) -> (String, MeasureJson<'a>) {
     let d = view.dims();
     let angles: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
-    let unc = |z: u16| -> Vec<f32> { (0..d.n).map(|j| view.uncertainty(z as usize, j)).collect() };
+    // The calibration's per-bin uncertainty for the point's zone, times the
+    // point's own scale (1 for the linear estimators; the readings' scale for
+    // the scale-free ones, whose estimate and uncertainty scale with the point).
+    let unc = |p: &PointRecord| -> Vec<f32> {
+        (0..d.n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
+    };
     // CSV: one row per point, rho then uncertainty for each angle.
     let mut csv = String::from("line,point,zone,flags");
     for g in &angles {
@@ -61,7 +51,7 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
         for v in &p.values {
             csv.push_str(&format!(",{v:e}"));
         }
-        for u in unc(p.zone) {
+        for u in unc(p) {
             csv.push_str(&format!(",{u:e}"));
         }
         csv.push('\n');
@@ -78,7 +68,7 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
                 zone: p.zone,
                 flags: flag_names(p.flags),
                 values: &p.values,
-                uncertainty: unc(p.zone),
+                uncertainty: unc(p),
             })
             .collect(),
     };

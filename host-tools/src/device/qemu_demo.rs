@@ -1,7 +1,7 @@
 //! The QEMU instrument's demo: a calibration trained for its simulated
 //! optics (the patent-profile scene at the device's pixel count),
 //! provisioned, and a 4-line scene loaded, so `measure` works at once.
-use crate::calibration::demo::train_for_scene;
+use crate::calibration::demo::{train_for_scene, train_scale_free_for_scene};
 use crate::device::link::{Client, SerialTransport, TcpTransport, Transport};
 use crate::forward::scene::frames::{patent_scene, scene_frames};
 use anyhow::Context;
@@ -18,15 +18,32 @@ pub fn connect(addr: &str, pty: bool) -> anyhow::Result<Client<Box<dyn Transport
     Ok(c)
 }
 
+/// Which calibration the demo trains.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum DemoEstimator {
+    /// Wiener (eq. 22) on the patent prior, 4 zones.
+    #[default]
+    Wiener,
+    /// Scale-free on the MERL prior with the out-of-prior flag, 4 zones.
+    ScaleFree,
+    /// Scale-free piecewise on the MERL prior with the flag, 1 zone (its K
+    /// matrices must fit the QEMU build's 16 KiB slot).
+    ScaleFreePiecewise,
+}
+
 /// Trains the demo calibration for the device behind `c`, writes it to
 /// `blob_path`, provisions it and loads the scene; returns the blob and what
 /// the device reports for it.
-pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path) -> anyhow::Result<(Vec<u8>, CalInfo)> {
+pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path, kind: DemoEstimator) -> anyhow::Result<(Vec<u8>, CalInfo)> {
     let info = c.info()?;
     let scene = patent_scene(info.pixels as usize);
-    let trained = train_for_scene(&scene, 4, 0.02)?;
-    crate::output::io::write_atomic(blob_path, &trained.blob)?;
-    let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
+    let blob = match kind {
+        DemoEstimator::Wiener => train_for_scene(&scene, 4, 0.02)?.blob,
+        DemoEstimator::ScaleFree => train_scale_free_for_scene(&scene, 4, 0.02, false)?.blob,
+        DemoEstimator::ScaleFreePiecewise => train_scale_free_for_scene(&scene, 1, 0.02, true)?.blob,
+    };
+    crate::output::io::write_atomic(blob_path, &blob)?;
+    let cal = c.provision(&blob, |_, _| {}).context("provisioning the demo calibration")?;
     c.load_scene(&scene_frames(&scene, 4)?)?;
-    Ok((trained.blob, cal))
+    Ok((blob, cal))
 }

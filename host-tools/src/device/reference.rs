@@ -1,29 +1,183 @@
 //! The host's reference computation of the device: what the device must
-//! answer for a line of raw frames, computed with the library's own
-//! correction and kernel, so a link test can demand equality bit for bit.
+//! answer for a point's readings or a line of raw frames, computed with the
+//! library's own correction, kernels and rules, so a link test can demand
+//! equality bit for bit, and `host-tools estimate` applies a calibration to
+//! logged readings exactly as the instrument would.
+//!
+//! The device's rule is `brdf_meter::estimate::Calibration::estimate_pixel`
+//! on fixed sizes; [`PointEstimator`] is the same rule on the shapes a blob
+//! declares at run time: the same kernels (`mat_vec_f32_slice` and the
+//! scale-free form, whose accumulation order is the device kernel's with
+//! the last reading replaced by the scale), the same cluster selection, the
+//! same out-of-prior statistic and flag rule, the same guard.
+use anyhow::ensure;
 use brdf_meter::acquire::correct_point_into;
-use brdf_meter::blob::BlobView;
-use brdf_meter::kernel::mat_vec_f32_slice;
+use brdf_meter::blob::{BlobView, EstimatorKind};
+use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
+use brdf_meter::kernel::scale_free::{estimate_scale_free, out_of_prior_stat, scale, scaled_uncertainty, whitening_len};
+use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
+use brdf_meter::protocol::flags;
+use serde::Serialize;
 
-/// What the device must send for one scene line, point by point: zone, flags
-/// and the n values, computed with the library's own correction and kernel
-/// (so equality is bit for bit).
-pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<(u16, u8, Vec<f32>)> {
+/// One point's estimate, as the device computes it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PointEstimate {
+    /// The n bin values.
+    pub rho: Vec<f32>,
+    /// Per-bin standard uncertainty (for the scale-free kinds scaled by the point).
+    pub sigma: Vec<f32>,
+    /// Flag names.
+    pub flags: Vec<&'static str>,
+    /// Flag bits as the device frames them.
+    #[serde(skip)]
+    pub flag_bits: u8,
+    /// The cluster whose matrix was used (the frame's `cluster`).
+    #[serde(skip)]
+    pub cluster: u8,
+    /// What the per-bin uncertainty was multiplied by (the frame's `sigma_scale`).
+    #[serde(skip)]
+    pub sigma_scale: f32,
+    /// The out-of-prior statistic (NaN when the blob has no such data).
+    #[serde(skip)]
+    pub stat: f32,
+}
+
+/// Names of the flag bits, in bit order: what every output writes.
+pub fn flag_names(bits: u8) -> Vec<&'static str> {
+    [
+        (flags::SATURATED, "saturated"),
+        (flags::UNDER_EXPOSED, "under-exposed"),
+        (flags::NON_FINITE, "non-finite"),
+        (flags::OUT_OF_PRIOR, "out-of-prior"),
+    ]
+    .into_iter()
+    .filter(|(b, _)| bits & b != 0)
+    .map(|(_, name)| name)
+    .collect()
+}
+
+/// One zone of a calibration, ready to apply to that zone's points.
+pub struct PointEstimator<'a> {
+    view: BlobView<'a>,
+    zone: usize,
+    mats: Vec<Vec<f32>>,
+    sigma: Vec<Vec<f32>>,
+    centroids: Vec<f32>,
+    out_of_prior: Option<(Vec<f32>, Vec<f32>, f32)>,
+}
+
+impl<'a> PointEstimator<'a> {
+    /// Prepares zone `zone` of `view`. Refuses what the device refuses to
+    /// run: a log-domain blob (no device form).
+    pub fn new(view: BlobView<'a>, zone: usize) -> anyhow::Result<Self> {
+        let d = view.dims();
+        ensure!(zone < d.zones, "zone {zone}: the blob has {} zone(s)", d.zones);
+        ensure!(view.estimator() != EstimatorKind::LogWiener, "a log-wiener blob cannot be applied (it has no device form)");
+        let k = view.clusters();
+        let mats = (0..k)
+            .map(|c| {
+                let mut w = vec![0.0f32; d.n * d.m];
+                view.copy_matrix_of(zone, c, &mut w);
+                w
+            })
+            .collect();
+        let sigma = (0..k).map(|c| (0..d.n).map(|j| view.uncertainty_of(zone, c, j)).collect()).collect();
+        let mut centroids = Vec::new();
+        if view.estimator() == EstimatorKind::ScaleFreePiecewise {
+            centroids = vec![0.0f32; k * d.m];
+            view.copy_centroids(zone, &mut centroids);
+        }
+        let out_of_prior = view.out_of_prior_threshold().map(|t| {
+            let (mut mean, mut g) = (vec![0.0f32; d.m - 1], vec![0.0f32; whitening_len(d.m)]);
+            view.copy_out_of_prior(zone, &mut mean, &mut g);
+            (mean, g, t)
+        });
+        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior })
+    }
+
+    /// Readings per point m.
+    pub fn m(&self) -> usize {
+        self.view.dims().m
+    }
+
+    /// The zone applied.
+    pub fn zone(&self) -> usize {
+        self.zone
+    }
+
+    /// Estimates one point from its white-corrected readings, as the device does.
+    pub fn apply(&self, v: &[f32]) -> PointEstimate {
+        let n = self.view.dims().n;
+        assert_eq!(v.len(), self.m());
+        let mut rho = vec![0.0f32; n];
+        let mut sigma = vec![0.0f32; n];
+        let mut bits = 0u8;
+        if v.iter().any(|x| !x.is_finite()) {
+            bits |= flags::NON_FINITE;
+        }
+        let (s, sigma_scale, cluster) = match self.view.estimator() {
+            EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
+                let c = if self.centroids.is_empty() { 0 } else { select_cluster(&self.centroids, v) };
+                let s = estimate_scale_free(&self.mats[c], v, &mut rho);
+                scaled_uncertainty(&self.sigma[c], s, &mut sigma);
+                (s, s, c as u8)
+            }
+            _ => {
+                mat_vec_f32_slice(&self.mats[0], v, &mut rho);
+                sigma.copy_from_slice(&self.sigma[0]);
+                (scale(v), 1.0, 0)
+            }
+        };
+        let mut stat = f32::NAN;
+        if let Some((mean, g, t)) = &self.out_of_prior {
+            stat = out_of_prior_stat(g, mean, v, s);
+            bits |= out_of_prior_flag(stat, *t);
+        }
+        bits |= guard_estimate(&mut rho);
+        if bits & flags::NON_FINITE != 0 {
+            rho.fill(0.0);
+            sigma.fill(0.0);
+        }
+        PointEstimate { rho, sigma, flags: flag_names(bits), flag_bits: bits, cluster, sigma_scale, stat }
+    }
+}
+
+/// What the device streams for one point: zone, flags, the uncertainty's
+/// scale and the n values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExpectedPoint {
+    /// The pixel's zone.
+    pub zone: u16,
+    /// Flag bits.
+    pub flags: u8,
+    /// The frame's `cluster`.
+    pub cluster: u8,
+    /// The frame's `sigma_scale`.
+    pub sigma_scale: f32,
+    /// The n values.
+    pub values: Vec<f32>,
+}
+
+/// What the device must send for one scene line, point by point, computed
+/// with the library's own correction and the device's rule (so equality is
+/// bit for bit).
+///
+/// # Panics
+/// If the blob is one the device refuses to run (see [`PointEstimator::new`]).
+pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<ExpectedPoint> {
     let d = blob.dims();
     let order = blob.led_order();
-    let mut w = vec![0.0f32; d.n * d.m];
+    let zones: Vec<PointEstimator<'_>> =
+        (0..d.zones).map(|z| PointEstimator::new(*blob, z).expect("a calibration the device runs")).collect();
     (0..d.pixels)
         .map(|p| {
             let lit: Vec<u16> = order.iter().map(|&led| frames[led as usize + 1][p]).collect();
             let white: Vec<f32> = (0..d.m).map(|i| blob.white(p, i)).collect();
             let mut v = vec![0.0f32; d.m];
-            let mut flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &mut v);
+            let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &mut v);
             let z = blob.zone_of_pixel(p);
-            blob.copy_matrix(z, &mut w);
-            let mut rho = vec![0.0f32; d.n];
-            mat_vec_f32_slice(&w, &v, &mut rho);
-            flags |= brdf_meter::estimate::guard_estimate(&mut rho);
-            (z as u16, flags, rho)
+            let e = zones[z].apply(&v);
+            ExpectedPoint { zone: z as u16, cluster: e.cluster, flags: flags | e.flag_bits, sigma_scale: e.sigma_scale, values: e.rho }
         })
         .collect()
 }

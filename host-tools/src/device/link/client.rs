@@ -41,13 +41,26 @@ pub struct PointRecord {
     pub zone: u16,
     /// Flags (`brdf_meter::protocol::flags`).
     pub flags: u8,
+    /// Cluster within the zone (piecewise calibrations; 0 otherwise).
+    pub cluster: u8,
+    /// What the calibration's per-bin uncertainty is multiplied by for this point.
+    pub sigma_scale: f32,
     /// The n values.
     pub values: Vec<f32>,
 }
 
 impl From<PointFrame<'_>> for PointRecord {
     fn from(p: PointFrame<'_>) -> Self {
-        Self { line: p.line, seq: p.seq, point: p.point, zone: p.zone, flags: p.flags, values: p.values.f32s().collect() }
+        Self {
+            line: p.line,
+            seq: p.seq,
+            point: p.point,
+            zone: p.zone,
+            cluster: p.cluster,
+            flags: p.flags,
+            sigma_scale: p.sigma_scale,
+            values: p.values.f32s().collect(),
+        }
     }
 }
 
