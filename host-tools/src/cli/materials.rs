@@ -38,6 +38,10 @@ pub struct Args {
     /// Worst materials plotted.
     #[arg(long, default_value_t = 6)]
     pub plot_worst: usize,
+    /// Also count the device's cost per point exactly in QEMU
+    /// (scripts/qemu-icount.sh for Wiener, scale-free and piecewise; minutes).
+    #[arg(long)]
+    pub qemu: bool,
 }
 
 /// Runs the command; writes nothing unless the run succeeds.
@@ -71,15 +75,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let t0 = std::time::Instant::now();
     let report = run_loo(&set, &cfg)?;
-    let md = report.markdown();
+    let mut md = report.markdown();
+    let costs = if a.qemu {
+        let root = crate::device::link::qemu::workspace_root();
+        let c = crate::evaluation::device_cost::measure(&root, &["wiener", "scale-free", "scale-free-piecewise"])?;
+        md.push_str("\nDevice cost per point (QEMU exact count, Cortex-M4F, n = 81, m = 7):\n\n");
+        md.push_str(&crate::evaluation::device_cost::markdown(&c));
+        Some(c)
+    } else {
+        None
+    };
     let (svg, png) = crate::output::plot::render(&WorstPlot { report: &report, count: a.plot_worst }, (1200, 800))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     crate::output::io::write_atomic(&a.out.join("materials.md"), md.as_bytes())?;
-    crate::output::io::write_json(&a.out.join("materials.json"), &report)?;
+    crate::output::io::write_json(&a.out.join("materials.json"), &serde_json::json!({ "report": &report, "device_cost": costs }))?;
     crate::output::io::write_atomic(&a.out.join("materials-worst.svg"), svg.as_bytes())?;
     crate::output::io::write_atomic(&a.out.join("materials-worst.png"), &png)?;
     let summary_end = md.find("\nPer material").unwrap_or(md.len());
     println!("{}", &md[..summary_end]);
+    if let Some(c) = &costs {
+        println!("device cost per point (QEMU exact count):\n{}", crate::evaluation::device_cost::markdown(c));
+    }
     println!("({:.1} s) wrote {}/materials.md, materials.json, materials-worst.svg/.png", t0.elapsed().as_secs_f64(), a.out.display());
     Ok(())
 }

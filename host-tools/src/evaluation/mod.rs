@@ -8,3 +8,4 @@ pub mod reproduce;
 pub mod tradeoff;
 pub mod stability;
 pub mod held_out;
+pub mod device_cost;
