@@ -194,15 +194,16 @@ fn every_single_byte_corruption_is_a_typed_error() {
 #[test]
 fn wrong_version_is_reported_before_the_body() {
     let mut raw = [0u8; 32];
-    raw[0..2].copy_from_slice(&2u16.to_le_bytes());
+    let other = PROTOCOL_VERSION + 1;
+    raw[0..2].copy_from_slice(&other.to_le_bytes());
     raw[2..4].copy_from_slice(&13u16.to_le_bytes());
-    raw[8] = 0xEE; // not a variant of version 1
+    raw[8] = 0xEE; // not a variant of this version
     let crc = crate::blob::CRC32.checksum(&raw[..9]);
     raw[9..13].copy_from_slice(&crc.to_le_bytes());
     let mut enc = [0u8; 64];
     let k = cobs::encode(&raw[..13], &mut enc);
     let r: Result<(u32, Request<'_>), _> = decode(&mut enc[..k]);
-    assert_eq!(r, Err(FrameError::UnsupportedVersion { got: 2 }));
+    assert_eq!(r, Err(FrameError::UnsupportedVersion { got: other }));
 }
 
 #[test]

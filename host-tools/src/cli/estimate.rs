@@ -81,7 +81,7 @@ struct JsonOut<'a> {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let bytes = std::fs::read(&a.blob).with_context(|| format!("{}: cannot read the blob", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
-    let app = PointEstimator::new(view, a.zone)?;
+    let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
     let rows = read_readings(&a.readings, app.m())?;
     let points: Vec<PointEstimate> = rows.iter().map(|v| app.apply(v)).collect();
     let d = view.dims();

@@ -88,13 +88,7 @@ impl MerlTable {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return None;
         }
-        let h = (wi + wo).normalize();
-        let theta_h = h.z.clamp(-1.0, 1.0).acos();
-        let phi_h = h.y.atan2(h.x);
-        let (sp, cp) = (-phi_h).sin_cos();
-        let a = Vector3::new(cp * wi.x - sp * wi.y, sp * wi.x + cp * wi.y, wi.z);
-        let (st, ct) = (-theta_h).sin_cos();
-        let d = Vector3::new(ct * a.x + st * a.z, a.y, -st * a.x + ct * a.z);
+        let (theta_h, d) = super::nbrdf::half_and_difference(wi, wo);
         let theta_d = d.z.clamp(-1.0, 1.0).acos();
         let mut phi_d = d.y.atan2(d.x);
         if phi_d < 0.0 {

@@ -74,14 +74,7 @@ impl NbrdfWeights {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return [0.0; 3];
         }
-        let h = (wi + wo).normalize();
-        let theta_h = h.z.clamp(-1.0, 1.0).acos();
-        let phi_h = h.y.atan2(h.x);
-        // R_z(-phi_h), then R_y(-theta_h).
-        let (sp, cp) = (-phi_h).sin_cos();
-        let a = Vector3::new(cp * wi.x - sp * wi.y, sp * wi.x + cp * wi.y, wi.z);
-        let (st, ct) = (-theta_h).sin_cos();
-        let d = Vector3::new(ct * a.x + st * a.z, a.y, -st * a.x + ct * a.z);
+        let (theta_h, d) = half_and_difference(wi, wo);
         let x = [theta_h.sin(), 0.0, theta_h.cos(), d.x, d.y, d.z];
         let mut a1 = [0.0; HIDDEN];
         for (k, out) in a1.iter_mut().enumerate() {
@@ -194,6 +187,21 @@ impl NbrdfSet {
         })?;
         Ok(self.material(i, channel_weights))
     }
+}
+
+/// Rusinkiewicz's half/difference parametrisation of a direction pair (the
+/// one MERL data and the NBRDF networks are indexed by): the half vector's
+/// polar angle `theta_h` and the difference vector `d = R_y(-theta_h)
+/// R_z(-phi_h) w_i`.
+pub(crate) fn half_and_difference(wi: &Vector3<f64>, wo: &Vector3<f64>) -> (f64, Vector3<f64>) {
+    let h = (wi + wo).normalize();
+    let theta_h = h.z.clamp(-1.0, 1.0).acos();
+    let phi_h = h.y.atan2(h.x);
+    // R_z(-phi_h), then R_y(-theta_h).
+    let (sp, cp) = (-phi_h).sin_cos();
+    let a = Vector3::new(cp * wi.x - sp * wi.y, sp * wi.x + cp * wi.y, wi.z);
+    let (st, ct) = (-theta_h).sin_cos();
+    (theta_h, Vector3::new(ct * a.x + st * a.z, a.y, -st * a.x + ct * a.z))
 }
 
 #[cfg(test)]
