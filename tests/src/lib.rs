@@ -5,6 +5,9 @@
 //!   driver (simulated time advances only when the device is idle, so runs are
 //!   deterministic), an in-memory NOR flash and an in-memory link. It is a
 //!   `host_tools::link::Transport`, so host-tools' own client drives it.
+//! - [`fuzz_bodies`]: the fuzz targets' bodies, shared by the cargo-fuzz
+//!   crate (`tests/fuzz/`) and the stable corpus replay (`fuzz_replay.rs`).
 //! - [`qemu`]: building the QEMU firmware once and running it under QEMU.
+pub mod fuzz_bodies;
 pub mod qemu;
 pub mod sim;
