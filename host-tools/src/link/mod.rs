@@ -8,7 +8,7 @@ mod serial;
 pub mod sim;
 mod tcp;
 
-pub use client::{Client, Frame, LinkError, PointRecord, Reply};
+pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
 pub use serial::SerialTransport;
 pub use tcp::TcpTransport;
 
