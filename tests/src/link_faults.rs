@@ -21,11 +21,11 @@ use crate::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::protocol::{self, Response};
+use brdf_meter::protocol::{self, DeviceError, Response};
 use brdf_meter::store::Store;
 use brdf_meter::test_blobs::test_blob;
 use host_tools::link::sim::{SceneFrames, analytic_scene, expected_line};
-use host_tools::link::{Client, LinkStats, ProvisionOutcome, Transport};
+use host_tools::link::{Client, LinkError, LinkStats, ProvisionOutcome, Transport};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::{BTreeSet, VecDeque};
@@ -115,8 +115,9 @@ pub struct FaultyLink {
     partial: Vec<u8>,
     out: VecDeque<u8>,
     stall: u32,
-    disconnect_in: Option<(u32, u32)>,
+    disconnect_in: Option<(u32, u32, u32)>,
     down: u32,
+    down_requests: u32,
     at_boundary: bool,
     /// What the link did.
     pub counts: LinkCounts,
@@ -139,6 +140,7 @@ impl FaultyLink {
             stall: 0,
             disconnect_in: None,
             down: 0,
+            down_requests: 0,
             at_boundary: true,
             counts: LinkCounts::default(),
             fates: Vec::new(),
@@ -146,9 +148,14 @@ impl FaultyLink {
     }
 
     /// Schedules a disconnect: after `after` more device frames, the link
-    /// goes down (cutting that frame partway) for `reads` host reads.
-    pub fn disconnect_after(&mut self, after: u32, reads: u32) {
-        self.disconnect_in = Some((after, reads.max(1)));
+    /// goes down (cutting that frame partway) for `reads` host reads and
+    /// until `requests` host requests have been lost.
+    pub fn disconnect_after(&mut self, after: u32, reads: u32, requests: u32) {
+        self.disconnect_in = Some((after, reads.max(1), requests));
+    }
+
+    fn is_down(&self) -> bool {
+        self.down > 0 || self.down_requests > 0
     }
 
     /// The point-frame fates recorded since the last call.
@@ -175,20 +182,21 @@ impl FaultyLink {
         let mut fault = None;
         let mut bytes = frame.clone();
         let mut copies = 1;
-        if let Some((after, reads)) = self.disconnect_in {
+        if let Some((after, reads, requests)) = self.disconnect_in {
             if after == 0 {
                 self.disconnect_in = None;
                 self.down = reads;
+                self.down_requests = requests;
                 self.counts.disconnects += 1;
                 // The frame in flight is cut partway.
                 let keep = self.below(frame.len() - 1);
                 bytes.truncate(keep);
                 fault = Some(Fault::Disconnect);
             } else {
-                self.disconnect_in = Some((after - 1, reads));
+                self.disconnect_in = Some((after - 1, reads, requests));
             }
         }
-        if fault.is_none() && self.down > 0 {
+        if fault.is_none() && self.is_down() {
             bytes.clear();
             fault = Some(Fault::Disconnect);
         }
@@ -225,8 +233,10 @@ impl FaultyLink {
             self.counts.injected[k] += 1;
         }
         let mut intact = 0;
+        // A repeated delimiter is an empty frame, which readers skip.
+        let same = bytes == frame || (bytes.len() == frame.len() + 1 && bytes.ends_with(&[0, 0]) && bytes[..frame.len()] == frame[..]);
         for _ in 0..copies {
-            if self.at_boundary && bytes == frame {
+            if self.at_boundary && same {
                 intact += 1;
             }
             if let Some(&last) = bytes.last() {
@@ -242,8 +252,11 @@ impl FaultyLink {
 
 impl Transport for FaultyLink {
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
-        if self.down > 0 {
-            self.counts.request_faults += 1;
+        if self.is_down() {
+            if bytes.len() > 1 {
+                self.counts.request_faults += 1;
+                self.down_requests = self.down_requests.saturating_sub(1);
+            }
             return Ok(());
         }
         let mut b = bytes.to_vec();
@@ -337,6 +350,8 @@ pub struct SoakReport {
     pub provision_completed: u64,
     /// Calls that ended with the previous calibration still active.
     pub provision_rolled_back: u64,
+    /// Calls that returned an error (the link stayed down past every retry).
+    pub provision_gave_up: u64,
     /// Measurements or provisionings that met a fault and still succeeded.
     pub recoveries: u64,
     /// The client's own counters.
@@ -365,8 +380,8 @@ impl std::fmt::Display for SoakReport {
         writeln!(f, "measurements            {} ({} cut short)", self.measurements, self.cut_streams)?;
         writeln!(
             f,
-            "provisioning            {} calls, {} attempts, {} completed, {} rolled back",
-            self.provisionings, self.provision_attempts, self.provision_completed, self.provision_rolled_back
+            "provisioning            {} calls, {} attempts, {} completed, {} rolled back, {} failed with the link down",
+            self.provisionings, self.provision_attempts, self.provision_completed, self.provision_rolled_back, self.provision_gave_up
         )?;
         writeln!(f, "recoveries              {}", self.recoveries)?;
         let c = &self.client;
@@ -418,27 +433,53 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
             // Provision the next blob, now and then with a disconnect partway.
             let next = (active + 1) % blobs.len();
             let chunks = blobs[next].len().div_ceil(protocol::MAX_CHUNK) as u32;
-            if rng.random_bool(0.5) {
+            // Mostly short outages the retries ride out; one provisioning in
+            // four meets one that loses 6 to 16 requests: more than a single
+            // attempt's retries of one request (6), and from 14 on more than
+            // the client's questions afterwards (8) too.
+            let long = rng.random_bool(0.25);
+            if long || rng.random_bool(0.5) {
                 let after = rng.random_range(0..chunks + 2);
-                let reads = rng.random_range(1..40);
-                c.transport().disconnect_after(after, reads);
+                if long {
+                    c.transport().disconnect_after(after, 1, rng.random_range(6..=16));
+                } else {
+                    c.transport().disconnect_after(after, rng.random_range(1..40), 0);
+                }
             }
             r.provisionings += 1;
-            let out = c.provision_retrying(&blobs[next], 3).unwrap_or_else(|e| panic!("seed {seed}: provisioning gave up: {e}"));
+            let out = c.provision_retrying(&blobs[next], if long { 1 } else { 3 });
             let truth = device_active(&c.transport().dev.flash);
             match out {
-                ProvisionOutcome::Committed { cal, attempts } => {
+                Ok(ProvisionOutcome::Committed { cal, attempts }) => {
                     assert_eq!(truth.as_deref(), Some(blobs[next].as_slice()), "seed {seed}: committed, but not active");
                     assert_eq!(cal.blob_crc, BlobView::parse(&blobs[next]).unwrap().crc());
                     r.provision_attempts += attempts as u64;
                     r.provision_completed += 1;
                     active = next;
                 }
-                ProvisionOutcome::RolledBack { active: cal, attempts, .. } => {
+                Ok(ProvisionOutcome::RolledBack { active: cal, attempts, .. }) => {
                     assert_eq!(truth.as_deref(), Some(blobs[active].as_slice()), "seed {seed}: rolled back, but the old blob is not active");
                     assert_eq!(cal.map(|c| c.blob_crc), Some(BlobView::parse(&blobs[active]).unwrap().crc()));
                     r.provision_attempts += attempts as u64;
                     r.provision_rolled_back += 1;
+                }
+                Err(e) => {
+                    // The link stayed down past every retry: the host knows
+                    // it failed; the device holds the old blob or the new,
+                    // whole; the host ends the session once the link is back.
+                    r.provision_attempts += 1;
+                    r.provision_gave_up += 1;
+                    let old = truth.as_deref() == Some(blobs[active].as_slice());
+                    let new = truth.as_deref() == Some(blobs[next].as_slice());
+                    assert!(old || new, "seed {seed}: after a failed provisioning ({e}), neither blob is active");
+                    c.transport().disconnect_in = None;
+                    match c.request_retrying(&protocol::Request::ProvisionAbort, 50) {
+                        Ok(_) | Err(LinkError::Device(DeviceError::NotProvisioning)) => {}
+                        Err(e) => panic!("seed {seed}: the client did not recover after a failed provisioning: {e}"),
+                    }
+                    if new {
+                        active = next;
+                    }
                 }
             }
             c.transport().disconnect_in = None;
@@ -452,7 +493,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         if rng.random_bool(0.1) {
             let after = rng.random_range(0..lines * P as u32 + 2);
             let reads = rng.random_range(1..6);
-            c.transport().disconnect_after(after, reads);
+            c.transport().disconnect_after(after, reads, 0);
         }
         c.transport().take_fates();
         let rep = c.measure_tolerant(lines, P as u32).unwrap_or_else(|e| panic!("seed {seed}: measurement failed: {e}"));
