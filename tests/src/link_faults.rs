@@ -82,6 +82,8 @@ pub const FAULTS: [Fault; 7] =
 /// A point frame the device sent, and what became of it.
 #[derive(Clone, Copy, Debug)]
 pub struct PointFate {
+    /// The `Measure` request it answers.
+    pub request: u32,
     /// Its stream sequence number.
     pub seq: u32,
     /// The fault that hit it.
@@ -173,7 +175,7 @@ impl FaultyLink {
         self.counts.device_frames += 1;
         let mut copy = frame[..frame.len() - 1].to_vec();
         let point = match protocol::decode::<Response<'_>>(&mut copy) {
-            Ok((_, Response::Point(p))) => Some(p.seq),
+            Ok((request, Response::Point(p))) => Some((request, p.seq)),
             _ => None,
         };
         if point.is_some() {
@@ -244,8 +246,8 @@ impl FaultyLink {
             }
             self.out.extend(bytes.iter().copied());
         }
-        if let Some(seq) = point {
-            self.fates.push(PointFate { seq, fault, intact });
+        if let Some((request, seq)) = point {
+            self.fates.push(PointFate { request, seq, fault, intact });
         }
     }
 }
@@ -534,7 +536,9 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         // intact; each fault on a point shows in the host's accounting: lost
         // copies as missing, a second intact copy as a repeat.
         let dups: BTreeSet<u32> = rep.duplicates.iter().copied().collect();
-        for f in &fates {
+        // Points of an earlier Measure (sent again when its replies were
+        // lost) are not this stream's; the client drops them by sequence.
+        for f in fates.iter().filter(|f| f.request == rep.request_seq) {
             if f.intact == 0 && accepted.contains(&f.seq) {
                 r.undetected += 1;
             }

@@ -102,6 +102,9 @@ pub struct StreamReport {
     pub complete: bool,
     /// An error the device sent during the measurement.
     pub device_error: Option<DeviceError>,
+    /// Sequence number of the `Measure` request whose stream this is (the
+    /// last one sent, when it had to be sent again).
+    pub request_seq: u32,
 }
 
 /// How [`Client::provision_retrying`] ended.
@@ -611,6 +614,7 @@ impl<T: Transport> Client<T> {
             }
         }
         rep.missing.extend(next..total);
+        rep.request_seq = seq;
         self.stats.missing_points += rep.missing.len() as u64;
         if !rep.complete {
             // Stop whatever is left of the stream and start afresh.
