@@ -5,6 +5,7 @@
 #   scripts/fuzz-campaign.sh                 # -runs=10000000 per target
 #   scripts/fuzz-campaign.sh --runs N        # N executions per target
 #   scripts/fuzz-campaign.sh SECONDS         # SECONDS per target instead
+#   scripts/fuzz-campaign.sh --max-time S    # 1e7 executions or S seconds, whichever first
 #   TARGETS="store_ops blob_parse" scripts/fuzz-campaign.sh ...   # a subset
 #
 # The campaign grows a scratch corpus (tests/fuzz/work/<target>/, not checked
@@ -28,13 +29,17 @@ SANITIZER=${SANITIZER:-none}
 ALL_TARGETS="frame_decode frame_reader blob_parse store_ops scene_toml prior_file"
 TARGETS=${TARGETS:-$ALL_TARGETS}
 
-limit=(-runs=10000000)
-case "${1:-}" in
-    "") ;;
-    --runs) limit=(-runs="${2:?--runs needs a number}") ;;
-    *[!0-9]*) echo "usage: $0 [SECONDS_PER_TARGET | --runs N]" >&2; exit 2 ;;
-    *) limit=(-max_total_time="$1") ;;
-esac
+runs=10000000
+limit=()
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
+        --max-time) limit+=(-max_total_time="${2:?--max-time needs seconds}"); shift 2 ;;
+        *[!0-9]*|"") echo "usage: $0 [SECONDS_PER_TARGET | --runs N] [--max-time SECONDS]" >&2; exit 2 ;;
+        *) limit+=(-max_total_time="$1"); runs=; shift ;;
+    esac
+done
+[ -n "$runs" ] && limit+=(-runs="$runs")
 
 if ! rustup toolchain list | grep -q '^nightly'; then
     echo "the fuzz campaign needs a nightly toolchain (rustup toolchain install nightly)" >&2

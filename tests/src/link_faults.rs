@@ -552,12 +552,19 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
                 let caught = match f.intact {
                     0 => missing.contains(&f.seq),
                     1 => accepted.contains(&f.seq) || missing.contains(&f.seq),
-                    _ => dups.contains(&f.seq),
+                    _ => dups.contains(&f.seq) || missing.contains(&f.seq),
                 };
                 if caught {
                     r.detected[k] += 1;
                 } else {
                     r.undetected += 1;
+                    eprintln!(
+                        "seed {seed}: undetected {f:?} (stream of {total} points, complete {}, accepted {}, missing {:?}, repeats {:?})",
+                        rep.complete,
+                        accepted.contains(&f.seq),
+                        rep.missing,
+                        rep.duplicates
+                    );
                 }
             }
         }
