@@ -21,8 +21,11 @@ use brdf_meter::test_blobs::test_blob;
 use host_tools::link::{Client, LinkError, Transport};
 use std::time::Duration;
 
+/// A target's body: one input, a panic when a property breaks.
+pub type Body = fn(&[u8]);
+
 /// Every target: its name (the corpus and regression folder) and body.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Body)] = &[
     ("frame_decode", frame_decode),
     ("frame_reader", frame_reader),
     ("blob_parse", blob_parse),

@@ -431,7 +431,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
     while c.transport().counts.device_frames < cfg.frames {
         round += 1;
         let faults_before = c.stats;
-        if round % 8 == 0 {
+        if round.is_multiple_of(8) {
             // Provision the next blob, now and then with a disconnect partway.
             let next = (active + 1) % blobs.len();
             let chunks = blobs[next].len().div_ceil(protocol::MAX_CHUNK) as u32;
