@@ -624,3 +624,97 @@ impl<T: Transport> Client<T> {
         Ok(rep)
     }
 }
+
+#[cfg(test)]
+mod tolerant_tests {
+    use super::*;
+
+    /// A device that answers each request with the next scripted byte
+    /// stream, served 7 bytes at a time.
+    struct Scripted {
+        replies: VecDeque<Vec<u8>>,
+        out: VecDeque<u8>,
+    }
+
+    impl Scripted {
+        fn new(replies: Vec<Vec<u8>>) -> Self {
+            Self { replies: replies.into(), out: VecDeque::new() }
+        }
+    }
+
+    impl Transport for Scripted {
+        fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+            if bytes.len() > 1
+                && let Some(r) = self.replies.pop_front()
+            {
+                self.out.extend(r);
+            }
+            Ok(())
+        }
+        fn recv(&mut self, buf: &mut [u8], _timeout: Duration) -> std::io::Result<usize> {
+            let n = buf.len().min(self.out.len()).min(7);
+            for (d, s) in buf.iter_mut().zip(self.out.drain(..n)) {
+                *d = s;
+            }
+            Ok(n)
+        }
+    }
+
+    fn frame(seq: u32, r: &Response<'_>) -> Vec<u8> {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = protocol::encode(seq, r, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    fn point(seq: u32, values: &[u8]) -> Response<'_> {
+        Response::Point(PointFrame { line: 0, seq, point: seq as u16, zone: 0, flags: 0, values: LeBytes(values) })
+    }
+
+    #[test]
+    fn a_tolerant_measurement_reports_lost_repeated_and_damaged_points() {
+        let v = 1.5f32.to_le_bytes();
+        let mut s = frame(1, &Response::MeasureStarted { lines: 1 });
+        s.extend(frame(1, &point(0, &v)));
+        // Point 1 lost; point 2 twice; point 3 damaged (one byte changed).
+        s.extend(frame(1, &point(2, &v)));
+        s.extend(frame(1, &point(2, &v)));
+        let mut damaged = frame(1, &point(3, &v));
+        damaged[3] ^= 0x40;
+        s.extend(damaged);
+        s.extend(frame(1, &point(4, &v)));
+        s.extend(frame(1, &Response::MeasureDone { lines_done: 1 }));
+        let mut c = Client::new(Scripted::new(vec![s])).unwrap();
+        c.timeout = Duration::from_millis(50);
+        let rep = c.measure_tolerant(1, 6).unwrap();
+        assert!(rep.complete);
+        assert_eq!(rep.points.iter().map(|p| p.seq).collect::<Vec<_>>(), [0, 2, 4]);
+        assert!(rep.points.iter().all(|p| p.values == [1.5]));
+        assert_eq!(rep.missing, [1, 3, 5]);
+        assert_eq!(rep.duplicates, [2]);
+        assert_eq!((c.stats.bad_frames, c.stats.missing_points, c.stats.duplicate_points), (1, 3, 1));
+    }
+
+    #[test]
+    fn a_retried_request_skips_the_damaged_reply_and_takes_the_next() {
+        // The first Info reply arrives damaged; the retry's reply (seq 2) is whole.
+        let info = DeviceInfo {
+            protocol: protocol::PROTOCOL_VERSION,
+            firmware: [0, 1, 0],
+            bins: 1,
+            leds: 1,
+            pixels: 1,
+            full_scale: 1,
+            max_blob: 1,
+            ram_matrix_words: 1,
+            simulated: true,
+            calibration: None,
+        };
+        let mut first = frame(1, &Response::Info(info));
+        first[2] ^= 0x01;
+        let mut c = Client::new(Scripted::new(vec![first, frame(2, &Response::Info(info))])).unwrap();
+        c.timeout = Duration::from_millis(50);
+        let r = c.request_retrying(&Request::Info, 3).unwrap();
+        assert_eq!(r, Response::Info(info));
+        assert_eq!((c.stats.bad_frames, c.stats.retries), (1, 1));
+    }
+}
