@@ -52,6 +52,9 @@ pub struct SimDevice {
     pub shared: &'static Dev,
     /// The flash (shares memory with the device's).
     pub flash: SimFlash,
+    /// Simulated time a `recv` waits before reporting nothing, in 100 us
+    /// steps ([`RECV_STEPS`] unless a test shortens it).
+    pub recv_steps: usize,
     _lock: MutexGuard<'static, ()>,
 }
 
@@ -86,7 +89,8 @@ impl SimDevice {
         spawn(exec, async move { app::transport(shared, dev_end.clone(), dev_end, scene_in).await });
         spawn(exec, async move { app::acquisition(shared, leds, sensor, tx_lines).await });
         spawn(exec, async move { app::estimation(shared, rx_lines).await });
-        let mut dev = Self { exec, pending, host, inbox: VecDeque::new(), scene, shared, flash, _lock: lock };
+        let mut dev =
+            Self { exec, pending, host, inbox: VecDeque::new(), scene, shared, flash, recv_steps: RECV_STEPS, _lock: lock };
         pending.store(true, Ordering::SeqCst);
         dev.run_until_idle();
         dev
@@ -109,7 +113,7 @@ impl SimDevice {
 }
 
 /// Simulated time a `recv` waits before reporting nothing, in 100 us steps.
-const RECV_STEPS: usize = 200_000;
+pub const RECV_STEPS: usize = 200_000;
 
 impl host_tools::device::link::Transport for SimDevice {
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
@@ -121,7 +125,7 @@ impl host_tools::device::link::Transport for SimDevice {
     /// Runs the device, advancing simulated time while it is idle, until it
     /// has sent something (or 20 simulated seconds have passed).
     fn recv(&mut self, buf: &mut [u8], _timeout: std::time::Duration) -> std::io::Result<usize> {
-        for _ in 0..RECV_STEPS {
+        for _ in 0..self.recv_steps {
             self.run_until_idle();
             if !self.inbox.is_empty() {
                 let n = buf.len().min(self.inbox.len());

@@ -7,7 +7,7 @@ pub mod qemu;
 mod serial;
 mod tcp;
 
-pub use client::{Client, Frame, LinkError, PointRecord, Reply};
+pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
 pub use serial::SerialTransport;
 pub use tcp::TcpTransport;
 
