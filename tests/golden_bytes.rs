@@ -1,0 +1,245 @@
+//! Golden bytes: the encodings host and device must agree on, checked in
+//! (`tests/golden/encodings.txt`) and compared byte for byte, so a change to
+//! a format cannot slip past the round-trip tests without a version bump.
+//!
+//! Pinned: the calibration blob (format 1, and format 2 with clusters and
+//! out-of-prior data), the calibration store's slot header, and one frame of
+//! every request and response (and every device error) of the wire protocol.
+//! The lists below match every variant without a wildcard: a new variant
+//! does not compile until it has a golden line.
+//!
+//! A difference means the bytes changed: bump the version of what changed
+//! (`blob::FORMAT_VERSION`, `store::SLOT_VERSION`, `protocol::PROTOCOL_VERSION`)
+//! and regenerate with
+//!
+//!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test golden_bytes
+use brdf_meter::blob::{BlobExtras, EstimatorKind, OutOfPriorData, Section, write_blob_with};
+use brdf_meter::hw::SensorError;
+use brdf_meter::protocol::{
+    BlobFault, CalInfo, DeviceError, DeviceInfo, DeviceStatus, FrameError, LeBytes, MAX_FRAME, PointFrame, Request,
+    Response, SizeField, encode, flags,
+};
+use brdf_meter::store::encode_slot_header;
+use brdf_meter::test_blobs::TestBlobParts;
+use std::path::PathBuf;
+
+const REGENERATE: &str = "GOLDEN_REGENERATE";
+
+fn golden_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("golden/encodings.txt")
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+fn request_frame(seq: u32, msg: &Request<'_>) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME];
+    let n = encode(seq, msg, &mut out).expect("golden messages fit a frame");
+    out[..n].to_vec()
+}
+
+fn response_frame(seq: u32, msg: &Response<'_>) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME];
+    let n = encode(seq, msg, &mut out).expect("golden messages fit a frame");
+    out[..n].to_vec()
+}
+
+/// The name of a request's variant (exhaustive: a new variant needs a line).
+fn request_name(r: &Request<'_>) -> &'static str {
+    match r {
+        Request::Info => "Info",
+        Request::Status => "Status",
+        Request::ProvisionBegin { .. } => "ProvisionBegin",
+        Request::ProvisionChunk { .. } => "ProvisionChunk",
+        Request::ProvisionCommit => "ProvisionCommit",
+        Request::ProvisionAbort => "ProvisionAbort",
+        Request::Measure { .. } => "Measure",
+        Request::Stop => "Stop",
+        Request::SimFrame { .. } => "SimFrame",
+        Request::SimLines { .. } => "SimLines",
+    }
+}
+
+/// The name of a response's variant (exhaustive).
+fn response_name(r: &Response<'_>) -> &'static str {
+    match r {
+        Response::Info(_) => "Info",
+        Response::Status(_) => "Status",
+        Response::ProvisionReady { .. } => "ProvisionReady",
+        Response::ChunkAck { .. } => "ChunkAck",
+        Response::Committed(_) => "Committed",
+        Response::Aborted => "Aborted",
+        Response::MeasureStarted { .. } => "MeasureStarted",
+        Response::StopRequested => "StopRequested",
+        Response::MeasureDone { .. } => "MeasureDone",
+        Response::SimLoaded => "SimLoaded",
+        Response::Point(_) => "Point",
+        Response::Error(e) => error_name(e),
+    }
+}
+
+/// The name of a device error's variant (exhaustive).
+fn error_name(e: &DeviceError) -> &'static str {
+    match e {
+        DeviceError::Frame(_) => "Error.Frame",
+        DeviceError::NoCalibration => "Error.NoCalibration",
+        DeviceError::Busy => "Error.Busy",
+        DeviceError::NotProvisioning => "Error.NotProvisioning",
+        DeviceError::OutOfOrder { .. } => "Error.OutOfOrder",
+        DeviceError::ChunkTooLarge { .. } => "Error.ChunkTooLarge",
+        DeviceError::BlobTooLarge { .. } => "Error.BlobTooLarge",
+        DeviceError::Incomplete { .. } => "Error.Incomplete",
+        DeviceError::CrcMismatch { .. } => "Error.CrcMismatch",
+        DeviceError::BlobRejected { .. } => "Error.BlobRejected",
+        DeviceError::Mismatch { .. } => "Error.Mismatch",
+        DeviceError::Storage => "Error.Storage",
+        DeviceError::Sensor(_) => "Error.Sensor",
+        DeviceError::Simulation => "Error.Simulation",
+    }
+}
+
+fn cal() -> CalInfo {
+    CalInfo { slot: 1, sequence: 9, blob_crc: 0xDEAD_BEEF, blob_len: 11_000, zones: 4, in_ram: true }
+}
+
+/// Every golden line, `name: hex`, in a fixed order.
+fn encodings() -> Vec<(String, Vec<u8>)> {
+    let mut out: Vec<(String, Vec<u8>)> = Vec::new();
+
+    // Calibration blobs: format 1, and format 2 (piecewise scale-free with
+    // out-of-prior data).
+    let v1 = TestBlobParts::new(9, 3, 2, 6, 0.5);
+    out.push(("blob.v1".into(), v1.encode()));
+    let mut p2 = TestBlobParts::new(9, 3, 2, 6, 1.5);
+    let k = 2;
+    p2.unc = (0..2 * k * 9).map(|i| 0.01 + 0.001 * i as f32).collect();
+    p2.mats = (0..2 * k * 9 * 3).map(|i| ((i as f32) * 0.37).sin() * 0.25).collect();
+    let centroids: Vec<f32> = (0..2 * k * 3).map(|i| 0.2 + 0.05 * i as f32).collect();
+    let oop: Vec<f32> = (0..2 * (2 + 3)).map(|i| 0.5 + 0.125 * i as f32).collect();
+    let mut c2 = p2.contents();
+    c2.estimator = EstimatorKind::ScaleFreePiecewise;
+    let ex = BlobExtras { clusters: k, centroids: &centroids, out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }) };
+    let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
+    let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
+    b2.truncate(n);
+    out.push(("blob.v2".into(), b2));
+
+    // The store's slot header.
+    out.push(("slot_header".into(), encode_slot_header(7, 4096, 0x1234_5678).to_vec()));
+
+    // One frame of every request.
+    let chunk = [0u8, 1, 2, 255];
+    let px = [1u8, 0, 255, 255];
+    let requests = [
+        Request::Info,
+        Request::Status,
+        Request::ProvisionBegin { len: 11_000, crc: 0xCAFE_F00D },
+        Request::ProvisionChunk { offset: 512, data: &chunk },
+        Request::ProvisionCommit,
+        Request::ProvisionAbort,
+        Request::Measure { lines: 3 },
+        Request::Stop,
+        Request::SimFrame { line: 1, frame: 2, first_pixel: 16, pixels: LeBytes(&px) },
+        Request::SimLines { lines: 4 },
+    ];
+    for r in &requests {
+        out.push((format!("request.{}", request_name(r)), request_frame(42, r)));
+    }
+
+    // One frame of every response, and of every device error.
+    let vals: Vec<u8> = [0.5f32, -0.0, 1.25e-3].iter().flat_map(|x| x.to_le_bytes()).collect();
+    let mut responses = vec![
+        Response::Info(DeviceInfo {
+            protocol: brdf_meter::protocol::PROTOCOL_VERSION,
+            firmware: [0, 1, 0],
+            bins: 81,
+            leds: 7,
+            pixels: 32,
+            full_scale: 65535,
+            max_blob: 16_352,
+            ram_matrix_words: 2268,
+            simulated: true,
+            calibration: Some(cal()),
+        }),
+        Response::Status(DeviceStatus {
+            measuring: true,
+            lines_total: 5,
+            provisioning: Some(77),
+            bad_frames: 2,
+            refused: 1,
+            calibration: Some(cal()),
+        }),
+        Response::ProvisionReady { slot: 1, max_chunk: 512 },
+        Response::ChunkAck { next_offset: 1024 },
+        Response::Committed(cal()),
+        Response::Aborted,
+        Response::MeasureStarted { lines: 3 },
+        Response::StopRequested,
+        Response::MeasureDone { lines_done: 3 },
+        Response::SimLoaded,
+        Response::Point(PointFrame {
+            line: 4,
+            seq: 99,
+            point: 31,
+            zone: 3,
+            cluster: 1,
+            flags: flags::SATURATED | flags::OUT_OF_PRIOR,
+            sigma_scale: 2.5,
+            values: LeBytes(&vals),
+        }),
+    ];
+    for e in [
+        DeviceError::Frame(FrameError::Truncated { declared: 30, got: 12 }),
+        DeviceError::NoCalibration,
+        DeviceError::Busy,
+        DeviceError::NotProvisioning,
+        DeviceError::OutOfOrder { expected: 512, got: 1024 },
+        DeviceError::ChunkTooLarge { max: 512 },
+        DeviceError::BlobTooLarge { len: 1 << 20, max: 16_352 },
+        DeviceError::Incomplete { received: 5, len: 10 },
+        DeviceError::CrcMismatch { declared: 1, computed: 2 },
+        DeviceError::BlobRejected { fault: BlobFault::NonFinite, section: Some(Section::Matrices), detail: 3 },
+        DeviceError::Mismatch { field: SizeField::Pixels, device: 32, blob: 16 },
+        DeviceError::Storage,
+        DeviceError::Sensor(SensorError::NoData),
+        DeviceError::Simulation,
+    ] {
+        responses.push(Response::Error(e));
+    }
+    for r in &responses {
+        out.push((format!("response.{}", response_name(r)), response_frame(7, r)));
+    }
+    out
+}
+
+#[test]
+fn encodings_match_the_golden_bytes() {
+    let text: String = encodings().iter().map(|(name, b)| format!("{name}: {}\n", hex(b))).collect();
+    let path = golden_path();
+    if std::env::var_os(REGENERATE).is_some() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        let tmp = path.with_extension("txt.tmp");
+        std::fs::write(&tmp, &text).unwrap();
+        std::fs::rename(&tmp, &path).unwrap();
+        eprintln!("regenerated {}", path.display());
+        return;
+    }
+    let golden = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}; generate it with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes", path.display()));
+    let want: Vec<(&str, &str)> = golden.lines().filter_map(|l| l.split_once(": ")).collect();
+    let got: Vec<(String, String)> = encodings().into_iter().map(|(n, b)| (n, hex(&b))).collect();
+    let names_want: Vec<&str> = want.iter().map(|(n, _)| *n).collect();
+    let names_got: Vec<&str> = got.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names_got, names_want,
+        "the set of pinned encodings changed (a new message or error variant?): bump the protocol version and regenerate with {REGENERATE}=1"
+    );
+    for ((name, g), (_, w)) in got.iter().zip(&want) {
+        assert_eq!(
+            g, w,
+            "the encoding of `{name}` changed: bump the version of its format (blob::FORMAT_VERSION, store::SLOT_VERSION or \
+             protocol::PROTOCOL_VERSION) and regenerate with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes"
+        );
+    }
+}
