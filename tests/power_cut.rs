@@ -4,7 +4,7 @@
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::test_blobs::test_blob;
+use brdf_meter::test_blobs::signed_test_blob as test_blob;
 use brdf_meter::store::Store;
 use host_tools::device::link::Client;
 use host_tools::device::reference::expected_line;
@@ -12,7 +12,7 @@ use host_tools::forward::scene::frames::analytic_scene;
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 fn open(flash: SimFlash) -> Store<SimFlash> {
-    Store::open(flash, SLOT_LEN, |v| Calibration::<N, M, P>::check(v).is_ok())
+    Store::open(flash, SLOT_LEN, brdf_meter::test_blobs::dev_trusted(), |v| Calibration::<N, M, P>::check(v).is_ok())
 }
 
 /// Provisions `blob` through the store as the device does (chunks of 512).

@@ -1,6 +1,8 @@
 //! Calibration: the estimators (W from H, the prior and the noise model) and
-//! training (one W per zone, the f32 gate, the blob). Consumes the forward
+//! training (one W per zone, the f32 gate, the blob) and signing (key files,
+//! the signed calibration). Consumes the forward
 //! model; knows nothing of the device link or of evaluation.
 pub mod estimators;
 pub mod train;
 pub mod demo;
+pub mod signing;

@@ -18,15 +18,17 @@ pub fn connect(addr: &str, pty: bool) -> anyhow::Result<Client<Box<dyn Transport
     Ok(c)
 }
 
-/// Trains the demo calibration for the device behind `c`, writes it to
-/// `blob_path`, provisions it and loads the scene; returns the blob and what
-/// the device reports for it.
+/// Trains the demo calibration for the device behind `c`, signs it with the
+/// DEVELOPMENT KEY (NOT FOR PRODUCTION; the QEMU firmware trusts it by
+/// default), writes it to `blob_path`, provisions it and loads the scene;
+/// returns the signed calibration and what the device reports for it.
 pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path) -> anyhow::Result<(Vec<u8>, CalInfo)> {
     let info = c.info()?;
     let scene = patent_scene(info.pixels as usize);
     let trained = train_for_scene(&scene, 4, 0.02)?;
-    crate::output::io::write_atomic(blob_path, &trained.blob)?;
-    let cal = c.provision(&trained.blob, |_, _| {}).context("provisioning the demo calibration")?;
+    let signed = crate::calibration::signing::sign_with_dev_key(&trained.blob);
+    crate::output::io::write_atomic(blob_path, &signed)?;
+    let cal = c.provision(&signed, |_, _| {}).context("provisioning the demo calibration")?;
     c.load_scene(&scene_frames(&scene, 4)?)?;
-    Ok((trained.blob, cal))
+    Ok((signed, cal))
 }
