@@ -51,10 +51,12 @@ fn cut_everywhere(base: &SimFlash, old: &[u8], new: &[u8]) -> usize {
         assert_eq!(r.is_ok(), cut == total, "cut at step {cut} of {total}: {r:?}");
         let st = open(f.reboot());
         let (_, view) = st.active_blob().unwrap_or_else(|| panic!("no calibration after a cut at step {cut}"));
+        // The view is the blob; `old` and `new` are signed calibrations.
         let got = view.as_bytes();
-        if got == old {
+        let blob_of = |image: &[u8]| image.len() - brdf_meter::signed::TRAILER_LEN;
+        if got == &old[..blob_of(old)] {
             saw_old += 1;
-        } else if got == new {
+        } else if got == &new[..blob_of(new)] {
             saw_new += 1;
         } else {
             panic!("cut at step {cut}: boot found a blob that is neither the old nor the new one");
