@@ -406,7 +406,7 @@ esac
         assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((1, 2, unsigned(&b2))));
         let p3 = fake.probe(false).provision(&b3, None).unwrap();
         assert_eq!((p3.slot, p3.sequence), (0, 3));
-        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((0, 3, b3)));
+        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((0, 3, unsigned(&b3))));
         // The firmware image region was never touched.
         assert!(fake.flash()[..256 * 1024].iter().all(|&b| b == 0xFF));
         let log = fake.log();
