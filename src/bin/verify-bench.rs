@@ -71,11 +71,19 @@ fn main() -> ! {
 
     buf[100] ^= 1;
     let ok3 = signed::verify(&buf[..LONG + TRAILER_LEN], keys) == Err(SignatureFault::BadSignature);
-    if ok1 && ok2 && ok3 {
-        debug::exit(debug::EXIT_SUCCESS);
-    } else {
-        debug::exit(debug::EXIT_FAILURE);
+    debug::exit(if ok1 && ok2 && ok3 { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    halt()
+}
+
+fn halt() -> ! {
+    loop {
+        // SAFETY: wait for an interrupt; nothing else.
+        unsafe { core::arch::asm!("wfi", options(nomem, nostack)) };
     }
-    #[allow(clippy::empty_loop)]
-    loop {}
+}
+
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
+    debug::exit(debug::EXIT_FAILURE);
+    halt()
 }
