@@ -222,8 +222,8 @@ mod tests {
         // Holds unless BRDF_TRUSTED_KEYS names another file at build time.
         if option_env!("BRDF_TRUSTED_KEYS").is_none() {
             assert_eq!(TRUSTED_KEYS, &[dev_public_key()]);
-            assert!(TRUSTS_DEVELOPMENT_KEY);
         }
+        assert_eq!(TRUSTED_KEYS.contains(&dev_public_key()), TRUSTS_DEVELOPMENT_KEY);
         for pk in TRUSTED_KEYS {
             assert!(salty::PublicKey::try_from(pk).is_ok(), "a trusted key is not a curve point");
         }
