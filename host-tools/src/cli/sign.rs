@@ -28,17 +28,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::bail!("{name} is already signed (sign the unsigned blob `host-tools train` wrote)");
     }
     let view = parse_blob(&blob, &name)?;
-    anyhow::ensure!(view.as_bytes().len() == blob.len(), "{name} has {} bytes after the blob", blob.len() - view.as_bytes().len());
+    anyhow::ensure!(
+        view.as_bytes().len() == blob.len(),
+        "{name} has {} bytes after the blob",
+        blob.len() - view.as_bytes().len()
+    );
     let seed = signing::read_secret(&a.key)?;
     let image = signing::sign_blob(&blob, &seed);
-    crate::output::io::write_atomic(&a.out, &image).with_context(|| format!("writing {}", a.out.display()))?;
+    crate::output::io::write_atomic(&a.out, &image)
+        .with_context(|| format!("writing {}", a.out.display()))?;
     let trusted = brdf_meter::signed::TRUSTED_KEYS.contains(&brdf_meter::signed::public_key(&seed));
     println!(
         "wrote {} ({} bytes, signed with {}{})",
         a.out.display(),
         image.len(),
         a.key.display(),
-        if trusted { "" } else { "; note: firmware built from this tree with its default keys does not trust this key" }
+        if trusted {
+            ""
+        } else {
+            "; note: firmware built from this tree with its default keys does not trust this key"
+        }
     );
     Ok(())
 }
@@ -54,13 +63,22 @@ mod tests {
         let inp = dir.path().join("cal.blob");
         std::fs::write(&inp, &blob).unwrap();
         let out = dir.path().join("cal.signed");
-        let args = |blob: &std::path::Path, out: &std::path::Path| Args { key: signing::dev_key_path(), blob: blob.into(), out: out.into() };
+        let args = |blob: &std::path::Path, out: &std::path::Path| Args {
+            key: signing::dev_key_path(),
+            blob: blob.into(),
+            out: out.into(),
+        };
         run(args(&inp, &out)).unwrap();
         let image = crate::device::provision::read_blob(&out).unwrap();
         assert_eq!(&image[..blob.len()], &blob[..]);
         // Signing a signed file, or a file that is not a blob, writes nothing.
         let again = dir.path().join("twice");
-        assert!(run(args(&out, &again)).unwrap_err().to_string().contains("already signed"));
+        assert!(
+            run(args(&out, &again))
+                .unwrap_err()
+                .to_string()
+                .contains("already signed")
+        );
         std::fs::write(&inp, b"not a blob").unwrap();
         let e = run(args(&inp, &again)).unwrap_err().to_string();
         assert!(e.contains("not a valid calibration blob"), "{e}");
