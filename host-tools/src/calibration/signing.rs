@@ -170,12 +170,6 @@ pub fn check_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<&'a [u8]>
     })
 }
 
-/// Whether the host tools (and so the firmware built beside them) trust only
-/// the DEVELOPMENT key.
-pub fn trusts_only_dev_key() -> bool {
-    signed::TRUSTS_DEVELOPMENT_KEY && signed::TRUSTED_KEYS.len() == 1
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
