@@ -8,18 +8,90 @@
 //! - `-Tdefmt.x` only to `board-fw`, the one binary that links defmt (the QEMU
 //!   firmware may not, and an unused defmt.x would fail its link).
 //!
+//! - `trusted_keys.rs` in OUT_DIR: the public keys signed calibrations must
+//!   verify against (src/signed.rs), from the file `BRDF_TRUSTED_KEYS` names
+//!   (relative to the repository root, or absolute), or by default the
+//!   DEVELOPMENT key `host-tools/keys/dev-NOT-FOR-PRODUCTION.pub`. A board
+//!   build that trusts the development key gets a warning.
+//!
 //! Keeping the link arguments here rather than in `.cargo/config.toml`
 //! rustflags means `RUSTFLAGS=-Dwarnings` (which replaces config rustflags)
 //! cannot silently drop them.
-use std::{env, path::PathBuf};
+use std::{env, fs, path::Path, path::PathBuf};
+
+/// The development key's public half (its secret is checked in beside it).
+const DEV_KEY: &str = "host-tools/keys/dev-NOT-FOR-PRODUCTION.pub";
+
+/// The hex keys of a key file: one per line, `#` starts a comment.
+fn read_keys(path: &Path) -> Vec<[u8; 32]> {
+    let text = fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("trusted keys: cannot read {}: {e}", path.display()));
+    let mut keys = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let hex = line.split('#').next().unwrap_or("").trim();
+        if hex.is_empty() {
+            continue;
+        }
+        let bad = || {
+            panic!(
+                "trusted keys: {}:{}: expected 64 hex digits (an Ed25519 public key)",
+                path.display(),
+                i + 1
+            )
+        };
+        if hex.len() != 64 || !hex.is_ascii() {
+            bad();
+        }
+        let mut k = [0u8; 32];
+        for (j, b) in k.iter_mut().enumerate() {
+            *b = u8::from_str_radix(&hex[2 * j..2 * j + 2], 16).unwrap_or_else(|_| bad());
+        }
+        keys.push(k);
+    }
+    if keys.is_empty() {
+        panic!("trusted keys: {} lists no key", path.display());
+    }
+    keys
+}
+
+fn trusted_keys(root: &Path) {
+    println!("cargo:rerun-if-env-changed=BRDF_TRUSTED_KEYS");
+    let dev_path = root.join(DEV_KEY);
+    let path = env::var_os("BRDF_TRUSTED_KEYS").map_or_else(|| dev_path.clone(), |p| root.join(p));
+    println!("cargo:rerun-if-changed={}", path.display());
+    println!("cargo:rerun-if-changed={}", dev_path.display());
+    let keys = read_keys(&path);
+    let dev = read_keys(&dev_path);
+    let trusts_dev = keys.iter().any(|k| dev.contains(k));
+    if trusts_dev && env::var_os("CARGO_FEATURE_BOARD").is_some() {
+        println!(
+            "cargo:warning=this board firmware trusts the DEVELOPMENT calibration key (NOT FOR PRODUCTION): build with BRDF_TRUSTED_KEYS=your.pub"
+        );
+    }
+    let list: Vec<String> = keys.iter().map(|k| format!("{k:?}")).collect();
+    let code = format!(
+        "/// The public keys a signed calibration must verify against (built in from\n\
+         /// `{}`).\n\
+         pub const TRUSTED_KEYS: &[PublicKeyBytes] = &[{}];\n\
+         /// Whether this build trusts the DEVELOPMENT key (NOT FOR PRODUCTION).\n\
+         pub const TRUSTS_DEVELOPMENT_KEY: bool = {trusts_dev};\n",
+        path.strip_prefix(root).unwrap_or(&path).display(),
+        list.join(", ")
+    );
+    let out =
+        PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join("trusted_keys.rs");
+    fs::write(out, code).expect("writing trusted_keys.rs");
+}
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory.x");
+    let root =
+        PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    trusted_keys(&root);
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
-    let root = PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     println!("cargo:rustc-link-search={}", root.display());
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
     if env::var_os("CARGO_FEATURE_BOARD").is_some() {

@@ -10,6 +10,7 @@
 //! The library (no_std, allocates nothing, never depends on host code):
 //! - [`shape`]: build-time shape (n, m, P per build) and flash geometry.
 //! - [`blob`]: the calibration blob format (writer and in-place reader).
+//! - [`signed`]: signed calibrations (the signature trailer, the trusted keys).
 //! - [`store`]: the two-slot calibration store on any NOR flash.
 //! - [`kernel`]: the estimator kernels (f32, Q15, cluster selection).
 //! - [`estimate`]: the active calibration and one point's estimate.
@@ -40,6 +41,7 @@ pub mod kernel;
 pub mod platform;
 pub mod protocol;
 pub mod shape;
+pub mod signed;
 pub mod store;
 #[cfg(any(test, feature = "std"))]
 pub mod test_blobs;

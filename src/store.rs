@@ -8,8 +8,8 @@
 //! | 4 | 2 | slot format version (1) |
 //! | 6 | 2 | header length (32) |
 //! | 8 | 4 | sequence number (higher = newer, wrapping) |
-//! | 12 | 4 | blob length |
-//! | 16 | 4 | blob CRC-32 over all its bytes |
+//! | 12 | 4 | blob length (the signed calibration: blob and signature trailer) |
+//! | 16 | 4 | blob CRC-32 over all its bytes (trailer included) |
 //! | 20 | 8 | reserved, 0 |
 //! | 28 | 4 | CRC-32 of bytes 0..28 |
 //! | 32 | .. | the blob (4-byte aligned, so its matrices can be read in place) |
@@ -17,7 +17,8 @@
 //! # Why a power cut never loses the last good calibration
 //! - A new blob is always written into the slot that is *not* active.
 //! - Its header is written last, after every blob byte; a slot counts only if
-//!   its header CRC, its blob CRC and the blob's own checks all pass. So an
+//!   its header CRC, its blob CRC, its signature by a trusted key
+//!   ([`crate::signed`]) and the blob's own checks all pass. So an
 //!   interrupted write leaves at worst an invalid slot, and the active slot,
 //!   never touched, is what boot finds.
 //! - Boot takes the valid slot with the newest sequence number.
@@ -31,6 +32,7 @@
 use crate::blob::{BlobError, BlobView, CRC32};
 use crate::hw::MappedFlash;
 use crate::protocol::DeviceError;
+use crate::signed::{PublicKeyBytes, SignatureFault};
 use embedded_storage::nor_flash::{NorFlashError, NorFlashErrorKind};
 
 /// First bytes of a valid slot.
@@ -69,6 +71,12 @@ impl<E: NorFlashError> StoreError<E> {
 impl<E> From<DeviceError> for StoreError<E> {
     fn from(e: DeviceError) -> Self {
         Self::Refused(e)
+    }
+}
+
+impl<E> From<SignatureFault> for StoreError<E> {
+    fn from(e: SignatureFault) -> Self {
+        Self::Refused(e.into())
     }
 }
 
@@ -156,6 +164,8 @@ struct Session {
 pub struct Store<F> {
     flash: F,
     slot_len: u32,
+    /// The keys a slot's signature must verify against.
+    trusted: &'static [PublicKeyBytes],
     active: Option<SlotInfo>,
     session: Option<Session>,
 }
@@ -169,7 +179,8 @@ pub fn newer(a: u32, b: u32) -> bool {
 
 impl<F: MappedFlash> Store<F> {
     /// Opens the store on `flash`, whose first `2 * slot_len` bytes are slots
-    /// A and B, and finds the newest valid slot.
+    /// A and B, and finds the newest valid slot signed by one of the
+    /// `trusted` keys (a slot whose signature fails is passed over).
     ///
     /// `accept` is asked about each valid blob, newest first; the first it
     /// accepts becomes active (so a blob made for another build is skipped in
@@ -178,18 +189,24 @@ impl<F: MappedFlash> Store<F> {
     /// # Panics
     /// If `slot_len` is not a multiple of the erase size, the flash is smaller
     /// than two slots, or the write size is above 32 bytes (build-time errors).
-    pub fn open(flash: F, slot_len: u32, mut accept: impl FnMut(&BlobView<'static>) -> bool) -> Self {
+    pub fn open(
+        flash: F,
+        slot_len: u32,
+        trusted: &'static [PublicKeyBytes],
+        mut accept: impl FnMut(&BlobView<'static>) -> bool,
+    ) -> Self {
         assert!((slot_len as usize).is_multiple_of(F::ERASE_SIZE), "slot length must be whole erase pages");
         assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN.is_multiple_of(F::WRITE_SIZE));
         assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
-        let mut s = Self { flash, slot_len, active: None, session: None };
+        let mut s = Self { flash, slot_len, trusted, active: None, session: None };
         let (a, b) = (s.scan(0), s.scan(1));
         let newest_first = match (a, b) {
             (Some(x), Some(y)) if newer(y.sequence, x.sequence) => [b, a],
             _ => [a, b],
         };
         for info in newest_first.into_iter().flatten() {
-            if let Some(view) = s.view(info)
+            if s.signed_by_trusted(info)
+                && let Some(view) = s.view(info)
                 && accept(&view)
             {
                 s.active = Some(info);
@@ -232,6 +249,12 @@ impl<F: MappedFlash> Store<F> {
     fn view(&self, info: SlotInfo) -> Option<BlobView<'static>> {
         let bytes = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
         BlobView::parse(bytes).ok()
+    }
+
+    /// Whether the slot's signed calibration verifies against the trusted keys.
+    fn signed_by_trusted(&self, info: SlotInfo) -> bool {
+        let image = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+        crate::signed::verify(image, self.trusted).is_ok()
     }
 
     /// Validates slot `slot`'s header and blob CRC.
@@ -319,8 +342,9 @@ impl<F: MappedFlash> Store<F> {
         Ok(())
     }
 
-    /// Verifies the written blob (whole-blob CRC against the one declared at
-    /// begin, the blob's own checks, then `accept`) and, only if all pass,
+    /// Verifies the written signed calibration (CRC over all of it against
+    /// the one declared at begin, the signature by a trusted key, the blob's
+    /// own checks, then `accept`) and, only if all pass,
     /// writes the slot header that makes it the active calibration.
     ///
     /// On error the provisioning is over and the previous calibration stays
@@ -338,14 +362,16 @@ impl<F: MappedFlash> Store<F> {
             self.program(&mut s, at)?;
         }
         let base = self.base(s.slot);
-        let blob = self.flash.mapped(base + SLOT_HEADER_LEN as u32, s.len as usize);
-        let computed = CRC32.checksum(blob);
+        let image = self.flash.mapped(base + SLOT_HEADER_LEN as u32, s.len as usize);
+        let computed = CRC32.checksum(image);
         if computed != s.crc {
             return Err(DeviceError::CrcMismatch { declared: s.crc, computed }.into());
         }
+        // Nothing is parsed before the signature holds.
+        let blob = crate::signed::verify(image, self.trusted)?;
         let view = BlobView::parse(blob)?;
-        if view.as_bytes().len() != s.len as usize {
-            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: s.len as usize }.into());
+        if view.as_bytes().len() != blob.len() {
+            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: blob.len() }.into());
         }
         accept(&view)?;
         let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
@@ -371,7 +397,15 @@ mod tests {
     type Error = StoreError<NorFault>;
 
     fn blob(seed: f32) -> Vec<u8> {
-        crate::test_blobs::test_blob(5, 3, 2, 4, seed)
+        crate::test_blobs::signed_test_blob(5, 3, 2, 4, seed)
+    }
+
+    fn unsigned(image: &[u8]) -> &[u8] {
+        &image[..image.len() - crate::signed::TRAILER_LEN]
+    }
+
+    fn open(flash: SimFlash) -> Store<SimFlash> {
+        Store::open(flash, 4096, crate::test_blobs::dev_trusted(), |_| true)
     }
 
     fn provision(st: &mut Store<SimFlash>, b: &[u8], chunk: usize) -> Result<SlotInfo, Error> {
@@ -386,27 +420,73 @@ mod tests {
     #[test]
     fn alternates_slots_and_keeps_the_previous_blob() {
         let flash = SimFlash::new(4 * 2048);
-        let mut st = Store::open(flash.clone(), 4096, |_| true);
+        let mut st = open(flash.clone());
         assert_eq!(st.active(), None);
         let (a, b, c) = (blob(1.0), blob(2.0), blob(3.0));
         let i1 = provision(&mut st, &a, 7).unwrap();
         let i2 = provision(&mut st, &b, 64).unwrap();
         assert_eq!((i1.slot, i1.sequence, i2.slot, i2.sequence), (0, 1, 1, 2));
-        let st2 = Store::open(flash.clone(), 4096, |_| true);
-        assert_eq!(st2.active_blob().unwrap().1.as_bytes(), &b[..]);
+        let st2 = open(flash.clone());
+        assert_eq!(st2.active_blob().unwrap().1.as_bytes(), unsigned(&b));
         // A failed provisioning leaves the active blob in place.
         let mut st = st2;
         st.begin(c.len() as u32, 0xBAD).unwrap();
         st.write_chunk(0, &c).unwrap();
         assert!(matches!(st.commit(|_| Ok(())), Err(Error::Refused(DeviceError::CrcMismatch { .. }))));
-        assert_eq!(st.active_blob().unwrap().1.as_bytes(), &b[..]);
-        let st3 = Store::open(flash, 4096, |_| true);
-        assert_eq!(st3.active_blob().unwrap().1.as_bytes(), &b[..]);
+        assert_eq!(st.active_blob().unwrap().1.as_bytes(), unsigned(&b));
+        let st3 = open(flash);
+        assert_eq!(st3.active_blob().unwrap().1.as_bytes(), unsigned(&b));
+    }
+
+    #[test]
+    fn unsigned_tampered_and_foreign_calibrations_are_refused_and_the_previous_stays() {
+        let flash = SimFlash::new(4 * 2048);
+        let mut st = open(flash.clone());
+        let good = blob(1.0);
+        provision(&mut st, &good, 64).unwrap();
+        let plain = crate::test_blobs::test_blob(5, 3, 2, 4, 2.0);
+        let mut tampered = blob(2.0);
+        tampered[70] ^= 4;
+        let mut foreign = plain.clone();
+        foreign.extend_from_slice(&crate::signed::sign(&plain, &[9; 32]));
+        for (bad, fault) in [
+            (&plain, SignatureFault::Unsigned),
+            (&tampered, SignatureFault::BadSignature),
+            (&foreign, SignatureFault::UnknownKey),
+        ] {
+            assert_eq!(provision(&mut st, bad, 64), Err(Error::Refused(DeviceError::SignatureRejected(fault))));
+            assert_eq!(st.active_blob().unwrap().1.as_bytes(), unsigned(&good));
+        }
+        assert_eq!(open(flash).active_blob().unwrap().1.as_bytes(), unsigned(&good));
+    }
+
+    #[test]
+    fn boot_passes_over_a_slot_whose_signature_fails() {
+        // Slot B holds a newer calibration with a valid header and CRC but a
+        // foreign signature (as SWD could write it): boot takes slot A.
+        let flash = SimFlash::new(4 * 2048);
+        let good = blob(1.0);
+        provision(&mut open(flash.clone()), &good, 64).unwrap();
+        let plain = crate::test_blobs::test_blob(5, 3, 2, 4, 2.0);
+        let mut foreign = plain.clone();
+        foreign.extend_from_slice(&crate::signed::sign(&plain, &[9; 32]));
+        let mut raw = flash.clone();
+        let mut image = encode_slot_header(2, foreign.len() as u32, CRC32.checksum(&foreign)).to_vec();
+        image.extend_from_slice(&foreign);
+        image.resize(image.len().next_multiple_of(8), 0xFF);
+        embedded_storage::nor_flash::NorFlash::erase(&mut raw, 4096, 8192).unwrap();
+        embedded_storage::nor_flash::NorFlash::write(&mut raw, 4096, &image).unwrap();
+        let st = open(flash.clone());
+        assert_eq!(st.active().map(|a| (a.slot, a.sequence)), Some((0, 1)));
+        // Trusting the foreign key instead, the newer slot B is taken.
+        let foreign_key: &'static [PublicKeyBytes] = Box::leak(Box::new([crate::signed::public_key(&[9; 32])]));
+        let st = Store::open(flash, 4096, foreign_key, |_| true);
+        assert_eq!(st.active().map(|a| (a.slot, a.sequence)), Some((1, 2)));
     }
 
     #[test]
     fn out_of_order_and_oversized_chunks_are_refused() {
-        let mut st = Store::open(SimFlash::new(4 * 2048), 4096, |_| true);
+        let mut st = open(SimFlash::new(4 * 2048));
         let a = blob(1.0);
         assert_eq!(st.write_chunk(0, &a[..8]), Err(Error::Refused(DeviceError::NotProvisioning)));
         st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap();
@@ -420,7 +500,7 @@ mod tests {
     #[test]
     fn a_flash_failure_keeps_its_kind_and_travels_as_storage() {
         let flash = SimFlash::new(4 * 2048);
-        let mut st = Store::open(flash.clone(), 4096, |_| true);
+        let mut st = open(flash.clone());
         let a = blob(1.0);
         flash.cut_after(0);
         let e = st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap_err();

@@ -2,6 +2,59 @@
 //! library, of host-tools and of tests/ (one builder for all of them). Built
 //! with `std` (host users) and for this crate's own tests; never in firmware.
 use crate::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
+use crate::signed::{PublicKeyBytes, public_key, sign};
+
+/// The DEVELOPMENT KEY - NOT FOR PRODUCTION: its checked-in secret seed, which
+/// every test that provisions a calibration signs with (the default firmware
+/// build trusts its public half).
+pub const DEV_SECRET: [u8; 32] = parse_seed(include_str!("../host-tools/keys/dev-NOT-FOR-PRODUCTION.key"));
+
+/// The 64 hex digits of the first line of `text` that is not a `#` comment.
+const fn parse_seed(text: &str) -> [u8; 32] {
+    let b = text.as_bytes();
+    let mut i = 0;
+    // Skip comment lines.
+    while i < b.len() && b[i] == b'#' {
+        while b[i] != b'\n' {
+            i += 1;
+        }
+        i += 1;
+    }
+    let mut seed = [0u8; 32];
+    let mut j = 0;
+    while j < 32 {
+        seed[j] = hex_digit(b[i + 2 * j]) << 4 | hex_digit(b[i + 2 * j + 1]);
+        j += 1;
+    }
+    seed
+}
+
+const fn hex_digit(c: u8) -> u8 {
+    match c {
+        b'0'..=b'9' => c - b'0',
+        b'a'..=b'f' => c - b'a' + 10,
+        _ => panic!("the development key file is not lower-case hex"),
+    }
+}
+
+/// The development key's public half.
+pub fn dev_public_key() -> PublicKeyBytes {
+    public_key(&DEV_SECRET)
+}
+
+/// A trusted-key list holding only the development key, for stores opened
+/// in tests (independent of the keys this build trusts).
+pub fn dev_trusted() -> &'static [PublicKeyBytes] {
+    static KEYS: std::sync::OnceLock<[PublicKeyBytes; 1]> = std::sync::OnceLock::new();
+    KEYS.get_or_init(|| [dev_public_key()])
+}
+
+/// `blob` signed with the development key: what tests provision.
+pub fn sign_for_tests(blob: &[u8]) -> Vec<u8> {
+    let mut image = blob.to_vec();
+    image.extend_from_slice(&sign(blob, &DEV_SECRET));
+    image
+}
 
 /// The sections of a test blob, owned, so a test can change one before
 /// encoding (the blob format's own tests corrupt them one at a time).
@@ -85,4 +138,9 @@ pub fn test_blob(n: usize, m: usize, zones: usize, pixels: usize, seed: f32) -> 
 /// [`test_blob`]. Panics if the contents do not make a valid blob.
 pub fn test_blob_with(dims: Dims, order: &[u8], white: &[f32], mats: &[f32]) -> Vec<u8> {
     TestBlobParts::with(dims, order.to_vec(), white.to_vec(), mats.to_vec()).encode()
+}
+
+/// [`test_blob`] signed with the development key, ready to provision.
+pub fn signed_test_blob(n: usize, m: usize, zones: usize, pixels: usize, seed: f32) -> Vec<u8> {
+    sign_for_tests(&test_blob(n, m, zones, pixels, seed))
 }

@@ -10,7 +10,7 @@ use brdf_meter::estimate::guard_estimate;
 use brdf_meter::kernel::mat_vec_f32_slice;
 use brdf_meter::protocol::flags;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::test_blobs::test_blob_with;
+use brdf_meter::test_blobs::{sign_for_tests, test_blob_with};
 use host_tools::device::link::Client;
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::analytic_scene;
@@ -135,7 +135,7 @@ fn guard_zeroes_and_flags_non_finite_estimates_only() {
 
 const ZONES: usize = 4;
 
-/// A blob like `brdf_meter::test_blobs::test_blob`, but zone `huge_zone`'s W is
+/// A signed blob like `brdf_meter::test_blobs::test_blob`, but zone `huge_zone`'s W is
 /// +-3e38 (finite, valid, and certain to overflow f32 in `W v`) and pixel
 /// `tiny_white_px` has a subnormal white reference for reading 0.
 fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {
@@ -153,7 +153,7 @@ fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {
         })
         .collect();
     let order: Vec<u8> = (0..M as u8).collect();
-    test_blob_with(dims, &order, &white, &mats)
+    sign_for_tests(&test_blob_with(dims, &order, &white, &mats))
 }
 
 #[test]

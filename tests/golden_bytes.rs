@@ -2,14 +2,15 @@
 //! (`tests/golden/encodings.txt`) and compared byte for byte, so a change to
 //! a format cannot slip past the round-trip tests without a version bump.
 //!
-//! Pinned: the calibration blob (format 1, and format 2 with clusters and
-//! out-of-prior data), the calibration store's slot header, and one frame of
+//! Pinned: the calibration blob (format 1, its signed form, and format 2 with
+//! clusters and out-of-prior data), the calibration store's slot header, and one frame of
 //! every request and response (and every device error) of the wire protocol.
 //! The lists below match every variant without a wildcard: a new variant
 //! does not compile until it has a golden line.
 //!
 //! A difference means the bytes changed: bump the version of what changed
-//! (`blob::FORMAT_VERSION`, `store::SLOT_VERSION`, `protocol::PROTOCOL_VERSION`)
+//! (`blob::FORMAT_VERSION`, `signed::TRAILER_VERSION`, `store::SLOT_VERSION`,
+//! `protocol::PROTOCOL_VERSION`)
 //! and regenerate with
 //!
 //!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test golden_bytes
@@ -96,6 +97,7 @@ fn error_name(e: &DeviceError) -> &'static str {
         DeviceError::Storage => "Error.Storage",
         DeviceError::Sensor(_) => "Error.Sensor",
         DeviceError::Simulation => "Error.Simulation",
+        DeviceError::SignatureRejected(_) => "Error.SignatureRejected",
     }
 }
 
@@ -111,6 +113,9 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     // out-of-prior data).
     let v1 = TestBlobParts::new(9, 3, 2, 6, 0.5);
     out.push(("blob.v1".into(), v1.encode()));
+    // The signed form: the blob and its trailer (Ed25519 is deterministic,
+    // so the development key's signature is fixed too).
+    out.push(("blob.v1.signed".into(), brdf_meter::test_blobs::sign_for_tests(&v1.encode())));
     let mut p2 = TestBlobParts::new(9, 3, 2, 6, 1.5);
     let k = 2;
     p2.unc = (0..2 * k * 9).map(|i| 0.01 + 0.001 * i as f32).collect();
@@ -204,6 +209,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         DeviceError::Storage,
         DeviceError::Sensor(SensorError::NoData),
         DeviceError::Simulation,
+        DeviceError::SignatureRejected(brdf_meter::signed::SignatureFault::UnknownKey),
     ] {
         responses.push(Response::Error(e));
     }

@@ -7,7 +7,8 @@ use brdf_meter::protocol::{
 };
 use brdf_meter::hw::SensorError;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::test_blobs::test_blob;
+use brdf_meter::signed::SignatureFault;
+use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
 use host_tools::device::link::{Client, LinkError, PointRecord, Reply};
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
@@ -23,8 +24,9 @@ fn client(flash: SimFlash, ram_zones: usize) -> Client<SimDevice> {
     Client::new(SimDevice::boot(flash, ram_zones)).unwrap()
 }
 
+/// A signed test calibration (development key).
 fn blob(seed: f32) -> Vec<u8> {
-    test_blob(N, M, ZONES, P, seed)
+    signed_test_blob(N, M, ZONES, P, seed)
 }
 
 /// Checks that `points` (of `lines` lines) are bit-identical to the host's
@@ -127,19 +129,24 @@ fn bad_blobs_are_refused_and_the_previous_calibration_keeps_measuring() {
     let e = device_error(c.request(&Request::ProvisionCommit));
     assert_eq!(e, DeviceError::CrcMismatch { declared: crc, computed: CRC32.checksum(&bad) });
 
-    // 2. Corrupted before sending (CRC consistent with the bytes): the blob's
-    //    own CRC catches it.
+    // 2. Corrupted before sending (CRC consistent with the bytes): the
+    //    signature catches it; signed after the corruption, the blob's own
+    //    CRC does.
     let e = device_error(c.provision(&bad, |_, _| {}));
+    assert_eq!(e, DeviceError::SignatureRejected(SignatureFault::BadSignature));
+    let mut corrupt = test_blob(N, M, ZONES, P, 4.0);
+    corrupt[1000] ^= 0x40;
+    let e = device_error(c.provision(&sign_for_tests(&corrupt), |_, _| {}));
     assert!(matches!(e, DeviceError::BlobRejected { .. }), "{e:?}");
 
     // 3. A valid blob for another instrument (16 pixels).
-    let other = test_blob(N, M, 2, 16, 5.0);
+    let other = signed_test_blob(N, M, 2, 16, 5.0);
     let e = device_error(c.provision(&other, |_, _| {}));
     assert_eq!(e, DeviceError::Mismatch { field: SizeField::Pixels, device: P as u16, blob: 16 });
 
-    // 4. Not a blob at all, and too large.
+    // 4. Not a blob at all (nor signed), and too large.
     let e = device_error(c.provision(&[0x42; 300], |_, _| {}));
-    assert!(matches!(e, DeviceError::BlobRejected { .. }), "{e:?}");
+    assert_eq!(e, DeviceError::SignatureRejected(SignatureFault::Unsigned));
     let e = device_error(c.request(&Request::ProvisionBegin { len: SLOT_LEN, crc: 0 }));
     assert_eq!(e, DeviceError::BlobTooLarge { len: SLOT_LEN, max: SLOT_LEN - 32 });
 
@@ -346,7 +353,7 @@ fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_pri
         let t = train_scale_free_for_scene(&scene, zones, 0.02, piecewise).unwrap();
         let view = BlobView::parse(&t.blob).unwrap();
         let mut c = client(flash(), ram);
-        let cal = c.provision(&t.blob, |_, _| {}).unwrap();
+        let cal = c.provision(&brdf_meter::test_blobs::sign_for_tests(&t.blob), |_, _| {}).unwrap();
         assert_eq!(cal.blob_crc, view.crc());
         assert_eq!(cal.in_ram, zones * view.clusters() <= ram);
 

@@ -4,7 +4,7 @@
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::test_blobs::test_blob;
+use brdf_meter::test_blobs::signed_test_blob as test_blob;
 use brdf_meter::store::Store;
 use host_tools::device::link::Client;
 use host_tools::device::reference::expected_line;
@@ -12,7 +12,7 @@ use host_tools::forward::scene::frames::analytic_scene;
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 fn open(flash: SimFlash) -> Store<SimFlash> {
-    Store::open(flash, SLOT_LEN, |v| Calibration::<N, M, P>::check(v).is_ok())
+    Store::open(flash, SLOT_LEN, brdf_meter::test_blobs::dev_trusted(), |v| Calibration::<N, M, P>::check(v).is_ok())
 }
 
 /// Provisions `blob` through the store as the device does (chunks of 512).
@@ -51,10 +51,12 @@ fn cut_everywhere(base: &SimFlash, old: &[u8], new: &[u8]) -> usize {
         assert_eq!(r.is_ok(), cut == total, "cut at step {cut} of {total}: {r:?}");
         let st = open(f.reboot());
         let (_, view) = st.active_blob().unwrap_or_else(|| panic!("no calibration after a cut at step {cut}"));
+        // The view is the blob; `old` and `new` are signed calibrations.
         let got = view.as_bytes();
-        if got == old {
+        let blob_of = |image: &[u8]| image.len() - brdf_meter::signed::TRAILER_LEN;
+        if got == &old[..blob_of(old)] {
             saw_old += 1;
-        } else if got == new {
+        } else if got == &new[..blob_of(new)] {
             saw_new += 1;
         } else {
             panic!("cut at step {cut}: boot found a blob that is neither the old nor the new one");

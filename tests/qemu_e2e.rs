@@ -5,7 +5,9 @@
 //! bit against the host's f32 computation on the same corrected readings.
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::protocol::{DeviceError, FrameError, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode};
+use brdf_meter::signed::SignatureFault;
 use host_tools::calibration::demo::train_for_scene;
+use host_tools::calibration::signing::{sign_blob, sign_with_dev_key};
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::{patent_scene, scene_frames};
 use host_tools::device::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
@@ -40,6 +42,12 @@ fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
     }
 }
 
+/// A calibration for `scene` trained by host-tools and signed with the
+/// development key (which the QEMU firmware trusts by default).
+fn signed_for_scene(scene: &host_tools::forward::scene::Scene, zones: usize, noise: f64) -> Vec<u8> {
+    sign_with_dev_key(&train_for_scene(scene, zones, noise).unwrap().blob)
+}
+
 fn connect(q: &host_tools::device::link::qemu::QemuInstrument) -> Client<TcpTransport> {
     let mut c = q.connect().unwrap();
     c.timeout = Duration::from_secs(20);
@@ -56,7 +64,7 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
 
     let scene = patent_scene(PIXELS);
     let trained = train_for_scene(&scene, ZONES, 0.02).unwrap();
-    let cal = c.provision(&trained.blob, |_, _| {}).unwrap();
+    let cal = c.provision(&sign_with_dev_key(&trained.blob), |_, _| {}).unwrap();
     assert_eq!((cal.zones, cal.in_ram), (ZONES as u16, true));
     assert_eq!(cal.blob_crc, BlobView::parse(&trained.blob).unwrap().crc());
 
@@ -76,7 +84,7 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     // A scale-free piecewise calibration on the MERL prior: the Cortex-M4F
     // gives the host's bits too (values, cluster, out-of-prior flag, scale).
     let sf = host_tools::calibration::demo::train_scale_free_for_scene(&scene, 1, 0.02, true).unwrap();
-    c.provision(&sf.blob, |_, _| {}).unwrap();
+    c.provision(&brdf_meter::test_blobs::sign_for_tests(&sf.blob), |_, _| {}).unwrap();
     c.load_scene(&frames).unwrap(); // a measurement starts at the scene's first line
     let points = c.measure(2).unwrap();
     check_bit_identical(&sf.blob, &frames, &points, 2, info.full_scale);
@@ -90,13 +98,14 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
     let mut c = connect(&q);
     let info = c.info().unwrap();
     let scene = patent_scene(PIXELS);
-    let good = train_for_scene(&scene, 2, 0.02).unwrap().blob;
+    let good = signed_for_scene(&scene, 2, 0.02);
     let cal = c.provision(&good, |_, _| {}).unwrap();
     let frames = scene_frames(&scene, 2).unwrap();
     c.load_scene(&frames).unwrap();
 
     // A blob corrupted in transit: refused at commit (whole-blob CRC).
-    let newer = train_for_scene(&scene, 3, 0.05).unwrap().blob;
+    let newer_blob = train_for_scene(&scene, 3, 0.05).unwrap().blob;
+    let newer = sign_with_dev_key(&newer_blob);
     let crc = CRC32.checksum(&newer);
     let mut bad = newer.clone();
     bad[newer.len() / 2] ^= 0x01;
@@ -109,13 +118,24 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
         DeviceError::CrcMismatch { declared: crc, computed: CRC32.checksum(&bad) }
     );
     // A valid blob trained for another instrument (16 pixels).
-    let other = train_for_scene(&patent_scene(16), 2, 0.02).unwrap().blob;
+    let other = signed_for_scene(&patent_scene(16), 2, 0.02);
     assert_eq!(
         device_error(c.provision(&other, |_, _| {})),
         DeviceError::Mismatch { field: SizeField::Pixels, device: PIXELS as u16, blob: 16 }
     );
-    // A blob corrupted before sending (its own CRC catches it).
-    assert!(matches!(device_error(c.provision(&bad, |_, _| {})), DeviceError::BlobRejected { .. }));
+    // A calibration changed before sending (CRC consistent): its signature
+    // no longer verifies; signed after the change, the blob's own CRC
+    // catches it.
+    assert_eq!(device_error(c.provision(&bad, |_, _| {})), DeviceError::SignatureRejected(SignatureFault::BadSignature));
+    let mut corrupt = newer_blob.clone();
+    corrupt[newer_blob.len() / 2] ^= 0x01;
+    assert!(matches!(device_error(c.provision(&sign_with_dev_key(&corrupt), |_, _| {})), DeviceError::BlobRejected { .. }));
+    // Unsigned, and signed by a key the firmware does not trust.
+    assert_eq!(device_error(c.provision(&newer_blob, |_, _| {})), DeviceError::SignatureRejected(SignatureFault::Unsigned));
+    assert_eq!(
+        device_error(c.provision(&sign_blob(&newer_blob, &[0x5A; 32]), |_, _| {})),
+        DeviceError::SignatureRejected(SignatureFault::UnknownKey)
+    );
 
     // Malformed frames: corrupted, oversized, out-of-order chunk.
     let mut f = [0u8; MAX_FRAME];
@@ -142,7 +162,7 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
     check_bit_identical(&good, &frames, &points, 2, info.full_scale);
     let st = c.status().unwrap();
     assert_eq!(st.bad_frames, 2);
-    assert!(st.refused >= 4);
+    assert!(st.refused >= 7);
 }
 
 #[test]
@@ -155,7 +175,7 @@ fn qemu_serves_the_same_protocol_over_a_serial_port() {
     c.timeout = Duration::from_secs(20);
     assert!(q.addr.starts_with("/dev/pts/"), "{}", q.addr);
     let scene = patent_scene(PIXELS);
-    let blob = train_for_scene(&scene, 2, 0.02).unwrap().blob;
+    let blob = signed_for_scene(&scene, 2, 0.02);
     c.provision(&blob, |_, _| {}).unwrap();
     let frames = scene_frames(&scene, 1).unwrap();
     c.load_scene(&frames).unwrap();

@@ -141,7 +141,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         full_scale: u16,
         simulated: bool,
     ) -> Self {
-        let store = Store::open(flash, slot_len, |v| Calibration::<N, M, P>::check(v).is_ok());
+        let store = Store::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| Calibration::<N, M, P>::check(v).is_ok());
         let mut cal = Calibration::new(ram);
         if let Some((info, view)) = store.active_blob() {
             // Checked by `open`'s filter; a failure here would leave no

@@ -3,6 +3,7 @@
 use super::BlobSection;
 use crate::blob::BlobError;
 use crate::hw::SensorError;
+use crate::signed::SignatureFault;
 use serde::{Deserialize, Serialize};
 
 /// Why a frame could not be read.
@@ -150,6 +151,16 @@ pub enum DeviceError {
     Sensor(SensorError),
     /// Simulation request on a device without a simulated sensor, or out of range.
     Simulation,
+    /// The calibration's signature was refused (unsigned, malformed trailer,
+    /// untrusted key, or a signature that does not verify); the previous
+    /// calibration is kept.
+    SignatureRejected(SignatureFault),
+}
+
+impl From<SignatureFault> for DeviceError {
+    fn from(e: SignatureFault) -> Self {
+        DeviceError::SignatureRejected(e)
+    }
 }
 
 impl From<BlobError> for DeviceError {
@@ -203,6 +214,7 @@ impl core::fmt::Display for DeviceError {
             Self::Storage => write!(f, "flash error; the previous calibration is kept"),
             Self::Sensor(e) => write!(f, "sensor error: {e:?}"),
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
+            Self::SignatureRejected(e) => write!(f, "the device refused the calibration's signature: {e}; the previous calibration is kept"),
         }
     }
 }

@@ -81,6 +81,7 @@ fn every_response_round_trips() {
         DeviceError::Storage,
         DeviceError::Sensor(SensorError::NoData),
         DeviceError::Simulation,
+        DeviceError::SignatureRejected(crate::signed::SignatureFault::UnknownKey),
     ];
     let mut all = vec![
         Response::Info(DeviceInfo {

@@ -17,7 +17,7 @@ use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{self, FrameReader, MAX_FRAME, Pushed, Request, Response};
 use brdf_meter::store::Store;
-use brdf_meter::test_blobs::test_blob;
+use brdf_meter::test_blobs::{dev_trusted, signed_test_blob as test_blob};
 use host_tools::device::link::{Client, LinkError, Transport};
 use std::time::Duration;
 
@@ -296,7 +296,7 @@ impl Bytes<'_> {
 }
 
 fn open_store(flash: SimFlash) -> Store<SimFlash> {
-    Store::open(flash, FUZZ_SLOT, |_| true)
+    Store::open(flash, FUZZ_SLOT, dev_trusted(), |_| true)
 }
 
 /// What boot must find: the model's calibration, whole.

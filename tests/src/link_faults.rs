@@ -23,7 +23,6 @@ use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{self, DeviceError, Response};
 use brdf_meter::store::Store;
-use brdf_meter::test_blobs::test_blob;
 use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
 use host_tools::device::reference::expected_line;
 use host_tools::device::link::{Client, LinkError, LinkStats, ProvisionOutcome, Transport};
@@ -403,7 +402,7 @@ const ZONES: usize = 4;
 /// The calibration the device would boot with now (read from its flash, not
 /// over the link).
 fn device_active(flash: &SimFlash) -> Option<Vec<u8>> {
-    let st = Store::open(flash.reboot(), SLOT_LEN, |v| Calibration::<N, M, P>::check(v).is_ok());
+    let st = Store::open(flash.reboot(), SLOT_LEN, brdf_meter::test_blobs::dev_trusted(), |v| Calibration::<N, M, P>::check(v).is_ok());
     st.active_blob().map(|(_, v)| v.as_bytes().to_vec())
 }
 
@@ -412,7 +411,7 @@ fn device_active(flash: &SimFlash) -> Option<Vec<u8>> {
 pub fn soak(cfg: SoakConfig) -> SoakReport {
     let start = Instant::now();
     let seed = cfg.seed;
-    let blobs = [test_blob(N, M, ZONES, P, 1.0), test_blob(N, M, ZONES, P, 2.0), test_blob(N, M, ZONES, P, 3.0)];
+    let blobs = [1.0, 2.0, 3.0].map(|seed| brdf_meter::test_blobs::signed_test_blob(N, M, ZONES, P, seed));
     let link = FaultyLink::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), ZONES), seed);
     let mut c = Client::new(link).expect("in-memory link");
     c.timeout = Duration::from_millis(40);

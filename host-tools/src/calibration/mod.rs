@@ -1,7 +1,9 @@
 //! Calibration: the estimators (W from H, the prior and the noise model) and
-//! training (one W per zone, the f32 gate, the blob). Consumes the forward
+//! training (one W per zone, the f32 gate, the blob) and signing (key files,
+//! the signed calibration). Consumes the forward
 //! model; knows nothing of the device link or of evaluation.
 pub mod estimators;
 pub mod train;
 pub mod train_scale_free;
 pub mod demo;
+pub mod signing;

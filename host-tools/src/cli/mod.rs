@@ -8,6 +8,8 @@ pub mod reproduce;
 pub mod simulate;
 pub mod train;
 pub mod train_measured;
+pub mod keygen;
+pub mod sign;
 pub mod qemu;
 pub mod info;
 pub mod provision;
@@ -36,6 +38,10 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Train the estimator matrices (one per zone) and write the calibration blob.
     Train(train::Args),
+    /// Generate a key pair for signing calibrations (secret + .pub).
+    Keygen(keygen::Args),
+    /// Sign a calibration blob with a secret key, for provisioning.
+    Sign(sign::Args),
     /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
     Qemu(qemu::Args),
     /// Show a device's identity, sizes, calibration and status.
@@ -62,6 +68,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Train(a) => train::run(a),
+        Command::Keygen(a) => keygen::run(a),
+        Command::Sign(a) => sign::run(a),
         Command::Qemu(a) => qemu::run(a),
         Command::Info(a) => info::run(a),
         Command::Provision(a) => provision::run(a),

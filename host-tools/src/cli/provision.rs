@@ -3,15 +3,17 @@ use crate::device::link::Endpoint;
 use crate::device::provision;
 use std::path::PathBuf;
 
-/// Provision a calibration blob (made by `host-tools train`) onto a device.
-/// The device verifies it whole (CRC, format, sizes) before it replaces the
+/// Provision a signed calibration (made by `host-tools train --sign` or
+/// `host-tools sign`) onto a device. Its signature is checked against the
+/// keys the firmware trusts before anything is sent; the device verifies it
+/// whole (CRC, signature, format, sizes) before it replaces the
 /// active calibration; on any failure it keeps the one it had.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The device.
     #[command(flatten)]
     pub device: Endpoint,
-    /// The calibration blob.
+    /// The signed calibration.
     #[arg(long, value_name = "PATH")]
     pub blob: PathBuf,
 }

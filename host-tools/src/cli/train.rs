@@ -87,6 +87,11 @@ pub struct Args {
     /// surface or noise draw.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["instrument", "far_field"])]
     pub scene: Option<PathBuf>,
+    /// Sign the calibration with this secret key (`host-tools keygen`): the
+    /// blob is written with its signature trailer, ready to provision. Without
+    /// it the blob is unsigned and devices refuse it until `host-tools sign`.
+    #[arg(long, value_name = "KEY")]
+    pub sign: Option<PathBuf>,
 }
 
 /// Runs the command. Nothing is written unless training succeeds.
@@ -136,9 +141,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         led_order: None,
         white,
     })?;
-    // Everything is computed; serialise before writing anything.
+    // Everything is computed; serialise (and sign) before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
-    crate::output::io::write_atomic(&a.out, &trained.blob).with_context(|| format!("writing {}", a.out.display()))?;
+    let out = match &a.sign {
+        Some(key) => crate::calibration::signing::sign_blob(&trained.blob, &crate::calibration::signing::read_secret(key)?),
+        None => trained.blob.clone(),
+    };
+    crate::output::io::write_atomic(&a.out, &out).with_context(|| format!("writing {}", a.out.display()))?;
     if let (Some(p), Some(j)) = (&a.json, &json) {
         crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -160,7 +169,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         s.condition_h, s.condition_system, s.effective_rank, s.regularisation, s.predicted_rmse, trained.f32_rel_error
     );
     println!("{}", s.method);
-    println!("wrote {} ({} bytes, CRC {:#010x})", a.out.display(), trained.blob.len(), view.crc());
+    match &a.sign {
+        Some(key) => println!("wrote {} ({} bytes, CRC {:#010x}, signed with {})", a.out.display(), out.len(), view.crc(), key.display()),
+        None => println!(
+            "wrote {} ({} bytes, CRC {:#010x}, unsigned: sign it with `host-tools sign` before provisioning)",
+            a.out.display(),
+            out.len(),
+            view.crc()
+        ),
+    }
     if let Some(p) = &a.json {
         println!("wrote {}", p.display());
     }
@@ -185,7 +202,26 @@ mod tests {
             far_field: false,
             scene: None,
             false_alarm: 0.05,
+            sign: None,
         }
+    }
+
+    #[test]
+    fn train_sign_writes_a_signed_calibration_the_device_accepts() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut a = args(dir.path());
+        a.sign = Some(crate::calibration::signing::dev_key_path());
+        run(a).unwrap();
+        let image = std::fs::read(dir.path().join("out/cal.blob")).unwrap();
+        let v = crate::device::provision::parse_signed(&image, "cal.blob").unwrap();
+        assert_eq!(v.as_bytes().len() + brdf_meter::signed::TRAILER_LEN, image.len());
+        // A missing key is a named error and writes nothing.
+        let dir = tempfile::tempdir().unwrap();
+        let mut a = args(dir.path());
+        a.sign = Some(dir.path().join("absent.key"));
+        let e = format!("{:#}", run(a).unwrap_err());
+        assert!(e.contains("absent.key"), "{e}");
+        assert!(!dir.path().join("out").exists());
     }
 
     #[test]

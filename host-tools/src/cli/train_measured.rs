@@ -71,7 +71,12 @@ pub fn run(a: Args, scene: Option<crate::forward::scene::Scene>, noise: f64, ins
         );
         (t.blob, j)
     };
-    crate::output::io::write_atomic(&a.out, &blob).with_context(|| format!("writing {}", a.out.display()))?;
+    // Sign before writing anything, as `train` does for the linear kinds.
+    let out = match &a.sign {
+        Some(key) => crate::calibration::signing::sign_blob(&blob, &crate::calibration::signing::read_secret(key)?),
+        None => blob.clone(),
+    };
+    crate::output::io::write_atomic(&a.out, &out).with_context(|| format!("writing {}", a.out.display()))?;
     if let (Some(p), Some(j)) = (&a.json, &json) {
         crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -99,6 +104,7 @@ pub(crate) mod tests {
             far_field: false,
             scene: None,
             false_alarm: 0.05,
+            sign: None,
         }
     }
 

@@ -13,7 +13,7 @@
 //! flash. So the budget is:
 //! - image (vector table, code, read-only data, .data's initial values) <=
 //!   the FLASH region, which memory.x keeps below the calibration slots;
-//! - slot header + blob <= one calibration slot;
+//! - slot header + blob + signature trailer <= one calibration slot;
 //! - static RAM (.data, .bss, .uninit; the executor's task futures and every
 //!   buffer are statics) + the stack reserve <= RAM.
 use std::fmt::Write as _;
@@ -185,8 +185,8 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
     let lines = vec![
         Line { what: "flash: firmware image (outside calibration)".into(), used: image, limit: map.flash.length as u64 },
         Line {
-            what: format!("flash: slot header + blob ({} B) per slot", blob),
-            used: SLOT_HEADER_LEN as u64 + blob,
+            what: format!("flash: slot header + blob ({} B) + signature per slot", blob),
+            used: SLOT_HEADER_LEN as u64 + blob + brdf_meter::signed::TRAILER_LEN as u64,
             limit: map.slot_a.length.min(map.slot_b.length) as u64,
         },
         Line {
@@ -245,7 +245,7 @@ mod tests {
         let b = check("fw", &typical(), &board_map(), MAX_DIMS, STACK_RESERVE);
         assert!(b.ok(), "{}", b.table());
         assert_eq!(b.lines[0].used, 0x188 + 60_000 + 8_000 + 100);
-        assert_eq!(b.lines[1].used, SLOT_HEADER_LEN as u64 + MAX_DIMS.blob_len() as u64);
+        assert_eq!(b.lines[1].used, (SLOT_HEADER_LEN + MAX_DIMS.blob_len() + brdf_meter::signed::TRAILER_LEN) as u64);
         assert_eq!(b.lines[2].used, 100 + 30_000 + 1_024 + STACK_RESERVE);
     }
 

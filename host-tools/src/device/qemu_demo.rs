@@ -31,9 +31,10 @@ pub enum DemoEstimator {
     ScaleFreePiecewise,
 }
 
-/// Trains the demo calibration for the device behind `c`, writes it to
-/// `blob_path`, provisions it and loads the scene; returns the blob and what
-/// the device reports for it.
+/// Trains the demo calibration for the device behind `c`, signs it with the
+/// DEVELOPMENT KEY (NOT FOR PRODUCTION; the QEMU firmware trusts it by
+/// default), writes it to `blob_path`, provisions it and loads the scene;
+/// returns the signed calibration and what the device reports for it.
 pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path, kind: DemoEstimator) -> anyhow::Result<(Vec<u8>, CalInfo)> {
     let info = c.info()?;
     let scene = patent_scene(info.pixels as usize);
@@ -42,8 +43,9 @@ pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path, kind: DemoEstim
         DemoEstimator::ScaleFree => train_scale_free_for_scene(&scene, 4, 0.02, false)?.blob,
         DemoEstimator::ScaleFreePiecewise => train_scale_free_for_scene(&scene, 1, 0.02, true)?.blob,
     };
-    crate::output::io::write_atomic(blob_path, &blob)?;
-    let cal = c.provision(&blob, |_, _| {}).context("provisioning the demo calibration")?;
+    let signed = crate::calibration::signing::sign_with_dev_key(&blob);
+    crate::output::io::write_atomic(blob_path, &signed)?;
+    let cal = c.provision(&signed, |_, _| {}).context("provisioning the demo calibration")?;
     c.load_scene(&scene_frames(&scene, 4)?)?;
-    Ok((blob, cal))
+    Ok((signed, cal))
 }

@@ -7,8 +7,10 @@
 //! - the slot header is the calibration store's (`brdf_meter::store`, slot
 //!   format version 1), cross-checked in the tests by opening the written
 //!   flash with the library's own `Store`;
-//! - the blob is validated with `brdf_meter::blob::BlobView::parse`, the
-//!   device's parser, before anything is written.
+//! - the signed calibration's signature is checked against the keys the
+//!   firmware trusts (`brdf_meter::signed`) and the blob is validated with
+//!   `brdf_meter::blob::BlobView::parse`, the device's parser, before
+//!   anything is written (the device checks both again at boot).
 //!
 //! Which slot: the one that does not hold the device's newest valid
 //! calibration, with the next sequence number, exactly as the device's store
@@ -56,11 +58,17 @@ pub fn plan(found: &[Found], force: Option<u8>) -> (u8, u32) {
 /// Flash program granularity of the STM32L4 (bytes).
 pub const WRITE_UNIT: usize = brdf_meter::shape::FLASH_WRITE;
 
-/// The bytes to write at a slot's start: header, blob, padded with erased
-/// bytes (0xFF) to whole flash write units.
+/// The bytes to write at a slot's start: header, signed calibration (`blob`:
+/// the blob and its signature trailer), padded with erased bytes (0xFF) to
+/// whole flash write units.
 pub fn slot_image(sequence: u32, blob: &[u8], slot_len: u32) -> Result<Vec<u8>> {
-    let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("the blob would be refused by the device: {e}"))?;
-    ensure!(view.as_bytes().len() == blob.len(), "the file has {} bytes after the blob", blob.len() - view.as_bytes().len());
+    let unsigned = crate::calibration::signing::check_signed(blob, "the calibration")?;
+    let view = BlobView::parse(unsigned).map_err(|e| anyhow::anyhow!("the blob would be refused by the device: {e}"))?;
+    ensure!(
+        view.as_bytes().len() == unsigned.len(),
+        "the file has {} bytes between the blob and its signature",
+        unsigned.len() - view.as_bytes().len()
+    );
     let mut image = Vec::with_capacity(SLOT_HEADER_LEN + blob.len() + WRITE_UNIT);
     image.extend_from_slice(&slot_header(sequence, blob));
     image.extend_from_slice(blob);
@@ -208,15 +216,21 @@ pub(crate) mod tests {
     use brdf_meter::store::Store;
 
     /// A small valid blob whose contents depend on `seed` (the library's
-    /// test-blob builder, n = 9, m = 3, 2 zones, 4 pixels).
+    /// test-blob builder, n = 9, m = 3, 2 zones, 4 pixels), signed with the
+    /// development key.
     pub(crate) fn test_blob(seed: f32) -> Vec<u8> {
-        brdf_meter::test_blobs::test_blob(9, 3, 2, 4, seed)
+        brdf_meter::test_blobs::signed_test_blob(9, 3, 2, 4, seed)
+    }
+
+    /// The blob of a signed calibration (without its trailer).
+    fn unsigned(image: &[u8]) -> Vec<u8> {
+        image[..image.len() - brdf_meter::signed::TRAILER_LEN].to_vec()
     }
 
     /// Opens the calibration region `cal` (slot A then slot B) with the
     /// device's store and returns the active blob and its sequence number.
     fn device_boot(cal: Vec<u8>, slot_len: u32) -> Option<(u8, u32, Vec<u8>)> {
-        let store = Store::open(SimFlash::with_contents(cal), slot_len, |_| true);
+        let store = Store::open(SimFlash::with_contents(cal), slot_len, brdf_meter::test_blobs::dev_trusted(), |_| true);
         let (info, view) = store.active_blob()?;
         Some((info.slot, info.sequence, view.as_bytes().to_vec()))
     }
@@ -244,17 +258,17 @@ pub(crate) mod tests {
         assert_eq!(img1.len() % WRITE_UNIT, 0);
         assert_eq!(&img1[SLOT_HEADER_LEN..SLOT_HEADER_LEN + b1.len()], &b1[..]);
         cal[..img1.len()].copy_from_slice(&img1);
-        assert_eq!(device_boot(cal.clone(), slot_len), Some((0, 1, b1.clone())));
+        assert_eq!(device_boot(cal.clone(), slot_len), Some((0, 1, unsigned(&b1))));
         // The next one goes to B with sequence 2, and wins.
         let found = [parse_header(0, &cal[..SLOT_HEADER_LEN]).unwrap()];
         let (slot, seq) = plan(&found, None);
         assert_eq!((slot, seq), (1, 2));
         let img2 = slot_image(seq, &b2, slot_len).unwrap();
         cal[slot_len as usize..slot_len as usize + img2.len()].copy_from_slice(&img2);
-        assert_eq!(device_boot(cal.clone(), slot_len), Some((1, 2, b2.clone())));
+        assert_eq!(device_boot(cal.clone(), slot_len), Some((1, 2, unsigned(&b2))));
         // A torn write of B (one blob byte wrong) falls back to A.
         cal[slot_len as usize + SLOT_HEADER_LEN + 10] ^= 0x40;
-        assert_eq!(device_boot(cal, slot_len), Some((0, 1, b1)));
+        assert_eq!(device_boot(cal, slot_len), Some((0, 1, unsigned(&b1))));
     }
 
     #[test]
@@ -265,8 +279,16 @@ pub(crate) mod tests {
         let mut longer = b.clone();
         longer.push(0);
         assert!(slot_image(1, &longer, brdf_meter::shape::board::SLOT_LEN).is_err(), "trailing bytes are refused");
+        let e = slot_image(1, &unsigned(&b), brdf_meter::shape::board::SLOT_LEN).unwrap_err().to_string();
+        assert!(e.contains("not signed"), "{e}");
         b[70] ^= 1;
         let e = slot_image(1, &b, brdf_meter::shape::board::SLOT_LEN).unwrap_err().to_string();
+        assert!(e.contains("refused") && e.contains("does not verify"), "{e}");
+        let mut corrupt = unsigned(&test_blob(1.0));
+        corrupt[70] ^= 1;
+        let e = slot_image(1, &crate::calibration::signing::sign_with_dev_key(&corrupt), brdf_meter::shape::board::SLOT_LEN)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("refused by the device"), "{e}");
         assert!(parse_header(0, &[0xFF; SLOT_HEADER_LEN]).is_none());
     }
@@ -381,10 +403,10 @@ esac
         let p2 = fake.probe(false).provision(&b2, None).unwrap();
         assert_eq!((p2.slot, p2.addr, p2.sequence), (1, brdf_meter::shape::board::SLOT_B, 2));
         let slot_len = SlotMap::board().slot_len();
-        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((1, 2, b2.clone())));
+        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((1, 2, unsigned(&b2))));
         let p3 = fake.probe(false).provision(&b3, None).unwrap();
         assert_eq!((p3.slot, p3.sequence), (0, 3));
-        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((0, 3, b3)));
+        assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((0, 3, unsigned(&b3))));
         // The firmware image region was never touched.
         assert!(fake.flash()[..256 * 1024].iter().all(|&b| b == 0xFF));
         let log = fake.log();

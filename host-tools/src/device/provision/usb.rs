@@ -5,12 +5,13 @@ use crate::device::link::{Client, Transport};
 use anyhow::{Context, bail};
 use brdf_meter::protocol::CalInfo;
 
-/// Sends `blob` (named `name` in messages) to the device behind `c`,
+/// Sends the signed calibration `blob` (named `name` in messages; its
+/// signature is checked here first and again by the device) to the device behind `c`,
 /// reporting `progress(done, total)` in bytes. The device verifies it whole
 /// before it replaces the active calibration; on any failure it keeps the
 /// one it had.
 pub fn provision<T: Transport>(c: &mut Client<T>, blob: &[u8], name: &str, progress: impl FnMut(usize, usize)) -> anyhow::Result<CalInfo> {
-    let d = super::parse_blob(blob, name)?.dims();
+    let d = super::parse_signed(blob, name)?.dims();
     let info = c.info().context("asking the device for its sizes")?;
     if (d.n, d.m, d.pixels) != (info.bins as usize, info.leds as usize, info.pixels as usize) {
         bail!(
