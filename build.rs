@@ -24,21 +24,15 @@ const DEV_KEY: &str = "host-tools/keys/dev-NOT-FOR-PRODUCTION.pub";
 
 /// The hex keys of a key file: one per line, `#` starts a comment.
 fn read_keys(path: &Path) -> Vec<[u8; 32]> {
-    let text = fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("trusted keys: cannot read {}: {e}", path.display()));
+    let text = fs::read_to_string(path).unwrap_or_else(|e| panic!("trusted keys: cannot read {}: {e}", path.display()));
     let mut keys = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let hex = line.split('#').next().unwrap_or("").trim();
         if hex.is_empty() {
             continue;
         }
-        let bad = || {
-            panic!(
-                "trusted keys: {}:{}: expected 64 hex digits (an Ed25519 public key)",
-                path.display(),
-                i + 1
-            )
-        };
+        let bad =
+            || panic!("trusted keys: {}:{}: expected 64 hex digits (an Ed25519 public key)", path.display(), i + 1);
         if hex.len() != 64 || !hex.is_ascii() {
             bad();
         }
@@ -78,16 +72,14 @@ fn trusted_keys(root: &Path) {
         path.strip_prefix(root).unwrap_or(&path).display(),
         list.join(", ")
     );
-    let out =
-        PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join("trusted_keys.rs");
+    let out = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join("trusted_keys.rs");
     fs::write(out, code).expect("writing trusted_keys.rs");
 }
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory.x");
-    let root =
-        PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let root = PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     trusted_keys(&root);
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;

@@ -23,6 +23,9 @@ fi
 if ! rustup component list --installed 2>/dev/null | grep -q '^clippy'; then
   rustup component add clippy
 fi
+if ! rustup component list --installed 2>/dev/null | grep -q '^rustfmt'; then
+  rustup component add rustfmt
+fi
 
 if ! command -v arm-none-eabi-size >/dev/null; then
   echo "[deps] installing binutils-arm-none-eabi"

@@ -3,6 +3,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-test-deps.sh
+echo "[test] code style (cargo fmt --check, rustfmt.toml)"
+cargo fmt --all -- --check
 # Firmware first (warning-free builds, clippy, size and budget): it also builds
 # the QEMU firmware the QEMU tests below reuse, and cargo test's summary stays
 # the last thing printed.

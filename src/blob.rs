@@ -262,7 +262,10 @@ impl fmt::Display for BlobError {
             Self::TooShort { need, got } => write!(f, "blob truncated: need {need} bytes, got {got}"),
             Self::BadMagic => write!(f, "not a calibration blob (magic is not \"BRDW\")"),
             Self::UnsupportedVersion(v) => {
-                write!(f, "blob format version {v} is not supported (this build reads {FORMAT_VERSION_1} and {FORMAT_VERSION})")
+                write!(
+                    f,
+                    "blob format version {v} is not supported (this build reads {FORMAT_VERSION_1} and {FORMAT_VERSION})"
+                )
             }
             Self::BadHeaderLen(l) => write!(f, "header length {l} is not {HEADER_LEN}"),
             Self::BadDimension { field, value } => write!(f, "dimension {field} = {value} is zero or too large"),
@@ -338,7 +341,19 @@ impl Dims {
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
         let crc = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
-        Layout { grid, led_order, zones, white, uncertainty, matrices, centroids, out_of_prior, crc, total: crc + 4, clusters: k }
+        Layout {
+            grid,
+            led_order,
+            zones,
+            white,
+            uncertainty,
+            matrices,
+            centroids,
+            out_of_prior,
+            crc,
+            total: crc + 4,
+            clusters: k,
+        }
     }
 
     /// Total length in bytes of a version 1 blob with these dimensions.
@@ -421,14 +436,25 @@ impl Extras {
     }
 
     fn needs_v2(&self, kind: EstimatorKind) -> bool {
-        self.clusters != 1 || self.piecewise || self.out_of_prior || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
+        self.clusters != 1
+            || self.piecewise
+            || self.out_of_prior
+            || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
     /// K agrees with the kind: >= 2 for the piecewise kind, 1 otherwise.
     fn check(&self, kind: EstimatorKind) -> Result<(), BlobError> {
         let k = self.clusters;
-        let ok = if kind == EstimatorKind::ScaleFreePiecewise { (2..=MAX_CLUSTERS).contains(&k) } else { k == 1 && !self.piecewise };
-        if ok { Ok(()) } else { Err(BlobError::BadDimension { field: "clusters", value: k.min(u16::MAX as usize) as u16 }) }
+        let ok = if kind == EstimatorKind::ScaleFreePiecewise {
+            (2..=MAX_CLUSTERS).contains(&k)
+        } else {
+            k == 1 && !self.piecewise
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(BlobError::BadDimension { field: "clusters", value: k.min(u16::MAX as usize) as u16 })
+        }
     }
 }
 
@@ -821,7 +847,11 @@ impl<'a> BlobView<'a> {
     /// Copies zone `z`'s centroids (K x m) into `out` (piecewise blobs only).
     pub fn copy_centroids(&self, z: usize, out: &mut [f32]) {
         let km = self.lay.clusters * self.dims.m;
-        assert!(z < self.dims.zones && out.len() == km && self.lay.out_of_prior - self.lay.centroids == 4 * self.dims.zones * km);
+        assert!(
+            z < self.dims.zones
+                && out.len() == km
+                && self.lay.out_of_prior - self.lay.centroids == 4 * self.dims.zones * km
+        );
         for (k, o) in out.iter_mut().enumerate() {
             *o = get_f32(self.bytes, self.lay.centroids + 4 * (z * km + k));
         }
@@ -980,10 +1010,7 @@ mod tests {
         let mut buf = vec![0u8; o.dims.blob_len()];
         assert_eq!(write_blob(&c, &mut buf), Err(BlobError::ContentMismatch { section: Section::Matrices }));
         let mut small = vec![0u8; 10];
-        assert_eq!(
-            write_blob(&contents(&o), &mut small),
-            Err(BlobError::BufferTooSmall { need: o.dims.blob_len() })
-        );
+        assert_eq!(write_blob(&contents(&o), &mut small), Err(BlobError::BufferTooSmall { need: o.dims.blob_len() }));
     }
 
     #[test]
@@ -1015,7 +1042,11 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let ex = BlobExtras { clusters: 3, centroids: &cents, out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }) };
+        let ex = BlobExtras {
+            clusters: 3,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }),
+        };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
         let v = BlobView::parse(&buf).unwrap();
@@ -1072,12 +1103,23 @@ mod tests {
         // The threshold must be positive.
         let oop = vec![0.5; 2 * out_of_prior_len(4)];
         let c = contents(&o);
-        let ex = BlobExtras { clusters: 1, centroids: &[], out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }) };
+        let ex = BlobExtras {
+            clusters: 1,
+            centroids: &[],
+            out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }),
+        };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
             Err(BlobError::OutOfRange { section: Section::OutOfPrior, index: 0 })
         );
-        let ex = BlobExtras { clusters: 1, centroids: &[], out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }) };
-        assert_eq!(write_blob_with(&c, &ex, &mut out), Err(BlobError::ContentMismatch { section: Section::OutOfPrior }));
+        let ex = BlobExtras {
+            clusters: 1,
+            centroids: &[],
+            out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }),
+        };
+        assert_eq!(
+            write_blob_with(&c, &ex, &mut out),
+            Err(BlobError::ContentMismatch { section: Section::OutOfPrior })
+        );
     }
 }

@@ -95,7 +95,9 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// Whether `view` was made for this build (n, m, P).
     pub fn check(view: &BlobView<'_>) -> Result<(), DeviceError> {
         let d = view.dims();
-        for (field, device, blob) in [(SizeField::Bins, N, d.n), (SizeField::Leds, M, d.m), (SizeField::Pixels, P, d.pixels)] {
+        for (field, device, blob) in
+            [(SizeField::Bins, N, d.n), (SizeField::Leds, M, d.m), (SizeField::Pixels, P, d.pixels)]
+        {
             if device != blob {
                 return Err(DeviceError::Mismatch { field, device: device as u16, blob: blob.min(65535) as u16 });
             }

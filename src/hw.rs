@@ -78,8 +78,13 @@ pub enum FrameLoadError {
 pub trait FrameInput {
     /// Stores `pixels` (u16 values) at `first_pixel..` of frame `frame`
     /// (0 = dark, 1 + LED index) of frame line `line`.
-    fn load(&mut self, line: u8, frame: u8, first_pixel: u16, pixels: impl Iterator<Item = u16>)
-    -> Result<(), FrameLoadError>;
+    fn load(
+        &mut self,
+        line: u8,
+        frame: u8,
+        first_pixel: u16,
+        pixels: impl Iterator<Item = u16>,
+    ) -> Result<(), FrameLoadError>;
     /// Sets how many scene lines the sensor cycles through.
     fn set_lines(&mut self, lines: u8) -> Result<(), FrameLoadError>;
     /// Whether this device's sensor is simulated.

@@ -45,7 +45,9 @@ pub mod board {
     pub const RAM_LEN: u32 = 96 * 1024;
 
     const _: () = assert!(SLOT_B + SLOT_LEN <= super::FLASH_BASE + super::FLASH_SIZE);
-    const _: () = assert!((SLOT_LEN as usize).is_multiple_of(super::FLASH_PAGE) && (SLOT_A as usize).is_multiple_of(super::FLASH_PAGE));
+    const _: () = assert!(
+        (SLOT_LEN as usize).is_multiple_of(super::FLASH_PAGE) && (SLOT_A as usize).is_multiple_of(super::FLASH_PAGE)
+    );
 }
 
 /// The QEMU firmware and the host simulation of it (same sizes, so the tests

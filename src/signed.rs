@@ -69,14 +69,10 @@ pub enum SignatureFault {
 impl fmt::Display for SignatureFault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Self::Unsigned => {
-                "the calibration is not signed (sign it with `host-tools sign` or `train --sign`)"
-            }
+            Self::Unsigned => "the calibration is not signed (sign it with `host-tools sign` or `train --sign`)",
             Self::BadTrailer => "the signature trailer is malformed",
             Self::UnknownKey => "the calibration is signed by a key this firmware does not trust",
-            Self::BadSignature => {
-                "the signature does not verify (the blob or its signature was changed)"
-            }
+            Self::BadSignature => "the signature does not verify (the blob or its signature was changed)",
         })
     }
 }
@@ -121,9 +117,7 @@ pub fn split(image: &[u8]) -> Result<(&[u8], Trailer), SignatureFault> {
     if t[0..4] != TRAILER_MAGIC {
         return Err(SignatureFault::Unsigned);
     }
-    if u16::from_le_bytes([t[4], t[5]]) != TRAILER_VERSION
-        || u16::from_le_bytes([t[6], t[7]]) as usize != TRAILER_LEN
-    {
+    if u16::from_le_bytes([t[4], t[5]]) != TRAILER_VERSION || u16::from_le_bytes([t[6], t[7]]) as usize != TRAILER_LEN {
         return Err(SignatureFault::BadTrailer);
     }
     let mut key_id = [0u8; 8];
@@ -142,18 +136,12 @@ pub fn verify<'a>(image: &'a [u8], trusted: &[PublicKeyBytes]) -> Result<&'a [u8
         known = true;
         // A trusted key that is not a curve point verifies nothing.
         if let Ok(key) = salty::PublicKey::try_from(pk)
-            && key
-                .verify(blob, &salty::Signature::from(&t.signature))
-                .is_ok()
+            && key.verify(blob, &salty::Signature::from(&t.signature)).is_ok()
         {
             return Ok(blob);
         }
     }
-    Err(if known {
-        SignatureFault::BadSignature
-    } else {
-        SignatureFault::UnknownKey
-    })
+    Err(if known { SignatureFault::BadSignature } else { SignatureFault::UnknownKey })
 }
 
 /// The public key of the secret seed `seed`.
@@ -166,10 +154,7 @@ pub fn public_key(seed: &[u8; 32]) -> PublicKeyBytes {
 pub fn sign(blob: &[u8], seed: &[u8; 32]) -> [u8; TRAILER_LEN] {
     let kp = salty::Keypair::from(seed);
     let signature = kp.sign(blob).to_bytes();
-    encode_trailer(&Trailer {
-        key_id: key_id(&kp.public.to_bytes()),
-        signature,
-    })
+    encode_trailer(&Trailer { key_id: key_id(&kp.public.to_bytes()), signature })
 }
 
 #[cfg(test)]
@@ -197,20 +182,12 @@ mod tests {
         for at in [0, 20, blob.len() - 1] {
             let mut t = image.clone();
             t[at] ^= 1;
-            assert_eq!(
-                verify(&t, &keys),
-                Err(SignatureFault::BadSignature),
-                "blob byte {at}"
-            );
+            assert_eq!(verify(&t, &keys), Err(SignatureFault::BadSignature), "blob byte {at}");
         }
         for at in [blob.len() + 16, blob.len() + 50, image.len() - 1] {
             let mut t = image.clone();
             t[at] ^= 0x80;
-            assert_eq!(
-                verify(&t, &keys),
-                Err(SignatureFault::BadSignature),
-                "signature byte {at}"
-            );
+            assert_eq!(verify(&t, &keys), Err(SignatureFault::BadSignature), "signature byte {at}");
         }
         let mut t = image.clone();
         t[blob.len() + 4] = 2;
@@ -235,16 +212,9 @@ mod tests {
         }
         let pk = dev_public_key();
         let mut image = b"abc".to_vec();
-        image.extend_from_slice(&encode_trailer(&Trailer {
-            key_id: key_id(&pk),
-            signature: s,
-        }));
+        image.extend_from_slice(&encode_trailer(&Trailer { key_id: key_id(&pk), signature: s }));
         assert_eq!(verify(&image, &[pk]), Ok(&b"abc"[..]));
-        assert_eq!(
-            sign(b"abc", &DEV_SECRET)[16..],
-            s[..],
-            "Ed25519 is deterministic"
-        );
+        assert_eq!(sign(b"abc", &DEV_SECRET)[16..], s[..], "Ed25519 is deterministic");
     }
 
     #[test]
@@ -253,15 +223,9 @@ mod tests {
         if option_env!("BRDF_TRUSTED_KEYS").is_none() {
             assert_eq!(TRUSTED_KEYS, &[dev_public_key()]);
         }
-        assert_eq!(
-            TRUSTED_KEYS.contains(&dev_public_key()),
-            TRUSTS_DEVELOPMENT_KEY
-        );
+        assert_eq!(TRUSTED_KEYS.contains(&dev_public_key()), TRUSTS_DEVELOPMENT_KEY);
         for pk in TRUSTED_KEYS {
-            assert!(
-                salty::PublicKey::try_from(pk).is_ok(),
-                "a trusted key is not a curve point"
-            );
+            assert!(salty::PublicKey::try_from(pk).is_ok(), "a trusted key is not a curve point");
         }
     }
 }

@@ -491,8 +491,14 @@ mod tests {
         assert_eq!(st.write_chunk(0, &a[..8]), Err(Error::Refused(DeviceError::NotProvisioning)));
         st.begin(a.len() as u32, CRC32.checksum(&a)).unwrap();
         st.write_chunk(0, &a[..10]).unwrap();
-        assert_eq!(st.write_chunk(20, &a[20..30]), Err(Error::Refused(DeviceError::OutOfOrder { expected: 10, got: 20 })));
-        assert!(matches!(st.write_chunk(10, &vec![0; a.len()]), Err(Error::Refused(DeviceError::ChunkTooLarge { .. }))));
+        assert_eq!(
+            st.write_chunk(20, &a[20..30]),
+            Err(Error::Refused(DeviceError::OutOfOrder { expected: 10, got: 20 }))
+        );
+        assert!(matches!(
+            st.write_chunk(10, &vec![0; a.len()]),
+            Err(Error::Refused(DeviceError::ChunkTooLarge { .. }))
+        ));
         assert!(matches!(st.commit(|_| Ok(())), Err(Error::Refused(DeviceError::Incomplete { received: 10, .. }))));
         assert_eq!(st.begin(5000, 0), Err(Error::Refused(DeviceError::BlobTooLarge { len: 5000, max: 4096 - 32 })));
     }
@@ -509,7 +515,8 @@ mod tests {
         assert_eq!(DeviceError::from(e), DeviceError::Storage);
         // A misaligned write keeps the driver's own kind.
         let mut raw = SimFlash::new(2048);
-        let e: Error = StoreError::Flash(embedded_storage::nor_flash::NorFlash::write(&mut raw, 3, &[0; 8]).unwrap_err());
+        let e: Error =
+            StoreError::Flash(embedded_storage::nor_flash::NorFlash::write(&mut raw, 3, &[0; 8]).unwrap_err());
         assert_eq!(e.flash_kind(), Some(NorFlashErrorKind::NotAligned));
         // A refusal travels as its own reason.
         assert_eq!(DeviceError::from(Error::Refused(DeviceError::NotProvisioning)), DeviceError::NotProvisioning);

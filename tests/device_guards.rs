@@ -3,13 +3,13 @@
 //! ever reaches a streamed frame - including when W itself is so large that
 //! `W v` overflows f32 (policy: the point is zeroed and flagged NON_FINITE,
 //! `brdf_meter::estimate::guard_estimate`).
-use brdf_meter::nalgebra::SVector;
 use brdf_meter::acquire::{MIN_SIGNAL_COUNTS, RawLine, correct_line, correct_point_into};
 use brdf_meter::blob::{BlobView, Dims};
 use brdf_meter::estimate::guard_estimate;
 use brdf_meter::kernel::mat_vec_f32_slice;
-use brdf_meter::protocol::flags;
+use brdf_meter::nalgebra::SVector;
 use brdf_meter::platform::host_sim::SimFlash;
+use brdf_meter::protocol::flags;
 use brdf_meter::test_blobs::{sign_for_tests, test_blob_with};
 use host_tools::device::link::Client;
 use host_tools::device::reference::expected_line;
@@ -145,11 +145,7 @@ fn hostile_blob(huge_zone: usize, tiny_white_px: usize) -> Vec<u8> {
     let mats: Vec<f32> = (0..ZONES * N * M)
         .map(|k| {
             let z = k / (N * M);
-            if z == huge_zone {
-                if k % 2 == 0 { 3.0e38 } else { 2.0e38 }
-            } else {
-                ((k as f32) * 0.731).sin() * 0.5
-            }
+            if z == huge_zone { if k % 2 == 0 { 3.0e38 } else { 2.0e38 } } else { ((k as f32) * 0.731).sin() * 0.5 }
         })
         .collect();
     let order: Vec<u8> = (0..M as u8).collect();
@@ -183,7 +179,11 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
         assert!(p.values.iter().all(|x| x.is_finite()), "point {px} of line {} streamed {:?}", p.line, p.values);
         // The host's reproduction (same correction, kernel and guard) agrees bit for bit.
         let want = &expected_line(&view, &scene[k / P], FULL_SCALE)[px];
-        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "point {px}");
+        assert_eq!(
+            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
+            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            "point {px}"
+        );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "point {px}");

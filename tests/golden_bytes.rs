@@ -124,7 +124,11 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let oop: Vec<f32> = (0..2 * (2 + 3)).map(|i| 0.5 + 0.125 * i as f32).collect();
     let mut c2 = p2.contents();
     c2.estimator = EstimatorKind::ScaleFreePiecewise;
-    let ex = BlobExtras { clusters: k, centroids: &centroids, out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }) };
+    let ex = BlobExtras {
+        clusters: k,
+        centroids: &centroids,
+        out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }),
+    };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
     b2.truncate(n);
@@ -231,8 +235,12 @@ fn encodings_match_the_golden_bytes() {
         eprintln!("regenerated {}", path.display());
         return;
     }
-    let golden = std::fs::read_to_string(&path)
-        .unwrap_or_else(|e| panic!("{}: {e}; generate it with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes", path.display()));
+    let golden = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; generate it with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes",
+            path.display()
+        )
+    });
     let want: Vec<(&str, &str)> = golden.lines().filter_map(|l| l.split_once(": ")).collect();
     let got: Vec<(String, String)> = encodings().into_iter().map(|(n, b)| (n, hex(&b))).collect();
     let names_want: Vec<&str> = want.iter().map(|(n, _)| *n).collect();

@@ -2,11 +2,11 @@
 //! firmware runs, on an embassy executor with mock time, an in-memory NOR
 //! flash and an in-memory link, driven by host-tools' own client.
 use brdf_meter::blob::{BlobView, CRC32};
+use brdf_meter::hw::SensorError;
+use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{
     DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode, flags,
 };
-use brdf_meter::hw::SensorError;
-use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::signed::SignatureFault;
 use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
 use host_tools::device::link::{Client, LinkError, PointRecord, Reply};
@@ -38,7 +38,11 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let line = k / P;
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
-        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "point {k}");
+        assert_eq!(
+            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
+            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            "point {k}"
+        );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "values of point {k} differ");
@@ -186,7 +190,10 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     f[n - 2] = if f[n - 2] == 0x01 { 0x02 } else { 0x01 };
     c.send_raw(&f).unwrap();
     let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
-    assert!(matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))), "{r:?}");
+    assert!(
+        matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))),
+        "{r:?}"
+    );
 
     // Truncated: the last payload bytes lost (COBS still valid).
     let n = encode(78, &Request::Measure { lines: 5 }, &mut frame).unwrap();
@@ -200,7 +207,10 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
     assert_eq!(
         r.reply,
-        Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Truncated { declared: m as u16, got: m as u16 - 3 })))
+        Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Truncated {
+            declared: m as u16,
+            got: m as u16 - 3
+        })))
     );
 
     // Oversized: a flood of non-zero bytes.
@@ -211,7 +221,10 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
 
     // Out of order: chunks, commit and chunk without begin.
     let b = blob(6.0);
-    assert_eq!(device_error(c.request(&Request::ProvisionChunk { offset: 0, data: &b[..64] })), DeviceError::NotProvisioning);
+    assert_eq!(
+        device_error(c.request(&Request::ProvisionChunk { offset: 0, data: &b[..64] })),
+        DeviceError::NotProvisioning
+    );
     assert_eq!(device_error(c.request(&Request::ProvisionCommit)), DeviceError::NotProvisioning);
     c.request(&Request::ProvisionBegin { len: b.len() as u32, crc: CRC32.checksum(&b) }).unwrap();
     c.request(&Request::ProvisionChunk { offset: 0, data: &b[..100] }).unwrap();
@@ -226,7 +239,12 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     // Simulation requests out of range.
     let px = [1u16; 4];
     assert_eq!(
-        device_error(c.request(&Request::SimFrame { line: 99, frame: 0, first_pixel: 0, pixels: LeBytes::from_u16(&px) })),
+        device_error(c.request(&Request::SimFrame {
+            line: 99,
+            frame: 0,
+            first_pixel: 0,
+            pixels: LeBytes::from_u16(&px)
+        })),
         DeviceError::Simulation
     );
     assert_eq!(device_error(c.request(&Request::SimLines { lines: 0 })), DeviceError::Simulation);

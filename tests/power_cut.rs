@@ -4,8 +4,8 @@
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::test_blobs::signed_test_blob as test_blob;
 use brdf_meter::store::Store;
+use brdf_meter::test_blobs::signed_test_blob as test_blob;
 use host_tools::device::link::Client;
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::analytic_scene;
@@ -91,7 +91,8 @@ fn a_cut_provisioning_never_writes_the_active_slot() {
     provision(&mut open(f.clone()), &b).unwrap();
     for op in &f.log()[before..] {
         let at = match *op {
-            brdf_meter::platform::host_sim::FlashOp::Erase(o) | brdf_meter::platform::host_sim::FlashOp::Write(o, _) => o,
+            brdf_meter::platform::host_sim::FlashOp::Erase(o)
+            | brdf_meter::platform::host_sim::FlashOp::Write(o, _) => o,
         };
         assert!(at >= SLOT_LEN, "operation {op:?} touched the active slot A");
     }
@@ -122,7 +123,10 @@ fn after_a_cut_the_application_boots_and_measures_with_the_surviving_calibration
         let pts = c.measure(1).unwrap();
         let want = expected_line(&view, &scene[0], FULL_SCALE);
         for (p, w) in pts.iter().zip(&want) {
-            assert_eq!(p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), w.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+            assert_eq!(
+                p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                w.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+            );
         }
     }
 }

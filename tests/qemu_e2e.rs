@@ -8,9 +8,9 @@ use brdf_meter::protocol::{DeviceError, FrameError, MAX_CHUNK, MAX_FRAME, Reques
 use brdf_meter::signed::SignatureFault;
 use host_tools::calibration::demo::train_for_scene;
 use host_tools::calibration::signing::{sign_blob, sign_with_dev_key};
+use host_tools::device::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::{patent_scene, scene_frames};
-use host_tools::device::link::{Client, LinkError, PointRecord, Reply, TcpTransport};
 use std::time::Duration;
 use system_tests::qemu::start;
 
@@ -25,7 +25,11 @@ fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRec
         let line = k / PIXELS;
         let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
-        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()), "zone/flags of point {k}");
+        assert_eq!(
+            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
+            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            "zone/flags of point {k}"
+        );
         for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {
             assert_eq!(g.to_bits(), w.to_bits(), "point {k} bin {j}: device {g:e}, host {w:e}");
             compared += 1;
@@ -59,7 +63,10 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     let q = start(Duration::from_secs(240));
     let mut c = connect(&q);
     let info = c.info().unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
-    assert_eq!((info.bins as usize, info.leds as usize, info.pixels as usize), (brdf_meter::shape::BINS, brdf_meter::shape::LEDS, PIXELS));
+    assert_eq!(
+        (info.bins as usize, info.leds as usize, info.pixels as usize),
+        (brdf_meter::shape::BINS, brdf_meter::shape::LEDS, PIXELS)
+    );
     assert!(info.simulated && info.calibration.is_none());
 
     let scene = patent_scene(PIXELS);
@@ -126,12 +133,21 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
     // A calibration changed before sending (CRC consistent): its signature
     // no longer verifies; signed after the change, the blob's own CRC
     // catches it.
-    assert_eq!(device_error(c.provision(&bad, |_, _| {})), DeviceError::SignatureRejected(SignatureFault::BadSignature));
+    assert_eq!(
+        device_error(c.provision(&bad, |_, _| {})),
+        DeviceError::SignatureRejected(SignatureFault::BadSignature)
+    );
     let mut corrupt = newer_blob.clone();
     corrupt[newer_blob.len() / 2] ^= 0x01;
-    assert!(matches!(device_error(c.provision(&sign_with_dev_key(&corrupt), |_, _| {})), DeviceError::BlobRejected { .. }));
+    assert!(matches!(
+        device_error(c.provision(&sign_with_dev_key(&corrupt), |_, _| {})),
+        DeviceError::BlobRejected { .. }
+    ));
     // Unsigned, and signed by a key the firmware does not trust.
-    assert_eq!(device_error(c.provision(&newer_blob, |_, _| {})), DeviceError::SignatureRejected(SignatureFault::Unsigned));
+    assert_eq!(
+        device_error(c.provision(&newer_blob, |_, _| {})),
+        DeviceError::SignatureRejected(SignatureFault::Unsigned)
+    );
     assert_eq!(
         device_error(c.provision(&sign_blob(&newer_blob, &[0x5A; 32]), |_, _| {})),
         DeviceError::SignatureRejected(SignatureFault::UnknownKey)
@@ -144,7 +160,10 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
     corrupt[n - 3] = if corrupt[n - 3] == 0x01 { 0x02 } else { 0x01 };
     c.send_raw(&corrupt).unwrap();
     let r = c.next_frame(Duration::from_secs(10)).unwrap();
-    assert!(matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))), "{r:?}");
+    assert!(
+        matches!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::BadCrc | FrameError::Cobs)))),
+        "{r:?}"
+    );
     c.send_raw(&vec![0x11u8; 2 * MAX_FRAME + 7]).unwrap();
     c.send_raw(&[0]).unwrap();
     let r = c.next_frame(Duration::from_secs(10)).unwrap();
@@ -169,8 +188,12 @@ fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() 
 fn qemu_serves_the_same_protocol_over_a_serial_port() {
     // QEMU's serial on a pseudo-terminal, opened with the serialport crate
     // exactly as a real instrument on /dev/ttyACM* is.
-    let q = host_tools::device::link::qemu::QemuInstrument::start_pty(&system_tests::qemu::firmware(), Duration::from_secs(240), &[])
-        .unwrap();
+    let q = host_tools::device::link::qemu::QemuInstrument::start_pty(
+        &system_tests::qemu::firmware(),
+        Duration::from_secs(240),
+        &[],
+    )
+    .unwrap();
     let mut c = q.connect_serial().unwrap();
     c.timeout = Duration::from_secs(20);
     assert!(q.addr.starts_with("/dev/pts/"), "{}", q.addr);

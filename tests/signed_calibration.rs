@@ -36,7 +36,10 @@ fn measures_with(c: &mut Client<SimDevice>, blob: &[u8]) {
     let want = expected_line(&view, &scene[0], FULL_SCALE);
     assert_eq!(pts.len(), P);
     for (p, w) in pts.iter().zip(&want) {
-        assert_eq!((p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()), (w.zone, w.cluster, w.flags, w.sigma_scale.to_bits()));
+        assert_eq!(
+            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
+            (w.zone, w.cluster, w.flags, w.sigma_scale.to_bits())
+        );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = w.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp);
@@ -51,10 +54,7 @@ fn tampered_with_crc_fixed(blob: &[u8]) -> Vec<u8> {
     t[crc_at / 2] ^= 0x10;
     let crc = CRC32.checksum(&t[..crc_at]);
     t[crc_at..].copy_from_slice(&crc.to_le_bytes());
-    assert!(
-        BlobView::parse(&t).is_ok(),
-        "the tampered blob is itself valid"
-    );
+    assert!(BlobView::parse(&t).is_ok(), "the tampered blob is itself valid");
     t
 }
 
@@ -89,10 +89,7 @@ fn unsigned_tampered_and_foreign_calibrations_are_refused_and_the_previous_keeps
         (bad_trailer, SignatureFault::BadTrailer),
     ];
     for (image, fault) in &cases {
-        assert_eq!(
-            device_error(c.provision(image, |_, _| {})),
-            DeviceError::SignatureRejected(*fault)
-        );
+        assert_eq!(device_error(c.provision(image, |_, _| {})), DeviceError::SignatureRejected(*fault));
         assert_eq!(c.info().unwrap().calibration, Some(cal), "{fault:?}");
         measures_with(&mut c, &good);
     }
@@ -107,10 +104,7 @@ fn unsigned_tampered_and_foreign_calibrations_are_refused_and_the_previous_keeps
     // And a correctly signed newer one is accepted.
     let signed = sign_for_tests(&newer);
     let cal2 = c.provision(&signed, |_, _| {}).unwrap();
-    assert_eq!(
-        (cal2.slot, cal2.blob_crc),
-        (1 - cal.slot, BlobView::parse(&newer).unwrap().crc())
-    );
+    assert_eq!((cal2.slot, cal2.blob_crc), (1 - cal.slot, BlobView::parse(&newer).unwrap().crc()));
     measures_with(&mut c, &signed);
 }
 
@@ -130,19 +124,12 @@ fn boot_passes_over_a_newer_slot_with_a_foreign_signature() {
     assert_eq!(foreign.len(), newer.len() + TRAILER_LEN);
     let mut image = encode_slot_header(2, foreign.len() as u32, CRC32.checksum(&foreign)).to_vec();
     image.extend_from_slice(&foreign);
-    image.resize(
-        image.len().next_multiple_of(brdf_meter::shape::FLASH_WRITE),
-        0xFF,
-    );
+    image.resize(image.len().next_multiple_of(brdf_meter::shape::FLASH_WRITE), 0xFF);
     assert!(image.len() - SLOT_HEADER_LEN <= SLOT_LEN as usize);
     let mut raw = flash.reboot();
     raw.erase(SLOT_LEN, 2 * SLOT_LEN).unwrap();
     raw.write(SLOT_LEN, &image).unwrap();
     let mut c = Client::new(SimDevice::boot(raw.reboot(), ZONES)).unwrap();
-    assert_eq!(
-        c.info().unwrap().calibration,
-        Some(cal),
-        "the foreign-signed slot B must not be activated"
-    );
+    assert_eq!(c.info().unwrap().calibration, Some(cal), "the foreign-signed slot B must not be activated");
     measures_with(&mut c, &good);
 }

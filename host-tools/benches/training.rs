@@ -4,9 +4,9 @@
 use brdf_meter::blob::EstimatorKind;
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibration::estimators::{self, EstimatorInputs, NoiseModel};
+use host_tools::calibration::train::{TrainSpec, train};
 use host_tools::forward::optics::{Instrument, system_matrix};
 use host_tools::forward::prior::PriorSpec;
-use host_tools::calibration::train::{TrainSpec, train};
 use host_tools::forward::zone_optics::uniform_zones;
 use std::hint::black_box;
 use std::path::Path;

@@ -9,9 +9,9 @@
 //! `output::config` are leaves any layer may use; `output::plot` draws the
 //! forward model's and evaluation's results for the CLI.
 
-pub mod forward; // the forward model: BRDFs, angle grid, optics, priors, per-zone optics, scenes
 pub mod calibration; // estimators and training: H + prior + noise -> W per zone -> blob
+pub mod cli;
 pub mod device; // link, provisioning (USB, SWD), memory map, reference computation, firmware budget
 pub mod evaluation; // accuracy and cost: fitting, reproduce, tradeoff, stability, one timing harness
-pub mod output; // atomic file writes, plots, TOML/CSV description parsing
-pub mod cli; // one file per subcommand: parse arguments, call the library
+pub mod forward; // the forward model: BRDFs, angle grid, optics, priors, per-zone optics, scenes
+pub mod output; // atomic file writes, plots, TOML/CSV description parsing // one file per subcommand: parse arguments, call the library

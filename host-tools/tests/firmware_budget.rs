@@ -21,7 +21,10 @@ fn build_board_fw(root: &Path) -> PathBuf {
         .env_remove("CARGO_BUILD_TARGET")
         .status()
         .expect("running cargo to build board-fw");
-    assert!(status.success(), "board-fw does not build ({status}); is the target installed? (scripts/install-test-deps.sh)");
+    assert!(
+        status.success(),
+        "board-fw does not build ({status}); is the target installed? (scripts/install-test-deps.sh)"
+    );
     let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
     target_dir.join("thumbv7em-none-eabihf/release/board-fw")
 }

@@ -14,14 +14,14 @@
 //! stability --cases 10000 --json out/stability.json`.
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use host_tools::calibration::estimators::{self, EstimatorInputs, NoiseModel};
-use host_tools::forward::grid::AngleGrid;
-use host_tools::forward::optics::Instrument;
-use host_tools::forward::prior::{Prior, PriorSpec};
+use host_tools::calibration::train::{F32_TOLERANCE, TrainSpec, f32_gate, train};
 use host_tools::evaluation::stability::solvers::{
     ExplicitInverse, F32Only, FixedFloor, IgnoresNoise, Solver, TruncateThenWhiten, bf16_kernel,
 };
 use host_tools::evaluation::stability::{CaseReport, Family, Production, check_case, device_kernel, generate};
-use host_tools::calibration::train::{F32_TOLERANCE, TrainSpec, f32_gate, train};
+use host_tools::forward::grid::AngleGrid;
+use host_tools::forward::optics::Instrument;
+use host_tools::forward::prior::{Prior, PriorSpec};
 use host_tools::forward::zone_optics::{ZoneOptics, uniform_zones};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
@@ -71,7 +71,13 @@ family_property!(sensor_gains_1e_6_to_1e6_stay_stable, Family::Gain, 9);
 
 /// How many of `seeds` cases of `family` fail the invariant tagged `tag`
 /// (e.g. "I5") for `solver` and `kernel`.
-fn failures(solver: &dyn Solver, kernel: host_tools::evaluation::stability::DeviceKernel, family: Family, seeds: std::ops::Range<u64>, tag: &str) -> usize {
+fn failures(
+    solver: &dyn Solver,
+    kernel: host_tools::evaluation::stability::DeviceKernel,
+    family: Family,
+    seeds: std::ops::Range<u64>,
+    tag: &str,
+) -> usize {
     seeds
         .map(|s| check_case(&generate(family, s), solver, kernel))
         .filter(|r| r.failures.iter().any(|f| f.starts_with(tag)))
@@ -195,8 +201,24 @@ fn patent_prior(grid: &AngleGrid) -> Prior {
     PriorSpec::patent().build(grid, 45.0, Path::new(".")).unwrap()
 }
 
-fn spec<'a>(prior: &'a Prior, bins: &'a [f64], zones: Vec<ZoneOptics>, noise: f64, kind: EstimatorKind) -> TrainSpec<'a> {
-    TrainSpec { bins_deg: bins, zones, pixels: 16, prior, noise_rel: noise, estimator: kind, far_field: false, led_order: None, white: None }
+fn spec<'a>(
+    prior: &'a Prior,
+    bins: &'a [f64],
+    zones: Vec<ZoneOptics>,
+    noise: f64,
+    kind: EstimatorKind,
+) -> TrainSpec<'a> {
+    TrainSpec {
+        bins_deg: bins,
+        zones,
+        pixels: 16,
+        prior,
+        noise_rel: noise,
+        estimator: kind,
+        far_field: false,
+        led_order: None,
+        white: None,
+    }
 }
 
 #[test]
@@ -299,7 +321,8 @@ fn scene_library_hard_cases_stay_stable() {
         eprintln!("no {} yet: skipped", dir.display());
         return;
     };
-    let mut paths: Vec<_> = entries.map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
+    let mut paths: Vec<_> =
+        entries.map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
     paths.sort();
     assert!(!paths.is_empty());
     for path in paths {

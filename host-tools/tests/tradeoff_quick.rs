@@ -23,13 +23,26 @@ fn tradeoff_quick_runs_and_is_sane() {
     let svg = std::fs::read_to_string(dir.path().join("tradeoff.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("Pareto front"));
 
-    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("tradeoff.json")).unwrap()).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("tradeoff.json")).unwrap()).unwrap();
     let rows = j["rows"].as_array().unwrap();
     let row = |id: &str| rows.iter().find(|r| r["id"] == id).unwrap_or_else(|| panic!("row {id} missing"));
     for id in [
-        "interpolation", "pseudo-inverse", "wiener-patent16", "wiener-dense", "wiener-wrong-range", "wiener-ggx",
-        "fit-cond1", "fit-cond2", "fit-cond2-more", "clustered-k1", "clustered-k4", "clustered-k8",
-        "log-wiener-dense", "wiener-patent16-q15", "wiener-dense-q15",
+        "interpolation",
+        "pseudo-inverse",
+        "wiener-patent16",
+        "wiener-dense",
+        "wiener-wrong-range",
+        "wiener-ggx",
+        "fit-cond1",
+        "fit-cond2",
+        "fit-cond2-more",
+        "clustered-k1",
+        "clustered-k4",
+        "clustered-k8",
+        "log-wiener-dense",
+        "wiener-patent16-q15",
+        "wiener-dense-q15",
     ] {
         let r = row(id);
         for key in ["rmse", "nrmse", "max_abs_error", "host_seconds_per_point"] {

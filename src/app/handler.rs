@@ -3,7 +3,7 @@
 //! the acquisition task.
 use super::{Job, Shared};
 use crate::estimate::Calibration;
-use crate::hw::{MappedFlash, FrameLoadError, FrameInput};
+use crate::hw::{FrameInput, FrameLoadError, MappedFlash};
 use crate::protocol::{DeviceError, DeviceInfo, MAX_CHUNK, PROTOCOL_VERSION, Request, Response};
 use core::sync::atomic::Ordering;
 
@@ -37,16 +37,20 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     .begin(len, crc)
                     .map(|slot| Response::ProvisionReady { slot, max_chunk: MAX_CHUNK as u16 })
                     .map_err(DeviceError::from),
-                Request::ProvisionChunk { offset, data } => {
-                    c.store.write_chunk(offset, data).map(|next_offset| Response::ChunkAck { next_offset }).map_err(DeviceError::from)
+                Request::ProvisionChunk { offset, data } => c
+                    .store
+                    .write_chunk(offset, data)
+                    .map(|next_offset| Response::ChunkAck { next_offset })
+                    .map_err(DeviceError::from),
+                Request::ProvisionCommit => {
+                    c.store.commit(|v| Calibration::<N, M, P>::check(v)).map_err(DeviceError::from).and_then(|_| {
+                        let (info, view) = c.store.active_blob().ok_or(DeviceError::Storage)?;
+                        c.cal.load(&view, info)?;
+                        let cal = c.cal.active().map(|a| a.info).ok_or(DeviceError::Storage)?;
+                        c.status.calibration = Some(cal);
+                        Ok(Response::Committed(cal))
+                    })
                 }
-                Request::ProvisionCommit => c.store.commit(|v| Calibration::<N, M, P>::check(v)).map_err(DeviceError::from).and_then(|_| {
-                    let (info, view) = c.store.active_blob().ok_or(DeviceError::Storage)?;
-                    c.cal.load(&view, info)?;
-                    let cal = c.cal.active().map(|a| a.info).ok_or(DeviceError::Storage)?;
-                    c.status.calibration = Some(cal);
-                    Ok(Response::Committed(cal))
-                }),
                 Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted).map_err(DeviceError::from),
                 Request::Measure { .. } if measuring => Err(DeviceError::Busy),
                 Request::Measure { .. } if c.cal.active().is_none() => Err(DeviceError::NoCalibration),
@@ -64,7 +68,10 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     if !pixels.is_whole(2) {
                         Err(DeviceError::Simulation)
                     } else {
-                        scene.load(line, frame, first_pixel, pixels.u16s()).map(|_| Response::SimLoaded).map_err(sim_err)
+                        scene
+                            .load(line, frame, first_pixel, pixels.u16s())
+                            .map(|_| Response::SimLoaded)
+                            .map_err(sim_err)
                     }
                 }
                 Request::SimLines { lines } => scene.set_lines(lines).map(|_| Response::SimLoaded).map_err(sim_err),

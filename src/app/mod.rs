@@ -24,7 +24,6 @@ pub use tasks::{acquisition, estimation, transport};
 
 use crate::acquire::{AcqConfig, RawLine};
 use crate::estimate::{Calibration, ZoneMatrix};
-use nalgebra::SVector;
 use crate::hw::MappedFlash;
 use crate::protocol::{DeviceStatus, MAX_FRAME};
 use crate::store::Store;
@@ -34,6 +33,7 @@ use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
+use nalgebra::SVector;
 
 /// An encoded frame on its way to the host.
 pub type OutFrame = heapless::Vec<u8, MAX_FRAME>;
@@ -90,7 +90,12 @@ pub struct LineBuf<const M: usize, const P: usize> {
 impl<const M: usize, const P: usize> LineBuf<M, P> {
     /// An empty buffer.
     pub const fn new() -> Self {
-        Self { state: LineState::Empty, raw: RawLine::new(), v: [SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])); P], flags: [0; P] }
+        Self {
+            state: LineState::Empty,
+            raw: RawLine::new(),
+            v: [SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])); P],
+            flags: [0; P],
+        }
     }
 }
 
@@ -141,7 +146,8 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         full_scale: u16,
         simulated: bool,
     ) -> Self {
-        let store = Store::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| Calibration::<N, M, P>::check(v).is_ok());
+        let store =
+            Store::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| Calibration::<N, M, P>::check(v).is_ok());
         let mut cal = Calibration::new(ram);
         if let Some((info, view)) = store.active_blob() {
             // Checked by `open`'s filter; a failure here would leave no

@@ -1,9 +1,8 @@
 //! The bodies of the three tasks. Each platform wraps them in
 //! `#[embassy_executor::task]` functions with its concrete types.
-use super::{Job, LineBuf, OutFrame, Shared, LineState};
+use super::{Job, LineBuf, LineState, OutFrame, Shared};
 use crate::acquire::{acquire_line, correct_line};
-use nalgebra::SVector;
-use crate::hw::{Leds, LineSensor, MappedFlash, FrameInput};
+use crate::hw::{FrameInput, Leds, LineSensor, MappedFlash};
 use crate::protocol::{
     self, DeviceError, FrameReader, LeBytes, MAX_FRAME, MAX_WIRE_BINS, PointFrame, Pushed, Request, Response, flags,
 };
@@ -11,6 +10,7 @@ use core::sync::atomic::Ordering;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Receiver, Sender};
 use embedded_io_async::{Read, Write};
+use nalgebra::SVector;
 
 /// Encodes a frame for the writer.
 fn frame(seq: u32, r: &Response<'_>) -> OutFrame {

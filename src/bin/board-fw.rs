@@ -19,8 +19,8 @@ use embassy_executor::Spawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
 use embassy_time::{Instant, Timer};
-use panic_probe as _;
 use nalgebra::SMatrix;
+use panic_probe as _;
 use static_cell::StaticCell;
 
 use board::flash::CalFlash;

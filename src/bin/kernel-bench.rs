@@ -91,7 +91,11 @@ pub fn kernel_bench_quantise_v(v: &[f32; M], vq: &mut [u32; kernel::q15_v_words(
 
 #[inline(never)]
 #[unsafe(no_mangle)]
-pub fn kernel_bench_q15(w: &[u32; kernel::q15_w_words(N, M)], vq: &[u32; kernel::q15_v_words(M)], acc: &mut [i32; kernel::q15_acc_len(N)]) {
+pub fn kernel_bench_q15(
+    w: &[u32; kernel::q15_w_words(N, M)],
+    vq: &[u32; kernel::q15_v_words(M)],
+    acc: &mut [i32; kernel::q15_acc_len(N)],
+) {
     kernel::mat_vec_q15(w, vq, M, acc);
 }
 
@@ -134,7 +138,12 @@ static mut CENTROIDS: [f32; KMAX * M] = [0.0; KMAX * M];
 fn main() -> ! {
     // SAFETY: single-threaded firmware, no interrupts use these statics.
     let (w, wq, inv, cents) = unsafe {
-        (&mut *core::ptr::addr_of_mut!(W), &mut *core::ptr::addr_of_mut!(WQ), &mut *core::ptr::addr_of_mut!(INV), &mut *core::ptr::addr_of_mut!(CENTROIDS))
+        (
+            &mut *core::ptr::addr_of_mut!(W),
+            &mut *core::ptr::addr_of_mut!(WQ),
+            &mut *core::ptr::addr_of_mut!(INV),
+            &mut *core::ptr::addr_of_mut!(CENTROIDS),
+        )
     };
     let mut rng = Lcg(12345);
     // Column-major: W's rows in turn, as the blob stores them.

@@ -17,11 +17,11 @@ use core::fmt::Write as _;
 use embassy_executor::Executor;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
+use nalgebra::SMatrix;
 use qemu::flash::{Memory, RamFlash};
 use qemu::leds::GpioLeds;
 use qemu::sensor::{FrameSensor, Frames, FramesIn};
 use qemu::usart::{UsartRx, UsartTx};
-use nalgebra::SMatrix;
 use static_cell::StaticCell;
 
 const N: usize = shape::BINS;
@@ -70,8 +70,7 @@ fn main() -> ! {
     qemu::time_driver::init(cp.SYST);
     let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
     let flash = qemu::flash::take(&FLASH_MEM);
-    let shared: &'static QemuShared =
-        SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true));
+    let shared: &'static QemuShared = SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true));
     let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
     let (lines_tx, lines_rx) = channel.split();
     let (rx, tx) = qemu::usart::init();

@@ -43,10 +43,7 @@ fn unhex(s: &str) -> [u8; 64] {
 /// `msg` followed by the development key's trailer with `sig`, into `out`.
 fn image<'a>(out: &'a mut [u8], msg_len: usize, sig: &str) -> &'a [u8] {
     let pk = signed::TRUSTED_KEYS[0];
-    let t = signed::encode_trailer(&Trailer {
-        key_id: signed::key_id(&pk),
-        signature: unhex(sig),
-    });
+    let t = signed::encode_trailer(&Trailer { key_id: signed::key_id(&pk), signature: unhex(sig) });
     out[msg_len..msg_len + TRAILER_LEN].copy_from_slice(&t);
     &out[..msg_len + TRAILER_LEN]
 }
@@ -74,11 +71,7 @@ fn main() -> ! {
 
     buf[100] ^= 1;
     let ok3 = signed::verify(&buf[..LONG + TRAILER_LEN], keys) == Err(SignatureFault::BadSignature);
-    debug::exit(if ok1 && ok2 && ok3 {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
+    debug::exit(if ok1 && ok2 && ok3 { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
     halt()
 }
 

@@ -1,6 +1,5 @@
 //! Piecewise (clustered) estimation: which of K matrices a point uses.
 
-
 /// The clustered estimator's selection rule: the index of the centroid
 /// nearest (squared Euclidean distance, first one on ties) to the readings
 /// normalised by their sum, `u = v / sum_i |v_i|` (all-zero readings stay 0).

@@ -179,7 +179,7 @@ mod arm_f32 {
                 "3:",
                 "vmov s8, r3",
                 "vldmia r0!, {{s16-s22}}",
-                "vmla.f32 s8, s16, s0", "vmla.f32 s8, s17, s1", "vmla.f32 s8, s18, s2", "vmla.f32 s8, s19, s3", "vmla.f32 s8, s20, s4", "vmla.f32 s8, s21, s5", "vmla.f32 s8, s22, s6", 
+                "vmla.f32 s8, s16, s0", "vmla.f32 s8, s17, s1", "vmla.f32 s8, s18, s2", "vmla.f32 s8, s19, s3", "vmla.f32 s8, s20, s4", "vmla.f32 s8, s21, s5", "vmla.f32 s8, s22, s6",
                 "vstmia r1!, {{s8}}",
                 "subs r2, r2, #1",
                 "bne 3b",

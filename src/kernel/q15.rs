@@ -348,7 +348,8 @@ mod tests {
             quantise_w_q15(&w, n, m, &mut pw, &mut inv);
             let mut pv = std::vec![0u32; q15_v_words(m)];
             let k = quantise_v_q15(&v, &mut pv);
-            let vq: std::vec::Vec<i64> = (0..m).map(|i| if i % 2 == 0 { lo(pv[i / 2]) } else { hi(pv[i / 2]) } as i64).collect();
+            let vq: std::vec::Vec<i64> =
+                (0..m).map(|i| if i % 2 == 0 { lo(pv[i / 2]) } else { hi(pv[i / 2]) } as i64).collect();
             let wq = unpack_w(&pw, n, m);
             let mut acc = std::vec![0i32; q15_acc_len(n)];
             mat_vec_q15(&pw, &pv, m, &mut acc);
@@ -407,7 +408,8 @@ mod tests {
         let (n, m) = (81, 7);
         for trial in 0..200 {
             // Wiener-like rows: mixed signs, a few large coefficients.
-            let w: std::vec::Vec<f32> = (0..n * m).map(|_| lcg(&mut seed) * if trial % 3 == 0 { 500.0 } else { 3.0 }).collect();
+            let w: std::vec::Vec<f32> =
+                (0..n * m).map(|_| lcg(&mut seed) * if trial % 3 == 0 { 500.0 } else { 3.0 }).collect();
             let scale = if trial % 2 == 0 { 1.0 } else { 1e-3 };
             let v: std::vec::Vec<f32> = (0..m).map(|_| (lcg(&mut seed).abs() + 0.01) * 200.0 * scale).collect();
             let mut pw = std::vec![0u32; q15_w_words(n, m)];

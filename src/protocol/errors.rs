@@ -214,7 +214,9 @@ impl core::fmt::Display for DeviceError {
             Self::Storage => write!(f, "flash error; the previous calibration is kept"),
             Self::Sensor(e) => write!(f, "sensor error: {e:?}"),
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
-            Self::SignatureRejected(e) => write!(f, "the device refused the calibration's signature: {e}; the previous calibration is kept"),
+            Self::SignatureRejected(e) => {
+                write!(f, "the device refused the calibration's signature: {e}; the previous calibration is kept")
+            }
         }
     }
 }

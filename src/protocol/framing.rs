@@ -13,9 +13,8 @@ pub(crate) const CRC_LEN: usize = 4;
 /// (COBS + delimiter); returns the frame length.
 pub fn encode<T: Serialize>(seq: u32, msg: &T, out: &mut [u8]) -> Result<usize, FrameError> {
     let mut raw = [0u8; MAX_PAYLOAD];
-    let body_len = postcard::to_slice(msg, &mut raw[HEADER..MAX_PAYLOAD - CRC_LEN])
-        .map_err(|_| FrameError::TooLarge)?
-        .len();
+    let body_len =
+        postcard::to_slice(msg, &mut raw[HEADER..MAX_PAYLOAD - CRC_LEN]).map_err(|_| FrameError::TooLarge)?.len();
     let len = HEADER + body_len + CRC_LEN;
     raw[0..2].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
     raw[2..4].copy_from_slice(&(len as u16).to_le_bytes());

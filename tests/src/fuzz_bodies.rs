@@ -121,7 +121,8 @@ impl Transport for Chunked<'_> {
         }
         // Chunks of 1 to 256 bytes as the input says (each read costs the
         // client a 4 KiB buffer, so a whole stream byte by byte is slow).
-        let want = if self.sizes.is_empty() { self.rest.len() } else { 1 + self.sizes[self.k % self.sizes.len()] as usize };
+        let want =
+            if self.sizes.is_empty() { self.rest.len() } else { 1 + self.sizes[self.k % self.sizes.len()] as usize };
         self.k += 1;
         let n = want.min(buf.len()).min(self.rest.len());
         buf[..n].copy_from_slice(&self.rest[..n]);
@@ -182,11 +183,14 @@ pub fn frame_reader(data: &[u8]) {
 pub fn blob_parse(data: &[u8]) {
     // Twice: at the fuzzer's (any) alignment, and 4-byte aligned as in flash,
     // where matrices are read in place.
-    let aligned: Vec<u32> = data.chunks(4).map(|c| {
-        let mut w = [0u8; 4];
-        w[..c.len()].copy_from_slice(c);
-        u32::from_ne_bytes(w)
-    }).collect();
+    let aligned: Vec<u32> = data
+        .chunks(4)
+        .map(|c| {
+            let mut w = [0u8; 4];
+            w[..c.len()].copy_from_slice(c);
+            u32::from_ne_bytes(w)
+        })
+        .collect();
     let aligned_bytes: &[u8] = &bytemuck_bytes(&aligned)[..data.len()];
     for bytes in [data, aligned_bytes] {
         let Ok(v) = BlobView::parse(bytes) else { continue };
@@ -358,7 +362,11 @@ pub fn store_ops(data: &[u8]) {
                             found.as_deref() == model.as_deref() || found.as_deref() == Some(new.as_slice()),
                             "after a cut, boot found neither the old nor the new calibration"
                         ),
-                        _ => assert_eq!(found.as_deref(), model.as_deref(), "a cut abandoned provisioning changed the calibration"),
+                        _ => assert_eq!(
+                            found.as_deref(),
+                            model.as_deref(),
+                            "a cut abandoned provisioning changed the calibration"
+                        ),
                     }
                     model = found;
                 } else {
@@ -417,7 +425,8 @@ pub fn prior_file(data: &[u8]) {
     let Some((&kind, rest)) = data.split_first() else { return };
     if kind % 2 == 0 {
         let Ok(text) = std::str::from_utf8(rest) else { return };
-        let _ = host_tools::output::config::parse_toml::<host_tools::forward::prior::PriorSpec>(text, "fuzz-prior.toml");
+        let _ =
+            host_tools::output::config::parse_toml::<host_tools::forward::prior::PriorSpec>(text, "fuzz-prior.toml");
     } else {
         // The CSV reader reads files: one scratch file per process.
         thread_local! {

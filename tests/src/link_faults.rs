@@ -23,9 +23,9 @@ use brdf_meter::estimate::Calibration;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{self, DeviceError, Response};
 use brdf_meter::store::Store;
-use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
-use host_tools::device::reference::expected_line;
 use host_tools::device::link::{Client, LinkError, LinkStats, ProvisionOutcome, Transport};
+use host_tools::device::reference::expected_line;
+use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::{BTreeSet, VecDeque};
@@ -52,8 +52,15 @@ pub struct FaultRates {
 
 impl FaultRates {
     /// About one device frame in twelve and one request in twenty damaged.
-    pub const SOAK: Self =
-        Self { drop_byte: 0.015, dup_byte: 0.015, corrupt_byte: 0.02, drop_frame: 0.01, dup_frame: 0.01, delay: 0.01, request: 0.05 };
+    pub const SOAK: Self = Self {
+        drop_byte: 0.015,
+        dup_byte: 0.015,
+        corrupt_byte: 0.02,
+        drop_frame: 0.01,
+        dup_frame: 0.01,
+        delay: 0.01,
+        request: 0.05,
+    };
 }
 
 /// What can happen to a device frame.
@@ -76,8 +83,15 @@ pub enum Fault {
 }
 
 /// Every kind, for reports.
-pub const FAULTS: [Fault; 7] =
-    [Fault::DropByte, Fault::DupByte, Fault::CorruptByte, Fault::DropFrame, Fault::DupFrame, Fault::Delay, Fault::Disconnect];
+pub const FAULTS: [Fault; 7] = [
+    Fault::DropByte,
+    Fault::DupByte,
+    Fault::CorruptByte,
+    Fault::DropFrame,
+    Fault::DupFrame,
+    Fault::Delay,
+    Fault::Disconnect,
+];
 
 /// A point frame the device sent, and what became of it.
 #[derive(Clone, Copy, Debug)]
@@ -236,7 +250,8 @@ impl FaultyLink {
         }
         let mut intact = 0;
         // A repeated delimiter is an empty frame, which readers skip.
-        let same = bytes == frame || (bytes.len() == frame.len() + 1 && bytes.ends_with(&[0, 0]) && bytes[..frame.len()] == frame[..]);
+        let same = bytes == frame
+            || (bytes.len() == frame.len() + 1 && bytes.ends_with(&[0, 0]) && bytes[..frame.len()] == frame[..]);
         for _ in 0..copies {
             if self.at_boundary && same {
                 intact += 1;
@@ -374,7 +389,14 @@ impl std::fmt::Display for SoakReport {
         writeln!(f, "intact but drained      {}", self.intact_discarded)?;
         writeln!(f, "fault kind        injected  on points  detected")?;
         for (k, fault) in FAULTS.iter().enumerate() {
-            writeln!(f, "  {:<14} {:>9} {:>10} {:>9}", format!("{fault:?}"), l.injected[k], self.on_points[k], self.detected[k])?;
+            writeln!(
+                f,
+                "  {:<14} {:>9} {:>10} {:>9}",
+                format!("{fault:?}"),
+                l.injected[k],
+                self.on_points[k],
+                self.detected[k]
+            )?;
         }
         writeln!(f, "request faults          {}", l.request_faults)?;
         writeln!(f, "disconnects             {}", l.disconnects)?;
@@ -383,7 +405,11 @@ impl std::fmt::Display for SoakReport {
         writeln!(
             f,
             "provisioning            {} calls, {} attempts, {} completed, {} rolled back, {} failed with the link down",
-            self.provisionings, self.provision_attempts, self.provision_completed, self.provision_rolled_back, self.provision_gave_up
+            self.provisionings,
+            self.provision_attempts,
+            self.provision_completed,
+            self.provision_rolled_back,
+            self.provision_gave_up
         )?;
         writeln!(f, "recoveries              {}", self.recoveries)?;
         let c = &self.client;
@@ -402,7 +428,9 @@ const ZONES: usize = 4;
 /// The calibration the device would boot with now (read from its flash, not
 /// over the link).
 fn device_active(flash: &SimFlash) -> Option<Vec<u8>> {
-    let st = Store::open(flash.reboot(), SLOT_LEN, brdf_meter::test_blobs::dev_trusted(), |v| Calibration::<N, M, P>::check(v).is_ok());
+    let st = Store::open(flash.reboot(), SLOT_LEN, brdf_meter::test_blobs::dev_trusted(), |v| {
+        Calibration::<N, M, P>::check(v).is_ok()
+    });
     st.active_blob().map(|(_, v)| v.as_bytes().to_vec())
 }
 
@@ -453,14 +481,22 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
             let truth = device_active(&c.transport().dev.flash);
             match out {
                 Ok(ProvisionOutcome::Committed { cal, attempts }) => {
-                    assert_eq!(truth.as_deref(), Some(blobs[next].as_slice()), "seed {seed}: committed, but not active");
+                    assert_eq!(
+                        truth.as_deref(),
+                        Some(blobs[next].as_slice()),
+                        "seed {seed}: committed, but not active"
+                    );
                     assert_eq!(cal.blob_crc, BlobView::parse(&blobs[next]).unwrap().crc());
                     r.provision_attempts += attempts as u64;
                     r.provision_completed += 1;
                     active = next;
                 }
                 Ok(ProvisionOutcome::RolledBack { active: cal, attempts, .. }) => {
-                    assert_eq!(truth.as_deref(), Some(blobs[active].as_slice()), "seed {seed}: rolled back, but the old blob is not active");
+                    assert_eq!(
+                        truth.as_deref(),
+                        Some(blobs[active].as_slice()),
+                        "seed {seed}: rolled back, but the old blob is not active"
+                    );
                     assert_eq!(cal.map(|c| c.blob_crc), Some(BlobView::parse(&blobs[active]).unwrap().crc()));
                     r.provision_attempts += attempts as u64;
                     r.provision_rolled_back += 1;
@@ -498,7 +534,8 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
             c.transport().disconnect_after(after, reads, 0);
         }
         c.transport().take_fates();
-        let rep = c.measure_tolerant(lines, P as u32).unwrap_or_else(|e| panic!("seed {seed}: measurement failed: {e}"));
+        let rep =
+            c.measure_tolerant(lines, P as u32).unwrap_or_else(|e| panic!("seed {seed}: measurement failed: {e}"));
         c.transport().disconnect_in = None;
         let fates = c.transport().take_fates();
         r.measurements += 1;
@@ -516,7 +553,8 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         for p in &rep.points {
             let want = &expected[p.line as usize % expected.len()][p.point as usize];
             let same = p.seq == p.line * P as u32 + p.point as u32
-                && (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()) == (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits())
+                && (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits())
+                    == (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits())
                 && p.values.len() == want.values.len()
                 && p.values.iter().zip(&want.values).all(|(a, b)| a.to_bits() == b.to_bits());
             let in_order = prev.is_none_or(|q| p.seq > q);
@@ -580,7 +618,9 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
     c.transport().rates = None;
     let info = c.request_retrying(&protocol::Request::Info, 8).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     match info {
-        Response::Info(i) => assert_eq!(i.calibration.map(|c| c.blob_crc), Some(BlobView::parse(&blobs[active]).unwrap().crc())),
+        Response::Info(i) => {
+            assert_eq!(i.calibration.map(|c| c.blob_crc), Some(BlobView::parse(&blobs[active]).unwrap().crc()))
+        }
         other => panic!("seed {seed}: {other:?} to Info"),
     }
     r.link = c.transport().counts;

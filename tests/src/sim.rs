@@ -2,8 +2,8 @@
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
 use brdf_meter::estimate::ZoneMatrix;
+use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimFrames, SimLeds, SimSensor, pipe, sim_optics};
 use brdf_meter::shape;
-use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimLeds, SimFrames, SimSensor, pipe, sim_optics};
 use embassy_executor::raw::{Executor, TaskStorage};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::Channel;
@@ -89,8 +89,17 @@ impl SimDevice {
         spawn(exec, async move { app::transport(shared, dev_end.clone(), dev_end, scene_in).await });
         spawn(exec, async move { app::acquisition(shared, leds, sensor, tx_lines).await });
         spawn(exec, async move { app::estimation(shared, rx_lines).await });
-        let mut dev =
-            Self { exec, pending, host, inbox: VecDeque::new(), scene, shared, flash, recv_steps: RECV_STEPS, _lock: lock };
+        let mut dev = Self {
+            exec,
+            pending,
+            host,
+            inbox: VecDeque::new(),
+            scene,
+            shared,
+            flash,
+            recv_steps: RECV_STEPS,
+            _lock: lock,
+        };
         pending.store(true, Ordering::SeqCst);
         dev.run_until_idle();
         dev

@@ -13,7 +13,9 @@ use brdf_meter::blob::EstimatorKind;
 pub fn train_for_scene(scene: &Scene, zones: usize, noise_rel: f64) -> anyhow::Result<Trained> {
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
-    let prior = PriorSpec::patent().build(&grid, inst.view_deg, std::path::Path::new(".")).context("building the patent prior")?;
+    let prior = PriorSpec::patent()
+        .build(&grid, inst.view_deg, std::path::Path::new("."))
+        .context("building the patent prior")?;
     let optics = training_optics(scene, zones)?;
     train(&TrainSpec {
         bins_deg: grid.bins_deg(),
@@ -42,7 +44,9 @@ pub fn train_scale_free_for_scene(
     use crate::forward::prior_measured::{PriorMix, weighted_prior};
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
-    let (samples, _) = PriorMix::parse("merl")?.samples(&grid, inst.view_deg, inst.spectral_weights).context("building the MERL prior")?;
+    let (samples, _) = PriorMix::parse("merl")?
+        .samples(&grid, inst.view_deg, inst.spectral_weights)
+        .context("building the MERL prior")?;
     let prior = weighted_prior(&samples);
     let optics = training_optics(scene, zones)?;
     let spec = TrainSpec {

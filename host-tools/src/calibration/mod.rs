@@ -2,8 +2,8 @@
 //! training (one W per zone, the f32 gate, the blob) and signing (key files,
 //! the signed calibration). Consumes the forward
 //! model; knows nothing of the device link or of evaluation.
+pub mod demo;
 pub mod estimators;
+pub mod signing;
 pub mod train;
 pub mod train_scale_free;
-pub mod demo;
-pub mod signing;

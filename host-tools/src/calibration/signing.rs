@@ -45,11 +45,7 @@ fn parse_keys(text: &str, name: &str) -> anyhow::Result<Vec<[u8; 32]>> {
             continue;
         }
         let bytes = (hex.len() == 64 && hex.is_ascii())
-            .then(|| {
-                (0..32)
-                    .map(|j| u8::from_str_radix(&hex[2 * j..2 * j + 2], 16).ok())
-                    .collect::<Option<Vec<u8>>>()
-            })
+            .then(|| (0..32).map(|j| u8::from_str_radix(&hex[2 * j..2 * j + 2], 16).ok()).collect::<Option<Vec<u8>>>())
             .flatten();
         let Some(bytes) = bytes else {
             bail!("{name}:{}: expected a key as 64 hex digits", i + 1);
@@ -64,23 +60,18 @@ fn parse_keys(text: &str, name: &str) -> anyhow::Result<Vec<[u8; 32]>> {
 
 /// Reads a secret key file (exactly one key).
 pub fn read_secret(path: &Path) -> anyhow::Result<[u8; 32]> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the signing key {}", path.display()))?;
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading the signing key {}", path.display()))?;
     let keys = parse_keys(&text, &path.display().to_string())?;
     if keys.len() != 1 {
-        bail!(
-            "{} holds {} keys; a secret key file holds one",
-            path.display(),
-            keys.len()
-        );
+        bail!("{} holds {} keys; a secret key file holds one", path.display(), keys.len());
     }
     Ok(keys[0])
 }
 
 /// Reads a public key file (one or more keys).
 pub fn read_public(path: &Path) -> anyhow::Result<Vec<PublicKeyBytes>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the public key file {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading the public key file {}", path.display()))?;
     parse_keys(&text, &path.display().to_string())
 }
 
@@ -100,17 +91,12 @@ fn write_private(path: &Path, text: &str) -> anyhow::Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating directory {}", dir.display()))?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating directory {}", dir.display()))?;
     let mut tmp = tempfile::NamedTempFile::new_in(dir)
         .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    tmp.write_all(text.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.as_file()
-        .sync_all()
-        .with_context(|| format!("flushing {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("replacing {}", path.display()))?;
+    tmp.write_all(text.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+    tmp.as_file().sync_all().with_context(|| format!("flushing {}", path.display()))?;
+    tmp.persist(path).with_context(|| format!("replacing {}", path.display()))?;
     Ok(())
 }
 
@@ -120,22 +106,15 @@ fn write_private(path: &Path, text: &str) -> anyhow::Result<()> {
 pub fn keygen(key: &Path, force: bool) -> anyhow::Result<PublicKeyBytes> {
     let public = public_path(key);
     if key.extension().is_some_and(|e| e == "pub") {
-        bail!(
-            "{}: name the secret key file (NAME.key); its public half goes to NAME.pub",
-            key.display()
-        );
+        bail!("{}: name the secret key file (NAME.key); its public half goes to NAME.pub", key.display());
     }
     for p in [key, public.as_path()] {
         if p.exists() && !force {
-            bail!(
-                "{} exists: refusing to overwrite a key (pass --force to replace it)",
-                p.display()
-            );
+            bail!("{} exists: refusing to overwrite a key (pass --force to replace it)", p.display());
         }
     }
     let mut seed = [0u8; 32];
-    getrandom::fill(&mut seed)
-        .map_err(|e| anyhow::anyhow!("the operating system's random source failed: {e}"))?;
+    getrandom::fill(&mut seed).map_err(|e| anyhow::anyhow!("the operating system's random source failed: {e}"))?;
     let pk = signed::public_key(&seed);
     write_private(
         key,
@@ -148,7 +127,8 @@ pub fn keygen(key: &Path, force: bool) -> anyhow::Result<PublicKeyBytes> {
     )?;
     crate::output::io::write_atomic(
         &public,
-        format!("# Ed25519 public key: build the firmware with BRDF_TRUSTED_KEYS naming this file.\n{}\n", hex(&pk)).as_bytes(),
+        format!("# Ed25519 public key: build the firmware with BRDF_TRUSTED_KEYS naming this file.\n{}\n", hex(&pk))
+            .as_bytes(),
     )?;
     Ok(pk)
 }
@@ -158,9 +138,7 @@ pub fn keygen(key: &Path, force: bool) -> anyhow::Result<PublicKeyBytes> {
 pub fn check_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<&'a [u8]> {
     signed::verify(image, signed::TRUSTED_KEYS).map_err(|e| {
         let hint = match e {
-            SignatureFault::Unsigned => {
-                " (sign it: `host-tools sign --key KEY --blob IN --out OUT`)"
-            }
+            SignatureFault::Unsigned => " (sign it: `host-tools sign --key KEY --blob IN --out OUT`)",
             SignatureFault::UnknownKey => {
                 " (its key is not among the keys the firmware was built with, BRDF_TRUSTED_KEYS)"
             }
@@ -185,21 +163,14 @@ mod tests {
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            assert_eq!(
-                std::fs::metadata(&key).unwrap().permissions().mode() & 0o777,
-                0o600
-            );
+            assert_eq!(std::fs::metadata(&key).unwrap().permissions().mode() & 0o777, 0o600);
         }
         let blob = brdf_meter::test_blobs::test_blob(5, 3, 1, 4, 1.0);
         let image = sign_blob(&blob, &seed);
         assert_eq!(signed::verify(&image, &[pk]), Ok(&blob[..]));
         let e = keygen(&key, false).unwrap_err().to_string();
         assert!(e.contains("refusing to overwrite"), "{e}");
-        assert_eq!(
-            read_secret(&key).unwrap(),
-            seed,
-            "the refused keygen left the key alone"
-        );
+        assert_eq!(read_secret(&key).unwrap(), seed, "the refused keygen left the key alone");
         let pk2 = keygen(&key, true).unwrap();
         assert_ne!(pk2, pk);
     }
@@ -208,17 +179,10 @@ mod tests {
     fn the_checked_in_development_key_files_agree() {
         let seed = read_secret(&dev_key_path()).unwrap();
         assert_eq!(seed, DEV_SECRET);
-        assert_eq!(
-            read_public(&public_path(&dev_key_path())).unwrap(),
-            vec![signed::public_key(&seed)]
-        );
+        assert_eq!(read_public(&public_path(&dev_key_path())).unwrap(), vec![signed::public_key(&seed)]);
         for p in [dev_key_path(), public_path(&dev_key_path())] {
             let text = std::fs::read_to_string(&p).unwrap();
-            assert!(
-                text.contains("DEVELOPMENT KEY - NOT FOR PRODUCTION"),
-                "{} must say what it is",
-                p.display()
-            );
+            assert!(text.contains("DEVELOPMENT KEY - NOT FOR PRODUCTION"), "{} must say what it is", p.display());
         }
     }
 
@@ -228,27 +192,14 @@ mod tests {
         let p = dir.path().join("bad.key");
         std::fs::write(&p, "# comment\nnot-hex\n").unwrap();
         let e = read_secret(&p).unwrap_err().to_string();
-        assert!(
-            e.contains("bad.key:2") && e.contains("64 hex digits"),
-            "{e}"
-        );
+        assert!(e.contains("bad.key:2") && e.contains("64 hex digits"), "{e}");
         std::fs::write(&p, "# only a comment\n").unwrap();
-        assert!(
-            read_secret(&p)
-                .unwrap_err()
-                .to_string()
-                .contains("holds no key")
-        );
+        assert!(read_secret(&p).unwrap_err().to_string().contains("holds no key"));
         let blob = brdf_meter::test_blobs::test_blob(5, 3, 1, 4, 1.0);
         let e = check_signed(&blob, "cal.blob").unwrap_err().to_string();
         assert!(e.contains("cal.blob") && e.contains("not signed"), "{e}");
-        let e = check_signed(&sign_blob(&blob, &[3; 32]), "cal.blob")
-            .unwrap_err()
-            .to_string();
+        let e = check_signed(&sign_blob(&blob, &[3; 32]), "cal.blob").unwrap_err().to_string();
         assert!(e.contains("does not trust"), "{e}");
-        assert_eq!(
-            check_signed(&sign_with_dev_key(&blob), "cal.blob").unwrap(),
-            &blob[..]
-        );
+        assert_eq!(check_signed(&sign_with_dev_key(&blob), "cal.blob").unwrap(), &blob[..]);
     }
 }

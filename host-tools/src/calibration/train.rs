@@ -148,7 +148,8 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
         // Finite in the blob: an infinite (singular) condition is stored as f32::MAX.
         condition: worst(|s| s.condition_system).min(f32::MAX as f64) as f32,
         regularisation: worst(|s| s.regularisation) as f32,
-        predicted_rmse: (zones.iter().map(|z| z.estimator.summary.predicted_rmse).sum::<f64>() / zones.len() as f64) as f32,
+        predicted_rmse: (zones.iter().map(|z| z.estimator.summary.predicted_rmse).sum::<f64>() / zones.len() as f64)
+            as f32,
         f32_rel_error: f32_rel_error as f32,
     };
 
@@ -170,7 +171,8 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
         matrices: &matrices,
     };
     let mut blob = vec![0u8; dims.blob_len()];
-    let len = write_blob(&contents, &mut blob).map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
+    let len =
+        write_blob(&contents, &mut blob).map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
@@ -460,12 +462,28 @@ mod tests {
     use crate::forward::zone_optics::uniform_zones;
     use std::path::Path;
 
-    fn patent_spec(prior: &Prior, grid: &AngleGrid, zones: usize, pixels: usize, kind: EstimatorKind) -> TrainSpec<'static> {
+    fn patent_spec(
+        prior: &Prior,
+        grid: &AngleGrid,
+        zones: usize,
+        pixels: usize,
+        kind: EstimatorKind,
+    ) -> TrainSpec<'static> {
         let inst = Instrument::patent_profile();
         let zs = uniform_zones(&inst, grid, zones, pixels, false).unwrap();
         let bins: &'static [f64] = Box::leak(grid.bins_deg().to_vec().into_boxed_slice());
         let prior: &'static Prior = Box::leak(Box::new(prior.clone()));
-        TrainSpec { bins_deg: bins, zones: zs, pixels, prior, noise_rel: 0.02, estimator: kind, far_field: false, led_order: None, white: None }
+        TrainSpec {
+            bins_deg: bins,
+            zones: zs,
+            pixels,
+            prior,
+            noise_rel: 0.02,
+            estimator: kind,
+            far_field: false,
+            led_order: None,
+            white: None,
+        }
     }
 
     #[test]
@@ -502,7 +520,12 @@ mod tests {
     fn every_estimator_trains_on_the_patent_profile_except_the_square_inverse() {
         let grid = AngleGrid::patent();
         let prior = PriorSpec::patent().build(&grid, 45.0, Path::new(".")).unwrap();
-        for kind in [EstimatorKind::Wiener, EstimatorKind::WienerNoiseFree, EstimatorKind::PseudoInverse, EstimatorKind::Interpolation] {
+        for kind in [
+            EstimatorKind::Wiener,
+            EstimatorKind::WienerNoiseFree,
+            EstimatorKind::PseudoInverse,
+            EstimatorKind::Interpolation,
+        ] {
             let t = train(&patent_spec(&prior, &grid, 1, 16, kind)).unwrap();
             assert_eq!(BlobView::parse(&t.blob).unwrap().estimator(), kind);
         }

@@ -7,7 +7,9 @@
 use crate::calibration::estimators::scale_free::{ScaleFreeOptions, ScaleFreeZone, WeightedSamples, train_zone};
 use crate::calibration::train::{F32_TOLERANCE, TrainSpec};
 use anyhow::{Context, ensure};
-use brdf_meter::blob::{BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, OutOfPriorData, TrainingSummary, write_blob_with};
+use brdf_meter::blob::{
+    BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, OutOfPriorData, TrainingSummary, write_blob_with,
+};
 use nalgebra::DVector;
 use serde::Serialize;
 
@@ -63,7 +65,11 @@ pub struct ScaleFreeZoneJson {
 
 /// Trains every zone of `spec` (its estimator must be a scale-free kind)
 /// from the weighted samples `prior` and writes the blob.
-pub fn train_scale_free(spec: &TrainSpec<'_>, prior: &WeightedSamples, false_alarm: f64) -> anyhow::Result<TrainedScaleFree> {
+pub fn train_scale_free(
+    spec: &TrainSpec<'_>,
+    prior: &WeightedSamples,
+    false_alarm: f64,
+) -> anyhow::Result<TrainedScaleFree> {
     let piecewise = match spec.estimator {
         EstimatorKind::ScaleFree => false,
         EstimatorKind::ScaleFreePiecewise => true,
@@ -73,13 +79,19 @@ pub fn train_scale_free(spec: &TrainSpec<'_>, prior: &WeightedSamples, false_ala
     ensure!(!spec.zones.is_empty(), "no zones to train");
     let m = spec.zones[0].h.nrows();
     ensure!(prior.samples.nrows() == n, "the prior has {} bins, the grid {n}", prior.samples.nrows());
-    ensure!(spec.noise_rel > 0.0 && spec.noise_rel.is_finite(), "scale-free training needs a noise level > 0 (got {})", spec.noise_rel);
+    ensure!(
+        spec.noise_rel > 0.0 && spec.noise_rel.is_finite(),
+        "scale-free training needs a noise level > 0 (got {})",
+        spec.noise_rel
+    );
     let dims = Dims { n, m, zones: spec.zones.len(), pixels: spec.pixels };
     let opts = ScaleFreeOptions { noise_rel: spec.noise_rel, piecewise, false_alarm, ..Default::default() };
     let mut zones = Vec::with_capacity(spec.zones.len());
     for (z, zo) in spec.zones.iter().enumerate() {
         ensure!(zo.h.shape() == (m, n), "zone {z}: H is {}x{}, expected {m}x{n}", zo.h.nrows(), zo.h.ncols());
-        zones.push(train_zone(&zo.h, prior, &opts).with_context(|| format!("zone {z}: training the scale-free estimator"))?);
+        zones.push(
+            train_zone(&zo.h, prior, &opts).with_context(|| format!("zone {z}: training the scale-free estimator"))?,
+        );
     }
     // The f32 gate on the device's function.
     let mut f32_rel_error = 0.0f64;
@@ -126,12 +138,9 @@ pub fn train_scale_free(spec: &TrainSpec<'_>, prior: &WeightedSamples, false_ala
         oop.extend_from_slice(&tz.out_of_prior.mean);
         oop.extend_from_slice(&tz.out_of_prior.g);
     }
-    let predicted = zones
-        .iter()
-        .flat_map(|z| &z.maps)
-        .map(|mp| (mp.sigma_unit.norm_squared() / n as f64).sqrt())
-        .sum::<f64>()
-        / (zones.len() * k) as f64;
+    let predicted =
+        zones.iter().flat_map(|z| &z.maps).map(|mp| (mp.sigma_unit.norm_squared() / n as f64).sqrt()).sum::<f64>()
+            / (zones.len() * k) as f64;
     let summary = TrainingSummary {
         prior_samples: prior.samples.ncols() as u32,
         condition: 0.0,
@@ -152,9 +161,11 @@ pub fn train_scale_free(spec: &TrainSpec<'_>, prior: &WeightedSamples, false_ala
         uncertainty: &uncertainty,
         matrices: &matrices,
     };
-    let extras = BlobExtras { clusters: k, centroids: &centroids, out_of_prior: Some(OutOfPriorData { threshold, data: &oop }) };
+    let extras =
+        BlobExtras { clusters: k, centroids: &centroids, out_of_prior: Some(OutOfPriorData { threshold, data: &oop }) };
     let mut blob = vec![0u8; dims.blob_len_with(&extras)];
-    let len = write_blob_with(&contents, &extras, &mut blob).map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
+    let len = write_blob_with(&contents, &extras, &mut blob)
+        .map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     Ok(TrainedScaleFree { dims, zones, f32_rel_error, threshold, blob })
@@ -170,7 +181,11 @@ impl TrainedScaleFree {
                 .zones
                 .iter()
                 .map(|z| ScaleFreeZoneJson {
-                    matrices: z.maps.iter().map(|mp| mp.w.row_iter().map(|r| r.iter().copied().collect()).collect()).collect(),
+                    matrices: z
+                        .maps
+                        .iter()
+                        .map(|mp| mp.w.row_iter().map(|r| r.iter().copied().collect()).collect())
+                        .collect(),
                     sigma_unit: z.maps.iter().map(|mp| mp.sigma_unit.iter().copied().collect()).collect(),
                     centroids: z.centroids.clone(),
                     out_of_prior_mean: z.out_of_prior.mean.clone(),

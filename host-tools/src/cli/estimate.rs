@@ -9,10 +9,10 @@
 //! values, the n per-bin standard uncertainties) and optionally JSON
 //! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "flags": [...]}]}`.
 //! Everything is checked and computed before anything is written.
+use crate::device::reference::{PointEstimate, PointEstimator};
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::flags;
-use crate::device::reference::{PointEstimate, PointEstimator};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -62,7 +62,9 @@ pub fn read_readings(path: &Path, m: usize) -> anyhow::Result<Vec<Vec<f32>>> {
         }
         let mut v = Vec::with_capacity(m);
         for (i, f) in rec.iter().enumerate() {
-            let x: f32 = f.parse().map_err(|_| anyhow::anyhow!("{}:{line}: column {}: {f:?} is not a number", path.display(), i + 1))?;
+            let x: f32 = f
+                .parse()
+                .map_err(|_| anyhow::anyhow!("{}:{line}: column {}: {f:?} is not a number", path.display(), i + 1))?;
             v.push(x);
         }
         rows.push(v);
@@ -98,7 +100,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         w.write_record(&rec)?;
     }
     let csv_bytes = w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))?;
-    let json = a.json.as_ref().map(|_| serde_json::to_vec_pretty(&JsonOut { bins_deg: bins.clone(), points: &points })).transpose()?;
+    let json = a
+        .json
+        .as_ref()
+        .map(|_| serde_json::to_vec_pretty(&JsonOut { bins_deg: bins.clone(), points: &points }))
+        .transpose()?;
     crate::output::io::write_atomic(&a.out, &csv_bytes).with_context(|| format!("writing {}", a.out.display()))?;
     if let (Some(p), Some(j)) = (&a.json, &json) {
         crate::output::io::write_atomic(p, j).with_context(|| format!("writing {}", p.display()))?;

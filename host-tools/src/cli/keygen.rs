@@ -18,10 +18,7 @@ pub struct Args {
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let pk = signing::keygen(&a.out, a.force)?;
-    let id: String = brdf_meter::signed::key_id(&pk)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let id: String = brdf_meter::signed::key_id(&pk).iter().map(|b| format!("{b:02x}")).collect();
     println!(
         "wrote {} (secret: keep it offline) and {} (key id {id})",
         a.out.display(),
@@ -42,25 +39,12 @@ mod tests {
     fn keygen_refuses_to_overwrite_without_force() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("k.key");
-        run(Args {
-            out: out.clone(),
-            force: false,
-        })
-        .unwrap();
+        run(Args { out: out.clone(), force: false }).unwrap();
         let before = std::fs::read(&out).unwrap();
-        let e = run(Args {
-            out: out.clone(),
-            force: false,
-        })
-        .unwrap_err()
-        .to_string();
+        let e = run(Args { out: out.clone(), force: false }).unwrap_err().to_string();
         assert!(e.contains("--force"), "{e}");
         assert_eq!(std::fs::read(&out).unwrap(), before);
-        run(Args {
-            out: out.clone(),
-            force: true,
-        })
-        .unwrap();
+        run(Args { out: out.clone(), force: true }).unwrap();
         assert_ne!(std::fs::read(&out).unwrap(), before);
     }
 }

@@ -1,8 +1,8 @@
 //! `host-tools materials`: leave-one-material-out over the measured set
 //! (`host_tools::evaluation::held_out`): per-material error, flag, predicted vs achieved,
 //! the summary table, and a plot of the worst materials.
-use crate::forward::brdf::NbrdfSet;
 use crate::evaluation::held_out::{HeldOutConfig, WorstPlot, run as run_loo};
+use crate::forward::brdf::NbrdfSet;
 use crate::forward::prior_measured::PriorMix;
 use anyhow::{Context, ensure};
 use std::path::PathBuf;
@@ -88,7 +88,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (svg, png) = crate::output::plot::render(&WorstPlot { report: &report, count: a.plot_worst }, (1200, 800))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     crate::output::io::write_atomic(&a.out.join("materials.md"), md.as_bytes())?;
-    crate::output::io::write_json(&a.out.join("materials.json"), &serde_json::json!({ "report": &report, "device_cost": costs }))?;
+    crate::output::io::write_json(
+        &a.out.join("materials.json"),
+        &serde_json::json!({ "report": &report, "device_cost": costs }),
+    )?;
     crate::output::io::write_atomic(&a.out.join("materials-worst.svg"), svg.as_bytes())?;
     crate::output::io::write_atomic(&a.out.join("materials-worst.png"), &png)?;
     let summary_end = md.find("\nPer material").unwrap_or(md.len());
@@ -96,6 +99,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(c) = &costs {
         println!("device cost per point (QEMU exact count):\n{}", crate::evaluation::device_cost::markdown(c));
     }
-    println!("({:.1} s) wrote {}/materials.md, materials.json, materials-worst.svg/.png", t0.elapsed().as_secs_f64(), a.out.display());
+    println!(
+        "({:.1} s) wrote {}/materials.md, materials.json, materials-worst.svg/.png",
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
     Ok(())
 }

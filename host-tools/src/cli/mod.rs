@@ -4,21 +4,21 @@
 //! variant, one match arm).
 use clap::{Parser, Subcommand};
 
-pub mod reproduce;
-pub mod simulate;
-pub mod train;
-pub mod train_measured;
-pub mod keygen;
-pub mod sign;
-pub mod qemu;
+pub mod estimate;
 pub mod info;
+pub mod keygen;
+pub mod materials;
+pub mod measure;
 pub mod provision;
 pub mod provision_swd;
-pub mod measure;
-pub mod estimate;
-pub mod tradeoff;
-pub mod materials;
+pub mod qemu;
+pub mod reproduce;
+pub mod sign;
+pub mod simulate;
 pub mod stability;
+pub mod tradeoff;
+pub mod train;
+pub mod train_measured;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]

@@ -6,7 +6,10 @@ use anyhow::Result;
 use clap::Args as ClapArgs;
 
 use crate::device::memory_map::SlotMap;
-use crate::device::provision::{self, swd::{self, ProbeRs}};
+use crate::device::provision::{
+    self,
+    swd::{self, ProbeRs},
+};
 
 /// Writes a calibration blob into the board's calibration flash over SWD.
 ///
@@ -47,12 +50,8 @@ pub fn run(args: Args) -> Result<()> {
     }
     let force = args.slot.as_deref().map(|s| if s.eq_ignore_ascii_case("a") { 0 } else { 1 });
     let scratch = swd::scratch_dir()?;
-    let probe = ProbeRs {
-        program: args.probe_rs,
-        chip: args.chip,
-        probe: args.probe,
-        scratch: scratch.path().to_path_buf(),
-    };
+    let probe =
+        ProbeRs { program: args.probe_rs, chip: args.chip, probe: args.probe, scratch: scratch.path().to_path_buf() };
     let done = swd::provision(&probe, &SlotMap::board(), &blob, force)?;
     println!(
         "provisioned slot {} at {:#010x}: {} bytes, sequence {}, verified by read-back",
@@ -72,7 +71,9 @@ mod tests {
 
     #[test]
     fn the_command_line_parses_and_refuses_unknown_slots() {
-        let cli = Cli::try_parse_from(["host-tools", "provision-swd", "cal.blob", "--slot", "b", "--probe", "0483:374b"]).unwrap();
+        let cli =
+            Cli::try_parse_from(["host-tools", "provision-swd", "cal.blob", "--slot", "b", "--probe", "0483:374b"])
+                .unwrap();
         let Command::ProvisionSwd(a) = cli.command else { panic!("wrong subcommand") };
         assert_eq!(a.slot.as_deref(), Some("b"));
         assert_eq!(a.chip, "STM32L475VGTx");

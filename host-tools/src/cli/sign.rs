@@ -35,8 +35,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let seed = signing::read_secret(&a.key)?;
     let image = signing::sign_blob(&blob, &seed);
-    crate::output::io::write_atomic(&a.out, &image)
-        .with_context(|| format!("writing {}", a.out.display()))?;
+    crate::output::io::write_atomic(&a.out, &image).with_context(|| format!("writing {}", a.out.display()))?;
     let trusted = brdf_meter::signed::TRUSTED_KEYS.contains(&brdf_meter::signed::public_key(&seed));
     println!(
         "wrote {} ({} bytes, signed with {}{})",
@@ -73,12 +72,7 @@ mod tests {
         assert_eq!(&image[..blob.len()], &blob[..]);
         // Signing a signed file, or a file that is not a blob, writes nothing.
         let again = dir.path().join("twice");
-        assert!(
-            run(args(&out, &again))
-                .unwrap_err()
-                .to_string()
-                .contains("already signed")
-        );
+        assert!(run(args(&out, &again)).unwrap_err().to_string().contains("already signed"));
         std::fs::write(&inp, b"not a blob").unwrap();
         let e = run(args(&inp, &again)).unwrap_err().to_string();
         assert!(e.contains("not a valid calibration blob"), "{e}");

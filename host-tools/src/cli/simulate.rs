@@ -49,7 +49,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let dir = &a.out;
     let files = [("readings.csv", csv), ("plot.svg", svg.into_bytes()), ("plot.png", png)];
     for (name, bytes) in &files {
-        crate::output::io::write_atomic(&dir.join(name), bytes).with_context(|| format!("writing {}", dir.join(name).display()))?;
+        crate::output::io::write_atomic(&dir.join(name), bytes)
+            .with_context(|| format!("writing {}", dir.join(name).display()))?;
     }
     crate::output::io::write_json(&dir.join("readings.json"), &out)?;
     println!(
@@ -89,7 +90,8 @@ mod tests {
             "line,pixel,led,led_name,centre_deg,incidence_deg,x_cm,y_cm,raw,dark,white,corrected,noise_free,truth_at_centre"
         );
         assert_eq!(lines.count(), 128 * 7);
-        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("readings.json")).unwrap()).unwrap();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("readings.json")).unwrap()).unwrap();
         assert_eq!(j["pixels"], 128);
         assert_eq!(j["stages"].as_array().unwrap().len(), 12);
         assert_eq!(j["truth"]["rho"].as_array().unwrap().len(), 128);
@@ -137,13 +139,22 @@ mod tests {
     fn a_bad_scene_writes_nothing_and_names_file_line_and_field() {
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("bad.toml");
-        let text = std::fs::read_to_string(scenes().join("handheld.toml")).unwrap().replace("kind = \"saturation\"", "kind = \"saturaton\"");
+        let text = std::fs::read_to_string(scenes().join("handheld.toml"))
+            .unwrap()
+            .replace("kind = \"saturation\"", "kind = \"saturaton\"");
         std::fs::write(&bad, text).unwrap();
         let out = dir.path().join("out");
         let e = format!("{:#}", run_to(Some(&bad), &out).unwrap_err());
         assert!(e.contains("bad.toml:") && e.contains("saturaton") && e.contains("saturation"), "{e}");
         assert!(!out.exists());
-        let e = run(Args { scene: Some(scenes().join("far-field.toml")), out: out.clone(), line: 0, lines: 1, seed: Some(3) }).unwrap_err();
+        let e = run(Args {
+            scene: Some(scenes().join("far-field.toml")),
+            out: out.clone(),
+            line: 0,
+            lines: 1,
+            seed: Some(3),
+        })
+        .unwrap_err();
         assert!(e.to_string().contains("no `noise` effect"), "{e}");
         assert!(!out.exists());
     }

@@ -95,6 +95,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     crate::output::io::write_json(&a.out.join("tradeoff.json"), &rep)?;
     let title = format!("BRDF estimation: accuracy vs host time per point ({} points, patent profile)", rep.points);
     let (svg, png) = plot::write(&a.out.join("tradeoff"), &rep.rows, &title).context("plotting")?;
-    println!("\nwrote {}, {}, {}, {}", a.out.join("tradeoff.md").display(), a.out.join("tradeoff.json").display(), svg.display(), png.display());
+    println!(
+        "\nwrote {}, {}, {}, {}",
+        a.out.join("tradeoff.md").display(),
+        a.out.join("tradeoff.json").display(),
+        svg.display(),
+        png.display()
+    );
     Ok(())
 }

@@ -1,8 +1,8 @@
 //! `host-tools train`: train the estimator matrices and write the calibration blob.
 use crate::calibration::estimators::kind_name;
+use crate::calibration::train::{TrainSpec, train};
 use crate::forward::optics::Instrument;
 use crate::forward::prior::PriorSpec;
-use crate::calibration::train::{TrainSpec, train};
 use crate::forward::zone_optics::uniform_zones;
 use anyhow::Context;
 use brdf_meter::blob::{BlobView, EstimatorKind};
@@ -117,7 +117,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let kind: EstimatorKind = a.estimator.into();
     let legacy_prior = a.prior == "patent"
         || (!a.prior.contains(['+', ',', '@'])
-            && Path::new(&a.prior).extension().is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("toml")));
+            && Path::new(&a.prior)
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("toml")));
     if !legacy_prior || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
         return crate::cli::train_measured::run(a, scene, noise, inst, grid);
     }
@@ -128,7 +130,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
             (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
         }
-        None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
+        None => (
+            uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
+            a.pixels,
+            None,
+            a.far_field,
+        ),
     };
     let trained = train(&TrainSpec {
         bins_deg: grid.bins_deg(),
@@ -144,7 +151,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // Everything is computed; serialise (and sign) before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
     let out = match &a.sign {
-        Some(key) => crate::calibration::signing::sign_blob(&trained.blob, &crate::calibration::signing::read_secret(key)?),
+        Some(key) => {
+            crate::calibration::signing::sign_blob(&trained.blob, &crate::calibration::signing::read_secret(key)?)
+        }
         None => trained.blob.clone(),
     };
     crate::output::io::write_atomic(&a.out, &out).with_context(|| format!("writing {}", a.out.display()))?;
@@ -170,7 +179,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     println!("{}", s.method);
     match &a.sign {
-        Some(key) => println!("wrote {} ({} bytes, CRC {:#010x}, signed with {})", a.out.display(), out.len(), view.crc(), key.display()),
+        Some(key) => println!(
+            "wrote {} ({} bytes, CRC {:#010x}, signed with {})",
+            a.out.display(),
+            out.len(),
+            view.crc(),
+            key.display()
+        ),
         None => println!(
             "wrote {} ({} bytes, CRC {:#010x}, unsigned: sign it with `host-tools sign` before provisioning)",
             a.out.display(),
@@ -231,7 +246,8 @@ mod tests {
         let blob = std::fs::read(dir.path().join("out/cal.blob")).unwrap();
         let v = BlobView::parse(&blob).unwrap();
         assert_eq!((v.dims().zones, v.dims().pixels), (2, 16));
-        let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("out/cal.json")).unwrap()).unwrap();
+        let j: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out/cal.json")).unwrap()).unwrap();
         assert_eq!(j["W"].as_array().unwrap().len(), 81);
         assert_eq!(j["zones"].as_array().unwrap().len(), 2);
     }
@@ -283,7 +299,8 @@ mod tests {
         assert_eq!((v.dims().pixels, v.dims().zones, v.dims().m, v.dims().n), (128, 4, 7, 81));
         assert_eq!((0..4).map(|z| v.zone_start(z)).collect::<Vec<_>>(), [0, 32, 64, 96]);
         assert!(!v.far_field());
-        let white = crate::forward::scene::white_reference(&crate::forward::scene::Scene::load(&scene).unwrap()).unwrap();
+        let white =
+            crate::forward::scene::white_reference(&crate::forward::scene::Scene::load(&scene).unwrap()).unwrap();
         for p in [0, 77, 127] {
             for i in 0..7 {
                 assert_eq!(v.white(p, i), white[p * 7 + i]);

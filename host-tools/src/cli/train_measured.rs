@@ -4,17 +4,23 @@
 //! the weighted samples) or `train_scale_free` (format 2 blob).
 use super::train::Args;
 use crate::calibration::estimators::kind_name;
+use crate::calibration::train::{TrainSpec, train};
+use crate::calibration::train_scale_free::train_scale_free;
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use crate::forward::prior_measured::{PriorMix, weighted_prior};
-use crate::calibration::train::{TrainSpec, train};
 use crate::forward::zone_optics::uniform_zones;
-use crate::calibration::train_scale_free::train_scale_free;
 use anyhow::{Context, ensure};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 
 /// Runs `train` for a measured/mixed prior or a scale-free kind.
-pub fn run(a: Args, scene: Option<crate::forward::scene::Scene>, noise: f64, inst: Instrument, grid: AngleGrid) -> anyhow::Result<()> {
+pub fn run(
+    a: Args,
+    scene: Option<crate::forward::scene::Scene>,
+    noise: f64,
+    inst: Instrument,
+    grid: AngleGrid,
+) -> anyhow::Result<()> {
     let kind: EstimatorKind = a.estimator.into();
     ensure!(a.false_alarm > 0.0 && a.false_alarm < 1.0, "--false-alarm {}: must be in (0, 1)", a.false_alarm);
     let mix = PriorMix::parse(&a.prior)?;
@@ -24,10 +30,25 @@ pub fn run(a: Args, scene: Option<crate::forward::scene::Scene>, noise: f64, ins
             let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
             (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
         }
-        None => (uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?, a.pixels, None, a.far_field),
+        None => (
+            uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
+            a.pixels,
+            None,
+            a.far_field,
+        ),
     };
     let prior = weighted_prior(&ws);
-    let spec = TrainSpec { bins_deg: grid.bins_deg(), zones, pixels, prior: &prior, noise_rel: noise, estimator: kind, far_field, led_order: None, white };
+    let spec = TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones,
+        pixels,
+        prior: &prior,
+        noise_rel: noise,
+        estimator: kind,
+        far_field,
+        led_order: None,
+        white,
+    };
     let families: Vec<String> = mix.families.iter().map(|(l, _, w)| format!("{l} (weight {w})")).collect();
     let (blob, json) = if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
         let t = train_scale_free(&spec, &ws, a.false_alarm)?;
@@ -128,13 +149,19 @@ pub(crate) mod tests {
     #[test]
     fn bad_priors_are_refused_and_nothing_is_written() {
         let dir = tempfile::tempdir().unwrap();
-        for (prior, why) in [("merl+patent", "needs its weight"), ("merl@0.5+patent@0.4", "sum to"), ("nope.xyz", "not `patent`")] {
+        for (prior, why) in
+            [("merl+patent", "needs its weight"), ("merl@0.5+patent@0.4", "sum to"), ("nope.xyz", "not `patent`")]
+        {
             let e = format!("{:#}", train_run(args(dir.path(), Estimator::ScaleFree, prior)).unwrap_err());
             assert!(e.contains(why), "{prior}: {e}");
         }
         // Fewer samples than the cross-validation needs.
         std::fs::write(dir.path().join("a.csv"), "20,1.0\n70,2.0\n").unwrap();
-        let e = format!("{:#}", train_run(args(dir.path(), Estimator::ScaleFree, &dir.path().join("a.csv").display().to_string())).unwrap_err());
+        let e = format!(
+            "{:#}",
+            train_run(args(dir.path(), Estimator::ScaleFree, &dir.path().join("a.csv").display().to_string()))
+                .unwrap_err()
+        );
         assert!(e.contains("at least"), "{e}");
         assert!(!dir.path().join("cal.blob").exists());
     }

@@ -116,13 +116,18 @@ impl Budget {
     /// A plain-text table.
     pub fn table(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):", self.name, MAX_DIMS.zones, MAX_DIMS.n, MAX_DIMS.m, MAX_DIMS.pixels);
+        let _ = writeln!(
+            s,
+            "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):",
+            self.name, MAX_DIMS.zones, MAX_DIMS.n, MAX_DIMS.m, MAX_DIMS.pixels
+        );
         let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>6}", "resource", "used", "limit", "free", "use%");
         for l in &self.lines {
             let free = l.limit as i64 - l.used as i64;
             let pct = if l.limit == 0 { 100.0 } else { 100.0 * l.used as f64 / l.limit as f64 };
             let verdict = if l.ok() { "ok" } else { "OVER BUDGET" };
-            let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>5.1}%  {}", l.what, l.used, l.limit, free, pct, verdict);
+            let _ =
+                writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>5.1}%  {}", l.what, l.used, l.limit, free, pct, verdict);
         }
         for n in &self.notes {
             let _ = writeln!(s, "  note: {n}");
@@ -143,7 +148,11 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
     let mut problems = Vec::new();
     // The layout memory.x promises: image, then the slots, all in the chip.
     if map.flash.end() > map.slot_a.origin as u64 {
-        problems.push(format!("FLASH (image) ends at {:#x}, past CAL_SLOT_A at {:#x}", map.flash.end(), map.slot_a.origin));
+        problems.push(format!(
+            "FLASH (image) ends at {:#x}, past CAL_SLOT_A at {:#x}",
+            map.flash.end(),
+            map.slot_a.origin
+        ));
     }
     if map.slot_a.end() > map.slot_b.origin as u64 {
         problems.push("CAL_SLOT_A overlaps CAL_SLOT_B".into());
@@ -183,7 +192,11 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
     }
     let blob = dims.blob_len() as u64;
     let lines = vec![
-        Line { what: "flash: firmware image (outside calibration)".into(), used: image, limit: map.flash.length as u64 },
+        Line {
+            what: "flash: firmware image (outside calibration)".into(),
+            used: image,
+            limit: map.flash.length as u64,
+        },
         Line {
             what: format!("flash: slot header + blob ({} B) + signature per slot", blob),
             used: SLOT_HEADER_LEN as u64 + blob + brdf_meter::signed::TRAILER_LEN as u64,
@@ -286,7 +299,8 @@ mod tests {
 
     #[test]
     fn a_memory_map_where_the_image_could_reach_the_calibration_fails() {
-        let script = MEMORY_X.replace("FLASH      : ORIGIN = 0x08000000, LENGTH = 256K", "FLASH : ORIGIN = 0x08000000, LENGTH = 300K");
+        let script = MEMORY_X
+            .replace("FLASH      : ORIGIN = 0x08000000, LENGTH = 256K", "FLASH : ORIGIN = 0x08000000, LENGTH = 300K");
         assert_ne!(script, MEMORY_X, "the test must change memory.x");
         let map = MemoryMap::from_script(&script).unwrap();
         let b = check("fw", &typical(), &map, MAX_DIMS, STACK_RESERVE);

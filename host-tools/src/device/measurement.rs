@@ -2,8 +2,8 @@
 //! its BRDF vector, flags and the calibration's predicted per-bin
 //! uncertainty for the point's zone.
 use crate::device::link::PointRecord;
-use brdf_meter::blob::BlobView;
 use crate::device::reference::flag_names;
+use brdf_meter::blob::BlobView;
 use serde::Serialize;
 
 /// One point in the JSON.

@@ -144,8 +144,24 @@ impl MemoryMap {
         use brdf_meter::shape::{self, board};
         let m = Self::from_script(MEMORY_X).expect("memory.x defines FLASH, CAL_SLOT_A, CAL_SLOT_B and RAM");
         assert_eq!(
-            (m.flash.origin, m.flash.length, m.slot_a.origin, m.slot_b.origin, m.slot_a.length, m.ram.origin, m.ram.length),
-            (shape::FLASH_BASE, board::IMAGE_LEN, board::SLOT_A, board::SLOT_B, board::SLOT_LEN, board::RAM_ORIGIN, board::RAM_LEN),
+            (
+                m.flash.origin,
+                m.flash.length,
+                m.slot_a.origin,
+                m.slot_b.origin,
+                m.slot_a.length,
+                m.ram.origin,
+                m.ram.length
+            ),
+            (
+                shape::FLASH_BASE,
+                board::IMAGE_LEN,
+                board::SLOT_A,
+                board::SLOT_B,
+                board::SLOT_LEN,
+                board::RAM_ORIGIN,
+                board::RAM_LEN
+            ),
             "memory.x disagrees with brdf_meter::shape::board"
         );
         m

@@ -1,10 +1,10 @@
 //! The device as the host sees it: the link (transports, client, QEMU
 //! launcher), provisioning over USB and SWD, the board's memory map, the
 //! host's reference computation of the device and the firmware budget.
+pub mod budget;
 pub mod link;
 pub mod measurement;
 pub mod memory_map;
 pub mod provision;
 pub mod qemu_demo;
 pub mod reference;
-pub mod budget;

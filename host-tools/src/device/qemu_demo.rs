@@ -12,7 +12,8 @@ use std::time::Duration;
 /// Connects to the QEMU instrument's serial (a pseudo-terminal path when
 /// `pty`, else TCP `HOST:PORT`) and waits until the firmware answers.
 pub fn connect(addr: &str, pty: bool) -> anyhow::Result<Client<Box<dyn Transport>>> {
-    let t: Box<dyn Transport> = if pty { Box::new(SerialTransport::open(addr)?) } else { Box::new(TcpTransport::connect(addr)?) };
+    let t: Box<dyn Transport> =
+        if pty { Box::new(SerialTransport::open(addr)?) } else { Box::new(TcpTransport::connect(addr)?) };
     let mut c = Client::new(t)?;
     c.wait_ready(Duration::from_secs(20))?;
     Ok(c)
@@ -35,7 +36,11 @@ pub enum DemoEstimator {
 /// DEVELOPMENT KEY (NOT FOR PRODUCTION; the QEMU firmware trusts it by
 /// default), writes it to `blob_path`, provisions it and loads the scene;
 /// returns the signed calibration and what the device reports for it.
-pub fn set_up<T: Transport>(c: &mut Client<T>, blob_path: &Path, kind: DemoEstimator) -> anyhow::Result<(Vec<u8>, CalInfo)> {
+pub fn set_up<T: Transport>(
+    c: &mut Client<T>,
+    blob_path: &Path,
+    kind: DemoEstimator,
+) -> anyhow::Result<(Vec<u8>, CalInfo)> {
     let info = c.info()?;
     let scene = patent_scene(info.pixels as usize);
     let blob = match kind {

@@ -14,7 +14,9 @@ use anyhow::ensure;
 use brdf_meter::acquire::correct_point_into;
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
-use brdf_meter::kernel::scale_free::{estimate_scale_free, out_of_prior_stat, scale, scaled_uncertainty, whitening_len};
+use brdf_meter::kernel::scale_free::{
+    estimate_scale_free, out_of_prior_stat, scale, scaled_uncertainty, whitening_len,
+};
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
 use brdf_meter::protocol::flags;
 use serde::Serialize;
@@ -72,7 +74,10 @@ impl<'a> PointEstimator<'a> {
     pub fn new(view: BlobView<'a>, zone: usize) -> anyhow::Result<Self> {
         let d = view.dims();
         ensure!(zone < d.zones, "zone {zone}: the blob has {} zone(s)", d.zones);
-        ensure!(view.estimator() != EstimatorKind::LogWiener, "a log-wiener blob cannot be applied (it has no device form)");
+        ensure!(
+            view.estimator() != EstimatorKind::LogWiener,
+            "a log-wiener blob cannot be applied (it has no device form)"
+        );
         let k = view.clusters();
         let mats = (0..k)
             .map(|c| {
@@ -177,7 +182,13 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
             let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &mut v);
             let z = blob.zone_of_pixel(p);
             let e = zones[z].apply(&v);
-            ExpectedPoint { zone: z as u16, cluster: e.cluster, flags: flags | e.flag_bits, sigma_scale: e.sigma_scale, values: e.rho }
+            ExpectedPoint {
+                zone: z as u16,
+                cluster: e.cluster,
+                flags: flags | e.flag_bits,
+                sigma_scale: e.sigma_scale,
+                values: e.rho,
+            }
         })
         .collect()
 }

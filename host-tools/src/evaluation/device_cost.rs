@@ -28,10 +28,17 @@ pub fn parse(estimator: &str, text: &str) -> anyhow::Result<DeviceCost> {
         .lines()
         .find_map(|l| l.strip_prefix("kernel: ")?.split_whitespace().next()?.parse().ok())
         .context("no `kernel:` line in qemu-icount.sh's output")?;
-    let path = text.lines().find(|l| l.starts_with("per-point estimation path")).context("no estimation-path line in qemu-icount.sh's output")?;
+    let path = text
+        .lines()
+        .find(|l| l.starts_with("per-point estimation path"))
+        .context("no estimation-path line in qemu-icount.sh's output")?;
     let field = |name: &str| -> anyhow::Result<u64> {
         let rest = path.split(&format!("{name} ")).nth(1).with_context(|| format!("no {name} in {path:?}"))?;
-        rest.split(|c: char| !c.is_ascii_digit()).next().unwrap_or("").parse().with_context(|| format!("{name} in {path:?}"))
+        rest.split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap_or("")
+            .parse()
+            .with_context(|| format!("{name} in {path:?}"))
     };
     Ok(DeviceCost { estimator: estimator.into(), kernel, path_median: field("median")?, path_max: field("max")? })
 }
@@ -49,7 +56,12 @@ pub fn measure(root: &Path, estimators: &[&str]) -> anyhow::Result<Vec<DeviceCos
                 .current_dir(root)
                 .output()
                 .with_context(|| format!("running {}", script.display()))?;
-            ensure!(out.status.success(), "{} 1 {e} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr));
+            ensure!(
+                out.status.success(),
+                "{} 1 {e} failed: {}",
+                script.display(),
+                String::from_utf8_lossy(&out.stderr)
+            );
             parse(e, &String::from_utf8_lossy(&out.stdout))
         })
         .collect()
@@ -58,9 +70,18 @@ pub fn measure(root: &Path, estimators: &[&str]) -> anyhow::Result<Vec<DeviceCos
 /// The markdown table, each path relative to the first row's (plain Wiener).
 pub fn markdown(costs: &[DeviceCost]) -> String {
     let base = costs.first().map_or(1, |c| c.path_median.max(1)) as f64;
-    let mut s = String::from("| estimator | kernel (instr./point) | estimation path (median, max) | path vs first row |\n|---|---|---|---|\n");
+    let mut s = String::from(
+        "| estimator | kernel (instr./point) | estimation path (median, max) | path vs first row |\n|---|---|---|---|\n",
+    );
     for c in costs {
-        s.push_str(&format!("| {} | {} | {}, {} | {:.3} x |\n", c.estimator, c.kernel, c.path_median, c.path_max, c.path_median as f64 / base));
+        s.push_str(&format!(
+            "| {} | {} | {}, {} | {:.3} x |\n",
+            c.estimator,
+            c.kernel,
+            c.path_median,
+            c.path_max,
+            c.path_median as f64 / base
+        ));
     }
     s
 }

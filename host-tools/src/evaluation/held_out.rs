@@ -20,15 +20,15 @@
 //! estimator trained on the Table 5 Ward prior: every measured material is
 //! new to it, so it shows whether the out-of-prior flag catches the
 //! materials such a calibration gets badly wrong.
-use crate::forward::brdf::{Brdf, NbrdfSet};
+use crate::calibration::estimators::log_wiener::LogWiener;
 use crate::calibration::estimators::scale_free::{ScaleFreeOptions, WeightedSamples, peak_error, train_zone};
 use crate::calibration::estimators::{self, EstimatorInputs, NoiseModel};
 use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};
+use crate::forward::brdf::{Brdf, NbrdfSet};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::{Instrument, simulate_readings, system_matrix};
 use crate::forward::prior::PriorSpec;
 use crate::forward::prior_measured::{Family, family_samples, weighted_prior};
-use crate::calibration::estimators::log_wiener::LogWiener;
 use anyhow::Context;
 use brdf_meter::blob::EstimatorKind;
 use nalgebra::{DMatrix, DVector};
@@ -39,8 +39,15 @@ use serde::Serialize;
 use std::path::Path;
 
 /// The estimators compared, in table order.
-pub const ESTIMATORS: [&str; 7] =
-    ["wiener-table5", "wiener-measured", "scale-free", "scale-free-piecewise", "log-wiener", "ward-fit-2", "scale-free-table5"];
+pub const ESTIMATORS: [&str; 7] = [
+    "wiener-table5",
+    "wiener-measured",
+    "scale-free",
+    "scale-free-piecewise",
+    "log-wiener",
+    "ward-fit-2",
+    "scale-free-table5",
+];
 /// Error above which a material counts as badly estimated (for the flag's hit rate).
 pub const BAD_ERROR: f64 = 0.15;
 /// Offsets of the log mapping tried by cross-validation.
@@ -186,8 +193,10 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
     let (m, n) = h.shape();
     let spectral = inst.spectral_weights;
     let mats: Vec<_> = (0..set.len()).map(|i| set.material(i, spectral)).collect();
-    let truth: Vec<DVector<f64>> =
-        mats.iter().map(|b| DVector::from_iterator(n, grid.bins_deg().iter().map(|t| b.reflectance(*t, inst.view_deg)))).collect();
+    let truth: Vec<DVector<f64>> = mats
+        .iter()
+        .map(|b| DVector::from_iterator(n, grid.bins_deg().iter().map(|t| b.reflectance(*t, inst.view_deg))))
+        .collect();
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let reads: Vec<Vec<DVector<f64>>> = mats
         .iter()
@@ -216,8 +225,10 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         )
     };
     let w_t5 = wiener(&t5.r_pp, 16)?;
-    let sf_opts = ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, false_alarm: cfg.false_alarm, seed: cfg.seed };
-    let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts).context("scale-free with the Table 5 prior")?;
+    let sf_opts =
+        ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, false_alarm: cfg.false_alarm, seed: cfg.seed };
+    let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts)
+        .context("scale-free with the Table 5 prior")?;
     let fit_model = ForwardModel::near_field(&inst);
     let fit_opts = FitOptions::default();
     let held = cfg.limit.unwrap_or(set.len()).min(set.len());
@@ -274,7 +285,13 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
                 match fit_ward(&fit_model, &vv, &fit_opts) {
                     Ok(r) => {
                         let b = r.params.brdf();
-                        add(5, &DVector::from_iterator(n, grid.bins_deg().iter().map(|th| b.reflectance(*th, inst.view_deg))));
+                        add(
+                            5,
+                            &DVector::from_iterator(
+                                n,
+                                grid.bins_deg().iter().map(|th| b.reflectance(*th, inst.view_deg)),
+                            ),
+                        );
                     }
                     Err(_) => sq[5] = f64::INFINITY,
                 }
@@ -311,7 +328,9 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
             let good: Vec<&MaterialRow> = rows.iter().filter(|r| r.errors[i] <= BAD_ERROR).collect();
             let t5 = *name == "scale-free-table5";
             let flag = |r: &MaterialRow| if t5 { r.flagged_table5 } else { r.flagged };
-            let rate = |xs: &[&MaterialRow]| (!xs.is_empty()).then(|| xs.iter().filter(|r| flag(r)).count() as f64 / xs.len() as f64);
+            let rate = |xs: &[&MaterialRow]| {
+                (!xs.is_empty()).then(|| xs.iter().filter(|r| flag(r)).count() as f64 / xs.len() as f64)
+            };
             let has_flag = name.starts_with("scale-free");
             let mut by_err: Vec<&MaterialRow> = rows.iter().collect();
             by_err.sort_by(|a, b| b.errors[i].total_cmp(&a.errors[i]));
@@ -328,7 +347,13 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
             }
         })
         .collect();
-    Ok(HeldOutReport { bins_deg: grid.bins_deg().to_vec(), noise_rel: cfg.noise_rel, draws: cfg.draws, materials: rows, summary })
+    Ok(HeldOutReport {
+        bins_deg: grid.bins_deg().to_vec(),
+        noise_rel: cfg.noise_rel,
+        draws: cfg.draws,
+        materials: rows,
+        summary,
+    })
 }
 
 impl HeldOutReport {
@@ -396,7 +421,10 @@ pub struct WorstPlot<'a> {
 }
 
 impl crate::output::plot::Figure for WorstPlot<'_> {
-    fn draw<DB: plotters::prelude::DrawingBackend>(&self, root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>) -> anyhow::Result<()>
+    fn draw<DB: plotters::prelude::DrawingBackend>(
+        &self,
+        root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    ) -> anyhow::Result<()>
     where
         DB::ErrorType: 'static,
     {
@@ -410,15 +438,29 @@ impl crate::output::plot::Figure for WorstPlot<'_> {
         let bins = &self.report.bins_deg;
         for (r, area) in worst.iter().zip(panels.iter()) {
             let peak = r.peak;
-            let hi = r.truth.iter().chain(&r.estimate).zip(r.sigma.iter().chain(&r.sigma)).map(|(x, s)| (x + s) / peak).fold(1.0f64, f64::max);
+            let hi = r
+                .truth
+                .iter()
+                .chain(&r.estimate)
+                .zip(r.sigma.iter().chain(&r.sigma))
+                .map(|(x, s)| (x + s) / peak)
+                .fold(1.0f64, f64::max);
             let mut ch = ChartBuilder::on(area)
-                .caption(format!("{} (err {:.3}{})", r.name, r.errors[2], if r.flagged { ", flagged" } else { "" }), ("sans-serif", 14))
+                .caption(
+                    format!("{} (err {:.3}{})", r.name, r.errors[2], if r.flagged { ", flagged" } else { "" }),
+                    ("sans-serif", 14),
+                )
                 .margin(8)
                 .x_label_area_size(24)
                 .y_label_area_size(36)
                 .build_cartesian_2d(bins[0]..*bins.last().unwrap(), -0.2f64..hi * 1.05)
                 .map_err(e)?;
-            ch.configure_mesh().x_desc("incidence, deg").y_desc("rho / peak").label_style(("sans-serif", 10)).draw().map_err(e)?;
+            ch.configure_mesh()
+                .x_desc("incidence, deg")
+                .y_desc("rho / peak")
+                .label_style(("sans-serif", 10))
+                .draw()
+                .map_err(e)?;
             let band: Vec<(f64, f64)> = bins
                 .iter()
                 .zip(r.estimate.iter().zip(&r.sigma))
@@ -426,8 +468,16 @@ impl crate::output::plot::Figure for WorstPlot<'_> {
                 .chain(bins.iter().zip(r.estimate.iter().zip(&r.sigma)).rev().map(|(t, (x, s))| (*t, (x - s) / peak)))
                 .collect();
             ch.draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2)))).map_err(e)?;
-            ch.draw_series(LineSeries::new(bins.iter().zip(&r.truth).map(|(t, x)| (*t, x / peak)), BLACK.stroke_width(2))).map_err(e)?;
-            ch.draw_series(LineSeries::new(bins.iter().zip(&r.estimate).map(|(t, x)| (*t, x / peak)), BLUE.stroke_width(1))).map_err(e)?;
+            ch.draw_series(LineSeries::new(
+                bins.iter().zip(&r.truth).map(|(t, x)| (*t, x / peak)),
+                BLACK.stroke_width(2),
+            ))
+            .map_err(e)?;
+            ch.draw_series(LineSeries::new(
+                bins.iter().zip(&r.estimate).map(|(t, x)| (*t, x / peak)),
+                BLUE.stroke_width(1),
+            ))
+            .map_err(e)?;
         }
         Ok(())
     }

@@ -2,10 +2,10 @@
 //! (the patent's baseline), the patent's Table 6 (`reproduce`), accuracy
 //! against time (`tradeoff`), hard-case stability (`stability`), all timed
 //! by one harness (`timing`).
-pub mod timing;
-pub mod fitting;
-pub mod reproduce;
-pub mod tradeoff;
-pub mod stability;
-pub mod held_out;
 pub mod device_cost;
+pub mod fitting;
+pub mod held_out;
+pub mod reproduce;
+pub mod stability;
+pub mod timing;
+pub mod tradeoff;

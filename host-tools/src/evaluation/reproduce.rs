@@ -19,9 +19,12 @@
 //!    estimators take microseconds, so they are timed over repeated runs
 //!    (median of 7 blocks of at least 20 ms); the fits over at least 3 full
 //!    runs (median). Single thread.
-use crate::forward::brdf::Brdf;
-use crate::calibration::estimators::{self, BatchEstimator, EstimatorInputs, EstimatorSummary, LinearEstimator, NoiseModel};
+use crate::calibration::estimators::{
+    self, BatchEstimator, EstimatorInputs, EstimatorSummary, LinearEstimator, NoiseModel,
+};
 use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};
+use crate::evaluation::timing::{errors_f64, median_of_runs, time_per_point};
+use crate::forward::brdf::Brdf;
 use crate::forward::optics::{Instrument, simulate_readings, system_matrix};
 use crate::forward::prior::{Prior, PriorSpec, SampleSet};
 use anyhow::Context;
@@ -34,7 +37,6 @@ use serde::Serialize;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
-use crate::evaluation::timing::{errors_f64, median_of_runs, time_per_point};
 
 /// The patent's Table 6 (Pentium 4 2 GHz, Matlab R13): `(id, seconds for 120 patterns, RMSE)`.
 pub const PATENT_TABLE6: [(&str, f64, f64); 3] =
@@ -193,7 +195,11 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     let grid = inst.grid().context("the instrument's angle grid")?;
     let (n, m) = (grid.n(), inst.m());
     anyhow::ensure!(!cfg.test.is_empty(), "the test set is empty");
-    anyhow::ensure!(cfg.noise_rel.is_finite() && cfg.noise_rel >= 0.0, "noise must be finite and >= 0, got {}", cfg.noise_rel);
+    anyhow::ensure!(
+        cfg.noise_rel.is_finite() && cfg.noise_rel >= 0.0,
+        "noise must be finite and >= 0, got {}",
+        cfg.noise_rel
+    );
     let h = system_matrix(inst, &grid, false).context("system matrix (near field)")?;
     let prior: Prior = cfg.prior.build(&grid, inst.view_deg, &cfg.prior_base).context("building the prior")?;
 
@@ -236,8 +242,10 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
             let e64 = &est.w * v64;
             f32_rel_error = (&estimate - &e64).amax() / e64.amax().max(f64::MIN_POSITIVE);
         }
-        let seconds = time_per_point(1, cfg.block, || batch.estimate_into(black_box(&readings_f32), black_box(&mut out)));
-        let pred_test = estimators::error_covariance(&est.w, &h, &r_test, &rnn_test).diagonal().map(|x| x.max(0.0)).mean().sqrt();
+        let seconds =
+            time_per_point(1, cfg.block, || batch.estimate_into(black_box(&readings_f32), black_box(&mut out)));
+        let pred_test =
+            estimators::error_covariance(&est.w, &h, &r_test, &rnn_test).diagonal().map(|x| x.max(0.0)).mean().sqrt();
         let (rmse, max_abs) = errors_f64(&estimate, &truth);
         rows.push(MethodResult {
             id: id.into(),
@@ -267,11 +275,12 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
         ("fit-no-distribution", "Ward fit, distribution ignored", 1u8, ForwardModel::far_field(inst)),
         ("fit-distribution", "Ward fit, distribution modelled", 2u8, ForwardModel::near_field(inst)),
     ] {
-        let (results, seconds) =
-            median_of_runs(cfg.fit_runs, || noisy.iter().map(|v| fit_ward(&model, v, &cfg.fit)).collect::<Result<Vec<_>, _>>()).context("fitting")?;
-        let estimate = DMatrix::from_fn(n, k, |j, c| {
-            results[c].params.brdf().reflectance(grid.bins_deg()[j], inst.view_deg)
-        });
+        let (results, seconds) = median_of_runs(cfg.fit_runs, || {
+            noisy.iter().map(|v| fit_ward(&model, v, &cfg.fit)).collect::<Result<Vec<_>, _>>()
+        })
+        .context("fitting")?;
+        let estimate =
+            DMatrix::from_fn(n, k, |j, c| results[c].params.brdf().reflectance(grid.bins_deg()[j], inst.view_deg));
         let (rmse, max_abs) = errors_f64(&estimate, &truth);
         let kf = k as f64;
         rows.push(MethodResult {
@@ -301,7 +310,8 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     }
 
     // Order like Table 6, then the extra rows; fill ratios and the patent's figures.
-    let order = ["fit-no-distribution", "fit-distribution", "wiener", "wiener-noise-free", "pseudo-inverse", "interpolation"];
+    let order =
+        ["fit-no-distribution", "fit-distribution", "wiener", "wiener-noise-free", "pseudo-inverse", "interpolation"];
     rows.sort_by_key(|r| order.iter().position(|o| *o == r.id).unwrap_or(order.len()));
     let tw = rows.iter().find(|r| r.id == "wiener").map(|r| r.seconds).unwrap_or(f64::NAN);
     for r in &mut rows {
@@ -400,7 +410,17 @@ pub fn format_table(r: &Report) -> String {
     let _ = writeln!(
         s,
         "{:<5} {:<33} {:>9} {:>8} {:>8} {:>12} {:>12} | {:>10} {:>10} | {:>11} {:>11}",
-        "cond", "method", "distrib.", "RMSE", "NRMSE", "time [s]", "x Wiener", "pred.prior", "pred.test", "patent RMSE", "patent [s]"
+        "cond",
+        "method",
+        "distrib.",
+        "RMSE",
+        "NRMSE",
+        "time [s]",
+        "x Wiener",
+        "pred.prior",
+        "pred.test",
+        "patent RMSE",
+        "patent [s]"
     );
     let opt = |x: Option<f64>, prec: usize| x.map_or("-".to_string(), |v| format!("{v:.prec$}"));
     for m in &r.methods {
@@ -459,11 +479,19 @@ pub fn format_table(r: &Report) -> String {
                 s,
                 "{} training: cond(H) {:.3e}, cond(system) {:.3e}, prior rank {}, effective rank {:.2}, \
                  regularisation {:.1e}; {}",
-                m.id, ws.condition_h, ws.condition_system, ws.prior_rank, ws.effective_rank, ws.regularisation, ws.method
+                m.id,
+                ws.condition_h,
+                ws.condition_system,
+                ws.prior_rank,
+                ws.effective_rank,
+                ws.regularisation,
+                ws.method
             );
         }
     }
-    if let (Some(c1), Some(c2), Some(w)) = (r.method("fit-no-distribution"), r.method("fit-distribution"), r.method("wiener")) {
+    if let (Some(c1), Some(c2), Some(w)) =
+        (r.method("fit-no-distribution"), r.method("fit-distribution"), r.method("wiener"))
+    {
         let _ = writeln!(
             s,
             "speed-up of Wiener: {:.2e} x over condition 1, {:.2e} x over condition 2 (patent: {:.1e} and {:.1e}); \

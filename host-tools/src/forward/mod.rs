@@ -6,5 +6,5 @@ pub mod grid;
 pub mod optics;
 pub mod prior;
 pub mod prior_measured;
-pub mod zone_optics;
 pub mod scene;
+pub mod zone_optics;

@@ -5,17 +5,19 @@
 //! explicit lists of models, or measured goniometric CSV files
 //! (`angle_deg,value` rows) resampled onto the grid by linear interpolation.
 use crate::forward::brdf::{Brdf, BrdfSpec, Tabulated, Ward};
-use crate::output::config::{FieldError, Validate, check_range};
 use crate::forward::grid::AngleGrid;
+use crate::output::config::{FieldError, Validate, check_range};
 use anyhow::{Context, bail};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Diffuse albedos of the patent's test set (Table 4).
-pub const PATENT_TEST_RHO_D: [f64; 10] = [0.2477, 0.2578, 0.3075, 0.3098, 0.3482, 0.4067, 0.4178, 0.5982, 0.8541, 0.9391];
+pub const PATENT_TEST_RHO_D: [f64; 10] =
+    [0.2477, 0.2578, 0.3075, 0.3098, 0.3482, 0.4067, 0.4178, 0.5982, 0.8541, 0.9391];
 /// Roughnesses of the patent's test set (Table 4).
-pub const PATENT_TEST_ALPHA: [f64; 12] = [0.0305, 0.0518, 0.0525, 0.0578, 0.0743, 0.0815, 0.0599, 0.0699, 0.0918, 0.0974, 0.0987, 0.0991];
+pub const PATENT_TEST_ALPHA: [f64; 12] =
+    [0.0305, 0.0518, 0.0525, 0.0578, 0.0743, 0.0815, 0.0599, 0.0699, 0.0918, 0.0974, 0.0987, 0.0991];
 /// Diffuse albedos of the patent's training set (Table 5).
 pub const PATENT_TRAIN_RHO_D: [f64; 2] = [0.1, 0.95];
 /// Roughnesses of the patent's training set (Table 5).
@@ -206,7 +208,10 @@ impl PriorSpec {
             let mut col = DVector::zeros(grid.n());
             for (j, th) in grid.bins_deg().iter().enumerate() {
                 col[j] = t.at(*th).with_context(|| {
-                    format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", path.display())
+                    format!(
+                        "{}: cannot resample onto the grid; measure over the grid's span or narrow the grid",
+                        path.display()
+                    )
                 })?;
             }
             cols.push(col);
@@ -255,7 +260,10 @@ pub fn read_measured_csv(path: &Path) -> anyhow::Result<Tabulated> {
                     bail!("{}:{line}: field `angle_deg`: {a} deg is outside [0, 90)", path.display());
                 }
                 if angles.last().is_some_and(|&prev| a <= prev) {
-                    bail!("{}:{line}: field `angle_deg`: {a} deg is not above the previous row's; sort the rows and remove duplicates", path.display());
+                    bail!(
+                        "{}:{line}: field `angle_deg`: {a} deg is not above the previous row's; sort the rows and remove duplicates",
+                        path.display()
+                    );
                 }
                 angles.push(a);
                 values.push(v);
@@ -321,7 +329,9 @@ mod tests {
         // Too narrow for the grid.
         std::fs::write(&bad, "30,1.0\n40,1.0\n").unwrap();
         let spec = PriorSpec { csv: vec![bad.clone()], ..Default::default() };
-        assert!(format!("{:#}", spec.build(&g, 45.0, Path::new("")).unwrap_err()).contains("outside the measured span"));
+        assert!(
+            format!("{:#}", spec.build(&g, 45.0, Path::new("")).unwrap_err()).contains("outside the measured span")
+        );
     }
 
     #[test]

@@ -17,9 +17,9 @@
 //! For example `merl@0.8+patent@0.2`. Inside a family the samples share its
 //! weight equally. RGB data is seen through the instrument's spectral
 //! weights.
+use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::merl_binary::MerlTable;
 use crate::forward::brdf::{Brdf, NbrdfSet};
-use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::grid::AngleGrid;
 use crate::forward::prior::{Prior, PriorSpec, read_measured_csv};
 use anyhow::{Context, bail, ensure};
@@ -59,7 +59,11 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
         _ if text.contains(',') => {
             let files: Vec<PathBuf> = text.split(',').map(|s| PathBuf::from(s.trim())).collect();
             for f in &files {
-                ensure!(MEASURED_EXTS.contains(&ext_of(f).as_str()), "{}: a list holds measured files (.csv, .binary, .json)", f.display());
+                ensure!(
+                    MEASURED_EXTS.contains(&ext_of(f).as_str()),
+                    "{}: a list holds measured files (.csv, .binary, .json)",
+                    f.display()
+                );
             }
             Family::Files(files)
         }
@@ -72,14 +76,20 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
                     .filter(|f| MEASURED_EXTS.contains(&ext_of(f).as_str()))
                     .collect();
                 files.sort();
-                ensure!(!files.is_empty(), "{}: no measured files (.csv, .binary, .json) in the directory", p.display());
+                ensure!(
+                    !files.is_empty(),
+                    "{}: no measured files (.csv, .binary, .json) in the directory",
+                    p.display()
+                );
                 Family::Files(files)
             } else if ext_of(&p) == "toml" {
                 Family::Toml(p)
             } else if MEASURED_EXTS.contains(&ext_of(&p).as_str()) {
                 Family::Files(vec![p])
             } else {
-                bail!("prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json file")
+                bail!(
+                    "prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json file"
+                )
             }
         }
     })
@@ -94,8 +104,14 @@ impl PriorMix {
         for part in &parts {
             let (text, weight) = match part.rsplit_once('@') {
                 Some((t, w)) => {
-                    let w: f64 = w.trim().parse().with_context(|| format!("prior {arg:?}: weight {w:?} of {t:?} is not a number"))?;
-                    ensure!(w.is_finite() && w > 0.0 && w <= 1.0, "prior {arg:?}: weight {w} of {t:?} must be in (0, 1]");
+                    let w: f64 = w
+                        .trim()
+                        .parse()
+                        .with_context(|| format!("prior {arg:?}: weight {w:?} of {t:?} is not a number"))?;
+                    ensure!(
+                        w.is_finite() && w > 0.0 && w <= 1.0,
+                        "prior {arg:?}: weight {w} of {t:?} must be in (0, 1]"
+                    );
                     (t, Some(w))
                 }
                 None => (*part, None),
@@ -119,12 +135,18 @@ impl PriorMix {
 
     /// The samples on the grid (reflectance factors at `view_deg`, RGB data
     /// weighted by `spectral`) with their weights, and the names.
-    pub fn samples(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(WeightedSamples, Vec<String>)> {
+    pub fn samples(
+        &self,
+        grid: &AngleGrid,
+        view_deg: f64,
+        spectral: [f64; 3],
+    ) -> anyhow::Result<(WeightedSamples, Vec<String>)> {
         let mut cols: Vec<DVector<f64>> = Vec::new();
         let mut weights = Vec::new();
         let mut names = Vec::new();
         for (label, fam, w) in &self.families {
-            let (c, nm) = family_samples(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
+            let (c, nm) =
+                family_samples(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
             ensure!(!c.is_empty(), "prior family {label:?} has no samples");
             let each = w / c.len() as f64;
             weights.extend(std::iter::repeat_n(each, c.len()));
@@ -133,13 +155,23 @@ impl PriorMix {
         }
         let samples = DMatrix::from_columns(&cols);
         if let Some((idx, x)) = samples.iter().enumerate().find(|(_, x)| !x.is_finite() || **x < 0.0) {
-            bail!("prior sample {} ({}), bin {}: value {x} is not a finite, non-negative reflectance factor", idx / grid.n(), names[idx / grid.n()], idx % grid.n());
+            bail!(
+                "prior sample {} ({}), bin {}: value {x} is not a finite, non-negative reflectance factor",
+                idx / grid.n(),
+                names[idx / grid.n()],
+                idx % grid.n()
+            );
         }
         Ok((WeightedSamples { samples, weights }, names))
     }
 
     /// The Wiener prior of the mixture: `R_pp = sum_k w_k rho_k rho_k^T`.
-    pub fn prior(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(Prior, WeightedSamples)> {
+    pub fn prior(
+        &self,
+        grid: &AngleGrid,
+        view_deg: f64,
+        spectral: [f64; 3],
+    ) -> anyhow::Result<(Prior, WeightedSamples)> {
         let (ws, _) = self.samples(grid, view_deg, spectral)?;
         Ok((weighted_prior(&ws), ws))
     }
@@ -147,7 +179,8 @@ impl PriorMix {
 
 /// `Prior` (R_pp and samples) of weighted samples.
 pub fn weighted_prior(ws: &WeightedSamples) -> Prior {
-    let scaled = DMatrix::from_fn(ws.samples.nrows(), ws.samples.ncols(), |j, k| ws.samples[(j, k)] * ws.weights[k].sqrt());
+    let scaled =
+        DMatrix::from_fn(ws.samples.nrows(), ws.samples.ncols(), |j, k| ws.samples[(j, k)] * ws.weights[k].sqrt());
     Prior { samples: ws.samples.clone(), r_pp: &scaled * scaled.transpose() }
 }
 
@@ -156,7 +189,12 @@ fn on_grid(b: &dyn Brdf, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
 }
 
 /// A family's samples on the grid and their names.
-pub fn family_samples(fam: &Family, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<(Vec<DVector<f64>>, Vec<String>)> {
+pub fn family_samples(
+    fam: &Family,
+    grid: &AngleGrid,
+    view_deg: f64,
+    spectral: [f64; 3],
+) -> anyhow::Result<(Vec<DVector<f64>>, Vec<String>)> {
     let mut cols = Vec::new();
     let mut names = Vec::new();
     let add_set = |set: &NbrdfSet, origin: &str, cols: &mut Vec<DVector<f64>>, names: &mut Vec<String>| {
@@ -261,10 +299,22 @@ mod tests {
         assert_eq!(p.samples.ncols(), 100);
         // Malformed measured input names file:line.
         std::fs::write(dir.path().join("bad.csv"), "20,1.0\n30,abc\n").unwrap();
-        let e = format!("{:#}", PriorMix::parse(&dir.path().join("bad.csv").display().to_string()).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap_err());
+        let e = format!(
+            "{:#}",
+            PriorMix::parse(&dir.path().join("bad.csv").display().to_string())
+                .unwrap()
+                .samples(&grid, 45.0, LUMINANCE)
+                .unwrap_err()
+        );
         assert!(e.contains("bad.csv:2"), "{e}");
         std::fs::write(dir.path().join("bad.binary"), [0u8; 20]).unwrap();
-        let e = format!("{:#}", PriorMix::parse(&dir.path().join("bad.binary").display().to_string()).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap_err());
+        let e = format!(
+            "{:#}",
+            PriorMix::parse(&dir.path().join("bad.binary").display().to_string())
+                .unwrap()
+                .samples(&grid, 45.0, LUMINANCE)
+                .unwrap_err()
+        );
         assert!(e.contains("bad.binary"), "{e}");
     }
 }

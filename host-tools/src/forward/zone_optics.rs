@@ -20,10 +20,18 @@ pub struct ZoneOptics {
 }
 
 /// Zones of equal width, each with the same optics (the instrument's point).
-pub fn uniform_zones(inst: &Instrument, grid: &AngleGrid, zones: usize, pixels: usize, far_field: bool) -> anyhow::Result<Vec<ZoneOptics>> {
+pub fn uniform_zones(
+    inst: &Instrument,
+    grid: &AngleGrid,
+    zones: usize,
+    pixels: usize,
+    far_field: bool,
+) -> anyhow::Result<Vec<ZoneOptics>> {
     ensure!((1..=MAX_PIXELS).contains(&pixels), "pixels = {pixels}: must be 1..={MAX_PIXELS}");
     ensure!(zones >= 1 && zones <= pixels, "zones = {zones}: must be 1..=pixels ({pixels})");
     let h = system_matrix(inst, grid, far_field).context("computing the system matrix H")?;
     let centres = inst.centre_angles_deg();
-    Ok((0..zones).map(|z| ZoneOptics { first_pixel: z * pixels / zones, h: h.clone(), centres_deg: centres.clone() }).collect())
+    Ok((0..zones)
+        .map(|z| ZoneOptics { first_pixel: z * pixels / zones, h: h.clone(), centres_deg: centres.clone() })
+        .collect())
 }

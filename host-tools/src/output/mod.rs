@@ -1,5 +1,5 @@
 //! What the host writes and reads as files: atomic writes (`io`), plots
 //! (`plot`), and the TOML/CSV description parsing helpers (`config`).
+pub mod config;
 pub mod io;
 pub mod plot;
-pub mod config;

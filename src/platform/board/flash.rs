@@ -75,7 +75,10 @@ impl CalFlash {
     pub fn new(flash: Peri<'static, FLASH>) -> Self {
         use crate::shape::board::{SLOT_A, SLOT_B, SLOT_LEN};
         let (a, b, len) = (slot_a_addr(), slot_b_addr(), slot_len());
-        assert!((a, b, len) == (SLOT_A as usize, SLOT_B as usize, SLOT_LEN as usize), "memory.x disagrees with shape::board");
+        assert!(
+            (a, b, len) == (SLOT_A as usize, SLOT_B as usize, SLOT_LEN as usize),
+            "memory.x disagrees with shape::board"
+        );
         assert!(a >= FLASH_BASE && a.is_multiple_of(PAGE as usize) && len.is_multiple_of(PAGE as usize));
         assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
         defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);

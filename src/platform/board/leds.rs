@@ -76,7 +76,8 @@ impl PwmLeds {
             up,
         )
         .split();
-        let t4 = SimplePwm::new(tim4, None, None, Some(PwmPin::new(led4, pp)), Some(PwmPin::new(led5, pp)), f, up).split();
+        let t4 =
+            SimplePwm::new(tim4, None, None, Some(PwmPin::new(led4, pp)), Some(PwmPin::new(led5, pp)), f, up).split();
         let t2 = SimplePwm::new(tim2, Some(PwmPin::new(led6, pp)), None, None, None, f, up).split();
         let mut ch = [
             Channel::Tim3(t3.ch1),

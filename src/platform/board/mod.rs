@@ -107,9 +107,7 @@ impl Board {
             defmt::warn!("SYSCLK is not the {} Hz the timing constants assume", SYSCLK_HZ);
         }
 
-        let leds = leds::PwmLeds::new(
-            p.TIM3, p.TIM4, p.TIM2, p.PB4, p.PA7, p.PB0, p.PB1, p.PB8, p.PB9, p.PA15,
-        );
+        let leds = leds::PwmLeds::new(p.TIM3, p.TIM4, p.TIM2, p.PB4, p.PA7, p.PB0, p.PB1, p.PB8, p.PB9, p.PA15);
         let sensor = sensor::Tsl1401::new(p.ADC1, p.PC5, p.DMA1_CH1, p.PD14, p.PA3);
         let cal_flash = flash::CalFlash::new(p.FLASH);
         let usb = usb::Usb::new(p.USB_OTG_FS, p.PA12, p.PA11);

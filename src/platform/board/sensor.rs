@@ -112,12 +112,8 @@ impl Tsl1401 {
     async fn sample(&mut self) -> Result<u16, SensorError> {
         cortex_m::asm::delay(SETTLE_CYCLES);
         let mut buf = [0u16; OVERSAMPLE];
-        let read = self.adc.read(
-            self.dma.reborrow(),
-            Irqs,
-            [(&mut self.ao, SampleTime::CYCLES24_5)].into_iter(),
-            &mut buf,
-        );
+        let read =
+            self.adc.read(self.dma.reborrow(), Irqs, [(&mut self.ao, SampleTime::CYCLES24_5)].into_iter(), &mut buf);
         with_timeout(PIXEL_TIMEOUT, read).await.map_err(|_| SensorError::Timeout)?;
         let sum: u32 = buf.iter().map(|&x| u32::from(x)).sum();
         Ok((sum / OVERSAMPLE as u32) as u16)

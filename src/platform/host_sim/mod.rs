@@ -13,5 +13,4 @@ pub use flash::{PowerCutMemory, SimFlash};
 #[cfg(feature = "app")]
 pub use io::{Pipe, PipeEnd, pipe};
 #[cfg(feature = "app")]
-pub use sensor::{SIM_LINES, SimLeds, SimFrames, SimSensor, sim_optics};
-
+pub use sensor::{SIM_LINES, SimFrames, SimLeds, SimSensor, sim_optics};

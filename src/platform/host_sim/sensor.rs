@@ -1,8 +1,8 @@
 //! Simulated LEDs and line sensor for the host simulation. The sensor serves
 //! frames from a [`FrameStore`] (the same one the QEMU firmware uses) and sees
 //! which LED is lit through the shared state, as a real sensor sees light.
-use crate::hw::{Leds, LineSensor, FrameLoadError, FrameInput, SensorError};
 use crate::frame_store::FrameStore;
+use crate::hw::{FrameInput, FrameLoadError, Leds, LineSensor, SensorError};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 

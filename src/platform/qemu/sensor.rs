@@ -1,8 +1,8 @@
 //! A simulated line sensor: frames come from a scene the host loads over the
 //! link (simulation-only protocol messages) into a [`FrameStore`]; the frame
 //! served is the one of the LED the GPIO pins light, as a real sensor would see.
-use crate::hw::{LineSensor, FrameLoadError, FrameInput, SensorError};
 use crate::frame_store::FrameStore;
+use crate::hw::{FrameInput, FrameLoadError, LineSensor, SensorError};
 use core::cell::RefCell;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;

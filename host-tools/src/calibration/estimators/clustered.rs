@@ -65,7 +65,8 @@ pub fn kmeans(points: &[Vec<f64>], k: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<u
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut cents: Vec<Vec<f64>> = vec![points[rng.random_range(0..points.len())].clone()];
     while cents.len() < k {
-        let d: Vec<f64> = points.iter().map(|p| cents.iter().map(|c| dist2(p, c)).fold(f64::INFINITY, f64::min)).collect();
+        let d: Vec<f64> =
+            points.iter().map(|p| cents.iter().map(|c| dist2(p, c)).fold(f64::INFINITY, f64::min)).collect();
         let total: f64 = d.iter().sum();
         if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             break; // fewer distinct points than k
@@ -120,7 +121,14 @@ impl Clustered {
     /// Trains K clusters from `prior`'s samples for system `h` (m x n) and
     /// relative noise `noise_rel`; `margin` widens each cluster's training set
     /// (0 = exactly its own samples).
-    pub fn train(prior: &Prior, h: &DMatrix<f64>, noise_rel: f64, k: usize, margin: f64, seed: u64) -> anyhow::Result<Self> {
+    pub fn train(
+        prior: &Prior,
+        h: &DMatrix<f64>,
+        noise_rel: f64,
+        k: usize,
+        margin: f64,
+        seed: u64,
+    ) -> anyhow::Result<Self> {
         Self::train_with(prior, h, noise_rel, k, margin, seed, false)
     }
 
@@ -129,12 +137,19 @@ impl Clustered {
     /// `mu_c` (noise `s^2 diag(H R_pp H^T)` of its non-centred correlation),
     /// and `b_c = mu_c - W_c H mu_c` is added (the linear minimum-MSE
     /// estimator with a constant term: one mat-vec plus n adds).
-    pub fn train_with(prior: &Prior, h: &DMatrix<f64>, noise_rel: f64, k: usize, margin: f64, seed: u64, affine: bool) -> anyhow::Result<Self> {
+    pub fn train_with(
+        prior: &Prior,
+        h: &DMatrix<f64>,
+        noise_rel: f64,
+        k: usize,
+        margin: f64,
+        seed: u64,
+        affine: bool,
+    ) -> anyhow::Result<Self> {
         let (m, n) = h.shape();
         let samples = &prior.samples;
-        let feats: Vec<Vec<f64>> = (0..samples.ncols())
-            .map(|s| normalise((h * samples.column(s)).as_slice()))
-            .collect();
+        let feats: Vec<Vec<f64>> =
+            (0..samples.ncols()).map(|s| normalise((h * samples.column(s)).as_slice())).collect();
         let (cents, labels) = kmeans(&feats, k, seed);
         // f32 centroids: the device's selection rule runs on them, so the
         // training assignment below uses the same rule on f32 too.
@@ -168,7 +183,8 @@ impl Clustered {
                     bins_deg: &[],
                     centres_deg: &[],
                 };
-                let e = estimators::build(EstimatorKind::Wiener, &inputs).with_context(|| format!("affine Wiener matrix of cluster {c}"))?;
+                let e = estimators::build(EstimatorKind::Wiener, &inputs)
+                    .with_context(|| format!("affine Wiener matrix of cluster {c}"))?;
                 let b = &mu - &e.w * (h * &mu);
                 offsets.push(b.iter().map(|x| *x as f32).collect());
                 e
@@ -181,7 +197,8 @@ impl Clustered {
                     bins_deg: &[],
                     centres_deg: &[],
                 };
-                estimators::build(EstimatorKind::Wiener, &inputs).with_context(|| format!("Wiener matrix of cluster {c}"))?
+                estimators::build(EstimatorKind::Wiener, &inputs)
+                    .with_context(|| format!("Wiener matrix of cluster {c}"))?
             };
             batch.push(BatchEstimator::from_estimator(&e));
             estimators.push(e);
@@ -311,7 +328,12 @@ mod tests {
                 let mut out = vec![0.0f32; n];
                 c.estimate_into(&v, &mut out);
                 for j in 0..n {
-                    assert!((out[j] - v[j]).abs() <= 1e-3 * v[j].abs().max(1e-3), "family {f} level {a} bin {j}: {} vs {}", out[j], v[j]);
+                    assert!(
+                        (out[j] - v[j]).abs() <= 1e-3 * v[j].abs().max(1e-3),
+                        "family {f} level {a} bin {j}: {} vs {}",
+                        out[j],
+                        v[j]
+                    );
                 }
             }
         }

@@ -46,7 +46,14 @@ mod tests {
         }
         let r = correlation(&lobes(n, 20, 1));
         let bins: Vec<f64> = (0..n).map(|i| i as f64).collect();
-        let inp = EstimatorInputs { h: &h, r_pp: &r, prior_samples: 20, noise: NoiseModel::None, bins_deg: &bins, centres_deg: &bins };
+        let inp = EstimatorInputs {
+            h: &h,
+            r_pp: &r,
+            prior_samples: 20,
+            noise: NoiseModel::None,
+            bins_deg: &bins,
+            centres_deg: &bins,
+        };
         let est = build(EstimatorKind::Inverse, &inp).unwrap();
         assert!((&est.w * &h - DMatrix::identity(n, n)).amax() < 1e-12);
         // Noise-free and exact: nothing left to predict.
@@ -60,7 +67,14 @@ mod tests {
         let r0 = h.row(0).into_owned();
         h.set_row(3, &r0);
         let r = correlation(&lobes(n, 20, 1));
-        let inp = EstimatorInputs { h: &h, r_pp: &r, prior_samples: 20, noise: NoiseModel::None, bins_deg: &[], centres_deg: &[] };
+        let inp = EstimatorInputs {
+            h: &h,
+            r_pp: &r,
+            prior_samples: 20,
+            noise: NoiseModel::None,
+            bins_deg: &[],
+            centres_deg: &[],
+        };
         match build(EstimatorKind::Inverse, &inp) {
             Err(EstimatorError::Singular { condition }) => assert!(condition > 1e14),
             other => panic!("expected Singular, got {other:?}"),

@@ -103,7 +103,9 @@ pub enum EstimatorError {
     #[error("the system matrix H is zero: no LED illuminates any angle bin")]
     ZeroSystem,
     /// The inverse estimator needs a square H.
-    #[error("the inverse estimator (claim 3) needs a square H, got {m} readings x {n} bins; use the pseudo-inverse or Wiener estimator")]
+    #[error(
+        "the inverse estimator (claim 3) needs a square H, got {m} readings x {n} bins; use the pseudo-inverse or Wiener estimator"
+    )]
     NotSquare {
         /// Readings.
         m: usize,
@@ -123,7 +125,9 @@ pub enum EstimatorError {
     #[error("interpolation: {0}")]
     BadAngles(String),
     /// The kind is not a linear estimator this crate trains.
-    #[error("the {0} estimator is not trained by this crate; choose wiener, wiener-noise-free, inverse, pseudo-inverse or interpolation")]
+    #[error(
+        "the {0} estimator is not trained by this crate; choose wiener, wiener-noise-free, inverse, pseudo-inverse or interpolation"
+    )]
     Unsupported(&'static str),
 }
 
@@ -516,7 +520,13 @@ mod tests {
     use super::test_support::*;
     use super::*;
 
-    fn inputs<'a>(h: &'a DMatrix<f64>, r: &'a DMatrix<f64>, noise: NoiseModel, bins: &'a [f64], c: &'a [f64]) -> EstimatorInputs<'a> {
+    fn inputs<'a>(
+        h: &'a DMatrix<f64>,
+        r: &'a DMatrix<f64>,
+        noise: NoiseModel,
+        bins: &'a [f64],
+        c: &'a [f64],
+    ) -> EstimatorInputs<'a> {
         EstimatorInputs { h, r_pp: r, prior_samples: 0, noise, bins_deg: bins, centres_deg: c }
     }
 

@@ -41,7 +41,10 @@ pub(crate) fn build(h: &DMatrix<f64>) -> Built {
         effective_rank: kept as f64,
         regularisation: if dropped { tol } else { 0.0 },
         tolerance: tol,
-        method: format!("claim 4: SVD of H, {kept} of {} singular values above {tol:.1e} s_max, W = V S^+ U^T", sv.len()),
+        method: format!(
+            "claim 4: SVD of H, {kept} of {} singular values above {tol:.1e} s_max, W = V S^+ U^T",
+            sv.len()
+        ),
     }
 }
 

@@ -152,7 +152,10 @@ fn normalise(h: &DMatrix<f64>, ws: &WeightedSamples) -> anyhow::Result<Normalise
         let rho = ws.samples.column(k);
         let v = h * rho;
         let s: f64 = v.iter().sum();
-        ensure!(s > 0.0 && s.is_finite(), "prior sample {k}: its readings sum to {s}; a sample must reflect some light");
+        ensure!(
+            s > 0.0 && s.is_finite(),
+            "prior sample {k}: its readings sum to {s}; a sample must reflect some light"
+        );
         u.push(v / s);
         y.push(rho / s);
     }
@@ -202,7 +205,8 @@ fn fit_map(mo: &Moments, ridge: f64) -> anyhow::Result<ScaleFreeMap> {
     let cuu = &mo.su * mo.su.transpose() + &mo.r_noise;
     let lam = ridge * (cuu.trace() / m1 as f64).max(f64::MIN_POSITIVE);
     let reg = &cuu + DMatrix::identity(m1, m1) * lam;
-    let chol = reg.cholesky().context("the normalised readings' covariance is not positive definite; add samples or noise")?;
+    let chol =
+        reg.cholesky().context("the normalised readings' covariance is not positive definite; add samples or noise")?;
     let cyu = &mo.sy * mo.su.transpose();
     // W' = C_yu C^-1  <=>  C W'^T = C_yu^T.
     let wp = chol.solve(&cyu.transpose()).transpose();
@@ -292,11 +296,22 @@ impl Fitted {
     }
 }
 
-fn fit(h: &DMatrix<f64>, nz: &Normalised, weights: &[f64], idx: &[usize], opts: &ScaleFreeOptions, ridge: f64, clusters: usize) -> anyhow::Result<Fitted> {
+fn fit(
+    h: &DMatrix<f64>,
+    nz: &Normalised,
+    weights: &[f64],
+    idx: &[usize],
+    opts: &ScaleFreeOptions,
+    ridge: f64,
+    clusters: usize,
+) -> anyhow::Result<Fitted> {
     let (noise_rel, seed) = (opts.noise_rel, opts.seed);
     let m = h.nrows();
     if clusters <= 1 {
-        return Ok(Fitted { maps: vec![fit_map(&moments(nz, weights, idx, noise_rel), ridge)?], centroids: Vec::new() });
+        return Ok(Fitted {
+            maps: vec![fit_map(&moments(nz, weights, idx, noise_rel), ridge)?],
+            centroids: Vec::new(),
+        });
     }
     // Clusters in the selection rule's space (v / sum|v|; the readings are
     // non-negative, so it is u).
@@ -350,8 +365,9 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
     let draws = 2;
     // Noisy held-out readings, fixed for every candidate setting.
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
-    let readings: Vec<Vec<DVector<f64>>> =
-        (0..k).map(|s| (0..draws).map(|_| noisy(&(h * prior.samples.column(s)), opts.noise_rel, &mut rng)).collect()).collect();
+    let readings: Vec<Vec<DVector<f64>>> = (0..k)
+        .map(|s| (0..draws).map(|_| noisy(&(h * prior.samples.column(s)), opts.noise_rel, &mut rng)).collect())
+        .collect();
     let clusters: Vec<usize> = if opts.piecewise { CLUSTER_COUNTS.to_vec() } else { vec![1] };
     let mut best = (f64::INFINITY, RIDGES[0], clusters[0]);
     for &kc in &clusters {
@@ -498,6 +514,13 @@ mod tests {
         let pw = train_zone(&h, &prior, &ScaleFreeOptions { piecewise: true, ..Default::default() }).unwrap();
         assert!(pw.maps.len() >= 2 && pw.centroids.len() == pw.maps.len() * h.nrows());
         assert!(plain.cv_error.is_finite() && pw.cv_error.is_finite());
-        assert!(train_zone(&h, &WeightedSamples::equal(prior.samples.columns(0, 4).into_owned()), &ScaleFreeOptions::default()).is_err());
+        assert!(
+            train_zone(
+                &h,
+                &WeightedSamples::equal(prior.samples.columns(0, 4).into_owned()),
+                &ScaleFreeOptions::default()
+            )
+            .is_err()
+        );
     }
 }

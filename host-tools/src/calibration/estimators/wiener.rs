@@ -343,7 +343,9 @@ mod tests {
         let base = blur(m, n, 1.2);
         let svd = base.clone().svd(true, true);
         let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-        let spread = DMatrix::from_diagonal(&nalgebra::DVector::from_fn(m, |i, _| 10f64.powf(-14.0 * i as f64 / (m - 1) as f64)));
+        let spread = DMatrix::from_diagonal(&nalgebra::DVector::from_fn(m, |i, _| {
+            10f64.powf(-14.0 * i as f64 / (m - 1) as f64)
+        }));
         let mut hard = &u * spread * &vt; // cond 1e14
         let r0 = base.row(0).into_owned();
         let mut dup = base.clone();
@@ -366,11 +368,11 @@ mod tests {
                     let p = build(EstimatorKind::PseudoInverse, &inputs(h, r, noise.clone())).unwrap();
                     assert!(ours <= mse(&p.w) + tol, "pinv beats Wiener at noise {s}: {ours} > {}", mse(&p.w));
                     // A perturbed Wiener matrix is worse (W is a minimiser).
-                    let bumped = &w.w + DMatrix::from_fn(n, m, |j, i| 1e-3 * w.w.amax() * (((j * 7 + i * 3) % 5) as f64 - 2.0));
+                    let bumped =
+                        &w.w + DMatrix::from_fn(n, m, |j, i| 1e-3 * w.w.amax() * (((j * 7 + i * 3) % 5) as f64 - 2.0));
                     assert!(ours <= mse(&bumped) + tol, "perturbed W is better at noise {s}");
                 }
             }
         }
     }
-
 }

@@ -245,7 +245,9 @@ impl<T: Transport> Client<T> {
             match f {
                 // The device could not read a request frame: ours.
                 Frame { seq: 0, reply: Reply::Msg(Response::Error(e)) } => return Err(LinkError::Device(e)),
-                Frame { seq: s, reply: Reply::Msg(Response::Error(e)) } if s == seq => return Err(LinkError::Device(e)),
+                Frame { seq: s, reply: Reply::Msg(Response::Error(e)) } if s == seq => {
+                    return Err(LinkError::Device(e));
+                }
                 Frame { seq: s, reply: Reply::Msg(m) } if s == seq => return Ok(m),
                 _ => {} // a stale frame of an earlier request
             }
@@ -435,7 +437,13 @@ impl<T: Transport> Client<T> {
         loop {
             k += 1;
             match self.request(req) {
-                Err(e) if k < attempts && matches!(e, LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))) => {
+                Err(e)
+                    if k < attempts
+                        && matches!(
+                            e,
+                            LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
+                        ) =>
+                {
                     self.count(&e);
                     self.stats.retries += 1;
                     self.resync()?;
@@ -507,10 +515,15 @@ impl<T: Transport> Client<T> {
                 match self.request(&Request::ProvisionChunk { offset: offset as u32, data: chunk }) {
                     Ok(Response::ChunkAck { next_offset }) if next_offset == next => break,
                     // An earlier copy was written; its acknowledgement was lost.
-                    Err(LinkError::Device(DeviceError::OutOfOrder { expected, .. })) if expected == next && k > 1 => break,
+                    Err(LinkError::Device(DeviceError::OutOfOrder { expected, .. })) if expected == next && k > 1 => {
+                        break;
+                    }
                     Err(e)
                         if k < tries
-                            && matches!(e, LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))) =>
+                            && matches!(
+                                e,
+                                LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
+                            ) =>
                     {
                         self.count(&e);
                         self.stats.retries += 1;
@@ -529,7 +542,10 @@ impl<T: Transport> Client<T> {
                 Ok(Response::Committed(c)) => return Ok(c),
                 Err(e)
                     if k < tries
-                        && matches!(e, LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))) =>
+                        && matches!(
+                            e,
+                            LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
+                        ) =>
                 {
                     self.count(&e);
                     self.stats.retries += 1;
@@ -680,7 +696,16 @@ mod tolerant_tests {
     }
 
     fn point(seq: u32, values: &[u8]) -> Response<'_> {
-        Response::Point(PointFrame { line: 0, seq, point: seq as u16, zone: 0, cluster: 0, flags: 0, sigma_scale: 1.0, values: LeBytes(values) })
+        Response::Point(PointFrame {
+            line: 0,
+            seq,
+            point: seq as u16,
+            zone: 0,
+            cluster: 0,
+            flags: 0,
+            sigma_scale: 1.0,
+            values: LeBytes(values),
+        })
     }
 
     #[test]

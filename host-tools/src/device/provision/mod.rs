@@ -30,13 +30,18 @@ pub fn read_blob(path: &Path) -> anyhow::Result<Vec<u8>> {
 pub fn parse_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<BlobView<'a>> {
     let blob = crate::calibration::signing::check_signed(image, name)?;
     let view = parse_blob(blob, name)?;
-    anyhow::ensure!(view.as_bytes().len() == blob.len(), "{name} has {} bytes between the blob and its signature", blob.len() - view.as_bytes().len());
+    anyhow::ensure!(
+        view.as_bytes().len() == blob.len(),
+        "{name} has {} bytes between the blob and its signature",
+        blob.len() - view.as_bytes().len()
+    );
     Ok(view)
 }
 
 /// Parses blob bytes (named `name` in the error) with the device's parser.
 pub fn parse_blob<'a>(bytes: &'a [u8], name: &str) -> anyhow::Result<BlobView<'a>> {
-    BlobView::parse(bytes).map_err(|e| anyhow::anyhow!("{name} is not a valid calibration blob: {e} (make one with `host-tools train`)"))
+    BlobView::parse(bytes)
+        .map_err(|e| anyhow::anyhow!("{name} is not a valid calibration blob: {e} (make one with `host-tools train`)"))
 }
 
 /// A calibration slot's name for people: 0 = A, 1 = B.

@@ -63,7 +63,8 @@ pub const WRITE_UNIT: usize = brdf_meter::shape::FLASH_WRITE;
 /// whole flash write units.
 pub fn slot_image(sequence: u32, blob: &[u8], slot_len: u32) -> Result<Vec<u8>> {
     let unsigned = crate::calibration::signing::check_signed(blob, "the calibration")?;
-    let view = BlobView::parse(unsigned).map_err(|e| anyhow::anyhow!("the blob would be refused by the device: {e}"))?;
+    let view =
+        BlobView::parse(unsigned).map_err(|e| anyhow::anyhow!("the blob would be refused by the device: {e}"))?;
     ensure!(
         view.as_bytes().len() == unsigned.len(),
         "the file has {} bytes between the blob and its signature",
@@ -112,11 +113,7 @@ impl ProbeRs {
             format!("cannot run {} (install probe-rs, or pass --probe-rs PATH)", self.program.display())
         })?;
         if !out.status.success() {
-            bail!(
-                "probe-rs {what} failed ({}): {}",
-                out.status,
-                String::from_utf8_lossy(&out.stderr).trim()
-            );
+            bail!("probe-rs {what} failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
         }
         Ok(())
     }
@@ -230,7 +227,8 @@ pub(crate) mod tests {
     /// Opens the calibration region `cal` (slot A then slot B) with the
     /// device's store and returns the active blob and its sequence number.
     fn device_boot(cal: Vec<u8>, slot_len: u32) -> Option<(u8, u32, Vec<u8>)> {
-        let store = Store::open(SimFlash::with_contents(cal), slot_len, brdf_meter::test_blobs::dev_trusted(), |_| true);
+        let store =
+            Store::open(SimFlash::with_contents(cal), slot_len, brdf_meter::test_blobs::dev_trusted(), |_| true);
         let (info, view) = store.active_blob()?;
         Some((info.slot, info.sequence, view.as_bytes().to_vec()))
     }
@@ -286,9 +284,13 @@ pub(crate) mod tests {
         assert!(e.contains("refused") && e.contains("does not verify"), "{e}");
         let mut corrupt = unsigned(&test_blob(1.0));
         corrupt[70] ^= 1;
-        let e = slot_image(1, &crate::calibration::signing::sign_with_dev_key(&corrupt), brdf_meter::shape::board::SLOT_LEN)
-            .unwrap_err()
-            .to_string();
+        let e = slot_image(
+            1,
+            &crate::calibration::signing::sign_with_dev_key(&corrupt),
+            brdf_meter::shape::board::SLOT_LEN,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("refused by the device"), "{e}");
         assert!(parse_header(0, &[0xFF; SLOT_HEADER_LEN]).is_none());
     }
@@ -410,7 +412,12 @@ esac
         // The firmware image region was never touched.
         assert!(fake.flash()[..256 * 1024].iter().all(|&b| b == 0xFF));
         let log = fake.log();
-        assert!(log.contains("download --chip STM32L475VGTx --non-interactive --binary-format bin --base-address 0x08040000"), "{log}");
+        assert!(
+            log.contains(
+                "download --chip STM32L475VGTx --non-interactive --binary-format bin --base-address 0x08040000"
+            ),
+            "{log}"
+        );
         assert!(log.contains("read --chip STM32L475VGTx --non-interactive b8 0x080a0000 32 --output"), "{log}");
     }
 

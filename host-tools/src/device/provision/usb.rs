@@ -10,13 +10,24 @@ use brdf_meter::protocol::CalInfo;
 /// reporting `progress(done, total)` in bytes. The device verifies it whole
 /// before it replaces the active calibration; on any failure it keeps the
 /// one it had.
-pub fn provision<T: Transport>(c: &mut Client<T>, blob: &[u8], name: &str, progress: impl FnMut(usize, usize)) -> anyhow::Result<CalInfo> {
+pub fn provision<T: Transport>(
+    c: &mut Client<T>,
+    blob: &[u8],
+    name: &str,
+    progress: impl FnMut(usize, usize),
+) -> anyhow::Result<CalInfo> {
     let d = super::parse_signed(blob, name)?.dims();
     let info = c.info().context("asking the device for its sizes")?;
     if (d.n, d.m, d.pixels) != (info.bins as usize, info.leds as usize, info.pixels as usize) {
         bail!(
             "{name} was made for n = {}, m = {}, P = {} but the device is n = {}, m = {}, P = {}: train for this device (e.g. `host-tools train --pixels {}`)",
-            d.n, d.m, d.pixels, info.bins, info.leds, info.pixels, info.pixels
+            d.n,
+            d.m,
+            d.pixels,
+            info.bins,
+            info.leds,
+            info.pixels,
+            info.pixels
         );
     }
     if blob.len() > info.max_blob as usize {

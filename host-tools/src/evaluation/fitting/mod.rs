@@ -174,7 +174,13 @@ impl ForwardModel {
     fn from_instrument(inst: &Instrument, far_field: bool) -> Self {
         let wo = surface_frame(&inst.normal()) * inst.view_dir();
         let readings = (0..inst.m())
-            .map(|led| rays(inst, led, far_field).iter().map(|r| ray_term(&r.dir, &wo, r.weight)).filter(|t| t.weight > 0.0).collect())
+            .map(|led| {
+                rays(inst, led, far_field)
+                    .iter()
+                    .map(|r| ray_term(&r.dir, &wo, r.weight))
+                    .filter(|t| t.weight > 0.0)
+                    .collect()
+            })
             .collect();
         Self { readings }
     }
@@ -223,7 +229,6 @@ fn ray_term(wi: &Vector3<f64>, wo: &Vector3<f64>, weight: f64) -> RayTerm {
     let h = wi + wo;
     RayTerm { weight, wc: weight / (4.0 * (ci * co).sqrt()), tan2: (h.x * h.x + h.y * h.y) / (h.z * h.z) }
 }
-
 
 /// Maps unbounded internal `u` to bounded `p` and back (MINUIT's sine transform).
 #[derive(Clone, Copy, Debug)]
@@ -280,7 +285,10 @@ impl LeastSquaresProblem<f64, na::Dyn, na::U3> for Problem<'_> {
         self.residual_evals.set(self.residual_evals.get() + 1);
         let p = WardParams::from_array(self.tf.external(&self.u));
         let pred = self.model.readings(&p);
-        let r = ResVec::from_iterator(pred.len(), pred.iter().zip(self.v).zip(self.inv_sigma).map(|((m, v), s)| (m - v) * s));
+        let r = ResVec::from_iterator(
+            pred.len(),
+            pred.iter().zip(self.v).zip(self.inv_sigma).map(|((m, v), s)| (m - v) * s),
+        );
         r.iter().all(|x| x.is_finite()).then_some(r)
     }
 
@@ -538,7 +546,10 @@ mod tests {
                 assert!((p.alpha - a).abs() < 1e-6, "far={far} {d},{a}: alpha {}", p.alpha);
                 assert!(r.converged, "{}", r.termination);
                 // The fitted model reproduces the BRDF.
-                assert!((p.brdf().reflectance(45.0, 45.0) - w.reflectance(45.0, 45.0)).abs() < 1e-3 * w.reflectance(45.0, 45.0));
+                assert!(
+                    (p.brdf().reflectance(45.0, 45.0) - w.reflectance(45.0, 45.0)).abs()
+                        < 1e-3 * w.reflectance(45.0, 45.0)
+                );
             }
         }
     }

@@ -142,7 +142,15 @@ pub fn generate(family: Family, seed: u64) -> Case {
             let k = rng.random_range(8..=40);
             let g = AngleGrid::new(&grid).expect("valid grid");
             let s = ward_samples(&mut rng, &g, 45.0, k, 0.02, 0.1);
-            finish(family, seed, format!("m={m} LEDs in {c0:.2}..{:.2} deg, K={k}, s={noise:.2e}", c0 + span), h, s, noise, None)
+            finish(
+                family,
+                seed,
+                format!("m={m} LEDs in {c0:.2}..{:.2} deg, K={k}, s={noise:.2e}", c0 + span),
+                h,
+                s,
+                noise,
+                None,
+            )
         }
         Family::FewSamples => {
             let m = rng.random_range(5..=12);
@@ -168,7 +176,15 @@ pub fn generate(family: Family, seed: u64) -> Case {
             let k = rng.random_range(8..=40);
             let s = ward_samples(&mut rng, &grid, 45.0, k, 0.005, 0.05);
             let span = s.max() / s.iter().copied().filter(|x| *x > 0.0).fold(f64::INFINITY, f64::min);
-            finish(family, seed, format!("{label}, K={k}, alpha 0.005..0.05, value span {span:.1e}, s={noise:.2e}"), h, s, noise, None)
+            finish(
+                family,
+                seed,
+                format!("{label}, K={k}, alpha 0.005..0.05, value span {span:.1e}, s={noise:.2e}"),
+                h,
+                s,
+                noise,
+                None,
+            )
         }
         Family::Grazing => {
             let m = rng.random_range(4..=8);
@@ -266,8 +282,16 @@ pub fn optics_h(centres: &[f64], pitch: f64, count: usize, grid: &GridSpec, view
 
 /// K Ward samples (rho_s = 1 - rho_d) with rho_d in [0.05, 0.95] and alpha
 /// log-uniform in [alpha_lo, alpha_hi], as reflectance factors on the grid: n x K.
-pub fn ward_samples(rng: &mut ChaCha8Rng, grid: &AngleGrid, view_deg: f64, k: usize, alpha_lo: f64, alpha_hi: f64) -> DMatrix<f64> {
-    let brdfs: Vec<Ward> = (0..k).map(|_| Ward::patent(rng.random_range(0.05..0.95), log_uniform(rng, alpha_lo, alpha_hi))).collect();
+pub fn ward_samples(
+    rng: &mut ChaCha8Rng,
+    grid: &AngleGrid,
+    view_deg: f64,
+    k: usize,
+    alpha_lo: f64,
+    alpha_hi: f64,
+) -> DMatrix<f64> {
+    let brdfs: Vec<Ward> =
+        (0..k).map(|_| Ward::patent(rng.random_range(0.05..0.95), log_uniform(rng, alpha_lo, alpha_hi))).collect();
     DMatrix::from_fn(grid.n(), k, |j, c| brdfs[c].reflectance(grid.bins_deg()[j], view_deg))
 }
 

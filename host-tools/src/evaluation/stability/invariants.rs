@@ -299,7 +299,13 @@ pub fn check_case(case: &Case, solver: &dyn Solver, kernel: DeviceKernel) -> Cas
     let mmse = rf.mmse;
     rep.achieved_over_mmse = achieved / mmse;
     let hi = achieved / (ERROR_FACTOR * mmse + floor);
-    let lo = if achieved > 0.0 { (mmse / ERROR_FACTOR - floor) / achieved } else if mmse / ERROR_FACTOR > floor { f64::INFINITY } else { 0.0 };
+    let lo = if achieved > 0.0 {
+        (mmse / ERROR_FACTOR - floor) / achieved
+    } else if mmse / ERROR_FACTOR > floor {
+        f64::INFINITY
+    } else {
+        0.0
+    };
     rep.error_bound_ratio = hi.max(lo);
     if !(rep.error_bound_ratio <= 1.0) {
         rep.failures.push(format!(
@@ -340,7 +346,8 @@ pub fn check_case(case: &Case, solver: &dyn Solver, kernel: DeviceKernel) -> Cas
             Ok(s0) => {
                 let wg = DMatrix::from_fn(n, m, |j, i| w[(j, i)] * g[i]);
                 let d = (&wg - &s0.w).norm() / s0.w.norm();
-                let dw = if rf.d.iter().all(|x| *x > 0.0) { rf.d.clone() } else { DVector::from_element(m, rf.d.max()) };
+                let dw =
+                    if rf.d.iter().all(|x| *x > 0.0) { rf.d.clone() } else { DVector::from_element(m, rf.d.max()) };
                 let kappa = weighted_limit(&rf, &dw).1;
                 let tol = CONTINUITY_C * m.max(n) as f64 * U64 * kappa;
                 rep.gain_ratio = Some(d / tol);
@@ -411,7 +418,8 @@ fn f32_invariant(case: &Case, w: &DMatrix<f64>, noisy: &[DVector<f64>], kernel: 
     rep.f32_bound_ratio = worst_ratio;
     rep.f32_rel_error = if scale > 0.0 { worst_abs / scale } else { worst_abs };
     if !(worst_ratio <= 1.0) {
-        rep.failures.push(format!("I4 f32: device error exceeds the rounding bound gamma_(m+2) |W||v| by {worst_ratio:.2e}x"));
+        rep.failures
+            .push(format!("I4 f32: device error exceeds the rounding bound gamma_(m+2) |W||v| by {worst_ratio:.2e}x"));
     }
     // Training's gate: accepted => within tolerance on every test reading
     // (clean and noisy, through the gate's own scaling); refused => the
@@ -475,7 +483,8 @@ fn continuity(case: &Case, rf: &Reference, solver: &dyn Solver, rep: &mut CaseRe
             } else if tol0 <= CONTINUITY_RESOLVABLE {
                 worst = worst.max(d / tol0);
                 if !(d <= tol0) {
-                    rep.failures.push(format!("I3 continuity: eq. 20 differs from L (H L)^+ by {d:.2e} (tol {tol0:.2e})"));
+                    rep.failures
+                        .push(format!("I3 continuity: eq. 20 differs from L (H L)^+ by {d:.2e} (tol {tol0:.2e})"));
                 }
             } else {
                 resolved = false;

@@ -137,19 +137,24 @@ pub fn run(
     kernel: DeviceKernel,
     threads: usize,
 ) -> (RunSummary, Vec<CaseReport>) {
-    let jobs: Vec<(Family, u64)> = families.iter().flat_map(|f| (0..cases as u64).map(move |s| (*f, first_seed + s))).collect();
+    let jobs: Vec<(Family, u64)> =
+        families.iter().flat_map(|f| (0..cases as u64).map(move |s| (*f, first_seed + s))).collect();
     let threads = threads.max(1);
     let (mut reports, seconds) = crate::evaluation::timing::timed(|| -> Vec<CaseReport> {
         std::thread::scope(|sc| {
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                let jobs = &jobs;
-                sc.spawn(move || {
-                    jobs.iter().skip(t).step_by(threads).map(|(f, s)| check_case(&generate(*f, *s), solver, kernel)).collect::<Vec<_>>()
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    let jobs = &jobs;
+                    sc.spawn(move || {
+                        jobs.iter()
+                            .skip(t)
+                            .step_by(threads)
+                            .map(|(f, s)| check_case(&generate(*f, *s), solver, kernel))
+                            .collect::<Vec<_>>()
+                    })
                 })
-            })
-            .collect();
-        handles.into_iter().flat_map(|h| h.join().expect("worker panicked")).collect()
+                .collect();
+            handles.into_iter().flat_map(|h| h.join().expect("worker panicked")).collect()
         })
     });
     reports.sort_by(|a, b| (a.family, a.seed).cmp(&(b.family, b.seed)));
@@ -163,13 +168,7 @@ pub fn run(
     }
     let total_cases = fams.iter().map(|f| f.cases).sum();
     let total_failures = fams.iter().map(|f| f.failures).sum();
-    let summary = RunSummary {
-        solver: solver.name().into(),
-        families: fams,
-        total_cases,
-        total_failures,
-        seconds,
-    };
+    let summary = RunSummary { solver: solver.name().into(), families: fams, total_cases, total_failures, seconds };
     (summary, reports)
 }
 
@@ -197,7 +196,8 @@ impl RunSummary {
             "bwd/bnd"
         );
         for f in &self.families {
-            let range = if f.cond_min.is_finite() { format!("{:.1e}..{:.1e}", f.cond_min, f.cond_max) } else { "-".into() };
+            let range =
+                if f.cond_min.is_finite() { format!("{:.1e}..{:.1e}", f.cond_min, f.cond_max) } else { "-".into() };
             let _ = writeln!(
                 o,
                 "{:<21} {:>6} {:>5} {:>10.3} {:>10.3} {:>9} {:>19} {:>5} {:>9.2e} {:>6} {:>9.2e} {:>9.3} {:>7} {:>9.2e} {:>8.3}",

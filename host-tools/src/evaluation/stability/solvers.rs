@@ -32,8 +32,10 @@ impl Solver for Production {
         "production"
     }
     fn solve(&self, h: &DMatrix<f64>, r_pp: &DMatrix<f64>, noise: &NoiseModel) -> Result<Solved, String> {
-        let kind = if matches!(noise, NoiseModel::None) { EstimatorKind::WienerNoiseFree } else { EstimatorKind::Wiener };
-        let inputs = EstimatorInputs { h, r_pp, prior_samples: 0, noise: noise.clone(), bins_deg: &[], centres_deg: &[] };
+        let kind =
+            if matches!(noise, NoiseModel::None) { EstimatorKind::WienerNoiseFree } else { EstimatorKind::Wiener };
+        let inputs =
+            EstimatorInputs { h, r_pp, prior_samples: 0, noise: noise.clone(), bins_deg: &[], centres_deg: &[] };
         let e = estimators::build(kind, &inputs).map_err(|e| e.to_string())?;
         Ok(Solved { w: e.w, summary: Some(e.summary) })
     }

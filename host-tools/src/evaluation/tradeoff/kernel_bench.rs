@@ -106,7 +106,8 @@ fn reg_count(ops: &str) -> u32 {
         let item = item.trim();
         let width = if item.starts_with('d') { 2 } else { 1 };
         if let Some((a, b)) = item.split_once('-') {
-            let num = |s: &str| s.trim().trim_start_matches(|c: char| c.is_ascii_alphabetic()).parse::<u32>().unwrap_or(0);
+            let num =
+                |s: &str| s.trim().trim_start_matches(|c: char| c.is_ascii_alphabetic()).parse::<u32>().unwrap_or(0);
             n += (num(b).saturating_sub(num(a)) + 1) * width;
         } else if !item.is_empty() {
             n += width;
@@ -180,21 +181,26 @@ pub fn run_bench(root: &Path) -> anyhow::Result<KernelCounts> {
 
 /// Analyses a kernel-bench output directory (see the module docs).
 pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
-    let read = |f: &str| std::fs::read_to_string(dir.join(f)).with_context(|| format!("reading {}", dir.join(f).display()));
+    let read =
+        |f: &str| std::fs::read_to_string(dir.join(f)).with_context(|| format!("reading {}", dir.join(f).display()));
     let nm = read("nm.txt")?;
     let (mark, mark_size) = nm
         .lines()
         .filter_map(|l| {
             let p: Vec<&str> = l.split_whitespace().collect();
-            (p.len() == 4 && p[3] == "kernel_bench_mark").then(|| (u32::from_str_radix(p[0], 16).ok(), u32::from_str_radix(p[1], 16).ok()))
+            (p.len() == 4 && p[3] == "kernel_bench_mark")
+                .then(|| (u32::from_str_radix(p[0], 16).ok(), u32::from_str_radix(p[1], 16).ok()))
         })
         .next()
         .and_then(|(a, s)| Some((a?, s?)))
         .context("no kernel_bench_mark symbol in nm.txt")?;
     let insns = parse_objdump(&read("objdump.txt")?);
     let stdout = read("stdout.txt")?;
-    let seg_names: Vec<Vec<String>> =
-        stdout.lines().filter_map(|l| l.strip_prefix("SEG ")).map(|s| s.split_whitespace().map(str::to_string).collect()).collect();
+    let seg_names: Vec<Vec<String>> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("SEG "))
+        .map(|s| s.split_whitespace().map(str::to_string).collect())
+        .collect();
 
     // Count.
     let trace = std::fs::File::open(dir.join("trace.txt")).context("opening trace.txt")?;
@@ -259,8 +265,10 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
     }
 
     // Bit-exact check against the host.
-    let w: Vec<f32> = stdout.lines().find_map(|l| words(l, "W ")).context("no W line")?.into_iter().map(f32::from_bits).collect();
-    let cents: Vec<f32> = stdout.lines().find_map(|l| words(l, "C ")).context("no C line")?.into_iter().map(f32::from_bits).collect();
+    let w: Vec<f32> =
+        stdout.lines().find_map(|l| words(l, "W ")).context("no W line")?.into_iter().map(f32::from_bits).collect();
+    let cents: Vec<f32> =
+        stdout.lines().find_map(|l| words(l, "C ")).context("no C line")?.into_iter().map(f32::from_bits).collect();
     ensure!(w.len() == n * m, "W has {} values", w.len());
     let mut packed = vec![0u32; kernel::q15_w_words(n, m)];
     let mut inv = vec![0.0f32; n];
@@ -272,7 +280,14 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
     let sels: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "SEL ")).collect();
     let ofs: Vec<Vec<u32>> = stdout.lines().filter_map(|l| words(l, "OFS ")).collect();
     ensure!(ofs.len() == vs.len(), "incomplete offset results");
-    ensure!(!vs.is_empty() && vs.len() == outs.len() && vs.len() == accs.len() && vs.len() == rhoqs.len() && vs.len() == sels.len(), "incomplete results");
+    ensure!(
+        !vs.is_empty()
+            && vs.len() == outs.len()
+            && vs.len() == accs.len()
+            && vs.len() == rhoqs.len()
+            && vs.len() == sels.len(),
+        "incomplete results"
+    );
     let mut compared = 0usize;
     for p in 0..vs.len() {
         let v: Vec<f32> = vs[p].iter().map(|b| f32::from_bits(*b)).collect();
@@ -327,7 +342,10 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
         select,
         quantise_w_instructions: qw_i,
         bit_exact: true,
-        compared: format!("{} points: f32 results, Q15 block exponents and accumulators, Q15 estimates, offset sums, 16 selections each ({compared} values), bit for bit", vs.len()),
+        compared: format!(
+            "{} points: f32 results, Q15 block exponents and accumulators, Q15 estimates, offset sums, 16 selections each ({compared} values), bit for bit",
+            vs.len()
+        ),
         command: "scripts/kernel-bench.sh target/kernel-bench".into(),
     })
 }
@@ -336,7 +354,12 @@ pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
 /// (n = 81, m = 7 only).
 pub fn attach(rows: &mut [super::Row], kc: &KernelCounts) {
     let nm = kc.n * kc.m;
-    let mk = |i: f64, c: f64, what: String| super::DeviceCost { instructions: i, cycles: c, seconds_at_80mhz: c / 80e6, counted: what };
+    let mk = |i: f64, c: f64, what: String| super::DeviceCost {
+        instructions: i,
+        cycles: c,
+        seconds_at_80mhz: c / 80e6,
+        counted: what,
+    };
     for r in rows.iter_mut() {
         let sel = |id: &str| -> Option<(usize, f64, f64)> {
             let rest = id.strip_prefix("clustered-affine-k").or_else(|| id.strip_prefix("clustered-k"))?;
@@ -345,17 +368,25 @@ pub fn attach(rows: &mut [super::Row], kc: &KernelCounts) {
         };
         let affine = r.id.starts_with("clustered-affine");
         r.device = match r.group.as_str() {
-            "linear" | "prior" if r.macs_per_point == Some(nm) => Some(mk(kc.f32_instructions, kc.f32_cycles, "f32 kernel".into())),
+            "linear" | "prior" if r.macs_per_point == Some(nm) => {
+                Some(mk(kc.f32_instructions, kc.f32_cycles, "f32 kernel".into()))
+            }
             "clustered" if affine => sel(&r.id).map(|(k, i, c)| {
-                mk(kc.f32_instructions + i + kc.offset_instructions, kc.f32_cycles + c + kc.offset_cycles, format!("select K={k} + f32 kernel + {} adds", kc.n))
+                mk(
+                    kc.f32_instructions + i + kc.offset_instructions,
+                    kc.f32_cycles + c + kc.offset_cycles,
+                    format!("select K={k} + f32 kernel + {} adds", kc.n),
+                )
             }),
-            "clustered" => sel(&r.id).map(|(k, i, c)| mk(kc.f32_instructions + i, kc.f32_cycles + c, format!("select K={k} + f32 kernel"))),
+            "clustered" => sel(&r.id)
+                .map(|(k, i, c)| mk(kc.f32_instructions + i, kc.f32_cycles + c, format!("select K={k} + f32 kernel"))),
             "format" => {
                 let (si, sc, what) = match sel(&r.id) {
                     Some((k, i, c)) => (i, c, format!("select K={k} + ")),
                     None => (0.0, 0.0, String::new()),
                 };
-                let (oi, oc, ow) = if affine { (kc.offset_instructions, kc.offset_cycles, " + offset") } else { (0.0, 0.0, "") };
+                let (oi, oc, ow) =
+                    if affine { (kc.offset_instructions, kc.offset_cycles, " + offset") } else { (0.0, 0.0, "") };
                 Some(mk(
                     si + kc.quantise_v_instructions + kc.q15_instructions + kc.dequantise_instructions + oi,
                     sc + kc.quantise_v_cycles + kc.q15_cycles + kc.dequantise_cycles + oc,

@@ -5,10 +5,10 @@
 //! Wiener (K = 8, dense prior) and the condition-2 fit, with the host time
 //! per point (a mat-vec costs n m multiply-accumulates).
 use super::{patent_data, priors, wiener};
-use crate::calibration::estimators::clustered::Clustered;
-use crate::evaluation::timing::{errors, time_per_point, timed};
 use crate::calibration::estimators::BatchEstimator;
+use crate::calibration::estimators::clustered::Clustered;
 use crate::evaluation::fitting::{FitOptions, ForwardModel, fit_ward};
+use crate::evaluation::timing::{errors, time_per_point, timed};
 use crate::forward::optics::Instrument;
 use serde::Serialize;
 use std::hint::black_box;
@@ -57,23 +57,32 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<Vec<LedRow>> {
             let b = BatchEstimator::from_estimator(&wiener(&data.h, prior, cfg.noise_rel)?);
             b.estimate_into(&data.readings_f32, &mut out);
             let (rmse, _) = errors(&out, &data.truth);
-            let t = time_per_point(k, cfg.block, || b.estimate_into(black_box(&data.readings_f32), black_box(&mut out)));
+            let t =
+                time_per_point(k, cfg.block, || b.estimate_into(black_box(&data.readings_f32), black_box(&mut out)));
             rows.push(LedRow { m, id: id.into(), rmse, host_seconds_per_point: t, macs_per_point: Some(n * m) });
         }
         let c = Clustered::train(&pri.dense, &data.h, cfg.noise_rel, 8, cfg.margin, 1)?;
         c.estimate_into(&data.readings_f32, &mut out);
         let (rmse, _) = errors(&out, &data.truth);
         let t = time_per_point(k, cfg.block, || c.estimate_into(black_box(&data.readings_f32), black_box(&mut out)));
-        rows.push(LedRow { m, id: format!("clustered-k{}", c.k()), rmse, host_seconds_per_point: t, macs_per_point: Some(n * m + c.k() * m) });
+        rows.push(LedRow {
+            m,
+            id: format!("clustered-k{}", c.k()),
+            rmse,
+            host_seconds_per_point: t,
+            macs_per_point: Some(n * m + c.k() * m),
+        });
         let model = ForwardModel::near_field(&inst);
         let opts = FitOptions::default();
-        let (fits, run_s) = timed(|| data.readings.iter().map(|v| fit_ward(&model, v, &opts)).collect::<Result<Vec<_>, _>>());
+        let (fits, run_s) =
+            timed(|| data.readings.iter().map(|v| fit_ward(&model, v, &opts)).collect::<Result<Vec<_>, _>>());
         let t = run_s / k as f64;
         let fits = fits?;
         for (p, r) in fits.iter().enumerate() {
             let b = r.params.brdf();
             for j in 0..n {
-                out[p * n + j] = crate::forward::brdf::Brdf::reflectance(&b, data.grid.bins_deg()[j], inst.view_deg) as f32;
+                out[p * n + j] =
+                    crate::forward::brdf::Brdf::reflectance(&b, data.grid.bins_deg()[j], inst.view_deg) as f32;
             }
         }
         let (rmse, _) = errors(&out, &data.truth);

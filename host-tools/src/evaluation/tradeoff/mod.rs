@@ -35,8 +35,8 @@ pub mod rows;
 pub mod speed;
 pub mod zones;
 
-use crate::forward::brdf::BrdfSpec;
 use crate::calibration::estimators::{self, EstimatorInputs, NoiseModel};
+use crate::forward::brdf::BrdfSpec;
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::{Instrument, system_matrix};
 use crate::forward::prior::{Prior, PriorSpec, WardGridSpec};
@@ -46,7 +46,6 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Duration;
-
 
 /// What to run.
 #[derive(Clone, Debug)]

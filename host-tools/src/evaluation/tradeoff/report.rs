@@ -21,7 +21,10 @@ pub fn markdown(r: &Report) -> String {
         r.prior_samples.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", "),
         r.rms_true
     );
-    let _ = writeln!(s, "| id | estimator | RMSE | NRMSE | host s/point | device instr/point | device cycles (est.) | device us @80 MHz | flash B/zone | vs f64 | Pareto | cost |");
+    let _ = writeln!(
+        s,
+        "| id | estimator | RMSE | NRMSE | host s/point | device instr/point | device cycles (est.) | device us @80 MHz | flash B/zone | vs f64 | Pareto | cost |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rows = r.rows.clone();
     rows.sort_by(|a, b| a.host_seconds_per_point.total_cmp(&b.host_seconds_per_point));
@@ -69,7 +72,11 @@ pub fn markdown(r: &Report) -> String {
 
     if let Some(k) = &r.kernels {
         let _ = writeln!(s, "\n## Device kernels (QEMU b-l475e-iot01a, exact instruction counts; `{}`)\n", k.command);
-        let _ = writeln!(s, "| kernel | instructions/point | instr per MAC ({} MACs) | cycles/point (est.) | us @80 MHz |", k.n * k.m);
+        let _ = writeln!(
+            s,
+            "| kernel | instructions/point | instr per MAC ({} MACs) | cycles/point (est.) | us @80 MHz |",
+            k.n * k.m
+        );
         let _ = writeln!(s, "|---|---|---|---|---|");
         let macs = (k.n * k.m) as f64;
         for (name, i, c) in [
@@ -81,31 +88,62 @@ pub fn markdown(r: &Report) -> String {
         ] {
             let _ = writeln!(s, "| {name} | {i:.0} | {:.3} | {c:.0} | {:.2} |", i / macs, c / 80.0);
         }
-        let sel: Vec<String> = k.select.iter().filter(|x| [1, 2, 4, 8, 16].contains(&x.0)).map(|(kk, i, c)| format!("K={kk}: {i:.0} instr / {c:.0} cycles")).collect();
+        let sel: Vec<String> = k
+            .select
+            .iter()
+            .filter(|x| [1, 2, 4, 8, 16].contains(&x.0))
+            .map(|(kk, i, c)| format!("K={kk}: {i:.0} instr / {c:.0} cycles"))
+            .collect();
         let _ = writeln!(s, "| cluster selection (m = 7) | {} | | | |", sel.join("; "));
-        let _ = writeln!(s, "\nLoad-time quantisation of one W to Q15: {:.0} instructions. Bit-exact against the host: {} ({}).", k.quantise_w_instructions, if k.bit_exact { "yes" } else { "NO" }, k.compared);
+        let _ = writeln!(
+            s,
+            "\nLoad-time quantisation of one W to Q15: {:.0} instructions. Bit-exact against the host: {} ({}).",
+            k.quantise_w_instructions,
+            if k.bit_exact { "yes" } else { "NO" },
+            k.compared
+        );
     }
 
     let sp = &r.speed;
-    let _ = writeln!(s, "\n## Host batch speed ({} points, n = {}, m = {}, f32; {})\n", sp.points, sp.n, sp.m, sp.numpy);
+    let _ =
+        writeln!(s, "\n## Host batch speed ({} points, n = {}, m = {}, f32; {})\n", sp.points, sp.n, sp.m, sp.numpy);
     let _ = writeln!(s, "| what | threads | best [s] | median [s] | ns/point |");
     let _ = writeln!(s, "|---|---|---|---|---|");
     for t in &sp.timings {
-        let _ = writeln!(s, "| {} | {} | {:.4} | {:.4} | {:.1} |", t.what, t.threads.map_or("default".into(), |x| x.to_string()), t.best_s, t.median_s, t.best_s_per_point * 1e9);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.4} | {:.4} | {:.1} |",
+            t.what,
+            t.threads.map_or("default".into(), |x| x.to_string()),
+            t.best_s,
+            t.median_s,
+            t.best_s_per_point * 1e9
+        );
     }
     if let Some(x) = sp.host_over_numpy_1t {
-        let _ = writeln!(s, "\nHost single thread / numpy single thread = {x:.2} ({}).", if x <= 1.0 { "host at least as fast" } else { "host SLOWER" });
+        let _ = writeln!(
+            s,
+            "\nHost single thread / numpy single thread = {x:.2} ({}).",
+            if x <= 1.0 { "host at least as fast" } else { "host SLOWER" }
+        );
     }
     if let Some(x) = sp.host_over_numpy_best {
         let _ = writeln!(s, "Host best / numpy best (any threads) = {x:.2}.");
     }
 
     if !r.zones.is_empty() {
-        let _ = writeln!(s, "\n## Zones along the line sensor (handheld geometry, 128 pixels, Wiener with the dense prior)\n");
+        let _ = writeln!(
+            s,
+            "\n## Zones along the line sensor (handheld geometry, 128 pixels, Wiener with the dense prior)\n"
+        );
         let _ = writeln!(s, "| Z | RMSE | worst pixel RMSE (pixel) | flash f32 [B] | flash Q15 [B] |");
         let _ = writeln!(s, "|---|---|---|---|---|");
         for z in &r.zones {
-            let _ = writeln!(s, "| {} | {:.4} | {:.4} ({}) | {} | {} |", z.zones, z.rmse, z.worst_pixel_rmse, z.worst_pixel, z.flash_bytes_f32, z.flash_bytes_q15);
+            let _ = writeln!(
+                s,
+                "| {} | {:.4} | {:.4} ({}) | {} | {} |",
+                z.zones, z.rmse, z.worst_pixel_rmse, z.worst_pixel, z.flash_bytes_f32, z.flash_bytes_q15
+            );
         }
     }
     if !r.leds.is_empty() {
@@ -120,7 +158,11 @@ pub fn markdown(r: &Report) -> String {
             }
             v
         };
-        let _ = writeln!(s, "| m | {} |", ids.iter().map(|i| format!("{i} RMSE / s per point")).collect::<Vec<_>>().join(" | "));
+        let _ = writeln!(
+            s,
+            "| m | {} |",
+            ids.iter().map(|i| format!("{i} RMSE / s per point")).collect::<Vec<_>>().join(" | ")
+        );
         let _ = writeln!(s, "|---|{}", "---|".repeat(ids.len()));
         let mut ms: Vec<usize> = r.leds.iter().map(|l| l.m).collect();
         ms.dedup();

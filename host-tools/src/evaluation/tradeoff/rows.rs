@@ -59,12 +59,44 @@ pub fn row_specs<'a>(cfg: &Config, data: &Data, pri: &'a Priors) -> Vec<RowSpec<
         spec("interpolation", "linear", E::Linear(EstimatorKind::Interpolation, "linear interpolation [0004]")),
         spec("pseudo-inverse", "linear", E::Linear(EstimatorKind::PseudoInverse, "pseudo-inverse (claim 4)")),
         spec("wiener-patent16", "linear", E::Wiener(&pri.patent, "Wiener eq. 22, patent prior (16 Ward)".into())),
-        spec("wiener-dense", "prior", E::Wiener(&pri.dense, format!("Wiener, dense Ward prior ({})", pri.dense.samples.ncols()))),
-        spec("wiener-wrong-range", "prior", E::Wiener(&pri.wrong_range, "Wiener, Ward prior alpha 0.1..0.3 (mismatched)".into())),
-        spec("wiener-ggx", "prior", E::Wiener(&pri.ggx, format!("Wiener, GGX prior ({}, mismatched model)", pri.ggx.samples.ncols()))),
-        spec("fit-cond1", "fit", E::Fit(ForwardModel::far_field(inst), FitOptions::default(), "Ward fit, light distribution ignored (cond. 1)")),
-        spec("fit-cond2", "fit", E::Fit(ForwardModel::near_field(inst), FitOptions::default(), "Ward fit, light distribution modelled (cond. 2)")),
-        spec("fit-cond2-more", "fit", E::Fit(ForwardModel::near_field(inst), more, "Ward fit cond. 2, 96-alpha scan, 4 starts, tol 1e-12")),
+        spec(
+            "wiener-dense",
+            "prior",
+            E::Wiener(&pri.dense, format!("Wiener, dense Ward prior ({})", pri.dense.samples.ncols())),
+        ),
+        spec(
+            "wiener-wrong-range",
+            "prior",
+            E::Wiener(&pri.wrong_range, "Wiener, Ward prior alpha 0.1..0.3 (mismatched)".into()),
+        ),
+        spec(
+            "wiener-ggx",
+            "prior",
+            E::Wiener(&pri.ggx, format!("Wiener, GGX prior ({}, mismatched model)", pri.ggx.samples.ncols())),
+        ),
+        spec(
+            "fit-cond1",
+            "fit",
+            E::Fit(
+                ForwardModel::far_field(inst),
+                FitOptions::default(),
+                "Ward fit, light distribution ignored (cond. 1)",
+            ),
+        ),
+        spec(
+            "fit-cond2",
+            "fit",
+            E::Fit(
+                ForwardModel::near_field(inst),
+                FitOptions::default(),
+                "Ward fit, light distribution modelled (cond. 2)",
+            ),
+        ),
+        spec(
+            "fit-cond2-more",
+            "fit",
+            E::Fit(ForwardModel::near_field(inst), more, "Ward fit cond. 2, 96-alpha scan, 4 starts, tol 1e-12"),
+        ),
     ];
     for &k in &cfg.ks {
         rows.push(spec(&format!("clustered-k{k}"), "clustered", E::Clustered { k, affine: false }));
@@ -108,7 +140,13 @@ struct Built {
 }
 
 /// Builds and measures every row of `specs` on `data`.
-pub fn measure_rows(specs: Vec<RowSpec<'_>>, cfg: &Config, data: &Data, pri: &Priors, rms_true: f64) -> anyhow::Result<Vec<Row>> {
+pub fn measure_rows(
+    specs: Vec<RowSpec<'_>>,
+    cfg: &Config,
+    data: &Data,
+    pri: &Priors,
+    rms_true: f64,
+) -> anyhow::Result<Vec<Row>> {
     let (m, n) = data.h.shape();
     let nm = n * m;
     let matvec = |extra: &str| format!("mat-vec {n}x{m}{extra}");
@@ -145,7 +183,9 @@ pub fn measure_rows(specs: Vec<RowSpec<'_>>, cfg: &Config, data: &Data, pri: &Pr
                 rows.push(row(id.clone(), lin(label.clone()), &|v, o| b.estimate_into(v, o), Some(&r64)).0);
                 built.wieners.insert(id, (e, r64));
             }
-            RowEstimator::Fit(model, opts, label) => rows.push(fit_row(data, cfg, rms_true, id.expect("named"), model, opts, label)?),
+            RowEstimator::Fit(model, opts, label) => {
+                rows.push(fit_row(data, cfg, rms_true, id.expect("named"), model, opts, label)?)
+            }
             RowEstimator::Clustered { k, affine } => {
                 let c = Clustered::train_with(&pri.dense, &data.h, cfg.noise_rel, *k, cfg.margin, 1, *affine)
                     .with_context(|| format!("{}clustered K = {k}", if *affine { "affine " } else { "" }))?;
@@ -174,15 +214,21 @@ pub fn measure_rows(specs: Vec<RowSpec<'_>>, cfg: &Config, data: &Data, pri: &Pr
             }
             RowEstimator::BestClusteredQ15 => {
                 let Some((_, c)) = &built.best_clustered else { continue };
-                let qs: Vec<Q15Estimator> = c.estimators.iter().map(|e| Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m)).collect();
+                let qs: Vec<Q15Estimator> =
+                    c.estimators.iter().map(|e| Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m)).collect();
                 let kk = c.k();
                 let affine = !c.offsets.is_empty();
                 let kind = if affine { "clustered-affine" } else { "clustered" };
                 let costs = Costs {
                     label: format!("{kind} K = {kk} in Q15"),
-                    cost: format!("select K={kk} + quantise v + Q15 mat-vec {n}x{m} + scale{}", if affine { " + offset" } else { "" }),
+                    cost: format!(
+                        "select K={kk} + quantise v + Q15 mat-vec {n}x{m} + scale{}",
+                        if affine { " + offset" } else { "" }
+                    ),
                     macs: Some(nm + kk * m),
-                    flash: Some(qs.iter().map(|q| q.bytes()).sum::<usize>() + 4 * kk * m + if affine { 4 * kk * n } else { 0 }),
+                    flash: Some(
+                        qs.iter().map(|q| q.bytes()).sum::<usize>() + 4 * kk * m + if affine { 4 * kk * n } else { 0 },
+                    ),
                 };
                 let est = |v: &[f32], o: &mut [f32]| {
                     for (vv, oo) in v.chunks_exact(m).zip(o.chunks_exact_mut(n)) {
@@ -208,7 +254,8 @@ pub fn measure_rows(specs: Vec<RowSpec<'_>>, cfg: &Config, data: &Data, pri: &Pr
                 rows.push(row(id.expect("named"), costs, &|v, o| lw.estimate_into(v, o), None).0);
             }
             RowEstimator::WienerQ15(of) => {
-                let (e, r64) = built.wieners.get(*of).with_context(|| format!("the Q15 row needs the row {of} before it"))?;
+                let (e, r64) =
+                    built.wieners.get(*of).with_context(|| format!("the Q15 row needs the row {of} before it"))?;
                 let q = Q15Estimator::from_row_major(&e.w_f32_row_major(), n, m);
                 let costs = Costs {
                     label: format!("{of} in Q15 (SMLAD kernel)"),
@@ -262,15 +309,26 @@ fn linear_row(
 }
 
 /// Measures a Ward fit row: every point fitted, median of `fit_runs` runs.
-fn fit_row(data: &Data, cfg: &Config, rms_true: f64, id: String, model: &ForwardModel, opts: &FitOptions, label: &str) -> anyhow::Result<Row> {
+fn fit_row(
+    data: &Data,
+    cfg: &Config,
+    rms_true: f64,
+    id: String,
+    model: &ForwardModel,
+    opts: &FitOptions,
+    label: &str,
+) -> anyhow::Result<Row> {
     let (k, n) = (data.points(), data.truth.nrows());
-    let (results, run_s) =
-        median_of_runs(cfg.fit_runs, || data.readings.iter().map(|v| fit_ward(model, v, opts)).collect::<Result<Vec<_>, _>>()).context("fitting")?;
+    let (results, run_s) = median_of_runs(cfg.fit_runs, || {
+        data.readings.iter().map(|v| fit_ward(model, v, opts)).collect::<Result<Vec<_>, _>>()
+    })
+    .context("fitting")?;
     let mut est = vec![0.0f32; k * n];
     for (p, r) in results.iter().enumerate() {
         let b = r.params.brdf();
         for j in 0..n {
-            est[p * n + j] = crate::forward::brdf::Brdf::reflectance(&b, data.grid.bins_deg()[j], data.inst.view_deg) as f32;
+            est[p * n + j] =
+                crate::forward::brdf::Brdf::reflectance(&b, data.grid.bins_deg()[j], data.inst.view_deg) as f32;
         }
     }
     let (rmse, max_abs) = errors(&est, &data.truth);

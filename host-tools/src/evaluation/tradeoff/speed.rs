@@ -10,11 +10,11 @@
 //! default thread count. Host and numpy alternate for 3 rounds (best of all
 //! runs reported), so load from elsewhere on a shared machine hits both.
 use crate::calibration::estimators::BatchEstimator;
+use crate::evaluation::timing::{best_and_median, median};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use std::hint::black_box;
-use crate::evaluation::timing::{best_and_median, median};
 
 /// One timing.
 #[derive(Clone, Debug, Serialize)]
@@ -72,8 +72,18 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
     let mut out = vec![0.0f32; points * n];
     let runs = 7;
     let has_numpy = cfg.numpy
-        && std::process::Command::new("python3").args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    let mut numpy = if !cfg.numpy { "not run (reduced configuration or --no-numpy)".to_string() } else if has_numpy { String::new() } else { "numpy not present".to_string() };
+        && std::process::Command::new("python3")
+            .args(["-c", "import numpy"])
+            .output()
+            .map(|o| o.status.success())
+            .unwrap_or(false);
+    let mut numpy = if !cfg.numpy {
+        "not run (reduced configuration or --no-numpy)".to_string()
+    } else if has_numpy {
+        String::new()
+    } else {
+        "numpy not present".to_string()
+    };
     // The machine may be shared: alternate host and numpy for `ROUNDS`
     // rounds and keep each one's best (and the median of its medians), so a
     // burst of load elsewhere does not favour one side.
@@ -99,15 +109,33 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
             let script = cfg.root.join("scripts/numpy_matmul.py");
             for threads in [Some(1usize), None] {
                 let mut c = std::process::Command::new("python3");
-                c.arg(&script).args(["--points", &points.to_string(), "--n", &n.to_string(), "--m", &m.to_string(), "--runs", &runs.to_string()]);
+                c.arg(&script).args([
+                    "--points",
+                    &points.to_string(),
+                    "--n",
+                    &n.to_string(),
+                    "--m",
+                    &m.to_string(),
+                    "--runs",
+                    &runs.to_string(),
+                ]);
                 if let Some(t) = threads {
                     c.args(["--threads", &t.to_string()]);
                 }
                 let o = c.output()?;
                 anyhow::ensure!(o.status.success(), "numpy_matmul.py failed: {}", String::from_utf8_lossy(&o.stderr));
                 let j: serde_json::Value = serde_json::from_slice(&o.stdout)?;
-                numpy = format!("numpy {} ({})", j["numpy"].as_str().unwrap_or("?"), j["blas"].as_str().unwrap_or("BLAS ?"));
-                record("numpy matmul (OpenBLAS sgemm)", threads, j["best_s"].as_f64().unwrap_or(f64::NAN), j["median_s"].as_f64().unwrap_or(f64::NAN));
+                numpy = format!(
+                    "numpy {} ({})",
+                    j["numpy"].as_str().unwrap_or("?"),
+                    j["blas"].as_str().unwrap_or("BLAS ?")
+                );
+                record(
+                    "numpy matmul (OpenBLAS sgemm)",
+                    threads,
+                    j["best_s"].as_f64().unwrap_or(f64::NAN),
+                    j["median_s"].as_f64().unwrap_or(f64::NAN),
+                );
             }
         }
     }
@@ -118,7 +146,9 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
             Timing { what, threads, best_s: best, median_s: median(&mut meds), best_s_per_point: best / points as f64 }
         })
         .collect();
-    let get = |what: &str, t: Option<usize>| timings.iter().find(|x| x.what.starts_with(what) && x.threads == t).map(|x| x.best_s);
+    let get = |what: &str, t: Option<usize>| {
+        timings.iter().find(|x| x.what.starts_with(what) && x.threads == t).map(|x| x.best_s)
+    };
     let best = get("host", Some(1)).unwrap_or(f64::NAN);
     let best2 = get("host", Some(2)).unwrap_or(f64::NAN);
     let np1 = get("numpy", Some(1));

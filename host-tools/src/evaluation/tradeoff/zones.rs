@@ -12,8 +12,8 @@
 //! system matrix at the zone's centre pixel, and every pixel of the zone uses
 //! it; Z = P is one matrix per pixel. Flash: Z n m f32 (4 bytes) or Q15
 //! (2 bytes, padded pairs, plus a scale per row).
-use crate::forward::brdf::Brdf;
 use crate::calibration::estimators::BatchEstimator;
+use crate::forward::brdf::Brdf;
 use crate::forward::optics::Optics;
 use crate::forward::prior::{Prior, SampleSet};
 use crate::forward::scene::{Scene, zone_system_matrices};
@@ -64,7 +64,8 @@ pub fn run(cfg: &super::Config, prior: &Prior) -> anyhow::Result<Vec<ZoneRow>> {
     let stride_b = if cfg.quick { 10 } else { 1 };
     let brdfs: Vec<&dyn Brdf> = test.brdfs.iter().step_by(stride_b).map(|b| b.as_ref()).collect();
     let pixels: Vec<usize> = (0..p).step_by(cfg.zone_pixel_stride.max(1)).collect();
-    let truth: Vec<Vec<f64>> = brdfs.iter().map(|b| grid.bins_deg().iter().map(|t| b.reflectance(*t, inst.view_deg)).collect()).collect();
+    let truth: Vec<Vec<f64>> =
+        brdfs.iter().map(|b| grid.bins_deg().iter().map(|t| b.reflectance(*t, inst.view_deg)).collect()).collect();
     // Readings per (pixel, BRDF), noisy, f32.
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut readings: Vec<Vec<f32>> = Vec::with_capacity(pixels.len());

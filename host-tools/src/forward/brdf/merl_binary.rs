@@ -50,7 +50,10 @@ impl MerlTable {
         let cells: usize = dims.iter().product();
         let want = 12 + 3 * cells * 8;
         if bytes.len() != want {
-            bail!("{origin}: {} bytes, but dimensions {dims:?} need {want} (12-byte header + 3 x {cells} f64)", bytes.len());
+            bail!(
+                "{origin}: {} bytes, but dimensions {dims:?} need {want} (12-byte header + 3 x {cells} f64)",
+                bytes.len()
+            );
         }
         let values: Vec<f64> = bytes[12..].chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
         if let Some(i) = values.iter().position(|x| !x.is_finite()) {
@@ -124,7 +127,9 @@ mod tests {
     fn small() -> MerlTable {
         let dims = [6, 5, 8];
         let cells = 6 * 5 * 8;
-        let values = (0..3 * cells).map(|i| 1500.0 * (0.1 + (i % cells) as f64 / cells as f64) * (1 + i / cells) as f64).collect();
+        let values = (0..3 * cells)
+            .map(|i| 1500.0 * (0.1 + (i % cells) as f64 / cells as f64) * (1 + i / cells) as f64)
+            .collect();
         MerlTable { dims, values, channel_weights: LUMINANCE }
     }
 

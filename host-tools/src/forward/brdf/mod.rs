@@ -99,7 +99,14 @@ pub struct BrdfParamError {
     pub why: &'static str,
 }
 
-pub(crate) fn check(model: &'static str, field: &'static str, value: f64, lo: f64, hi: f64, why: &'static str) -> Result<(), BrdfParamError> {
+pub(crate) fn check(
+    model: &'static str,
+    field: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    why: &'static str,
+) -> Result<(), BrdfParamError> {
     if value.is_finite() && value >= lo && value <= hi {
         Ok(())
     } else {
@@ -117,11 +124,13 @@ impl BrdfSpec {
     /// Builds the model for a sensor whose spectral weights of R, G, B are `spectral`.
     pub fn build_for(&self, spectral: [f64; 3]) -> Result<Box<dyn Brdf>, BrdfParamError> {
         if let BrdfSpec::Merl { material } = self {
-            return NbrdfSet::merl().by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| BrdfParamError {
-                model: "merl",
-                field: "material",
-                value: f64::NAN,
-                why: "not a material of the vendored MERL set (names as in host-tools/data/merl-nbrdf.json)",
+            return NbrdfSet::merl().by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| {
+                BrdfParamError {
+                    model: "merl",
+                    field: "material",
+                    value: f64::NAN,
+                    why: "not a material of the vendored MERL set (names as in host-tools/data/merl-nbrdf.json)",
+                }
             });
         }
         Ok(match *self {

@@ -132,9 +132,8 @@ pub struct NbrdfSet {
 impl NbrdfSet {
     /// Parses an NBRDF JSON document; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> anyhow::Result<Self> {
-        let file: NbrdfFile = serde_json::from_str(text).map_err(|e| {
-            anyhow::anyhow!("{origin}:{}:{}: not an NBRDF file: {e}", e.line(), e.column())
-        })?;
+        let file: NbrdfFile = serde_json::from_str(text)
+            .map_err(|e| anyhow::anyhow!("{origin}:{}:{}: not an NBRDF file: {e}", e.line(), e.column()))?;
         ensure!(file.format == NBRDF_FORMAT, "{origin}: format {:?} is not {NBRDF_FORMAT:?}", file.format);
         ensure!(!file.materials.is_empty(), "{origin}: the file lists no materials");
         let mut materials = Vec::with_capacity(file.materials.len());

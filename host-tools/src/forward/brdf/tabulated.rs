@@ -120,8 +120,17 @@ mod tests {
         assert_eq!(t.at(60.0).unwrap(), 2.0);
         assert!((t.reflectance(50.0, 45.0) - 2.5).abs() < 1e-9);
         assert!(matches!(t.at(61.0), Err(TabulatedError::OutsideSpan { .. })));
-        assert_eq!(Tabulated::new(vec![1.0, 2.0], vec![1.0, -0.5]), Err(TabulatedError::Negative { index: 1, value: -0.5 }));
-        assert_eq!(Tabulated::new(vec![1.0, 1.0], vec![1.0, 1.0]), Err(TabulatedError::NotAscending { index: 1, angle: 1.0 }));
-        assert_eq!(Tabulated::new(vec![1.0, 2.0], vec![f64::NAN, 1.0]), Err(TabulatedError::NotFinite { index: 0, what: "value" }));
+        assert_eq!(
+            Tabulated::new(vec![1.0, 2.0], vec![1.0, -0.5]),
+            Err(TabulatedError::Negative { index: 1, value: -0.5 })
+        );
+        assert_eq!(
+            Tabulated::new(vec![1.0, 1.0], vec![1.0, 1.0]),
+            Err(TabulatedError::NotAscending { index: 1, angle: 1.0 })
+        );
+        assert_eq!(
+            Tabulated::new(vec![1.0, 2.0], vec![f64::NAN, 1.0]),
+            Err(TabulatedError::NotFinite { index: 0, what: "value" })
+        );
     }
 }

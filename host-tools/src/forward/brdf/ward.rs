@@ -68,7 +68,8 @@ mod tests {
         // In-plane, delta = |theta_i - theta_o| / 2.
         let (ti, to) = (37.0f64, 45.0f64);
         let d = ((ti - to) / 2.0).to_radians();
-        let expect = Ward::reflectance_from(0.4, 0.6, 0.08, ti.to_radians().cos(), to.to_radians().cos(), d.tan().powi(2));
+        let expect =
+            Ward::reflectance_from(0.4, 0.6, 0.08, ti.to_radians().cos(), to.to_radians().cos(), d.tan().powi(2));
         assert!((w.reflectance(ti, to) - expect).abs() < 1e-12 * expect);
         assert!(w.reflectance(ti, to) < w.reflectance(45.0, 45.0));
     }

@@ -1,6 +1,6 @@
 //! The instrument description (TOML) with the patent profile built in.
-use crate::output::config::{FieldError, Validate, check_positive, check_range};
 use crate::forward::grid::{AngleGrid, GridError, GridSpec};
+use crate::output::config::{FieldError, Validate, check_positive, check_range};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -110,7 +110,10 @@ impl EmissionSpec {
                 }
                 for (i, w) in angles_deg.windows(2).enumerate() {
                     if w[1] <= w[0] || w[1].is_nan() || w[1] > 90.0 {
-                        return Err(FieldError::new(format!("angles_deg[{}]", i + 1), "angles must ascend strictly, up to 90 deg"));
+                        return Err(FieldError::new(
+                            format!("angles_deg[{}]", i + 1),
+                            "angles must ascend strictly, up to 90 deg",
+                        ));
                     }
                 }
                 for (i, v) in values.iter().enumerate() {
@@ -380,9 +383,9 @@ impl Instrument {
         let v = dir.cross(&u);
         let centre = Vector3::from(self.point.position_cm) + dir * l.distance_cm;
         let mut offsets: Vec<([f64; 2], f64)> = match (&l.cluster, &l.sources, &l.extended) {
-            (Some(c), _, _) => (0..c.count)
-                .map(|k| ([(k as f64 - (c.count as f64 - 1.0) / 2.0) * c.pitch_cm, 0.0], 1.0))
-                .collect(),
+            (Some(c), _, _) => {
+                (0..c.count).map(|k| ([(k as f64 - (c.count as f64 - 1.0) / 2.0) * c.pitch_cm, 0.0], 1.0)).collect()
+            }
             (None, Some(s), _) => s.iter().map(|s| (s.offset_cm, s.intensity)).collect(),
             (None, None, Some(e)) => {
                 let (nu, nv) = (e.samples[0], if three_d { e.samples[1] } else { 1 });
@@ -419,14 +422,19 @@ impl Validate for Instrument {
         if !self.point.position_cm.iter().all(|x| x.is_finite()) {
             return Err(FieldError::new("point.position_cm", "must be finite"));
         }
-        if !self.spectral_weights.iter().all(|w| w.is_finite() && *w >= 0.0) || self.spectral_weights.iter().sum::<f64>() <= 0.0 {
+        if !self.spectral_weights.iter().all(|w| w.is_finite() && *w >= 0.0)
+            || self.spectral_weights.iter().sum::<f64>() <= 0.0
+        {
             return Err(FieldError::new("spectral_weights", "must be three finite weights >= 0 with a positive sum"));
         }
         if self.leds.is_empty() {
             return Err(FieldError::new("leds", "at least one illumination is needed"));
         }
         if self.leds.len() > brdf_meter::blob::MAX_LEDS {
-            return Err(FieldError::new("leds", format!("at most {} illuminations are supported", brdf_meter::blob::MAX_LEDS)));
+            return Err(FieldError::new(
+                "leds",
+                format!("at most {} illuminations are supported", brdf_meter::blob::MAX_LEDS),
+            ));
         }
         if let Some(d) = self.view_distance_cm {
             check_positive("view_distance_cm", d, "cm")?;
@@ -434,7 +442,10 @@ impl Validate for Instrument {
         let s = &self.sensor;
         let at_s = |e: FieldError| e.within("sensor");
         if s.pixels == 0 || s.pixels > brdf_meter::blob::MAX_PIXELS {
-            return Err(at_s(FieldError::new("pixels", format!("{} is impossible; allowed 1..={}", s.pixels, brdf_meter::blob::MAX_PIXELS))));
+            return Err(at_s(FieldError::new(
+                "pixels",
+                format!("{} is impossible; allowed 1..={}", s.pixels, brdf_meter::blob::MAX_PIXELS),
+            )));
         }
         check_positive("pitch_um", s.pitch_um, "um").map_err(at_s)?;
         check_positive("magnification", s.magnification, "").map_err(at_s)?;
@@ -457,7 +468,8 @@ impl Validate for Instrument {
             if let Some(e) = &l.extended {
                 let at2 = |x: FieldError| at(x.within("extended"));
                 check_range("width_cm", e.width_cm, 0.0, l.distance_cm, "cm (not beyond the distance)").map_err(at2)?;
-                check_range("height_cm", e.height_cm, 0.0, l.distance_cm, "cm (not beyond the distance)").map_err(at2)?;
+                check_range("height_cm", e.height_cm, 0.0, l.distance_cm, "cm (not beyond the distance)")
+                    .map_err(at2)?;
                 if e.samples[0] == 0 || e.samples[1] == 0 || e.samples[0] * e.samples[1] > 10_000 {
                     return Err(at2(FieldError::new("samples", "each count must be >= 1 and their product <= 10000")));
                 }
@@ -468,7 +480,8 @@ impl Validate for Instrument {
                     if c.count == 0 {
                         return Err(at(FieldError::new("cluster.count", "must be at least 1")));
                     }
-                    check_range("cluster.pitch_cm", c.pitch_cm, 0.0, l.distance_cm, "cm (not beyond the distance)").map_err(at)?;
+                    check_range("cluster.pitch_cm", c.pitch_cm, 0.0, l.distance_cm, "cm (not beyond the distance)")
+                        .map_err(at)?;
                 }
                 (None, Some(s)) => {
                     if s.is_empty() {
@@ -528,7 +541,8 @@ mod tests {
         let mut p = Instrument::patent_profile();
         p.leds[2].emission = Some(EmissionSpec::Tabulated { angles_deg: vec![5.0, 30.0], values: vec![1.0, 0.5] });
         assert_eq!(p.validate().unwrap_err().path, "leds[2].emission.angles_deg");
-        p.leds[2].emission = Some(EmissionSpec::Tabulated { angles_deg: vec![0.0, 30.0, 20.0], values: vec![1.0, 0.5, 0.1] });
+        p.leds[2].emission =
+            Some(EmissionSpec::Tabulated { angles_deg: vec![0.0, 30.0, 20.0], values: vec![1.0, 0.5, 0.1] });
         assert_eq!(p.validate().unwrap_err().path, "leds[2].emission.angles_deg[2]");
     }
 

@@ -17,6 +17,8 @@ mod instrument;
 mod rays;
 mod system_matrix;
 
-pub use instrument::{ClusterSpec, EmissionSpec, ExtendedSpec, Instrument, LedSpec, LineAxis, PointSpec, SensorSpec, SourceSpec};
+pub use instrument::{
+    ClusterSpec, EmissionSpec, ExtendedSpec, Instrument, LedSpec, LineAxis, PointSpec, SensorSpec, SourceSpec,
+};
 pub use rays::{Optics, Ray, RayModel, rays, surface_frame};
 pub use system_matrix::{OpticsError, simulate_readings, system_matrix, system_matrix_at};

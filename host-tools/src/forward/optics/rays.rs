@@ -195,7 +195,10 @@ mod tests {
         // Outer sources are 0.34 cm off a 10 cm ray: ~1.95 deg.
         assert!((spread - (0.34f64 / 10.0).atan().to_degrees()).abs() < 1e-9, "{spread}");
         // Closer to grazing, cos(theta) falls: the ray nearer the normal weighs more.
-        let (lo, hi) = (r.iter().min_by(|a, b| a.theta_deg.total_cmp(&b.theta_deg)).unwrap(), r.iter().max_by(|a, b| a.theta_deg.total_cmp(&b.theta_deg)).unwrap());
+        let (lo, hi) = (
+            r.iter().min_by(|a, b| a.theta_deg.total_cmp(&b.theta_deg)).unwrap(),
+            r.iter().max_by(|a, b| a.theta_deg.total_cmp(&b.theta_deg)).unwrap(),
+        );
         assert!(lo.weight > hi.weight);
     }
 

@@ -21,7 +21,9 @@ pub enum OpticsError {
     },
     /// No light reaches the point (every source behind the surface, or an
     /// emission profile that sends nothing towards it).
-    #[error("illumination {led}: no light reaches the point (every source is behind the surface or emits nothing towards it)")]
+    #[error(
+        "illumination {led}: no light reaches the point (every source is behind the surface or emits nothing towards it)"
+    )]
     NoLight {
         /// Illumination index.
         led: usize,
@@ -82,7 +84,10 @@ pub fn simulate_readings(inst: &Instrument, brdf: &dyn Brdf, far_field: bool) ->
     DVector::from_iterator(
         inst.m(),
         (0..inst.m()).map(|led| {
-            rays(inst, led, far_field).iter().map(|r| r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, &wo)).sum::<f64>()
+            rays(inst, led, far_field)
+                .iter()
+                .map(|r| r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, &wo))
+                .sum::<f64>()
         }),
     )
 }

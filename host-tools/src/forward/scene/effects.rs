@@ -37,7 +37,6 @@ pub const STAGE_ORDER: [&str; 12] = [
     "quantisation",
 ];
 
-
 /// How sensor noise is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -202,7 +201,12 @@ impl TryFrom<EffectEntry> for EffectSpec {
 impl EffectSpec {
     /// Reads an effect table; errors name the field (relative to the table).
     pub(crate) fn from_entry(e: EffectEntry) -> Result<Self, FieldError> {
-        let kind = e.kind.ok_or_else(|| FieldError::new("kind", format!("missing field `kind`; name one of the effects: {}", STAGE_ORDER.join(", "))))?;
+        let kind = e.kind.ok_or_else(|| {
+            FieldError::new(
+                "kind",
+                format!("missing field `kind`; name one of the effects: {}", STAGE_ORDER.join(", ")),
+            )
+        })?;
         // Which parameters each effect takes.
         let (allowed, spec): (&[&str], EffectSpec) = match kind {
             EffectKind::NearField => (&[], EffectSpec::NearField {}),
@@ -211,11 +215,16 @@ impl EffectSpec {
             EffectKind::InverseSquare => (&[], EffectSpec::InverseSquare {}),
             EffectKind::EmissionProfile => (&[], EffectSpec::EmissionProfile {}),
             EffectKind::Saturation => (&[], EffectSpec::Saturation {}),
-            EffectKind::LedDrift => {
-                (&["rate_per_frame"], EffectSpec::LedDrift { rate_per_frame: need("led-drift", "rate_per_frame", e.rate_per_frame)? })
+            EffectKind::LedDrift => (
+                &["rate_per_frame"],
+                EffectSpec::LedDrift { rate_per_frame: need("led-drift", "rate_per_frame", e.rate_per_frame)? },
+            ),
+            EffectKind::AmbientLight => {
+                (&["counts"], EffectSpec::AmbientLight { counts: need("ambient-light", "counts", e.counts)? })
             }
-            EffectKind::AmbientLight => (&["counts"], EffectSpec::AmbientLight { counts: need("ambient-light", "counts", e.counts)? }),
-            EffectKind::Nonlinearity => (&["gamma"], EffectSpec::Nonlinearity { gamma: need("nonlinearity", "gamma", e.gamma)? }),
+            EffectKind::Nonlinearity => {
+                (&["gamma"], EffectSpec::Nonlinearity { gamma: need("nonlinearity", "gamma", e.gamma)? })
+            }
             EffectKind::DarkOffset => (
                 &["counts", "fixed_pattern_rms", "seed"],
                 EffectSpec::DarkOffset {
@@ -224,20 +233,29 @@ impl EffectSpec {
                     seed: e.seed.unwrap_or(1),
                 },
             ),
-            EffectKind::Quantisation => (&["step_counts"], EffectSpec::Quantisation { step_counts: e.step_counts.unwrap_or(1.0) }),
+            EffectKind::Quantisation => {
+                (&["step_counts"], EffectSpec::Quantisation { step_counts: e.step_counts.unwrap_or(1.0) })
+            }
             EffectKind::Noise => {
                 let model = need("noise", "model", e.model)?;
                 let (allowed, needed): (&[&str], &[&str]) = match model {
                     NoiseModel::Additive => (&["model", "sigma_counts", "seed"], &["sigma_counts"]),
                     NoiseModel::Proportional => (&["model", "sigma", "seed"], &["sigma"]),
-                    NoiseModel::ShotRead => {
-                        (&["model", "electrons_per_count", "read_sigma_counts", "seed"], &["electrons_per_count", "read_sigma_counts"])
-                    }
+                    NoiseModel::ShotRead => (
+                        &["model", "electrons_per_count", "read_sigma_counts", "seed"],
+                        &["electrons_per_count", "read_sigma_counts"],
+                    ),
                 };
                 let given = e.given();
                 for f in needed {
                     if !given.contains(f) {
-                        return Err(FieldError::new(*f, format!("effect `noise`: missing field `{f}`, which noise model `{}` needs", model_name(model))));
+                        return Err(FieldError::new(
+                            *f,
+                            format!(
+                                "effect `noise`: missing field `{f}`, which noise model `{}` needs",
+                                model_name(model)
+                            ),
+                        ));
                     }
                 }
                 (
@@ -254,8 +272,12 @@ impl EffectSpec {
             }
         };
         if let Some(f) = e.given().into_iter().find(|f| !allowed.contains(f)) {
-            let takes = if allowed.is_empty() { "no parameters".to_string() } else { format!("only {}", allowed.join(", ")) };
-            return Err(FieldError::new(f, format!("field `{f}` does not apply to effect `{}`, which takes {takes}", spec.name())));
+            let takes =
+                if allowed.is_empty() { "no parameters".to_string() } else { format!("only {}", allowed.join(", ")) };
+            return Err(FieldError::new(
+                f,
+                format!("field `{f}` does not apply to effect `{}`, which takes {takes}", spec.name()),
+            ));
         }
         Ok(spec)
     }
@@ -334,7 +356,9 @@ impl EffectSpec {
     /// Checks the parameters; paths are relative to the effect's table.
     pub fn validate(&self) -> Result<(), FieldError> {
         match self {
-            EffectSpec::LedDrift { rate_per_frame } => check_range("rate_per_frame", *rate_per_frame, -0.01, 0.01, "per frame"),
+            EffectSpec::LedDrift { rate_per_frame } => {
+                check_range("rate_per_frame", *rate_per_frame, -0.01, 0.01, "per frame")
+            }
             EffectSpec::AmbientLight { counts } => check_range("counts", *counts, 0.0, 1e9, "counts"),
             EffectSpec::Nonlinearity { gamma } => check_range("gamma", *gamma, 0.2, 5.0, ""),
             EffectSpec::DarkOffset { counts, fixed_pattern_rms, .. } => {
@@ -343,11 +367,19 @@ impl EffectSpec {
             }
             EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. } => {
                 let need = |name: &str, v: &Option<f64>| {
-                    v.ok_or_else(|| FieldError::new(name, format!("missing field `{name}`, which noise model `{}` needs", model_name(*model))))
+                    v.ok_or_else(|| {
+                        FieldError::new(
+                            name,
+                            format!("missing field `{name}`, which noise model `{}` needs", model_name(*model)),
+                        )
+                    })
                 };
                 // (Files are checked on reading; this guards specs built in code.)
                 let forbid = |name: &str, v: &Option<f64>| match v {
-                    Some(_) => Err(FieldError::new(name, format!("`{name}` does not apply to noise model `{}`", model_name(*model)))),
+                    Some(_) => Err(FieldError::new(
+                        name,
+                        format!("`{name}` does not apply to noise model `{}`", model_name(*model)),
+                    )),
                     None => Ok(()),
                 };
                 match model {
@@ -366,12 +398,24 @@ impl EffectSpec {
                     NoiseModel::ShotRead => {
                         forbid("sigma", sigma)?;
                         forbid("sigma_counts", sigma_counts)?;
-                        check_positive("electrons_per_count", need("electrons_per_count", electrons_per_count)?, "e-/count")?;
-                        check_range("read_sigma_counts", need("read_sigma_counts", read_sigma_counts)?, 0.0, 1e9, "counts")
+                        check_positive(
+                            "electrons_per_count",
+                            need("electrons_per_count", electrons_per_count)?,
+                            "e-/count",
+                        )?;
+                        check_range(
+                            "read_sigma_counts",
+                            need("read_sigma_counts", read_sigma_counts)?,
+                            0.0,
+                            1e9,
+                            "counts",
+                        )
                     }
                 }
             }
-            EffectSpec::Quantisation { step_counts } => check_range("step_counts", *step_counts, 1e-9, 65535.0, "counts"),
+            EffectSpec::Quantisation { step_counts } => {
+                check_range("step_counts", *step_counts, 1e-9, 65535.0, "counts")
+            }
             EffectSpec::NearField {}
             | EffectSpec::ThreeDGeometry {}
             | EffectSpec::PerPixelGeometry {}

@@ -54,16 +54,25 @@ pub fn scene_frames(scene: &super::Scene, lines: usize) -> anyhow::Result<SceneF
 /// Frames for a simulated device from a scene named on the command line:
 /// `analytic` ([`analytic_scene`]), `patent` ([`patent_scene`]) or a scene
 /// TOML file, simulated for the calibration's pixel count.
-pub fn named_scene_frames(spec: &str, blob: &BlobView<'_>, lines: usize, full_scale: u16) -> anyhow::Result<SceneFrames> {
+pub fn named_scene_frames(
+    spec: &str,
+    blob: &BlobView<'_>,
+    lines: usize,
+    full_scale: u16,
+) -> anyhow::Result<SceneFrames> {
     use anyhow::Context;
     let pixels = blob.dims().pixels;
     Ok(match spec {
         "analytic" => analytic_scene(blob, lines, full_scale),
         "patent" => scene_frames(&patent_scene(pixels), lines)?,
         path => {
-            let mut s = super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
+            let mut s =
+                super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
             if s.instrument.sensor.pixels != pixels {
-                eprintln!("note: scene {path} has {} pixels; simulating {pixels} for this device", s.instrument.sensor.pixels);
+                eprintln!(
+                    "note: scene {path} has {} pixels; simulating {pixels} for this device",
+                    s.instrument.sensor.pixels
+                );
                 s.instrument.sensor.pixels = pixels;
             }
             scene_frames(&s, lines)?

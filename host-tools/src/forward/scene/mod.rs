@@ -37,8 +37,8 @@ pub mod pipeline;
 pub mod readings;
 
 use crate::forward::brdf::{Brdf, BrdfSpec};
-use crate::output::config::{ConfigError, FieldError, Validate};
 use crate::forward::optics::{Instrument, Optics, OpticsError, RayModel, system_matrix_at};
+use crate::output::config::{ConfigError, FieldError, Validate};
 use anyhow::Context;
 pub use effects::{EffectSpec, NoiseModel, STAGE_ORDER};
 use nalgebra::{DMatrix, Vector3};
@@ -98,10 +98,16 @@ impl Validate for Scene {
             let at = |x: FieldError| x.within(&format!("effects[{i}]"));
             e.validate().map_err(at)?;
             if std::mem::replace(&mut seen[e.order()], true) {
-                return Err(at(FieldError::new("kind", format!("effect `{}` is listed twice; list each effect once", e.name()))));
+                return Err(at(FieldError::new(
+                    "kind",
+                    format!("effect `{}` is listed twice; list each effect once", e.name()),
+                )));
             }
         }
-        if self.has("per-pixel-geometry") && !self.has("3d-geometry") && self.instrument.sensor.line_axis == crate::forward::optics::LineAxis::Y {
+        if self.has("per-pixel-geometry")
+            && !self.has("3d-geometry")
+            && self.instrument.sensor.line_axis == crate::forward::optics::LineAxis::Y
+        {
             return Err(FieldError::new(
                 "instrument.sensor.line_axis",
                 "a line across the plane of incidence (\"y\") collapses onto the centre point in-plane: list `3d-geometry` too, or use \"x\"",
@@ -116,7 +122,10 @@ impl Validate for Scene {
             if s.last_pixel >= p || s.first_pixel > s.last_pixel {
                 return Err(at(FieldError::new(
                     "last_pixel",
-                    format!("pixels {}..={} are impossible; need first_pixel <= last_pixel < {p} (instrument.sensor.pixels)", s.first_pixel, s.last_pixel),
+                    format!(
+                        "pixels {}..={} are impossible; need first_pixel <= last_pixel < {p} (instrument.sensor.pixels)",
+                        s.first_pixel, s.last_pixel
+                    ),
                 )));
             }
             for c in &mut covered[s.first_pixel..=s.last_pixel] {
@@ -317,10 +326,7 @@ pub fn pixel_system_matrix(scene: &Scene, pixel: f64) -> Result<DMatrix<f64>, Op
 /// `1 <= zones <= pixels`.
 pub fn zone_system_matrices(scene: &Scene, zones: usize) -> anyhow::Result<Vec<ZoneMatrix>> {
     let p = scene.instrument.sensor.pixels;
-    anyhow::ensure!(
-        zones >= 1 && zones <= p,
-        "{zones} zones are impossible for a sensor of {p} pixels; use 1..={p}"
-    );
+    anyhow::ensure!(zones >= 1 && zones <= p, "{zones} zones are impossible for a sensor of {p} pixels; use 1..={p}");
     let optics = Optics::new(&scene.instrument, scene.ray_model());
     let grid = scene.instrument.grid().context("instrument.grid")?;
     let starts = zone_starts(p, zones);

@@ -9,7 +9,9 @@ use super::{EffectSpec, NoiseModel, Scene, white_reference};
 /// median white count over pixels and LEDs. A scene without noise trains
 /// noise-free: the estimator models what the scene says and no more.
 pub fn relative_noise_level(scene: &Scene) -> anyhow::Result<f64> {
-    let Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) = scene.noise() else {
+    let Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) =
+        scene.noise()
+    else {
         return Ok(0.0);
     };
     let white = || -> anyhow::Result<f64> {

@@ -11,8 +11,8 @@
 //! Geometric effects configure the optics (a flag that is off is a
 //! computation that never runs); the others are boxed [`Stage`]s, one per
 //! listed effect and none for an unlisted one.
-use super::effects::{EffectSpec, NoiseModel, STAGE_ORDER};
 use super::Scene;
+use super::effects::{EffectSpec, NoiseModel, STAGE_ORDER};
 use crate::forward::brdf::Brdf;
 use crate::forward::optics::{Optics, RayModel};
 use anyhow::bail;
@@ -220,7 +220,9 @@ impl Pipeline {
                 | EffectSpec::EmissionProfile {} => geometry.push(e.name()),
                 EffectSpec::LedDrift { rate_per_frame } => stages.push(Box::new(Drift { rate: *rate_per_frame })),
                 EffectSpec::AmbientLight { counts } => stages.push(Box::new(Ambient { counts: *counts })),
-                EffectSpec::Nonlinearity { gamma } => stages.push(Box::new(Nonlinearity { gamma: *gamma, full_scale: s.full_scale })),
+                EffectSpec::Nonlinearity { gamma } => {
+                    stages.push(Box::new(Nonlinearity { gamma: *gamma, full_scale: s.full_scale }))
+                }
                 EffectSpec::DarkOffset { counts, fixed_pattern_rms, seed } => {
                     let pattern = if *fixed_pattern_rms > 0.0 {
                         let mut rng = ChaCha8Rng::seed_from_u64(mix(*seed, u64::MAX, u64::MAX));
@@ -316,7 +318,8 @@ impl Simulator {
             let key = pt * brdfs.len() + b;
             if memo[key].is_none() || white_memo[pt].is_none() {
                 // One pass over the rays gives the surface's light and the white tile's.
-                let (l, w) = light(&optics, &scene.pixel_point(px as f64), &pixel_view(scene, px), brdfs[b].as_ref(), gain);
+                let (l, w) =
+                    light(&optics, &scene.pixel_point(px as f64), &pixel_view(scene, px), brdfs[b].as_ref(), gain);
                 memo[key].get_or_insert(l);
                 white_memo[pt].get_or_insert(w);
             }
@@ -369,7 +372,11 @@ impl Simulator {
     pub fn frames(&self, line: u64, mode: Mode) -> Vec<Vec<f64>> {
         (0..=self.m)
             .map(|f| {
-                let mut frame = if f == 0 { vec![0.0; self.p] } else { (0..self.p).map(|px| self.signal[px * self.m + f - 1]).collect() };
+                let mut frame = if f == 0 {
+                    vec![0.0; self.p]
+                } else {
+                    (0..self.p).map(|px| self.signal[px * self.m + f - 1]).collect()
+                };
                 self.pipeline.run(&mut frame, &FrameCtx { line, frame: f, m: self.m }, mode);
                 frame
             })
@@ -406,7 +413,8 @@ impl Simulator {
             for (px, x) in frame.into_iter().enumerate() {
                 let r = x.round();
                 if r.is_nan() || r > 65535.0 {
-                    let what = if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
+                    let what =
+                        if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
                     bail!(
                         "line {line}, pixel {px}, {what}: {x} counts do not fit the u16 link; lower instrument.sensor.gain or list the `saturation` effect"
                     );

@@ -102,7 +102,8 @@ pub fn simulate_lines(scene: &Scene, first: u64, lines: u64) -> anyhow::Result<(
     let (p, m) = (sim.pixels(), sim.m());
     let grid = inst.grid().context("instrument.grid")?;
     let (brdfs, of_pixel) = scene.surface_brdfs()?;
-    let names: Vec<String> = inst.leds.iter().enumerate().map(|(k, l)| l.name.clone().unwrap_or_else(|| format!("LED{k}"))).collect();
+    let names: Vec<String> =
+        inst.leds.iter().enumerate().map(|(k, l)| l.name.clone().unwrap_or_else(|| format!("LED{k}"))).collect();
     let centres = inst.centre_angles_deg();
     let pi = std::f64::consts::PI;
     let mut at_centre = Vec::with_capacity(p);
@@ -110,10 +111,14 @@ pub fn simulate_lines(scene: &Scene, first: u64, lines: u64) -> anyhow::Result<(
     for px in 0..p {
         let wo = pixel_view(scene, px);
         let b = brdfs[of_pixel[px]].as_ref();
-        at_centre.push(centres.iter().map(|c| pi * b.f_r(&crate::forward::brdf::light_dir(*c), &wo)).collect::<Vec<_>>());
-        rho.push(grid.bins_deg().iter().map(|t| pi * b.f_r(&crate::forward::brdf::light_dir(*t), &wo)).collect::<Vec<_>>());
+        at_centre
+            .push(centres.iter().map(|c| pi * b.f_r(&crate::forward::brdf::light_dir(*c), &wo)).collect::<Vec<_>>());
+        rho.push(
+            grid.bins_deg().iter().map(|t| pi * b.f_r(&crate::forward::brdf::light_dir(*t), &wo)).collect::<Vec<_>>(),
+        );
     }
-    let incidence: Vec<Vec<f64>> = (0..p).map(|px| (0..m).map(|k| scene.led_incidence_deg(k, px as f64)).collect()).collect();
+    let incidence: Vec<Vec<f64>> =
+        (0..p).map(|px| (0..m).map(|k| scene.led_incidence_deg(k, px as f64)).collect()).collect();
     let white = sim.white();
     let mut rows = Vec::new();
     let mut outs = Vec::new();

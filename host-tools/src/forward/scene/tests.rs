@@ -47,7 +47,14 @@ fn white_tile() -> BrdfSpec {
 }
 
 fn noise(sigma: f64, seed: u64) -> EffectSpec {
-    EffectSpec::Noise { model: NoiseModel::Proportional, sigma: Some(sigma), sigma_counts: None, electrons_per_count: None, read_sigma_counts: None, seed }
+    EffectSpec::Noise {
+        model: NoiseModel::Proportional,
+        sigma: Some(sigma),
+        sigma_counts: None,
+        electrons_per_count: None,
+        read_sigma_counts: None,
+        seed,
+    }
 }
 
 fn sim(s: &Scene) -> Simulator {
@@ -58,7 +65,14 @@ fn sim(s: &Scene) -> Simulator {
 fn every_library_scene_parses_validates_and_simulates_finite() {
     let lib = library();
     let names: Vec<String> = lib.iter().map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-    for want in ["patent-profile.toml", "handheld.toml", "far-field.toml", "near-singular.toml", "grazing.toml", "sharp-lobe.toml"] {
+    for want in [
+        "patent-profile.toml",
+        "handheld.toml",
+        "far-field.toml",
+        "near-singular.toml",
+        "grazing.toml",
+        "sharp-lobe.toml",
+    ] {
         assert!(names.iter().any(|n| n == want), "scenes/ lacks {want}: {names:?}");
     }
     assert!(lib.iter().filter(|(p, _)| p.parent().unwrap().ends_with("hard")).count() >= 9);
@@ -91,7 +105,15 @@ fn pipeline_holds_exactly_the_listed_stages_in_stage_order() {
     assert!(Pipeline::new(&far).names().is_empty());
     assert_eq!(Pipeline::new(&far).ray_model(), crate::forward::optics::RayModel::default());
     // Listed out of order: run in stage order.
-    let s = handheld_with(vec![EffectSpec::Quantisation { step_counts: 1.0 }, EffectSpec::Saturation {}, noise(0.01, 3), EffectSpec::NearField {}], ward());
+    let s = handheld_with(
+        vec![
+            EffectSpec::Quantisation { step_counts: 1.0 },
+            EffectSpec::Saturation {},
+            noise(0.01, 3),
+            EffectSpec::NearField {},
+        ],
+        ward(),
+    );
     assert_eq!(Pipeline::new(&s).names(), ["near-field", "noise", "saturation", "quantisation"]);
 }
 
@@ -153,7 +175,10 @@ fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
 
 #[test]
 fn without_noise_two_runs_are_identical_and_with_noise_the_seed_decides() {
-    let quiet = handheld_with(vec![EffectSpec::NearField {}, EffectSpec::DarkOffset { counts: 50.0, fixed_pattern_rms: 0.0, seed: 1 }], ward());
+    let quiet = handheld_with(
+        vec![EffectSpec::NearField {}, EffectSpec::DarkOffset { counts: 50.0, fixed_pattern_rms: 0.0, seed: 1 }],
+        ward(),
+    );
     let a = sim(&quiet).simulate_line(0, Mode::Full);
     let b = sim(&quiet).simulate_line(5, Mode::Full);
     assert_eq!(a.raw, b.raw);
@@ -303,7 +328,10 @@ mod one_effect {
     #[test]
     fn ambient_and_dark_offset_add_counts_that_white_calibration_removes() {
         let b = sim(&base()).simulate_line(0, Mode::Full);
-        for e in [EffectSpec::AmbientLight { counts: 40.0 }, EffectSpec::DarkOffset { counts: 60.0, fixed_pattern_rms: 3.0, seed: 9 }] {
+        for e in [
+            EffectSpec::AmbientLight { counts: 40.0 },
+            EffectSpec::DarkOffset { counts: 60.0, fixed_pattern_rms: 3.0, seed: 9 },
+        ] {
             let name = e.name();
             let r = sim(&with(e)).simulate_line(0, Mode::Full);
             for (fb, ft) in b.raw.iter().zip(&r.raw) {
@@ -370,7 +398,14 @@ mod one_effect {
     fn noise_models_draw_the_variance_they_state() {
         let mut s = base();
         s.surface.brdf = white_tile();
-        s.effects = vec![EffectSpec::Noise { model: NoiseModel::ShotRead, sigma: None, sigma_counts: None, electrons_per_count: Some(4.0), read_sigma_counts: Some(2.0), seed: 3 }];
+        s.effects = vec![EffectSpec::Noise {
+            model: NoiseModel::ShotRead,
+            sigma: None,
+            sigma_counts: None,
+            electrons_per_count: Some(4.0),
+            read_sigma_counts: Some(2.0),
+            seed: 3,
+        }];
         let sm = sim(&s);
         let clean = sm.simulate_line(0, Mode::NoNoise).raw;
         let (mut n, mut s2) = (0.0, 0.0);
@@ -395,7 +430,8 @@ fn readings_do_not_depend_on_the_sensor_gain() {
     unit.instrument.sensor.gain = 1.0;
     let (a, b, c) = (sim(&lo), sim(&hi), sim(&unit));
     for line in 0..3 {
-        let (ra, rb, rc) = (a.simulate_line(line, Mode::Full), b.simulate_line(line, Mode::Full), c.simulate_line(line, Mode::Full));
+        let (ra, rb, rc) =
+            (a.simulate_line(line, Mode::Full), b.simulate_line(line, Mode::Full), c.simulate_line(line, Mode::Full));
         for ((x, y), z) in ra.corrected.iter().zip(&rb.corrected).zip(&rc.corrected) {
             assert!((x - z).abs() < 1e-12 * z.abs() && (y - z).abs() < 1e-12 * z.abs(), "{x} {y} {z}");
         }
@@ -521,7 +557,12 @@ brdf = { model = "ward", rho_d = 0.3, alpha = 0.05 }
     #[test]
     fn missing_fields_name_the_line_and_field() {
         at(&err(&GOOD.replace(", sigma = 0.02", "")), 4, &["`sigma`", "proportional"]);
-        at(&err(&GOOD.replace("{ kind = \"noise\", model = \"proportional\", sigma = 0.02 }", "{ kind = \"led-drift\" }")), 4, &["rate_per_frame"]);
+        at(
+            &err(&GOOD
+                .replace("{ kind = \"noise\", model = \"proportional\", sigma = 0.02 }", "{ kind = \"led-drift\" }")),
+            4,
+            &["rate_per_frame"],
+        );
         at(&err(&GOOD.replace("{ kind = \"near-field\" }", "{ }")), 3, &["`kind`", "near-field"]);
         let e = err(&GOOD.replace("distance_cm = 10.0\n", ""));
         assert!(e.to_string().contains("distance_cm") && e.line_col.is_some(), "{e}");
@@ -547,22 +588,38 @@ brdf = { model = "ward", rho_d = 0.3, alpha = 0.05 }
 
     #[test]
     fn effects_listed_twice_or_with_foreign_parameters_are_refused() {
-        let e = err(&GOOD.replace("{ kind = \"near-field\" }", "{ kind = \"noise\", model = \"additive\", sigma_counts = 1.0 }"));
+        let e = err(&GOOD
+            .replace("{ kind = \"near-field\" }", "{ kind = \"noise\", model = \"additive\", sigma_counts = 1.0 }"));
         assert_eq!(e.field.as_deref(), Some("effects[1].kind"), "{e}");
         at(&e, 4, &["listed twice"]);
-        at(&err(&GOOD.replace("sigma = 0.02", "sigma = 0.02, sigma_counts = 3.0")), 4, &["`sigma_counts`", "does not apply"]);
-        at(&err(&GOOD.replace("{ kind = \"near-field\" }", "{ kind = \"near-field\", gamma = 2 }")), 3, &["`gamma`", "no parameters"]);
+        at(
+            &err(&GOOD.replace("sigma = 0.02", "sigma = 0.02, sigma_counts = 3.0")),
+            4,
+            &["`sigma_counts`", "does not apply"],
+        );
+        at(
+            &err(&GOOD.replace("{ kind = \"near-field\" }", "{ kind = \"near-field\", gamma = 2 }")),
+            3,
+            &["`gamma`", "no parameters"],
+        );
         at(&err(&GOOD.replace("{ kind = \"near-field\" }", "{ kind = \"near-field\", pitch = 2 }")), 3, &["pitch"]);
     }
 
     #[test]
     fn a_per_pixel_line_that_cannot_show_is_refused() {
-        let text = GOOD.replace("sensor = { pixels = 8, gain = 100.0 }", "sensor = { pixels = 8, gain = 100.0, line_axis = \"y\" }")
+        let text = GOOD
+            .replace(
+                "sensor = { pixels = 8, gain = 100.0 }",
+                "sensor = { pixels = 8, gain = 100.0, line_axis = \"y\" }",
+            )
             .replace("{ kind = \"near-field\" },", "{ kind = \"near-field\" }, { kind = \"per-pixel-geometry\" },");
         let e = err(&text);
         assert_eq!(e.field.as_deref(), Some("instrument.sensor.line_axis"), "{e}");
         at(&e, 9, &["3d-geometry"]);
-        let ok = text.replace("{ kind = \"per-pixel-geometry\" },", "{ kind = \"per-pixel-geometry\" }, { kind = \"3d-geometry\" },");
+        let ok = text.replace(
+            "{ kind = \"per-pixel-geometry\" },",
+            "{ kind = \"per-pixel-geometry\" }, { kind = \"3d-geometry\" },",
+        );
         let s = Scene::parse(&ok, "ok.toml").unwrap();
         assert!((s.pixel_point(0.0).y + 3.5 * 63.5e-4).abs() < 1e-12);
     }

@@ -49,9 +49,14 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, out: &Output) -> anyh
     let e = |x: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{x:?}");
     root.fill(&WHITE).map_err(e)?;
     let (top, root) = root.split_vertically(56);
-    top.draw_text(&format!("scene `{}`: {} pixel(s) x {} LED(s)", out.scene, out.pixels, out.leds.len()), &("sans-serif", 20).into_font().color(&BLACK), (12, 6))
+    top.draw_text(
+        &format!("scene `{}`: {} pixel(s) x {} LED(s)", out.scene, out.pixels, out.leds.len()),
+        &("sans-serif", 20).into_font().color(&BLACK),
+        (12, 6),
+    )
+    .map_err(e)?;
+    top.draw_text(&format!("stages: {}", stage_list(out)), &("sans-serif", 14).into_font().color(&BLACK), (12, 32))
         .map_err(e)?;
-    top.draw_text(&format!("stages: {}", stage_list(out)), &("sans-serif", 14).into_font().color(&BLACK), (12, 32)).map_err(e)?;
     let (left, right) = root.split_horizontally(SIZE.0 / 2);
     let line0 = &out.lines[0];
     let p = out.pixels;
@@ -83,12 +88,17 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, out: &Output) -> anyh
         .map_err(e)?;
     for (i, &px) in shown.iter().enumerate() {
         let col = colour(i);
-        c.draw_series(LineSeries::new(out.bins_deg.iter().copied().zip(out.truth.rho[px].iter().copied()), col.stroke_width(2)))
-            .map_err(e)?
-            .label(format!("pixel {px}"))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
-        c.draw_series(out.incidence_deg[px].iter().zip(&line0.corrected[px]).map(|(x, y)| Circle::new((*x, *y), 5, col.filled())))
-            .map_err(e)?;
+        c.draw_series(LineSeries::new(
+            out.bins_deg.iter().copied().zip(out.truth.rho[px].iter().copied()),
+            col.stroke_width(2),
+        ))
+        .map_err(e)?
+        .label(format!("pixel {px}"))
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
+        c.draw_series(
+            out.incidence_deg[px].iter().zip(&line0.corrected[px]).map(|(x, y)| Circle::new((*x, *y), 5, col.filled())),
+        )
+        .map_err(e)?;
     }
     c.configure_series_labels()
         .background_style(WHITE.mix(0.85))

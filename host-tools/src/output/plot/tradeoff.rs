@@ -25,7 +25,8 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.host_seconds_per_point > 0.0 && r.rmse > 0.0 && r.rmse.is_finite()).collect();
+    let ok: Vec<&Row> =
+        rows.iter().filter(|r| r.host_seconds_per_point > 0.0 && r.rmse > 0.0 && r.rmse.is_finite()).collect();
     anyhow::ensure!(!ok.is_empty(), "nothing to plot");
     let (mut t0, mut t1, mut e0, mut e1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     for r in &ok {
