@@ -337,7 +337,10 @@ pub fn store_ops(data: &[u8]) {
         match op % 4 {
             // Provision, perhaps with a power cut.
             0 | 1 => {
+                // What is sent is the signed calibration; what boot finds
+                // (and the model holds) is its blob.
                 let new = &blobs[(op as usize >> 2) % blobs.len()];
+                let new_blob = &new[..new.len() - brdf_meter::signed::TRAILER_LEN];
                 let chunk = 1 + (input.u16() as usize % protocol::MAX_CHUNK);
                 let ending = match input.u8() % 8 {
                     0 => Ending::Abort,
@@ -356,10 +359,10 @@ pub fn store_ops(data: &[u8]) {
                     let found = st.active_blob().map(|(_, v)| v.as_bytes().to_vec());
                     match (&ending, r.is_ok()) {
                         // A completed commit survives the power cycle.
-                        (Ending::Commit, true) => assert_eq!(found.as_deref(), Some(new.as_slice())),
+                        (Ending::Commit, true) => assert_eq!(found.as_deref(), Some(new_blob)),
                         // Only a commit may have made it before the cut.
                         (Ending::Commit, false) => assert!(
-                            found.as_deref() == model.as_deref() || found.as_deref() == Some(new.as_slice()),
+                            found.as_deref() == model.as_deref() || found.as_deref() == Some(new_blob),
                             "after a cut, boot found neither the old nor the new calibration"
                         ),
                         _ => assert_eq!(
@@ -373,7 +376,7 @@ pub fn store_ops(data: &[u8]) {
                     match ending {
                         Ending::Commit => {
                             r.expect("provisioning a valid blob without a cut succeeds");
-                            model = Some(new.clone());
+                            model = Some(new_blob.to_vec());
                         }
                         Ending::Abort => r.expect("abort succeeds"),
                         Ending::WrongCrc => assert!(r.is_err(), "a blob with a wrong CRC was committed"),
@@ -390,8 +393,14 @@ pub fn store_ops(data: &[u8]) {
             // Read the active calibration in place.
             _ => {
                 assert_active(&st, &model, "reading the active calibration");
+                // The slot holds the signed calibration: the blob, then its
+                // signature trailer; the header's CRC covers both.
                 if let Some((info, v)) = st.active_blob() {
-                    assert_eq!(info.blob_crc, CRC32.checksum(v.as_bytes()));
+                    let signed = blobs
+                        .iter()
+                        .find(|b| b.starts_with(v.as_bytes()))
+                        .expect("one of the provisioned calibrations");
+                    assert_eq!((info.blob_len as usize, info.blob_crc), (signed.len(), CRC32.checksum(signed)));
                 }
             }
         }
