@@ -439,12 +439,15 @@ fn device_active(flash: &SimFlash) -> Option<Vec<u8>> {
 pub fn soak(cfg: SoakConfig) -> SoakReport {
     let start = Instant::now();
     let seed = cfg.seed;
-    let blobs = [1.0, 2.0, 3.0].map(|seed| brdf_meter::test_blobs::signed_test_blob(N, M, ZONES, P, seed));
+    // The blobs (what the device's store reports active) and the signed
+    // calibrations that carry them over the link.
+    let blobs = [1.0, 2.0, 3.0].map(|seed| brdf_meter::test_blobs::test_blob(N, M, ZONES, P, seed));
+    let signed = blobs.clone().map(|b| brdf_meter::test_blobs::sign_for_tests(&b));
     let link = FaultyLink::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), ZONES), seed);
     let mut c = Client::new(link).expect("in-memory link");
     c.timeout = Duration::from_millis(40);
     // Set-up without faults: the first calibration and the scene.
-    c.provision(&blobs[0], |_, _| {}).expect("first provisioning");
+    c.provision(&signed[0], |_, _| {}).expect("first provisioning");
     // One scene line: the sensor cycles through the loaded lines across
     // measurements, and cut streams make that count unknowable here.
     let scene: SceneFrames = analytic_scene(&BlobView::parse(&blobs[0]).unwrap(), 1, FULL_SCALE);
@@ -462,7 +465,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         if round.is_multiple_of(8) {
             // Provision the next blob, now and then with a disconnect partway.
             let next = (active + 1) % blobs.len();
-            let chunks = blobs[next].len().div_ceil(protocol::MAX_CHUNK) as u32;
+            let chunks = signed[next].len().div_ceil(protocol::MAX_CHUNK) as u32;
             // Mostly short outages the retries ride out; one provisioning in
             // four meets one that loses 6 to 16 requests: more than a single
             // attempt's retries of one request (6), and from 14 on more than
@@ -477,7 +480,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
                 }
             }
             r.provisionings += 1;
-            let out = c.provision_retrying(&blobs[next], if long { 1 } else { 3 });
+            let out = c.provision_retrying(&signed[next], if long { 1 } else { 3 });
             let truth = device_active(&c.transport().dev.flash);
             match out {
                 Ok(ProvisionOutcome::Committed { cal, attempts }) => {
