@@ -125,18 +125,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let (spec, base) = PriorSpec::from_arg(&a.prior)?;
     let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
-    let (zones, pixels, white, far_field) = match &scene {
-        Some(s) => {
-            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
-            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
-        }
-        None => (
-            uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
-            a.pixels,
-            None,
-            a.far_field,
-        ),
-    };
+    let (zones, pixels, white, far_field) = zone_optics(&a, scene.as_ref(), &inst, &grid)?;
     let trained = train(&TrainSpec {
         bins_deg: grid.bins_deg(),
         zones,
@@ -197,6 +186,31 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// The zones' optics `train` trains on: from the scene (`--scene`: its optics,
+/// white reference and field model) or the instrument's uniform zones.
+pub(crate) type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool);
+
+/// See [`TrainingZones`].
+pub(crate) fn zone_optics(
+    a: &Args,
+    scene: Option<&crate::forward::scene::Scene>,
+    inst: &Instrument,
+    grid: &crate::forward::grid::AngleGrid,
+) -> anyhow::Result<TrainingZones> {
+    Ok(match scene {
+        Some(s) => {
+            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
+            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
+        }
+        None => (
+            uniform_zones(inst, grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
+            a.pixels,
+            None,
+            a.far_field,
+        ),
+    })
 }
 
 #[cfg(test)]

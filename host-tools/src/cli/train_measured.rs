@@ -9,7 +9,6 @@ use crate::calibration::train_scale_free::train_scale_free;
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use crate::forward::prior_measured::{PriorMix, weighted_prior};
-use crate::forward::zone_optics::uniform_zones;
 use anyhow::{Context, ensure};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 
@@ -25,18 +24,7 @@ pub fn run(
     ensure!(a.false_alarm > 0.0 && a.false_alarm < 1.0, "--false-alarm {}: must be in (0, 1)", a.false_alarm);
     let mix = PriorMix::parse(&a.prior)?;
     let (ws, _) = mix.samples(&grid, inst.view_deg, inst.spectral_weights).context("building the prior")?;
-    let (zones, pixels, white, far_field) = match &scene {
-        Some(s) => {
-            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
-            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
-        }
-        None => (
-            uniform_zones(&inst, &grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
-            a.pixels,
-            None,
-            a.far_field,
-        ),
-    };
+    let (zones, pixels, white, far_field) = super::train::zone_optics(&a, scene.as_ref(), &inst, &grid)?;
     let prior = weighted_prior(&ws);
     let spec = TrainSpec {
         bins_deg: grid.bins_deg(),
