@@ -50,6 +50,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 pub mod batch;
+pub(crate) mod checked_svd;
 pub mod clustered;
 pub mod fixed_point;
 pub mod interpolation;

@@ -44,7 +44,7 @@ pub(crate) fn build(
     let m = h.nrows();
     let b = h * &prior.l; // m x r
     let r = b.ncols();
-    let svd = b.svd(true, true);
+    let svd = super::checked_svd::svd(&b);
     let s = svd.singular_values.clone();
     let u = svd.u.expect("u requested");
     let vt = svd.v_t.expect("v requested");
@@ -114,7 +114,7 @@ pub(crate) fn build(
         // exactly gain-covariant, W(G H) = W(H) G^-1 (stability family `gain`).
         let t = whitening(&noise.l);
         let g = &t * (h * &prior.l); // m x r
-        let gsvd = g.svd(true, true);
+        let gsvd = super::checked_svd::svd(&g);
         let sig_all = gsvd.singular_values.clone();
         let sig_max = sig_all.iter().fold(0.0f64, |a, x| a.max(*x));
         let kw = sig_all.iter().take_while(|x| **x > tol * sig_max).count();

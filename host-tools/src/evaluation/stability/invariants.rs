@@ -13,7 +13,7 @@
 //! | I1 finite | W, the summary's uncertainty/rank/regularisation are finite (condition may be +inf, never NaN) | - |
 //! | I2 error | `mmse/F - floor <= achieved <= F mmse + floor` | [`ERROR_FACTOR`] F = 2, [`ERROR_FLOOR_C`] |
 //! | I2' prediction | the solver's own predicted RMSE^2 n is within [`PREDICTION_REL_TOL`] mmse + 2 sqrt(mmse floor) + floor of mmse | first-order effect of the floor's rounding on a sum of squares |
-//! | I3 continuity | `|W(sigma) - W_lim| / |W_lim| <= tol_c` at the smallest sigma, and never grows by more than tol_c as sigma falls; eq. 20 = `L (H L)^+` | [`CONTINUITY_C`] |
+//! | I3 continuity | `|W(sigma) - W_lim| / |W_lim| <= tol_c` at the smallest sigma, and never grows by more than tol_c as sigma falls; eq. 20 = `L (H L)^+`; `W_lim` exact (rational arithmetic, `super::exact_limit`) when `H L` has full rank, else by SVD | [`CONTINUITY_C`] |
 //! | I4 f32 | device result within `gamma_{m+2} (|W||v|)_j` of f64 per bin; training's f32 gate accepts only what meets [`crate::calibration::train::F32_TOLERANCE`] and refuses only what does not | rigorous rounding bound |
 //! | I5 backward | `|W A - R_pp H^T|_F / (|W|_F |A|_F + |R_pp H^T|_F) <= c u` | [`BACKWARD_C`] |
 //! | I6 gain | gain family: `|W(G H) G - W(H)| / |W(H)| <= tol_c` (eq. 22 with relative noise is exactly gain-covariant) | [`CONTINUITY_C`] |
@@ -31,6 +31,7 @@
 // `!(err <= bound)` on purpose throughout: a NaN error must fail a check,
 // which `err > bound` would let pass.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+use super::exact_limit::exact_limit;
 use super::families::Case;
 use super::solvers::{DeviceKernel, Solver};
 use crate::calibration::estimators::{NoiseModel, rank_tolerance};
@@ -74,7 +75,10 @@ pub const PREDICTION_REL_TOL: f64 = 1e-6;
 /// theory of the pseudo-inverse gives `|dY| / |Y| <= c cond(C) |dC| / |C|`, a
 /// backward-stable SVD gives `|dC| / |C| = O(max(m, n) u)`, and
 /// `|L dY| / |L Y| <= phi |dY| / |Y|`; the second term is the exact distance
-/// `sigma^2 / (s^2 + sigma^2)` of the last step from the limit.
+/// `sigma^2 / (s^2 + sigma^2)` of the last step from the limit. The bound is
+/// for the solver's rounding only, so the reference must be far more
+/// accurate: at full rank `W_lim` is computed exactly from the f64 H and L
+/// (an f64 SVD of C would itself carry an error of this bound's order).
 pub const CONTINUITY_C: f64 = 64.0;
 /// I3 is only checked to the precision f64 can resolve: a case whose `tol_c`
 /// exceeds this is recorded as unresolved (W is then finite and bounded but
@@ -372,7 +376,7 @@ pub fn check_case(case: &Case, solver: &dyn Solver, kernel: DeviceKernel) -> Cas
 fn weighted_limit(rf: &Reference, dw: &DVector<f64>) -> (DMatrix<f64>, f64, f64) {
     let (m, r) = rf.b.shape();
     let c = DMatrix::from_fn(m, r, |i, j| rf.b[(i, j)] / dw[i].sqrt());
-    let svd = c.svd(true, true);
+    let svd = crate::calibration::estimators::checked_svd::svd(&c);
     let (p, sv, qt) = (svd.u.expect("u"), svd.singular_values, svd.v_t.expect("v"));
     let smax = sv.iter().fold(0.0f64, |a, x| a.max(*x));
     let k = sv.iter().take_while(|x| **x > rank_tolerance(m, r) * smax).count();
@@ -502,7 +506,15 @@ fn continuity(case: &Case, rf: &Reference, solver: &dyn Solver, rep: &mut CaseRe
         vec![("isotropic", iso)]
     };
     for (name, dw) in models {
-        let (w_lim, kappa, smin) = weighted_limit(rf, &dw);
+        let (w_svd, kappa, smin) = weighted_limit(rf, &dw);
+        // The reference itself must be well below the tolerance: at full
+        // rank the limit is built exactly (see `exact_limit`); the SVD route
+        // carries an error of the tolerance's own order.
+        let w_lim = if rf.kept == m.min(rf.b.ncols()) {
+            exact_limit(&case.h, &rf.l, &dw).unwrap_or_else(|| w_svd.clone())
+        } else {
+            w_svd.clone()
+        };
         let w_lim_norm = w_lim.norm();
         let sigma_end = (1e-8 * smin).max(1e-150);
         let mut sigmas = vec![0.1];

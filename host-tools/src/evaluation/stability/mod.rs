@@ -10,6 +10,7 @@
 //! ```text
 //! cargo run --release -p host-tools -- stability --cases 10000 --json out/stability.json
 //! ```
+mod exact_limit;
 pub mod families;
 pub mod invariants;
 pub mod solvers;
