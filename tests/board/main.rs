@@ -342,7 +342,7 @@ mod tests {
         // The exposure is timed from the flush's 18th clock: 4 ms more
         // exposure is 4 ms more frame, to embassy-time's tick (1 us) and
         // the readout's jitter.
-        let extra_us = (long - short) / mhz;
+        let extra_us = long.saturating_sub(short) / mhz;
         assert!((3_950..=4_050).contains(&extra_us), "4 ms more exposure took {} us more", extra_us);
         // Per pixel: at least OVERSAMPLE conversions of 37 ADC clocks (the
         // fastest ADC clock is SYSCLK), at most the driver's 2 ms timeout.

@@ -146,6 +146,13 @@ pub fn markdown(r: &Report) -> String {
             t.host_over_floor
         );
     }
+    let _ = writeln!(
+        s,
+        "\nThe kernel's arithmetic alone ({} points in L2, one thread): {:.3e} points/s ({:.1} ns per point).",
+        super::speed::IN_CACHE_POINTS,
+        sp.host_in_cache_points_per_s,
+        1e9 / sp.host_in_cache_points_per_s
+    );
     if let Some(x) = sp.host_over_numpy_1t {
         let _ = writeln!(
             s,

@@ -19,6 +19,10 @@
 //! batch's output is written with streaming stores (no read for ownership),
 //! so that is all the memory traffic. The floor is the bandwidth measured at
 //! the same thread count (the better of copy and triad) over those bytes.
+//! The kernel's own arithmetic rate is measured too, on a batch that stays
+//! in L2 ([`IN_CACHE_POINTS`], one thread): when it is below the floor the
+//! kernel is compute-bound there, not memory-bound (it multiplies, then adds,
+//! without FMA, so that it stays bit-identical to the device).
 use super::bandwidth::{Arrays, Bandwidth};
 use crate::calibration::estimators::BatchEstimator;
 use crate::evaluation::timing::{best_and_median, median};
@@ -65,7 +69,13 @@ pub struct SpeedReport {
     pub bandwidth: Vec<Bandwidth>,
     /// Host, numpy and floor side by side, per thread count.
     pub per_threads: Vec<ThreadRow>,
+    /// The host kernel on [`IN_CACHE_POINTS`] points (in L2), one thread,
+    /// points per second (best run): its arithmetic alone, no memory bound.
+    pub host_in_cache_points_per_s: f64,
 }
+
+/// Points of the in-cache measurement: 1,024 x (81 + 7) f32 = 360 KB.
+pub const IN_CACHE_POINTS: usize = 1024;
 
 /// One thread count of the comparison.
 #[derive(Clone, Debug, Serialize)]
@@ -134,7 +144,13 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
         }
     };
     let mut bandwidth: Vec<Bandwidth> = Vec::new();
+    let small = IN_CACHE_POINTS.min(points);
+    let mut in_cache = f64::INFINITY;
     for _ in 0..ROUNDS {
+        let (best, _) = best_and_median(4 * runs, || {
+            b.estimate_into(black_box(&v[..small * m]), black_box(&mut out[..small * n]));
+        });
+        in_cache = in_cache.min(best);
         for (&t, pool) in threads.iter().zip(&pools) {
             let (best, med) =
                 best_and_median(runs, || pool.install(|| b.estimate_par_into(black_box(&v), black_box(&mut out))));
@@ -221,5 +237,6 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<SpeedReport> {
         bytes_per_point,
         bandwidth,
         per_threads,
+        host_in_cache_points_per_s: small as f64 / in_cache,
     })
 }
