@@ -6,7 +6,9 @@
 //! - `-Tlink.x` is passed to every binary of this package: on a bare-metal
 //!   target all of them are firmware images.
 //! - `-Tdefmt.x` only to `board-fw`, the one binary that links defmt (the QEMU
-//!   firmware may not, and an unused defmt.x would fail its link).
+//!   firmware may not, and an unused defmt.x would fail its link), and with
+//!   `-Tlink.x` to the board tests (test target `board-tests`, feature
+//!   `board-tests`).
 //!
 //! - `trusted_keys.rs` in OUT_DIR: the public keys signed calibrations must
 //!   verify against (src/signed.rs), from the file `BRDF_TRUSTED_KEYS` names
@@ -88,5 +90,11 @@ fn main() {
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
     if env::var_os("CARGO_FEATURE_BOARD").is_some() {
         println!("cargo:rustc-link-arg-bin=board-fw=-Tdefmt.x");
+    }
+    // The board tests (the package's one test target, built only for the
+    // chip with feature board-tests) link like the board firmware.
+    if env::var_os("CARGO_FEATURE_BOARD_TESTS").is_some() {
+        println!("cargo:rustc-link-arg-tests=-Tlink.x");
+        println!("cargo:rustc-link-arg-tests=-Tdefmt.x");
     }
 }

@@ -10,6 +10,8 @@ cargo fmt --all -- --check
 # the last thing printed.
 echo "[test] firmware: builds, clippy, size and flash/RAM budget"
 bash scripts/check-firmware.sh
+echo "[test] board tests: build for the chip; run only when a debug probe is attached"
+bash scripts/board-test.sh
 echo "[test] clippy on the host crates (-D warnings)"
 cargo clippy --workspace --release --all-targets -q -- -D warnings
 echo "[test] host, host simulation and QEMU tests"

@@ -39,12 +39,21 @@ pub mod board {
     pub const SLOT_LEN: u32 = 384 * 1024;
     /// Calibration slot B (right after slot A).
     pub const SLOT_B: u32 = SLOT_A + SLOT_LEN;
+    /// One slot of the board tests' own calibration store (bin
+    /// `board-tests`): room for their 2-zone test calibration.
+    pub const TEST_SLOT_LEN: u32 = 8 * super::FLASH_PAGE as u32;
+    /// Where the board tests' two store slots start: the top of the image
+    /// region, below slot A. Only the test image (which checks at start that
+    /// it ends below this) uses it, and flashing board-fw again overwrites it;
+    /// the calibration slots are never touched by the tests.
+    pub const TEST_REGION: u32 = SLOT_A - 2 * TEST_SLOT_LEN;
     /// SRAM1 (statics, stack, the RAM zone buffer).
     pub const RAM_ORIGIN: u32 = 0x2000_0000;
     /// Size of SRAM1.
     pub const RAM_LEN: u32 = 96 * 1024;
 
     const _: () = assert!(SLOT_B + SLOT_LEN <= super::FLASH_BASE + super::FLASH_SIZE);
+    const _: () = assert!(TEST_REGION > super::FLASH_BASE && (TEST_REGION as usize).is_multiple_of(super::FLASH_PAGE));
     const _: () = assert!(
         (SLOT_LEN as usize).is_multiple_of(super::FLASH_PAGE) && (SLOT_A as usize).is_multiple_of(super::FLASH_PAGE)
     );

@@ -242,6 +242,12 @@ impl<F: MappedFlash> Store<F> {
         &self.flash
     }
 
+    /// Gives the flash back, dropping everything the store knew (the board
+    /// tests reopen the store on it, as a reboot would).
+    pub fn into_flash(self) -> F {
+        self.flash
+    }
+
     fn base(&self, slot: u8) -> u32 {
         slot as u32 * self.slot_len
     }

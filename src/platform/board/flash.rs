@@ -82,7 +82,17 @@ impl CalFlash {
         assert!(a >= FLASH_BASE && a.is_multiple_of(PAGE as usize) && len.is_multiple_of(PAGE as usize));
         assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
         defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);
-        Self { flash: Flash::new_blocking(flash), base: (a - FLASH_BASE) as u32, len: (2 * len) as u32 }
+        Self::region(flash, a, 2 * len)
+    }
+
+    /// Any page-aligned region of the chip's flash as the store's window
+    /// (two slots of `len / 2`): the board tests' spare region
+    /// (`crate::shape::board::TEST_REGION`). Writes outside it are refused.
+    pub fn region(flash: Peri<'static, FLASH>, addr: usize, len: usize) -> Self {
+        let end = crate::shape::FLASH_BASE as usize + crate::shape::FLASH_SIZE as usize;
+        assert!(addr >= FLASH_BASE && addr.is_multiple_of(PAGE as usize) && len.is_multiple_of(2 * PAGE as usize));
+        assert!(addr + len <= end, "flash region past the end of flash");
+        Self { flash: Flash::new_blocking(flash), base: (addr - FLASH_BASE) as u32, len: len as u32 }
     }
 
     /// Length of one slot (slot A at offset 0, slot B at this offset).

@@ -7,7 +7,19 @@
 //! bit-identical to `brdf_meter::kernel::mat_vec_f32_slice` (tested) and to the
 //! device, while the inner loop runs over n contiguous outputs and
 //! vectorises.
+//!
+//! [`BatchEstimator::estimate_par_into`] spreads a large batch over the
+//! current rayon pool in blocks of [`PAR_BLOCK_POINTS`] points; each point is
+//! still computed by the same code, so the results do not depend on the
+//! thread count (tested).
 use super::LinearEstimator;
+use rayon::prelude::*;
+
+/// Points per rayon task: 4096 points of n = 81 outputs are 1.3 MB written,
+/// so scheduling is noise against the work, and a multiple of 8 points keeps
+/// every block's output 32-byte aligned when the batch's is (the streamed
+/// path then needs no scalar lead-in per block).
+pub const PAR_BLOCK_POINTS: usize = 4096;
 
 /// Output bins computed together in registers.
 const LANES: usize = 16;
@@ -90,6 +102,27 @@ impl BatchEstimator {
             return;
         }
         self.run(readings, out);
+    }
+
+    /// [`Self::estimate_into`] on every thread of the current rayon pool
+    /// (the global one, or the pool whose `install` this runs in): blocks of
+    /// [`PAR_BLOCK_POINTS`] points, each estimated exactly as alone. Batches
+    /// of at most one block stay on the calling thread.
+    ///
+    /// # Panics
+    /// If the lengths do not agree.
+    pub fn estimate_par_into(&self, readings: &[f32], out: &mut [f32]) {
+        let (n, m) = (self.n, self.m);
+        assert!(m > 0 && readings.len().is_multiple_of(m), "readings must be points x m");
+        assert_eq!(out.len(), readings.len() / m * n, "out must be points x n");
+        if readings.len() / m <= PAR_BLOCK_POINTS || rayon::current_num_threads() == 1 {
+            self.estimate_into(readings, out);
+            return;
+        }
+        readings
+            .par_chunks(PAR_BLOCK_POINTS * m)
+            .zip(out.par_chunks_mut(PAR_BLOCK_POINTS * n))
+            .for_each(|(r, o)| self.estimate_into(r, o));
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -255,6 +288,34 @@ mod tests {
                 }
             }
             assert!(buf[shift..shift + p * n].iter().all(|x| !x.is_nan()), "shift {shift}: a point was not written");
+        }
+    }
+
+    #[test]
+    fn parallel_batches_are_bit_identical_at_every_thread_count() {
+        // Not a whole number of blocks, so the last block is partial.
+        let (n, m, p) = (81, 7, 3 * PAR_BLOCK_POINTS + 1234);
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let w: Vec<f32> = (0..n * m).map(|_| rng.random_range(-50.0f32..50.0)).collect();
+        let v: Vec<f32> = (0..p * m).map(|_| rng.random_range(0.0f32..300.0)).collect();
+        let b = BatchEstimator::from_row_major(&w, n, m);
+        let mut one = vec![0.0f32; n];
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            for shift in [0, 3] {
+                let mut buf = vec![f32::NAN; p * n + 8];
+                pool.install(|| b.estimate_par_into(&v, &mut buf[shift..shift + p * n]));
+                for k in 0..p {
+                    brdf_meter::kernel::mat_vec_f32_slice(&w, &v[k * m..(k + 1) * m], &mut one);
+                    for j in 0..n {
+                        assert_eq!(
+                            buf[shift + k * n + j].to_bits(),
+                            one[j].to_bits(),
+                            "{threads} threads, shift {shift}: point {k} bin {j}"
+                        );
+                    }
+                }
+            }
         }
     }
 

@@ -21,13 +21,15 @@
 //!
 //! Separate tables: zones along the line sensor ([`zones`]) and the number of
 //! LEDs ([`led_count`]). The kernels' instruction counts come from QEMU
-//! ([`kernel_bench`]); the host batch speed against numpy from [`speed`].
+//! ([`kernel_bench`]); the host batch speed against numpy and the memory-bandwidth floor
+//! from [`speed`] (bandwidth measured by [`bandwidth`]).
 //!
 //! # Timing
 //! Host time per point: the estimator runs over all test readings, repeated
 //! until a block lasts at least `block`; the median of 7 blocks after a
 //! warm-up, divided by the points. Fits: median of `fit_runs` full runs.
 //! One thread. Both from [`crate::evaluation::timing`].
+pub mod bandwidth;
 pub mod kernel_bench;
 pub mod led_count;
 pub mod report;
@@ -76,6 +78,9 @@ pub struct Config {
     pub leds: Vec<usize>,
     /// Points of the host batch speed test (n = 81, m = 7).
     pub batch_points: usize,
+    /// f32 elements of each of the three STREAM-like arrays (the bandwidth
+    /// floor of the batch speed test); at least 4x the last-level cache.
+    pub bandwidth_floats: usize,
     /// Compare with numpy when python3 has it.
     pub numpy: bool,
     /// Run the QEMU kernel bench (scripts/kernel-bench.sh).
@@ -101,6 +106,7 @@ impl Config {
             zone_pixel_stride: 1,
             leds: (3..=15).collect(),
             batch_points: 1_000_000,
+            bandwidth_floats: 1 << 25,
             numpy: true,
             qemu: true,
             root: root.to_path_buf(),
@@ -120,6 +126,7 @@ impl Config {
             zone_pixel_stride: 16,
             leds: vec![3, 7],
             batch_points: 20_000,
+            bandwidth_floats: 1 << 20,
             numpy: false,
             qemu: false,
             ..Self::full(root)

@@ -120,15 +120,48 @@ pub fn markdown(r: &Report) -> String {
             t.best_s_per_point * 1e9
         );
     }
+    let _ = writeln!(
+        s,
+        "\nPer thread count (rayon pool of t threads; numpy with OpenBLAS on t threads; floor = the machine's \
+         bandwidth at t threads, the better of a STREAM-like copy and triad, over {} B per point: m readings in, \
+         n values out, f32):\n",
+        sp.bytes_per_point
+    );
+    let _ = writeln!(
+        s,
+        "| threads | host [points/s] | numpy [points/s] | host / numpy | copy / triad [GB/s] | floor [points/s] | host / floor |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for t in &sp.per_threads {
+        let bw = sp.bandwidth.iter().find(|b| b.threads == t.threads);
+        let _ = writeln!(
+            s,
+            "| {} | {:.3e} | {} | {} | {} | {:.3e} | {:.2} |",
+            t.threads,
+            t.host_points_per_s,
+            t.numpy_points_per_s.map_or("-".into(), |x| format!("{x:.3e}")),
+            t.host_over_numpy.map_or("-".into(), |x| format!("{x:.2}")),
+            bw.map_or("-".into(), |b| format!("{:.1} / {:.1}", b.copy_bytes_per_s / 1e9, b.triad_bytes_per_s / 1e9)),
+            t.floor_points_per_s,
+            t.host_over_floor
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nThe kernel's arithmetic alone ({} points in L2, one thread): {:.3e} points/s ({:.1} ns per point).",
+        super::speed::IN_CACHE_POINTS,
+        sp.host_in_cache_points_per_s,
+        1e9 / sp.host_in_cache_points_per_s
+    );
     if let Some(x) = sp.host_over_numpy_1t {
         let _ = writeln!(
             s,
-            "\nHost single thread / numpy single thread = {x:.2} ({}).",
+            "\nHost single thread / numpy single thread (time) = {x:.2} ({}).",
             if x <= 1.0 { "host at least as fast" } else { "host SLOWER" }
         );
     }
     if let Some(x) = sp.host_over_numpy_best {
-        let _ = writeln!(s, "Host best / numpy best (any threads) = {x:.2}.");
+        let _ = writeln!(s, "Host best / numpy best, any thread count (time) = {x:.2}.");
     }
 
     if !r.zones.is_empty() {
