@@ -77,12 +77,20 @@ fn sqrt0(x: f32) -> f32 {
     let x = if x > 0.0 { x } else { 0.0 };
     #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
     {
-        let r: f32;
-        // SAFETY: one FPU instruction on registers, no memory access.
+        let bits: u32;
+        // SAFETY: one FPU instruction on a core register moved in and out, no memory access.
         unsafe {
-            core::arch::asm!("vsqrt.f32 {r}, {x}", r = out(sreg) r, x = in(sreg) x, options(pure, nomem, nostack))
+            core::arch::asm!(
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {r}, s0",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) bits,
+                out("s0") _,
+                options(pure, nomem, nostack)
+            )
         };
-        r
+        f32::from_bits(bits)
     }
     #[cfg(not(all(target_arch = "arm", target_os = "none", target_abi = "eabihf")))]
     {
