@@ -37,8 +37,8 @@ impl GlossSection {
     }
 }
 
-/// One zone and cluster's block: rows `A W` (LINEAR x m) and the packed
-/// `A E A^T`.
+/// One zone and cluster's block: rows `A W` (LINEAR x m), the packed
+/// `A E A^T` and the square roots of its first two diagonal entries.
 pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
     let m = w.ncols();
     let rows = a * w;
@@ -53,6 +53,7 @@ pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
         }
     }
     out.extend(packed);
+    out.extend([cov[(0, 0)].max(0.0).sqrt() as f32, cov[(1, 1)].max(0.0).sqrt() as f32]);
     out
 }
 
