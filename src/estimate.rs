@@ -15,7 +15,7 @@
 //! cannot be copied into its 128 KiB of RAM and runs in place; the QEMU build
 //! and the host simulation copy to RAM (and the host simulation tests the
 //! in-place case too, with a small budget).
-use crate::blob::{BlobView, EstimatorKind};
+use crate::blob::{BlobView, EstimatorKind, GlossData};
 use crate::kernel::scale_free::{out_of_prior_stat, scale, whitening_len};
 use crate::protocol::{CalInfo, DeviceError, SizeField};
 use crate::store::SlotInfo;
@@ -58,6 +58,11 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     /// packed whitening), with its threshold; empty when it has none.
     out_of_prior: &'static [f32],
     out_of_prior_threshold: f32,
+    /// The blob's gloss section in flash, when it carries one.
+    gloss: Option<GlossData<'static>>,
+    /// Per pixel, its zone's gloss scale `assigned / S_z` (`crate::gloss`),
+    /// divided once at load rather than per point.
+    gloss_q: [f32; P],
 }
 
 /// What one point's estimate adds to its frame besides the values.
@@ -73,6 +78,11 @@ pub struct PointMeta {
     /// What the calibration's per-bin uncertainty is multiplied by for this
     /// point: the readings' scale for the scale-free kinds, 1 otherwise.
     pub sigma_scale: f32,
+    /// The point's gloss readings ([`crate::gloss`]); NaN when the
+    /// calibration carries none.
+    pub readings: [f32; crate::shape::READINGS],
+    /// Their standard uncertainties, NaN with the readings.
+    pub reading_sigma: [f32; crate::shape::READINGS],
 }
 
 /// The calibration holder: the RAM budget buffer and the active calibration.
@@ -151,13 +161,15 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(t) => (view.out_of_prior_in_place().ok_or(DeviceError::Storage)?, t),
             None => (&[], f32::INFINITY),
         };
+        let gloss = if view.has_gloss() { Some(view.gloss_in_place().ok_or(DeviceError::Storage)?) } else { None };
         let mut white = [[0.0f32; M]; P];
         for (p, wp) in white.iter_mut().enumerate() {
             for (i, x) in wp.iter_mut().enumerate() {
                 *x = view.white(p, i);
             }
         }
-        let zone_of = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
+        let zone_of: [u16; P] = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
+        let gloss_q = core::array::from_fn(|p| gloss.map_or(0.0, |g| g.assigned_gu / g.reference[zone_of[p] as usize]));
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
             for (i, dst) in self.ram[..z * k].iter_mut().enumerate() {
@@ -184,6 +196,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             centroids,
             out_of_prior,
             out_of_prior_threshold,
+            gloss,
+            gloss_q,
         });
         Ok(())
     }
@@ -230,7 +244,10 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     ///   [`crate::kernel::select_cluster`] picks from the zone's centroids;
     ///
     /// and, when the blob carries out-of-prior data, flags the point whose
-    /// statistic is above the threshold (or not a number).
+    /// statistic is above the threshold (or not a number); and, when it
+    /// carries the gloss section, computes the point's gloss readings and
+    /// their uncertainties from the same kernel input ([`crate::gloss`]:
+    /// 4 x m multiply-adds more), else leaves them NaN.
     ///
     /// Not inlined, so the firmware has one symbol for the whole per-point
     /// path, whose instructions scripts/qemu-icount.sh counts with those of
@@ -239,8 +256,13 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> PointMeta {
         let a = self.active.as_ref().expect("no active calibration");
         let z = a.zone_of[p] as usize;
-        let mut meta = PointMeta { zone: z as u16, cluster: 0, flags: 0, sigma_scale: 1.0 };
-        let s = match a.kind {
+        // Built in locals and written once at the end (the frame's fields
+        // are not stored twice per point).
+        let (mut cluster, mut flags, mut sigma_scale) = (0u8, 0u8, 1.0f32);
+        // The kernel's input: the readings, or (scale-free) a copy whose last is the scale.
+        let mut vs;
+        let mut x = v;
+        let (s, c) = match a.kind {
             EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
                 let s = scale(v.as_slice());
                 let c = if a.centroids.is_empty() {
@@ -249,28 +271,34 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                     let km = a.clusters * M;
                     crate::kernel::select_cluster(&a.centroids[z * km..(z + 1) * km], v.as_slice())
                 };
-                let mut vs = *v;
+                vs = *v;
                 vs[M - 1] = s;
-                point_kernel(self.matrix_of(z, c), &vs, out);
-                meta.cluster = c as u8;
-                meta.sigma_scale = s;
-                s
+                x = &vs;
+                point_kernel(self.matrix_of(z, c), x, out);
+                cluster = c as u8;
+                sigma_scale = s;
+                (s, c)
             }
             _ => {
                 point_kernel(self.matrix(z), v, out);
-                if a.out_of_prior.is_empty() {
-                    return meta;
-                }
-                scale(v.as_slice())
+                (if a.out_of_prior.is_empty() { 0.0 } else { scale(v.as_slice()) }, 0)
             }
         };
         if !a.out_of_prior.is_empty() {
             let per = M - 1 + whitening_len(M);
             let data = &a.out_of_prior[z * per..(z + 1) * per];
             let stat = out_of_prior_stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
-            meta.flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
+            flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
         }
-        meta
+        let (readings, reading_sigma) = match &a.gloss {
+            Some(g) => {
+                let bl = crate::gloss::block_len(M);
+                let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
+                crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
+            }
+            None => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
+        };
+        PointMeta { zone: z as u16, cluster, flags, sigma_scale, readings, reading_sigma }
     }
 }
 
@@ -344,7 +372,17 @@ mod tests {
             let (mut a, mut b) = (SVector::zeros(), SVector::zeros());
             let ma = ram.estimate_pixel(p, &v, &mut a);
             let mb = flash.estimate_pixel(p, &v, &mut b);
-            assert_eq!(ma, mb);
+            let bits = |m: PointMeta| {
+                (
+                    m.zone,
+                    m.cluster,
+                    m.flags,
+                    m.sigma_scale.to_bits(),
+                    m.readings.map(f32::to_bits),
+                    m.reading_sigma.map(f32::to_bits),
+                )
+            };
+            assert_eq!(bits(ma), bits(mb));
             // A linear calibration without out-of-prior data: no flag, unscaled uncertainty.
             assert_eq!((ma.flags, ma.sigma_scale), (0, 1.0));
             let za = ma.zone;

@@ -32,6 +32,12 @@ fn blob(seed: f32) -> Vec<u8> {
 /// Checks that `points` (of `lines` lines) are bit-identical to the host's
 /// computation on the scene line each device line saw.
 fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines: usize) {
+    if brdf_meter::blob::BlobView::parse(blob).unwrap().has_gloss() {
+        assert!(
+            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
+            "gloss readings computed on the device"
+        );
+    }
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(points.len(), lines * P);
     for (k, p) in points.iter().enumerate() {
@@ -39,8 +45,22 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "point {k}"
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();

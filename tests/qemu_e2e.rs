@@ -20,14 +20,35 @@ const ZONES: usize = 4;
 fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRecord], lines: usize, full_scale: u16) {
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(points.len(), lines * PIXELS, "one frame per point");
+    // A calibration with the gloss section: the device computes the readings (not NaN).
+    if view.has_gloss() {
+        assert!(
+            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
+            "gloss readings computed on the device"
+        );
+    }
     let mut compared = 0;
     for (k, p) in points.iter().enumerate() {
         let line = k / PIXELS;
         let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "zone/flags of point {k}"
         );
         for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {

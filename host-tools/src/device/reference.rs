@@ -19,6 +19,7 @@ use brdf_meter::kernel::scale_free::{
 };
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
 use brdf_meter::protocol::flags;
+use brdf_meter::shape::READINGS;
 use serde::Serialize;
 
 /// One point's estimate, as the device computes it.
@@ -28,6 +29,11 @@ pub struct PointEstimate {
     pub rho: Vec<f32>,
     /// Per-bin standard uncertainty (for the scale-free kinds scaled by the point).
     pub sigma: Vec<f32>,
+    /// The gloss readings (`brdf_meter::gloss`: specular GU, haze HU,
+    /// distinctness %; NaN, written as null, when the blob has none).
+    pub readings: [f32; READINGS],
+    /// Their standard uncertainties (k = 1).
+    pub reading_sigma: [f32; READINGS],
     /// Flag names.
     pub flags: Vec<&'static str>,
     /// Flag bits as the device frames them.
@@ -66,6 +72,8 @@ pub struct PointEstimator<'a> {
     sigma: Vec<Vec<f32>>,
     centroids: Vec<f32>,
     out_of_prior: Option<(Vec<f32>, Vec<f32>, f32)>,
+    /// Per cluster the gloss block, and `assigned / S_z` (`brdf_meter::gloss`).
+    gloss: Option<(Vec<Vec<f32>>, f32)>,
 }
 
 impl<'a> PointEstimator<'a> {
@@ -97,7 +105,20 @@ impl<'a> PointEstimator<'a> {
             view.copy_out_of_prior(zone, &mut mean, &mut g);
             (mean, g, t)
         });
-        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior })
+        let gloss = view.has_gloss().then(|| {
+            let mut q = 0.0f32;
+            let blocks = (0..k)
+                .map(|c| {
+                    let mut b = vec![0.0f32; brdf_meter::gloss::block_len(d.m)];
+                    let (assigned, _, reference) = view.copy_gloss(zone, c, &mut b).expect("the blob has the section");
+                    // The device's operation, so the same bits.
+                    q = assigned / reference;
+                    b
+                })
+                .collect();
+            (blocks, q)
+        });
+        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior, gloss })
     }
 
     /// Readings per point m.
@@ -139,16 +160,36 @@ impl<'a> PointEstimator<'a> {
             bits |= out_of_prior_flag(stat, *t);
         }
         bits |= guard_estimate(&mut rho);
+        let (mut readings, mut reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
+        if let Some((blocks, q)) = &self.gloss {
+            // The kernel's input: the scale-free kinds replace the last reading by the scale.
+            let mut x = v.to_vec();
+            if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+                x[v.len() - 1] = s;
+            }
+            (readings, reading_sigma) = brdf_meter::gloss::readings(&blocks[cluster as usize], &x, *q, sigma_scale);
+        }
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);
             sigma.fill(0.0);
+            (readings, reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
         }
-        PointEstimate { rho, sigma, flags: flag_names(bits), flag_bits: bits, cluster, sigma_scale, stat }
+        PointEstimate {
+            rho,
+            sigma,
+            readings,
+            reading_sigma,
+            flags: flag_names(bits),
+            flag_bits: bits,
+            cluster,
+            sigma_scale,
+            stat,
+        }
     }
 }
 
 /// What the device streams for one point: zone, flags, the uncertainty's
-/// scale and the n values.
+/// scale, the gloss readings with their uncertainties and the n values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExpectedPoint {
     /// The pixel's zone.
@@ -159,6 +200,10 @@ pub struct ExpectedPoint {
     pub cluster: u8,
     /// The frame's `sigma_scale`.
     pub sigma_scale: f32,
+    /// The frame's `readings`.
+    pub readings: [f32; READINGS],
+    /// The frame's `reading_sigma`.
+    pub reading_sigma: [f32; READINGS],
     /// The n values.
     pub values: Vec<f32>,
 }
@@ -187,6 +232,8 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
                 cluster: e.cluster,
                 flags: flags | e.flag_bits,
                 sigma_scale: e.sigma_scale,
+                readings: e.readings,
+                reading_sigma: e.reading_sigma,
                 values: e.rho,
             }
         })
