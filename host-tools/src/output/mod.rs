@@ -4,3 +4,6 @@ pub mod config;
 pub mod io;
 pub mod plot;
 pub mod progress;
+pub mod profile;
+pub mod bird;
+pub mod astm_e1392;
