@@ -180,8 +180,22 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
         // The host's reproduction (same correction, kernel and guard) agrees bit for bit.
         let want = &expected_line(&view, &scene[k / P], FULL_SCALE)[px];
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "point {px}"
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();

@@ -195,6 +195,8 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             cluster: 1,
             flags: flags::SATURATED | flags::OUT_OF_PRIOR,
             sigma_scale: 2.5,
+            readings: [87.25, 3.5, f32::NAN],
+            reading_sigma: [0.75, 0.125, f32::NAN],
             values: LeBytes(&vals),
         }),
     ];

@@ -39,8 +39,22 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "point {k}"
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();

@@ -166,6 +166,8 @@ where
                         cluster: meta.map_or(0, |m| m.cluster),
                         flags: fl,
                         sigma_scale: meta.map_or(1.0, |m| m.sigma_scale),
+                        readings: meta.map_or(crate::gloss::NO_READINGS, |m| m.readings),
+                        reading_sigma: meta.map_or(crate::gloss::NO_READINGS, |m| m.reading_sigma),
                         values: LeBytes::from_f32(rho.as_slice()),
                     };
                     stream_seq = stream_seq.wrapping_add(1);

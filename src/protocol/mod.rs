@@ -42,7 +42,7 @@ pub use framing::*;
 pub use messages::*;
 
 /// The protocol version this library speaks.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 /// Largest decoded payload (header + body + CRC) either side sends or accepts.
 pub const MAX_PAYLOAD: usize = 640;
 /// Largest frame on the wire: COBS overhead plus the `0x00` delimiter.

@@ -120,6 +120,8 @@ fn every_response_round_trips() {
         cluster: 2,
         flags: flags::SATURATED | flags::NON_FINITE | flags::OUT_OF_PRIOR,
         sigma_scale: 0.375,
+        readings: [97.5, f32::NAN, -0.0],
+        reading_sigma: [0.25, f32::NAN, 1.5],
         values: LeBytes::from_f32(&vals),
     });
     let mut f = frame_of(1, &p);
@@ -130,6 +132,8 @@ fn every_response_round_trips() {
     assert_eq!(bits, vals.map(f32::to_bits));
     assert_eq!((pf.line, pf.seq, pf.point, pf.zone, pf.cluster, pf.sigma_scale), (4, 99, 31, 3, 2, 0.375));
     assert_eq!(pf.flags, flags::SATURATED | flags::NON_FINITE | flags::OUT_OF_PRIOR);
+    assert_eq!(pf.readings.map(f32::to_bits), [97.5, f32::NAN, -0.0].map(f32::to_bits));
+    assert_eq!(pf.reading_sigma.map(f32::to_bits), [0.25, f32::NAN, 1.5].map(f32::to_bits));
 }
 
 #[test]
@@ -143,6 +147,8 @@ fn largest_point_frame_fits() {
         cluster: u8::MAX,
         flags: 0xFF,
         sigma_scale: f32::MAX,
+        readings: [f32::MAX; crate::shape::READINGS],
+        reading_sigma: [f32::MAX; crate::shape::READINGS],
         values: LeBytes::from_f32(&vals),
     });
     let mut out = [0u8; MAX_FRAME];

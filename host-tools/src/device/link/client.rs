@@ -5,6 +5,7 @@ use brdf_meter::protocol::{
     self, CalInfo, DeviceError, DeviceInfo, DeviceStatus, FrameError, FrameReader, LeBytes, MAX_FRAME, MAX_SIM_BYTES,
     PointFrame, Pushed, Request, Response,
 };
+use brdf_meter::shape::READINGS;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -45,6 +46,10 @@ pub struct PointRecord {
     pub cluster: u8,
     /// What the calibration's per-bin uncertainty is multiplied by for this point.
     pub sigma_scale: f32,
+    /// The gloss readings (`brdf_meter::gloss`; NaN: none).
+    pub readings: [f32; READINGS],
+    /// Their standard uncertainties (k = 1).
+    pub reading_sigma: [f32; READINGS],
     /// The n values.
     pub values: Vec<f32>,
 }
@@ -59,6 +64,8 @@ impl From<PointFrame<'_>> for PointRecord {
             cluster: p.cluster,
             flags: p.flags,
             sigma_scale: p.sigma_scale,
+            readings: p.readings,
+            reading_sigma: p.reading_sigma,
             values: p.values.f32s().collect(),
         }
     }
@@ -704,6 +711,8 @@ mod tolerant_tests {
             cluster: 0,
             flags: 0,
             sigma_scale: 1.0,
+            readings: [1.0; READINGS],
+            reading_sigma: [0.5; READINGS],
             values: LeBytes(values),
         })
     }
