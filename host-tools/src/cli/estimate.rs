@@ -38,6 +38,9 @@ pub struct Args {
     /// Zone whose matrices to use (the readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
+    /// Plot and standard files (points are the readings' rows).
+    #[command(flatten)]
+    pub exports: crate::cli::exports::ExportArgs,
 }
 
 /// Reads the readings CSV: every row exactly `m` numbers; a non-numeric
@@ -85,6 +88,7 @@ struct JsonOut<'a> {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.exports.check()?;
     let bytes = std::fs::read(&a.blob).with_context(|| format!("{}: cannot read the blob", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
@@ -116,6 +120,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let (Some(p), Some(j)) = (&a.json, &json) {
         crate::output::io::write_atomic(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
+    let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
+        crate::device::measurement_summary::SummaryPoint { line: None, flags: p.flag_bits, readings: p.readings }
+    }));
+    print!("{}", crate::device::measurement_summary::table(&summary));
     let flagged = points.iter().filter(|p| p.flag_bits & flags::OUT_OF_PRIOR != 0).count();
     println!(
         "{} point(s), {} estimator, zone {}: {flagged} out-of-prior; wrote {}{}",
@@ -125,7 +133,37 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.out.display(),
         a.json.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
     );
+    let export = crate::output::profile::ExportInfo {
+        view_deg: a.exports.view_deg,
+        source: "host-tools estimate".into(),
+        instrument: format!("offline estimate from {}", a.readings.display()),
+        calibration: format!("{} blob crc {:#010x} zone {}", crate::calibration::estimators::kind_name(view.estimator()), view.crc(), app.zone()),
+        timestamp: crate::output::profile::utc_now(),
+        solid_angle_sr: a.exports.solid_angle_sr,
+    };
+    let profiles = profiles(&bins, &points);
+    let title = format!("BRDF profiles, {} ({})", a.readings.display(), export.calibration);
+    for line in a.exports.write(&profiles, &export, &title)? {
+        println!("{line}");
+    }
     Ok(())
+}
+
+/// The estimates as profiles (line 0, point = the readings' row).
+fn profiles(bins: &[f32], points: &[PointEstimate]) -> Vec<crate::output::profile::Profile> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| crate::output::profile::Profile {
+            line: 0,
+            point: u16::try_from(i).unwrap_or(u16::MAX),
+            flags: p.flags.iter().map(|f| f.to_string()).collect(),
+            theta_i_deg: bins.iter().map(|x| f64::from(*x)).collect(),
+            reflectance: p.rho.iter().map(|x| f64::from(*x)).collect(),
+            uncertainty: p.sigma.iter().map(|x| f64::from(*x)).collect(),
+            readings: crate::device::measurement::readings_of(&p.readings, &p.reading_sigma),
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -143,7 +181,14 @@ mod tests {
     fn args(dir: &Path, cal: &Path, readings: &str) -> Args {
         let r = dir.join("r.csv");
         std::fs::write(&r, readings).unwrap();
-        Args { blob: cal.to_path_buf(), readings: r, out: dir.join("e.csv"), json: Some(dir.join("e.json")), zone: 0 }
+        Args {
+            blob: cal.to_path_buf(),
+            readings: r,
+            out: dir.join("e.csv"),
+            json: Some(dir.join("e.json")),
+            zone: 0,
+            exports: Default::default(),
+        }
     }
 
     #[test]

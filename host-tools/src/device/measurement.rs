@@ -41,9 +41,7 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
     // The calibration's per-bin uncertainty for the point's zone, times the
     // point's own scale (1 for the linear estimators; the readings' scale for
     // the scale-free ones, whose estimate and uncertainty scale with the point).
-    let unc = |p: &PointRecord| -> Vec<f32> {
-        (0..d.n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
-    };
+    let unc = |p: &PointRecord| point_uncertainty(view, p);
     // CSV: one row per point, rho then uncertainty for each angle.
     let mut csv = String::from("line,point,zone,flags");
     for g in &angles {
@@ -91,4 +89,47 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
             .collect(),
     };
     (csv, json)
+}
+
+/// The calibration's per-bin standard uncertainty for point `p`: its zone's
+/// and cluster's, times the point's scale.
+pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
+    (0..view.dims().n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
+}
+
+/// The points as profiles for the plot and the standard files.
+pub fn profiles(view: &BlobView<'_>, points: &[PointRecord]) -> Vec<crate::output::profile::Profile> {
+    let angles: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
+    points
+        .iter()
+        .map(|p| crate::output::profile::Profile {
+            line: p.line,
+            point: p.point,
+            flags: flag_names(p.flags).into_iter().map(String::from).collect(),
+            theta_i_deg: angles.clone(),
+            reflectance: p.values.iter().map(|x| f64::from(*x)).collect(),
+            uncertainty: point_uncertainty(view, p).into_iter().map(f64::from).collect(),
+            readings: readings_of(&p.readings, &p.reading_sigma),
+        })
+        .collect()
+}
+
+/// The finite readings as (name, value, standard uncertainty).
+pub fn readings_of(r: &[f32; READINGS], u: &[f32; READINGS]) -> Vec<(String, f64, f64)> {
+    (0..READINGS)
+        .filter(|&k| r[k].is_finite())
+        .map(|k| (gloss::NAMES[k].to_string(), f64::from(r[k]), f64::from(u[k])))
+        .collect()
+}
+
+/// What the summary needs of each point.
+pub fn summary_points(points: &[PointRecord]) -> Vec<crate::device::measurement_summary::SummaryPoint> {
+    points
+        .iter()
+        .map(|p| crate::device::measurement_summary::SummaryPoint {
+            line: Some(p.line),
+            flags: p.flags,
+            readings: p.readings,
+        })
+        .collect()
 }

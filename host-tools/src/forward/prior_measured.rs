@@ -302,6 +302,7 @@ mod tests {
             theta_i_deg: grid.bins_deg().to_vec(),
             reflectance: truth.iter().copied().collect(),
             uncertainty: vec![0.01; grid.n()],
+            readings: Vec::new(),
         };
         let info = ExportInfo {
             view_deg: 45.0,

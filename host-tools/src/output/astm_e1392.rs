@@ -38,6 +38,9 @@ pub fn to_text(p: &Profile, info: &ExportInfo) -> String {
     let _ = writeln!(t, "CALIBRATION \"{}\"", q(&info.calibration));
     let _ = writeln!(t, "SAMPLE \"line {} point {}\"", p.line, p.point);
     let _ = writeln!(t, "DATE \"{}\"", info.timestamp);
+    for (name, v, u) in &p.readings {
+        let _ = writeln!(t, "{} \"{v} (standard uncertainty {u})\"", name.to_ascii_uppercase());
+    }
     if !p.flags.is_empty() {
         let _ = writeln!(t, "FLAGS \"{}\"", p.flags.join(","));
     }
@@ -249,6 +252,7 @@ mod tests {
             flags: vec!["out-of-prior".into()],
             reflectance: angles.iter().map(|a| 0.2 + (a / 20.0).cos().abs()).collect(),
             uncertainty: angles.iter().map(|a| 1e-3 * a).collect(),
+            readings: vec![("haze_hu".into(), 12.5, 0.25)],
             theta_i_deg: angles,
         };
         let info = ExportInfo {
@@ -270,6 +274,7 @@ mod tests {
         let t = parse(&text, "m.astm").unwrap();
         assert_eq!(t.rows.len(), 7);
         assert!(t.header.contains(&("SAMPLE".into(), "line 2 point 9".into())));
+        assert!(t.header.contains(&("HAZE_HU".into(), "12.5 (standard uncertainty 0.25)".into())));
         let v = t.in_plane("m.astm").unwrap();
         for (k, x) in v.iter().enumerate() {
             assert_eq!(x.theta_i, p.theta_i_deg[k]);

@@ -55,6 +55,20 @@ pub fn document(profiles: &[Profile], info: &ExportInfo) -> Value {
         .filter(|p| !p.flags.is_empty())
         .map(|p| format!("line {} point {}: {}", p.line, p.point, p.flags.join(", ")))
         .collect();
+    // The gloss readings per point (value and standard uncertainty), which
+    // the schema has no field for.
+    let readings: Vec<Value> = profiles
+        .iter()
+        .filter(|p| !p.readings.is_empty())
+        .map(|p| {
+            let mut o = json!({ "line": p.line, "point": p.point });
+            for (name, v, u) in &p.readings {
+                o[name.as_str()] = json!(v);
+                o[format!("u_{name}")] = json!(u);
+            }
+            o
+        })
+        .collect();
     let mut detection = json!({
         "name": "line sensor at a fixed view",
         "sensors": [{ "name": "line sensor", "type": "linear photodiode array" }]
@@ -103,6 +117,7 @@ pub fn document(profiles: &[Profile], info: &ExportInfo) -> Value {
                 "zero_azimuth_location": "the light's side of the plane of incidence is phi = 180 deg, the viewer's phi = 0 deg"
             },
             "environment": "NA",
+            "adhoc_section": { "gloss_readings": readings },
             "comments": if flagged.is_empty() { "no point flagged".to_string() } else { format!("flagged: {}", flagged.join("; ")) }
         },
         "data": { "variables": variables, "values": values }
@@ -231,6 +246,7 @@ pub fn read(path: &Path) -> anyhow::Result<(Vec<Profile>, f64)> {
             theta_i_deg: Vec::new(),
             reflectance: Vec::new(),
             uncertainty: Vec::new(),
+            readings: Vec::new(),
         });
         p.theta_i_deg.push(num(ti)? * scale("theta_i"));
         p.reflectance.push(num(b)? * PI);
@@ -253,6 +269,7 @@ mod tests {
             theta_i_deg: angles.clone(),
             reflectance: angles.iter().map(|a| s * (1.0 + (a / 7.0).sin())).collect(),
             uncertainty: angles.iter().map(|a| 0.01 * s * a / 30.0).collect(),
+            readings: vec![("gloss_gu".into(), 80.0 * s, 0.5)],
         };
         let info = ExportInfo {
             view_deg: 45.0,
@@ -295,6 +312,8 @@ mod tests {
             vec!["metadata.instrumentation.detection_system.solid_angle".to_string()]
         );
         assert_eq!(doc["metadata"]["schema"], SCHEMA_URI);
+        assert_eq!(doc["metadata"]["adhoc_section"]["gloss_readings"][2]["gloss_gu"], 200.0);
+        assert_eq!(doc["metadata"]["adhoc_section"]["gloss_readings"][2]["u_gloss_gu"], 0.5);
         assert_eq!(doc["data"]["values"].as_array().unwrap().len(), 15);
         assert_eq!(doc["data"]["values"][0].as_array().unwrap().len(), doc["data"]["variables"].as_array().unwrap().len());
         // The check does find what is missing.

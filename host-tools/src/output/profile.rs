@@ -25,6 +25,9 @@ pub struct Profile {
     pub reflectance: Vec<f64>,
     /// Standard uncertainty of R per bin.
     pub uncertainty: Vec<f64>,
+    /// The point's gloss readings that it has: (name, value, standard
+    /// uncertainty), names as `brdf_meter::gloss::NAMES`.
+    pub readings: Vec<(String, f64, f64)>,
 }
 
 /// What the files say about where the profiles came from.
