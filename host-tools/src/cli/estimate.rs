@@ -21,7 +21,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Apply a calibration blob to readings offline, exactly as the device does.
-#[derive(Debug, clap::Args)]
+#[derive(Clone, Debug, clap::Args)]
 pub struct Args {
     /// The calibration blob.
     #[arg(long, value_name = "CAL")]
@@ -222,6 +222,59 @@ mod tests {
         assert_eq!(csv.lines().count(), 3);
         assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81 + 2 * brdf_meter::shape::READINGS);
         assert!(csv.lines().nth(2).unwrap().starts_with("1,out-of-prior,"));
+    }
+
+    #[test]
+    fn plot_bird_and_astm_of_offline_estimates_and_a_bad_plot_name_is_refused_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let cal = blob(dir.path(), Estimator::ScaleFree, "merl");
+        let inst = crate::forward::optics::Instrument::patent_profile();
+        let set = crate::forward::brdf::NbrdfSet::merl();
+        let mut text = String::new();
+        for name in ["white-paint", "blue-acrylic", "gold-metallic-paint"] {
+            let mat = set.by_name(name, inst.spectral_weights).unwrap();
+            let v = crate::forward::optics::simulate_readings(&inst, &mat, false);
+            text.push_str(&v.iter().map(|x| (*x as f32).to_string()).collect::<Vec<_>>().join(","));
+            text.push('\n');
+        }
+        let mut a = args(dir.path(), &cal, &text);
+        a.exports = crate::cli::exports::ExportArgs {
+            plot: Some(dir.path().join("p.svg")),
+            plot_points: vec![0, 2],
+            bird: Some(dir.path().join("e.bird.json")),
+            astm: Some(dir.path().join("e.astm")),
+            view_deg: 45.0,
+            solid_angle_sr: Some(1e-3),
+        };
+        run(a.clone()).unwrap();
+        let svg = std::fs::read_to_string(dir.path().join("p.svg")).unwrap();
+        assert_eq!(svg.matches("<polygon").count(), 2);
+        assert!(svg.contains("line 0 point 2"));
+        let (back, view) = crate::output::bird::read(&dir.path().join("e.bird.json")).unwrap();
+        assert_eq!((back.len(), view), (3, 45.0));
+        let e: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("e.json")).unwrap()).unwrap();
+        for (k, p) in back.iter().enumerate() {
+            let rho: Vec<f64> = e["points"][k]["rho"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            for (x, y) in p.reflectance.iter().zip(&rho) {
+                assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-9), "{x} vs {y}");
+            }
+        }
+        for k in 0..3 {
+            let t = crate::output::astm_e1392::read(&dir.path().join(format!("e-l0-p{k}.astm"))).unwrap();
+            assert_eq!(t.rows.len(), 81);
+        }
+        // A plot name the command cannot write is refused before any output.
+        let out = tempfile::tempdir().unwrap();
+        let mut b = args(out.path(), &cal, &text);
+        b.exports.plot = Some(out.path().join("p.pdf"));
+        let err = format!("{:#}", run(b).unwrap_err());
+        assert!(err.contains("--plot") && err.contains(".svg or .png"), "{err}");
+        assert!(!out.path().join("e.csv").exists());
+        // A point the readings do not have.
+        let mut c = a;
+        c.exports.plot_points = vec![7];
+        let err = format!("{:#}", run(c).unwrap_err());
+        assert!(err.contains("--plot-points 7: line 0 has points 0..=2"), "{err}");
     }
 
     #[test]

@@ -133,3 +133,62 @@ pub fn summary_points(points: &[PointRecord]) -> Vec<crate::device::measurement_
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use brdf_meter::protocol::flags;
+
+    fn record(line: u32, point: u16, scale: f32, flags: u8) -> PointRecord {
+        PointRecord {
+            line,
+            seq: line * 4 + u32::from(point),
+            point,
+            zone: 0,
+            flags,
+            cluster: 0,
+            sigma_scale: scale,
+            readings: [80.0 + f32::from(point), 2.0, f32::NAN],
+            reading_sigma: [0.5, 0.1, f32::NAN],
+            values: (0..9).map(|j| 0.5 + 0.1 * j as f32 * scale).collect(),
+        }
+    }
+
+    #[test]
+    fn a_measurement_plots_with_its_band_and_readings_and_summarises() {
+        let bytes = brdf_meter::test_blobs::test_blob(9, 3, 1, 4, 1.0);
+        let view = BlobView::parse(&bytes).unwrap();
+        let points: Vec<PointRecord> =
+            (0..4).map(|p| record(0, p, 1.0 + f32::from(p), if p == 2 { flags::SATURATED } else { 0 })).collect();
+        let profiles = profiles(&view, &points);
+        assert_eq!(profiles.len(), 4);
+        // The band is the blob's per-bin uncertainty times the point's scale.
+        for j in 0..9 {
+            let want = f64::from(view.uncertainty_of(0, 0, j) * 3.0);
+            assert_eq!(profiles[2].uncertainty[j], want);
+        }
+        assert_eq!(profiles[2].flags, vec!["saturated".to_string()]);
+        assert_eq!(profiles[1].readings, vec![("gloss_gu".to_string(), 81.0, 0.5), ("haze_hu".to_string(), 2.0, 0.1_f32 as f64)]);
+        let dir = tempfile::tempdir().unwrap();
+        let svg = dir.path().join("m.svg");
+        crate::output::plot::profiles::write(&svg, "test measurement", &profiles[..3]).unwrap();
+        let text = std::fs::read_to_string(&svg).unwrap();
+        assert!(text.len() > 5_000, "{} bytes", text.len());
+        // One shaded band per point, its legend with the readings.
+        assert_eq!(text.matches("<polygon").count(), 3, "{text}");
+        assert!(text.contains("line 0 point 1, gloss 81.0 ± 0.5 GU, haze 2.0 ± 0.1 HU"), "legend missing");
+        assert!(text.contains("[saturated]"));
+        let png = dir.path().join("m.png");
+        crate::output::plot::profiles::write(&png, "test measurement", &profiles[..1]).unwrap();
+        let bytes = std::fs::read(&png).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        assert!(bytes.len() > 10_000);
+        let e = crate::output::plot::profiles::write(&dir.path().join("m.pdf"), "t", &profiles).unwrap_err();
+        assert!(e.to_string().contains(".svg or .png"), "{e}");
+        // The summary of the same points.
+        let s = crate::device::measurement_summary::summarise(summary_points(&points));
+        assert_eq!(s.len(), 1);
+        assert_eq!(s[0].readings[0].mean, 81.5);
+        assert_eq!(s[0].flags.get("saturated"), Some(&1));
+    }
+}

@@ -84,7 +84,7 @@ pub fn table(lines: &[LineSummary]) -> String {
     let heads = ["gloss GU", "haze HU", "distinctness %"];
     let _ = write!(t, "{:<6} {:>6}", "line", "points");
     for h in heads {
-        let _ = write!(t, "  {:>20}", format!("{h} (mean ± sd)"));
+        let _ = write!(t, "  {:>26}", format!("{h} (mean ± sd)"));
     }
     let _ = writeln!(t, "  flags");
     for l in lines {
@@ -98,7 +98,7 @@ pub fn table(lines: &[LineSummary]) -> String {
             } else {
                 format!("{:.2} ± {:.2}", s.mean, s.sd)
             };
-            let _ = write!(t, "  {cell:>20}");
+            let _ = write!(t, "  {cell:>26}");
         }
         let flags: Vec<String> = l.flags.iter().map(|(k, v)| format!("{k} {v}")).collect();
         let _ = writeln!(t, "  {}", if flags.is_empty() { "none".to_string() } else { flags.join(", ") });
