@@ -260,10 +260,16 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     let (profiles, view) = host_tools::output::bird::read(&dir.path().join("m.bird.json")).unwrap();
     assert_eq!((profiles.len(), view), (2 * PIXELS, 45.0));
     for (p, jp) in profiles.iter().zip(j["points"].as_array().unwrap()) {
-        assert_eq!((u64::from(p.line), u64::from(p.point)), (jp["line"].as_u64().unwrap(), jp["point"].as_u64().unwrap()));
-        for ((r, u), (jr, ju)) in p.reflectance.iter().zip(&p.uncertainty).zip(
-            jp["values"].as_array().unwrap().iter().zip(jp["uncertainty"].as_array().unwrap()),
-        ) {
+        assert_eq!(
+            (u64::from(p.line), u64::from(p.point)),
+            (jp["line"].as_u64().unwrap(), jp["point"].as_u64().unwrap())
+        );
+        for ((r, u), (jr, ju)) in p
+            .reflectance
+            .iter()
+            .zip(&p.uncertainty)
+            .zip(jp["values"].as_array().unwrap().iter().zip(jp["uncertainty"].as_array().unwrap()))
+        {
             assert!((r - jr.as_f64().unwrap()).abs() <= 1e-6 * r.abs().max(1e-6));
             assert!((u - ju.as_f64().unwrap()).abs() <= 1e-6 * u.abs().max(1e-6));
         }

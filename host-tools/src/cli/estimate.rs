@@ -137,7 +137,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view_deg: a.exports.view_deg,
         source: "host-tools estimate".into(),
         instrument: format!("offline estimate from {}", a.readings.display()),
-        calibration: format!("{} blob crc {:#010x} zone {}", crate::calibration::estimators::kind_name(view.estimator()), view.crc(), app.zone()),
+        calibration: format!(
+            "{} blob crc {:#010x} zone {}",
+            crate::calibration::estimators::kind_name(view.estimator()),
+            view.crc(),
+            app.zone()
+        ),
         timestamp: crate::output::profile::utc_now(),
         solid_angle_sr: a.exports.solid_angle_sr,
     };

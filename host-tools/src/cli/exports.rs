@@ -41,12 +41,18 @@ impl ExportArgs {
             self.view_deg
         );
         if let Some(sr) = self.solid_angle_sr {
-            ensure!(sr.is_finite() && sr > 0.0 && sr <= 4.0 * std::f64::consts::PI, "--solid-angle-sr {sr}: must be in (0, 4 pi]");
+            ensure!(
+                sr.is_finite() && sr > 0.0 && sr <= 4.0 * std::f64::consts::PI,
+                "--solid-angle-sr {sr}: must be in (0, 4 pi]"
+            );
         }
         if let Some(p) = &self.plot {
             let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
             if ext != "svg" && ext != "png" {
-                bail!("--plot {}: the plot is written as .svg or .png; give a file name with one of those", p.display());
+                bail!(
+                    "--plot {}: the plot is written as .svg or .png; give a file name with one of those",
+                    p.display()
+                );
             }
         }
         Ok(())
@@ -99,7 +105,12 @@ impl ExportArgs {
             let names = crate::output::astm_e1392::write(p, profiles, info)?;
             said.push(match names.as_slice() {
                 [one] => format!("ASTM E1392 table: {}", one.display()),
-                many => format!("ASTM E1392 tables: {} files, {} .. {}", many.len(), many[0].display(), many[many.len() - 1].display()),
+                many => format!(
+                    "ASTM E1392 tables: {} files, {} .. {}",
+                    many.len(),
+                    many[0].display(),
+                    many[many.len() - 1].display()
+                ),
             });
         }
         Ok(said)

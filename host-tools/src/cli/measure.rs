@@ -98,7 +98,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view_deg: a.exports.view_deg,
         source: "host-tools measure".into(),
         instrument: format!("BRDF meter{}", if info.simulated { " (simulated sensor, QEMU)" } else { "" }),
-        calibration: format!("{} blob crc {:#010x}", crate::calibration::estimators::kind_name(view.estimator()), view.crc()),
+        calibration: format!(
+            "{} blob crc {:#010x}",
+            crate::calibration::estimators::kind_name(view.estimator()),
+            view.crc()
+        ),
         timestamp: crate::output::profile::utc_now(),
         solid_angle_sr: a.exports.solid_angle_sr,
     };

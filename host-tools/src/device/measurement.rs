@@ -94,7 +94,9 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
 /// The calibration's per-bin standard uncertainty for point `p`: its zone's
 /// and cluster's, times the point's scale.
 pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
-    (0..view.dims().n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
+    (0..view.dims().n)
+        .map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs())
+        .collect()
 }
 
 /// The points as profiles for the plot and the standard files.
@@ -168,7 +170,10 @@ mod tests {
             assert_eq!(profiles[2].uncertainty[j], want);
         }
         assert_eq!(profiles[2].flags, vec!["saturated".to_string()]);
-        assert_eq!(profiles[1].readings, vec![("gloss_gu".to_string(), 81.0, 0.5), ("haze_hu".to_string(), 2.0, 0.1_f32 as f64)]);
+        assert_eq!(
+            profiles[1].readings,
+            vec![("gloss_gu".to_string(), 81.0, 0.5), ("haze_hu".to_string(), 2.0, 0.1_f32 as f64)]
+        );
         let dir = tempfile::tempdir().unwrap();
         let svg = dir.path().join("m.svg");
         crate::output::plot::profiles::write(&svg, "test measurement", &profiles[..3]).unwrap();

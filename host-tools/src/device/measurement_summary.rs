@@ -63,8 +63,7 @@ pub fn summarise(points: impl IntoIterator<Item = SummaryPoint>) -> Vec<LineSumm
         .into_iter()
         .map(|(line, pts)| {
             let readings = std::array::from_fn(|r| {
-                let xs: Vec<f64> =
-                    pts.iter().map(|p| f64::from(p.readings[r])).filter(|x| x.is_finite()).collect();
+                let xs: Vec<f64> = pts.iter().map(|p| f64::from(p.readings[r])).filter(|x| x.is_finite()).collect();
                 spread(&xs)
             });
             let mut flags = BTreeMap::new();
@@ -104,7 +103,8 @@ pub fn table(lines: &[LineSummary]) -> String {
         let _ = writeln!(t, "  {}", if flags.is_empty() { "none".to_string() } else { flags.join(", ") });
     }
     if lines.iter().all(|l| l.readings.iter().all(|s| s.count == 0)) {
-        let _ = writeln!(t, "(no gloss readings: the calibration carries no gloss section; `-` marks a missing reading)");
+        let _ =
+            writeln!(t, "(no gloss readings: the calibration carries no gloss section; `-` marks a missing reading)");
     }
     debug_assert_eq!(gloss::NAMES.len(), heads.len());
     t
@@ -138,7 +138,9 @@ mod tests {
         let t = table(&s);
         let rows: Vec<&str> = t.lines().collect();
         assert!(rows[0].starts_with("line") && rows[0].contains("gloss GU (mean ± sd)") && rows[0].contains("flags"));
-        assert!(rows[1].starts_with("0") && rows[1].contains("20.00 ± 10.00") && rows[1].contains("70.00 ± 0.00 (1 pts)"));
+        assert!(
+            rows[1].starts_with("0") && rows[1].contains("20.00 ± 10.00") && rows[1].contains("70.00 ± 0.00 (1 pts)")
+        );
         assert!(rows[1].ends_with("out-of-prior 1, saturated 2"), "{}", rows[1]);
         assert!(rows[2].contains("80.00 ± 0.00") && rows[2].ends_with("none"));
         assert_eq!(rows.len(), 3);

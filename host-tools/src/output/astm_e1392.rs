@@ -30,9 +30,16 @@ pub const VARS: [&str; 8] = ["theta_i", "phi_i", "theta_s", "phi_s", "wavelength
 pub fn to_text(p: &Profile, info: &ExportInfo) -> String {
     let mut t = String::new();
     let q = |s: &str| s.replace('"', "'");
-    let _ = writeln!(t, "# ASTM E1392 angle-resolved scatter data: BRDF in sr^-1 (the meter's reflectance factor / pi)");
-    let _ = writeln!(t, "# angles in deg; light at phi_i = 180, viewer at phi_s = 0; polarization 0 = unpolarized, 1 = s, 2 = p");
-    let _ = writeln!(t, "# wavelength: broadband white LEDs seen with luminance weights; {NOMINAL_WAVELENGTH_NM} nm is nominal");
+    let _ =
+        writeln!(t, "# ASTM E1392 angle-resolved scatter data: BRDF in sr^-1 (the meter's reflectance factor / pi)");
+    let _ = writeln!(
+        t,
+        "# angles in deg; light at phi_i = 180, viewer at phi_s = 0; polarization 0 = unpolarized, 1 = s, 2 = p"
+    );
+    let _ = writeln!(
+        t,
+        "# wavelength: broadband white LEDs seen with luminance weights; {NOMINAL_WAVELENGTH_NM} nm is nominal"
+    );
     let _ = writeln!(t, "SOURCE \"{}\"", q(&info.source));
     let _ = writeln!(t, "INSTRUMENT \"{}\"", q(&info.instrument));
     let _ = writeln!(t, "CALIBRATION \"{}\"", q(&info.calibration));
@@ -160,15 +167,19 @@ pub fn parse(text: &str, origin: &str) -> anyhow::Result<AstmTable> {
                 ensure!(!t.vars.is_empty(), "{origin}:{line}: VARS names no columns");
             }
             "NUM_POINTS" => {
-                let n = value.parse().map_err(|_| {
-                    anyhow::anyhow!("{origin}:{line}: NUM_POINTS {value:?} is not a count of rows")
-                })?;
+                let n = value
+                    .parse()
+                    .map_err(|_| anyhow::anyhow!("{origin}:{line}: NUM_POINTS {value:?} is not a count of rows"))?;
                 num_points = Some((n, line));
             }
             k => t.header.push((k.to_string(), value)),
         }
     }
-    ensure!(!t.vars.is_empty(), "{origin}: no VARS line; an ASTM E1392 table names its columns with `VARS {}`", VARS.join(","));
+    ensure!(
+        !t.vars.is_empty(),
+        "{origin}: no VARS line; an ASTM E1392 table names its columns with `VARS {}`",
+        VARS.join(",")
+    );
     ensure!(!t.rows.is_empty(), "{origin}: no data rows after VARS");
     if let Some((n, line)) = num_points {
         ensure!(n == t.rows.len(), "{origin}:{line}: NUM_POINTS says {n} but the file has {} row(s)", t.rows.len());
@@ -301,7 +312,10 @@ mod tests {
             ("SOURCE x\n20,180,45,0,555,0,0.1\n", "f.astm:2: a data row before the VARS line"),
             ("VARS theta_i,theta_s,BRDF\n20,45\n", "f.astm:2: 2 value(s), but VARS names 3"),
             ("VARS theta_i,theta_s,BRDF\n20,45,abc\n", "f.astm:2: column 3 (brdf): \"abc\" is not a finite number"),
-            ("VARS theta_i,theta_s,BRDF\nNUM_POINTS 3\n20,45,0.1\n", "f.astm:2: NUM_POINTS says 3 but the file has 1 row(s)"),
+            (
+                "VARS theta_i,theta_s,BRDF\nNUM_POINTS 3\n20,45,0.1\n",
+                "f.astm:2: NUM_POINTS says 3 but the file has 1 row(s)",
+            ),
             ("# nothing\n", "f.astm: no VARS line"),
         ] {
             let e = format!("{:#}", parse(text, "f.astm").unwrap_err());

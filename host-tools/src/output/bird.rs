@@ -178,9 +178,9 @@ pub fn check_required(doc: &Value) -> Vec<String> {
             }
         }
         for (name, units) in req["variables_contain"].as_object().unwrap() {
-            let ok = vars.iter().any(|v| {
-                v["name"] == name.as_str() && units.as_array().unwrap().iter().any(|u| v["unit"] == *u)
-            });
+            let ok = vars
+                .iter()
+                .any(|v| v["name"] == name.as_str() && units.as_array().unwrap().iter().any(|u| v["unit"] == *u));
             if !ok {
                 missing.push(format!("data.variables: a `{name}` variable with unit {units}"));
             }
@@ -193,7 +193,8 @@ pub fn check_required(doc: &Value) -> Vec<String> {
 /// back (rows grouped by `line` and `point` when the file has them, else one
 /// profile; angles in deg or rad; values at this file's `theta_r`).
 pub fn read(path: &Path) -> anyhow::Result<(Vec<Profile>, f64)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the BiRD file", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the BiRD file", path.display()))?;
     let doc: Value = serde_json::from_str(&text).map_err(|e| {
         anyhow::anyhow!(
             "{}:{}:{}: not JSON ({e}); a BiRD file is one JSON object with `metadata` and `data`",
@@ -211,7 +212,8 @@ pub fn read(path: &Path) -> anyhow::Result<(Vec<Profile>, f64)> {
     );
     let vars = doc["data"]["variables"].as_array().unwrap();
     let col = |name: &str| vars.iter().position(|v| v["name"] == name);
-    let scale = |name: &str| if vars.iter().any(|v| v["name"] == name && v["unit"] == "rad") { 180.0 / PI } else { 1.0 };
+    let scale =
+        |name: &str| if vars.iter().any(|v| v["name"] == name && v["unit"] == "rad") { 180.0 / PI } else { 1.0 };
     let (ti, tr, b) = (col("theta_i").unwrap(), col("theta_r").unwrap(), col("BRDF").unwrap());
     let ub = col("uBRDF").unwrap();
     let (line_c, point_c) = (col("line"), col("point"));
@@ -315,7 +317,10 @@ mod tests {
         assert_eq!(doc["metadata"]["adhoc_section"]["gloss_readings"][2]["gloss_gu"], 200.0);
         assert_eq!(doc["metadata"]["adhoc_section"]["gloss_readings"][2]["u_gloss_gu"], 0.5);
         assert_eq!(doc["data"]["values"].as_array().unwrap().len(), 15);
-        assert_eq!(doc["data"]["values"][0].as_array().unwrap().len(), doc["data"]["variables"].as_array().unwrap().len());
+        assert_eq!(
+            doc["data"]["values"][0].as_array().unwrap().len(),
+            doc["data"]["variables"].as_array().unwrap().len()
+        );
         // The check does find what is missing.
         let mut bad = doc.clone();
         bad["metadata"].as_object_mut().unwrap().remove("timestamp");

@@ -53,7 +53,9 @@ impl AstmTable {
             }
         }
         if slices.is_empty() {
-            bail!("{origin}: no viewer angle has two or more in-plane incidences below 90 deg; a profile needs at least two");
+            bail!(
+                "{origin}: no viewer angle has two or more in-plane incidences below 90 deg; a profile needs at least two"
+            );
         }
         Ok(Self { path: path.to_path_buf(), slices })
     }

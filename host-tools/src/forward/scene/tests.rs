@@ -666,7 +666,8 @@ fn an_astm_e1392_table_is_a_scene_surface_and_a_bad_one_names_the_field() {
     let text = std::fs::read_to_string(scenes_dir().join("patent-profile.toml")).unwrap();
     let start = text.find("[surface]").unwrap();
     let mut scene_text = text[..start].to_string();
-    scene_text.push_str(&format!("[surface]\nbrdf = {{ model = \"astm-e1392\", file = {:?} }}\n", f.display().to_string()));
+    scene_text
+        .push_str(&format!("[surface]\nbrdf = {{ model = \"astm-e1392\", file = {:?} }}\n", f.display().to_string()));
     let s = Scene::parse(&scene_text, "astm-scene.toml").unwrap();
     let (models, _) = s.surface_brdfs().unwrap();
     for t in [5.0, 40.0, 45.0, 85.0] {
