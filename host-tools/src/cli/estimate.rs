@@ -96,6 +96,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let points: Vec<PointEstimate> = rows.iter().map(|v| app.apply(v)).collect();
     let d = view.dims();
     let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
+    let profiles = profiles(&bins, &points);
+    if a.exports.plot.is_some() {
+        a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
+    }
     let mut w = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["point".to_string(), "flags".to_string()];
     header.extend(bins.iter().map(|b| format!("rho_{b}")));
@@ -146,7 +150,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         timestamp: crate::output::profile::utc_now(),
         solid_angle_sr: a.exports.solid_angle_sr,
     };
-    let profiles = profiles(&bins, &points);
     let title = format!("BRDF profiles, {} ({})", a.readings.display(), export.calibration);
     for line in a.exports.write(&profiles, &export, &title)? {
         println!("{line}");
@@ -275,11 +278,12 @@ mod tests {
         let err = format!("{:#}", run(b).unwrap_err());
         assert!(err.contains("--plot") && err.contains(".svg or .png"), "{err}");
         assert!(!out.path().join("e.csv").exists());
-        // A point the readings do not have.
-        let mut c = a;
-        c.exports.plot_points = vec![7];
+        // A point the readings do not have, also refused before any output.
+        let mut c = args(out.path(), &cal, &text);
+        c.exports = crate::cli::exports::ExportArgs { plot_points: vec![7], ..a.exports };
         let err = format!("{:#}", run(c).unwrap_err());
         assert!(err.contains("--plot-points 7: line 0 has points 0..=2"), "{err}");
+        assert!(!out.path().join("e.csv").exists());
     }
 
     #[test]

@@ -61,6 +61,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ),
         Some(_) => {}
     }
+    if let Some(k) = a.exports.plot_points.iter().find(|&&k| k >= usize::from(info.pixels)) {
+        bail!("--plot-points {k}: the device has points 0..={} on a line; choose among them", info.pixels - 1);
+    }
     if let Some(spec) = &a.scene {
         if !info.simulated {
             bail!("--scene is for simulated devices (QEMU); this device has a real sensor");
