@@ -158,6 +158,11 @@ where
                         Some(m) => fl |= m.flags,
                         None => fl |= flags::NON_FINITE,
                     }
+                    // A point whose estimate is not finite has no readings either.
+                    let (readings, reading_sigma) = match meta {
+                        Some(m) if fl & flags::NON_FINITE == 0 => (m.readings, m.reading_sigma),
+                        _ => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
+                    };
                     let pf = PointFrame {
                         line,
                         seq: stream_seq,
@@ -166,8 +171,8 @@ where
                         cluster: meta.map_or(0, |m| m.cluster),
                         flags: fl,
                         sigma_scale: meta.map_or(1.0, |m| m.sigma_scale),
-                        readings: meta.map_or(crate::gloss::NO_READINGS, |m| m.readings),
-                        reading_sigma: meta.map_or(crate::gloss::NO_READINGS, |m| m.reading_sigma),
+                        readings,
+                        reading_sigma,
                         values: LeBytes::from_f32(rho.as_slice()),
                     };
                     stream_seq = stream_seq.wrapping_add(1);
