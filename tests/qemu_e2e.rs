@@ -283,5 +283,15 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     }
     let t = host_tools::output::astm_e1392::read(&dir.path().join("m-l1-p31.astm")).unwrap();
     assert_eq!(t.rows.len(), brdf_meter::shape::BINS);
+    // The device's gloss readings travel with the profiles: in the plot's
+    // legend, the BiRD file's ad hoc section and the ASTM header.
+    assert!(svg.contains(" GU, haze ") && svg.contains(" HU, distinctness "), "legend without readings");
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("m.bird.json")).unwrap()).unwrap();
+    let readings = doc["metadata"]["adhoc_section"]["gloss_readings"].as_array().unwrap();
+    assert_eq!(readings.len(), 2 * PIXELS);
+    let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["readings"][0].as_f64().unwrap());
+    assert_eq!(a as f32, b as f32, "the device's f32 reading, unchanged");
+    assert!(t.header.iter().any(|(k, _)| k == "GLOSS_GU"), "{:?}", t.header);
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
