@@ -227,3 +227,71 @@ fn qemu_serves_the_same_protocol_over_a_serial_port() {
     let full_scale = c.info().unwrap().full_scale;
     check_bit_identical(&blob, &frames, &points, 1, full_scale);
 }
+
+/// `host-tools measure` as a user runs it against the QEMU instrument: the
+/// summary, the plot with its uncertainty band, and the standard files,
+/// which read back to the values the measurement's JSON holds.
+#[test]
+fn qemu_measure_writes_the_plot_and_the_standard_files() {
+    let q = start(Duration::from_secs(240));
+    let mut c = connect(&q);
+    let scene = patent_scene(PIXELS);
+    let signed = signed_for_scene(&scene, ZONES, 0.02);
+    c.provision(&signed, |_, _| {}).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    drop(c);
+    let dir = tempfile::tempdir().unwrap();
+    let blob = dir.path().join("cal.blob");
+    std::fs::write(&blob, &signed).unwrap();
+    let args = host_tools::cli::measure::Args {
+        device: host_tools::device::link::Endpoint { port: None, tcp: Some(q.addr.clone()) },
+        blob,
+        lines: 2,
+        csv: dir.path().join("m.csv"),
+        json: dir.path().join("m.json"),
+        scene: Some("patent".into()),
+        scene_lines: 1,
+        exports: host_tools::cli::exports::ExportArgs {
+            plot: Some(dir.path().join("m.svg")),
+            plot_points: vec![0, 15, 31],
+            bird: Some(dir.path().join("m.bird.json")),
+            astm: Some(dir.path().join("m.astm")),
+            view_deg: 45.0,
+            solid_angle_sr: Some(1e-3),
+        },
+    };
+    host_tools::cli::measure::run(args).unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
+    let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();
+    assert_eq!(svg.matches("<polygon").count(), 3, "one uncertainty band per plotted point");
+    assert!(svg.contains("line 0 point 15"));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("m.json")).unwrap()).unwrap();
+    let (profiles, view) = host_tools::output::bird::read(&dir.path().join("m.bird.json")).unwrap();
+    assert_eq!((profiles.len(), view), (2 * PIXELS, 45.0));
+    for (p, jp) in profiles.iter().zip(j["points"].as_array().unwrap()) {
+        assert_eq!(
+            (u64::from(p.line), u64::from(p.point)),
+            (jp["line"].as_u64().unwrap(), jp["point"].as_u64().unwrap())
+        );
+        for ((r, u), (jr, ju)) in p
+            .reflectance
+            .iter()
+            .zip(&p.uncertainty)
+            .zip(jp["values"].as_array().unwrap().iter().zip(jp["uncertainty"].as_array().unwrap()))
+        {
+            assert!((r - jr.as_f64().unwrap()).abs() <= 1e-6 * r.abs().max(1e-6));
+            assert!((u - ju.as_f64().unwrap()).abs() <= 1e-6 * u.abs().max(1e-6));
+        }
+    }
+    let t = host_tools::output::astm_e1392::read(&dir.path().join("m-l1-p31.astm")).unwrap();
+    assert_eq!(t.rows.len(), brdf_meter::shape::BINS);
+    // The device's gloss readings travel with the profiles: in the plot's
+    // legend, the BiRD file's ad hoc section and the ASTM header.
+    assert!(svg.contains(" GU, haze ") && svg.contains(" HU, distinctness "), "legend without readings");
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("m.bird.json")).unwrap()).unwrap();
+    let readings = doc["metadata"]["adhoc_section"]["gloss_readings"].as_array().unwrap();
+    assert_eq!(readings.len(), 2 * PIXELS);
+    let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["readings"][0].as_f64().unwrap());
+    assert_eq!(a as f32, b as f32, "the device's f32 reading, unchanged");
+    assert!(t.header.iter().any(|(k, _)| k == "GLOSS_GU"), "{:?}", t.header);
+    assert!(!q.log_text().contains("panic"), "{}", q.log_text());
+}

@@ -394,3 +394,17 @@ fn inaccurate_svd_cases_of_the_long_run_stay_continuous() {
         );
     }
 }
+
+/// The command as a user runs it: one row per family, and with stderr not a
+/// terminal (here a pipe) no progress bar is drawn on it.
+#[test]
+fn the_command_prints_its_table_and_no_progress_on_a_pipe() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-tools"))
+        .args(["stability", "--cases", "9", "--threads", "1"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("total: 9 cases, 0 failing"), "{stdout}");
+    assert!(out.stderr.is_empty(), "stderr: {:?}", String::from_utf8_lossy(&out.stderr));
+}

@@ -14,6 +14,9 @@ fn tradeoff_quick_runs_and_is_sane() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "tradeoff --quick failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    // Progress is for terminals: a piped stderr gets none of it.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains('\r') && !stderr.contains('\u{1b}'), "progress drawn on a pipe: {stderr:?}");
     for f in ["tradeoff.md", "tradeoff.json", "tradeoff.svg", "tradeoff.png"] {
         let len = std::fs::metadata(dir.path().join(f)).map(|m| m.len()).unwrap_or(0);
         assert!(len > 500, "{f} missing or nearly empty ({len} bytes)");

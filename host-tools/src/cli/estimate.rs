@@ -21,7 +21,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Apply a calibration blob to readings offline, exactly as the device does.
-#[derive(Debug, clap::Args)]
+#[derive(Clone, Debug, clap::Args)]
 pub struct Args {
     /// The calibration blob.
     #[arg(long, value_name = "CAL")]
@@ -38,6 +38,9 @@ pub struct Args {
     /// Zone whose matrices to use (the readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
+    /// Plot and standard files (points are the readings' rows).
+    #[command(flatten)]
+    pub exports: crate::cli::exports::ExportArgs,
 }
 
 /// Reads the readings CSV: every row exactly `m` numbers; a non-numeric
@@ -85,6 +88,7 @@ struct JsonOut<'a> {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.exports.check()?;
     let bytes = std::fs::read(&a.blob).with_context(|| format!("{}: cannot read the blob", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
@@ -92,6 +96,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let points: Vec<PointEstimate> = rows.iter().map(|v| app.apply(v)).collect();
     let d = view.dims();
     let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
+    let profiles = profiles(&bins, &points);
+    if a.exports.plot.is_some() {
+        a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
+    }
     let mut w = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["point".to_string(), "flags".to_string()];
     header.extend(bins.iter().map(|b| format!("rho_{b}")));
@@ -116,6 +124,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let (Some(p), Some(j)) = (&a.json, &json) {
         crate::output::io::write_atomic(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
+    let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
+        crate::device::measurement_summary::SummaryPoint { line: None, flags: p.flag_bits, readings: p.readings }
+    }));
+    print!("{}", crate::device::measurement_summary::table(&summary));
     let flagged = points.iter().filter(|p| p.flag_bits & flags::OUT_OF_PRIOR != 0).count();
     println!(
         "{} point(s), {} estimator, zone {}: {flagged} out-of-prior; wrote {}{}",
@@ -125,7 +137,41 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.out.display(),
         a.json.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
     );
+    let export = crate::output::profile::ExportInfo {
+        view_deg: a.exports.view_deg,
+        source: "host-tools estimate".into(),
+        instrument: format!("offline estimate from {}", a.readings.display()),
+        calibration: format!(
+            "{} blob crc {:#010x} zone {}",
+            crate::calibration::estimators::kind_name(view.estimator()),
+            view.crc(),
+            app.zone()
+        ),
+        timestamp: crate::output::profile::utc_now(),
+        solid_angle_sr: a.exports.solid_angle_sr,
+    };
+    let title = format!("BRDF profiles, {} ({})", a.readings.display(), export.calibration);
+    for line in a.exports.write(&profiles, &export, &title)? {
+        println!("{line}");
+    }
     Ok(())
+}
+
+/// The estimates as profiles (line 0, point = the readings' row).
+fn profiles(bins: &[f32], points: &[PointEstimate]) -> Vec<crate::output::profile::Profile> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| crate::output::profile::Profile {
+            line: 0,
+            point: u16::try_from(i).unwrap_or(u16::MAX),
+            flags: p.flags.iter().map(|f| f.to_string()).collect(),
+            theta_i_deg: bins.iter().map(|x| f64::from(*x)).collect(),
+            reflectance: p.rho.iter().map(|x| f64::from(*x)).collect(),
+            uncertainty: p.sigma.iter().map(|x| f64::from(*x)).collect(),
+            readings: crate::device::measurement::readings_of(&p.readings, &p.reading_sigma),
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -143,7 +189,14 @@ mod tests {
     fn args(dir: &Path, cal: &Path, readings: &str) -> Args {
         let r = dir.join("r.csv");
         std::fs::write(&r, readings).unwrap();
-        Args { blob: cal.to_path_buf(), readings: r, out: dir.join("e.csv"), json: Some(dir.join("e.json")), zone: 0 }
+        Args {
+            blob: cal.to_path_buf(),
+            readings: r,
+            out: dir.join("e.csv"),
+            json: Some(dir.join("e.json")),
+            zone: 0,
+            exports: Default::default(),
+        }
     }
 
     #[test]
@@ -177,6 +230,60 @@ mod tests {
         assert_eq!(csv.lines().count(), 3);
         assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81 + 2 * brdf_meter::shape::READINGS);
         assert!(csv.lines().nth(2).unwrap().starts_with("1,out-of-prior,"));
+    }
+
+    #[test]
+    fn plot_bird_and_astm_of_offline_estimates_and_a_bad_plot_name_is_refused_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let cal = blob(dir.path(), Estimator::ScaleFree, "merl");
+        let inst = crate::forward::optics::Instrument::patent_profile();
+        let set = crate::forward::brdf::NbrdfSet::merl();
+        let mut text = String::new();
+        for name in ["white-paint", "blue-acrylic", "gold-metallic-paint"] {
+            let mat = set.by_name(name, inst.spectral_weights).unwrap();
+            let v = crate::forward::optics::simulate_readings(&inst, &mat, false);
+            text.push_str(&v.iter().map(|x| (*x as f32).to_string()).collect::<Vec<_>>().join(","));
+            text.push('\n');
+        }
+        let mut a = args(dir.path(), &cal, &text);
+        a.exports = crate::cli::exports::ExportArgs {
+            plot: Some(dir.path().join("p.svg")),
+            plot_points: vec![0, 2],
+            bird: Some(dir.path().join("e.bird.json")),
+            astm: Some(dir.path().join("e.astm")),
+            view_deg: 45.0,
+            solid_angle_sr: Some(1e-3),
+        };
+        run(a.clone()).unwrap();
+        let svg = std::fs::read_to_string(dir.path().join("p.svg")).unwrap();
+        assert_eq!(svg.matches("<polygon").count(), 2);
+        assert!(svg.contains("line 0 point 2"));
+        let (back, view) = crate::output::bird::read(&dir.path().join("e.bird.json")).unwrap();
+        assert_eq!((back.len(), view), (3, 45.0));
+        let e: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("e.json")).unwrap()).unwrap();
+        for (k, p) in back.iter().enumerate() {
+            let rho: Vec<f64> = e["points"][k]["rho"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            for (x, y) in p.reflectance.iter().zip(&rho) {
+                assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-9), "{x} vs {y}");
+            }
+        }
+        for k in 0..3 {
+            let t = crate::output::astm_e1392::read(&dir.path().join(format!("e-l0-p{k}.astm"))).unwrap();
+            assert_eq!(t.rows.len(), 81);
+        }
+        // A plot name the command cannot write is refused before any output.
+        let out = tempfile::tempdir().unwrap();
+        let mut b = args(out.path(), &cal, &text);
+        b.exports.plot = Some(out.path().join("p.pdf"));
+        let err = format!("{:#}", run(b).unwrap_err());
+        assert!(err.contains("--plot") && err.contains(".svg or .png"), "{err}");
+        assert!(!out.path().join("e.csv").exists());
+        // A point the readings do not have, also refused before any output.
+        let mut c = args(out.path(), &cal, &text);
+        c.exports = crate::cli::exports::ExportArgs { plot_points: vec![7], ..a.exports };
+        let err = format!("{:#}", run(c).unwrap_err());
+        assert!(err.contains("--plot-points 7: line 0 has points 0..=2"), "{err}");
+        assert!(!out.path().join("e.csv").exists());
     }
 
     #[test]

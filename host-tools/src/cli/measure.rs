@@ -1,6 +1,9 @@
-//! `host-tools measure`: measure lines and write every point as CSV and JSON.
+//! `host-tools measure`: measure lines, write every point as CSV and JSON,
+//! print a per-line summary (gloss readings, flags), and on request plot
+//! chosen points and write the standard files (BiRD JSON, ASTM E1392).
 use crate::device::link::{Endpoint, PointRecord};
 use crate::forward::scene::frames::named_scene_frames;
+use crate::output::profile::ExportInfo;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use std::path::PathBuf;
@@ -33,6 +36,9 @@ pub struct Args {
     /// Scene lines to load (the device cycles through them), 1..=4.
     #[arg(long, default_value_t = 1)]
     pub scene_lines: usize,
+    /// Plot and standard files.
+    #[command(flatten)]
+    pub exports: crate::cli::exports::ExportArgs,
 }
 
 /// Runs the command.
@@ -40,6 +46,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.lines == 0 {
         bail!("--lines must be at least 1");
     }
+    a.exports.check()?;
     let bytes = crate::device::provision::read_blob(&a.blob)?;
     let view = BlobView::parse(&bytes).expect("read_blob checked it");
     let mut c = crate::device::link::Client::new(a.device.open()?)?;
@@ -54,6 +61,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ),
         Some(_) => {}
     }
+    if let Some(k) = a.exports.plot_points.iter().find(|&&k| k >= usize::from(info.pixels)) {
+        bail!("--plot-points {k}: the device has points 0..={} on a line; choose among them", info.pixels - 1);
+    }
     if let Some(spec) = &a.scene {
         if !info.simulated {
             bail!("--scene is for simulated devices (QEMU); this device has a real sensor");
@@ -65,11 +75,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
     c.timeout = std::time::Duration::from_secs(10);
-    let points: Vec<PointRecord> = c.measure(a.lines).context("measuring")?;
+    let progress = crate::output::progress::bar(u64::from(a.lines) * u64::from(info.pixels), "points");
+    let points = c.measure_observed(a.lines, &mut |_| progress.inc(1));
+    progress.finish_and_clear();
+    let points: Vec<PointRecord> = points.context("measuring")?;
     let (csv, json) = crate::device::measurement::measurement_files(&view, a.lines, &points);
     crate::output::io::write_atomic(&a.csv, csv.as_bytes())?;
     crate::output::io::write_json(&a.json, &json)?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();
+    print!(
+        "{}",
+        crate::device::measurement_summary::table(&crate::device::measurement_summary::summarise(
+            crate::device::measurement::summary_points(&points)
+        ))
+    );
     println!(
         "measured {} lines, {} points ({} flagged): {} and {}",
         a.lines,
@@ -78,5 +97,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.csv.display(),
         a.json.display()
     );
+    let export = ExportInfo {
+        view_deg: a.exports.view_deg,
+        source: "host-tools measure".into(),
+        instrument: format!("BRDF meter{}", if info.simulated { " (simulated sensor, QEMU)" } else { "" }),
+        calibration: format!(
+            "{} blob crc {:#010x}",
+            crate::calibration::estimators::kind_name(view.estimator()),
+            view.crc()
+        ),
+        timestamp: crate::output::profile::utc_now(),
+        solid_angle_sr: a.exports.solid_angle_sr,
+    };
+    let profiles = crate::device::measurement::profiles(&view, &points);
+    let title = format!("BRDF profiles, {} ({})", a.blob.display(), export.calibration);
+    for line in a.exports.write(&profiles, &export, &title)? {
+        println!("{line}");
+    }
     Ok(())
 }

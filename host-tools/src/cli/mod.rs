@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod estimate;
+pub mod exports;
 pub mod info;
 pub mod keygen;
 pub mod materials;

@@ -50,7 +50,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let per = a.cases.div_ceil(families.len()).max(1);
     let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let (summary, reports) = stability::run(&families, per, a.seed, &Production, stability::device_kernel, threads);
+    let progress = crate::output::progress::bar((per * families.len()) as u64, "stability cases");
+    let (summary, reports) =
+        stability::run_observed(&families, per, a.seed, &Production, stability::device_kernel, threads, &|| {
+            progress.inc(1)
+        });
+    progress.finish_and_clear();
     print!("{}", summary.table());
     if let Some(p) = &a.json {
         #[derive(Serialize)]

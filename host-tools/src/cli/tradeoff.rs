@@ -1,7 +1,7 @@
 //! `host-tools tradeoff`: every estimator on the same data, accuracy against
 //! time per point, with the Pareto front; device kernels counted in QEMU; the
 //! host batch kernel against numpy. See `host_tools::evaluation::tradeoff`.
-use crate::evaluation::tradeoff::{Config, report, run as run_tradeoff};
+use crate::evaluation::tradeoff::{Config, report, run_observed as run_tradeoff};
 use crate::output::plot::tradeoff as plot;
 use anyhow::Context;
 use std::path::PathBuf;
@@ -87,7 +87,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.no_numpy {
         cfg.numpy = false;
     }
-    let rep = run_tradeoff(&cfg).context("measuring the trade-off")?;
+    let progress = crate::output::progress::spinner("tradeoff");
+    let rep = run_tradeoff(&cfg, &|s| progress.set_message(format!("tradeoff: {s}")));
+    progress.finish_and_clear();
+    let rep = rep.context("measuring the trade-off")?;
     let md = report::markdown(&rep);
     print!("{md}");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;

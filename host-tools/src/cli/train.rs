@@ -67,8 +67,9 @@ pub struct Args {
     pub estimator: Estimator,
     /// Prior: `patent` (Table 5, built in), `merl` (the vendored measured
     /// set), a prior TOML file, a measured file (.csv `angle_deg,value`,
-    /// .binary MERL, .json NBRDF), a directory or comma list of them, or a
-    /// mixture with explicit weights: `merl@0.8+patent@0.2`.
+    /// .binary MERL, .json NBRDF, .astm ASTM E1392 table), a directory or
+    /// comma list of them, or a mixture with explicit weights:
+    /// `merl@0.8+patent@0.2`.
     #[arg(long, value_name = "patent|merl|PATH|MIX", default_value = "patent")]
     pub prior: String,
     /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.

@@ -41,9 +41,7 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
     // The calibration's per-bin uncertainty for the point's zone, times the
     // point's own scale (1 for the linear estimators; the readings' scale for
     // the scale-free ones, whose estimate and uncertainty scale with the point).
-    let unc = |p: &PointRecord| -> Vec<f32> {
-        (0..d.n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
-    };
+    let unc = |p: &PointRecord| point_uncertainty(view, p);
     // CSV: one row per point, rho then uncertainty for each angle.
     let mut csv = String::from("line,point,zone,flags");
     for g in &angles {
@@ -91,4 +89,111 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
             .collect(),
     };
     (csv, json)
+}
+
+/// The calibration's per-bin standard uncertainty for point `p`: its zone's
+/// and cluster's, times the point's scale.
+pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
+    (0..view.dims().n)
+        .map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs())
+        .collect()
+}
+
+/// The points as profiles for the plot and the standard files.
+pub fn profiles(view: &BlobView<'_>, points: &[PointRecord]) -> Vec<crate::output::profile::Profile> {
+    let angles: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
+    points
+        .iter()
+        .map(|p| crate::output::profile::Profile {
+            line: p.line,
+            point: p.point,
+            flags: flag_names(p.flags).into_iter().map(String::from).collect(),
+            theta_i_deg: angles.clone(),
+            reflectance: p.values.iter().map(|x| f64::from(*x)).collect(),
+            uncertainty: point_uncertainty(view, p).into_iter().map(f64::from).collect(),
+            readings: readings_of(&p.readings, &p.reading_sigma),
+        })
+        .collect()
+}
+
+/// The finite readings as (name, value, standard uncertainty).
+pub fn readings_of(r: &[f32; READINGS], u: &[f32; READINGS]) -> Vec<(String, f64, f64)> {
+    (0..READINGS)
+        .filter(|&k| r[k].is_finite())
+        .map(|k| (gloss::NAMES[k].to_string(), f64::from(r[k]), f64::from(u[k])))
+        .collect()
+}
+
+/// What the summary needs of each point.
+pub fn summary_points(points: &[PointRecord]) -> Vec<crate::device::measurement_summary::SummaryPoint> {
+    points
+        .iter()
+        .map(|p| crate::device::measurement_summary::SummaryPoint {
+            line: Some(p.line),
+            flags: p.flags,
+            readings: p.readings,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use brdf_meter::protocol::flags;
+
+    fn record(line: u32, point: u16, scale: f32, flags: u8) -> PointRecord {
+        PointRecord {
+            line,
+            seq: line * 4 + u32::from(point),
+            point,
+            zone: 0,
+            flags,
+            cluster: 0,
+            sigma_scale: scale,
+            readings: [80.0 + f32::from(point), 2.0, f32::NAN],
+            reading_sigma: [0.5, 0.1, f32::NAN],
+            values: (0..9).map(|j| 0.5 + 0.1 * j as f32 * scale).collect(),
+        }
+    }
+
+    #[test]
+    fn a_measurement_plots_with_its_band_and_readings_and_summarises() {
+        let bytes = brdf_meter::test_blobs::test_blob(9, 3, 1, 4, 1.0);
+        let view = BlobView::parse(&bytes).unwrap();
+        let points: Vec<PointRecord> =
+            (0..4).map(|p| record(0, p, 1.0 + f32::from(p), if p == 2 { flags::SATURATED } else { 0 })).collect();
+        let profiles = profiles(&view, &points);
+        assert_eq!(profiles.len(), 4);
+        // The band is the blob's per-bin uncertainty times the point's scale.
+        for j in 0..9 {
+            let want = f64::from(view.uncertainty_of(0, 0, j) * 3.0);
+            assert_eq!(profiles[2].uncertainty[j], want);
+        }
+        assert_eq!(profiles[2].flags, vec!["saturated".to_string()]);
+        assert_eq!(
+            profiles[1].readings,
+            vec![("gloss_gu".to_string(), 81.0, 0.5), ("haze_hu".to_string(), 2.0, 0.1_f32 as f64)]
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let svg = dir.path().join("m.svg");
+        crate::output::plot::profiles::write(&svg, "test measurement", &profiles[..3]).unwrap();
+        let text = std::fs::read_to_string(&svg).unwrap();
+        assert!(text.len() > 5_000, "{} bytes", text.len());
+        // One shaded band per point, its legend with the readings.
+        assert_eq!(text.matches("<polygon").count(), 3, "{text}");
+        assert!(text.contains("line 0 point 1, gloss 81.0 ± 0.5 GU, haze 2.0 ± 0.1 HU"), "legend missing");
+        assert!(text.contains("[saturated]"));
+        let png = dir.path().join("m.png");
+        crate::output::plot::profiles::write(&png, "test measurement", &profiles[..1]).unwrap();
+        let bytes = std::fs::read(&png).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        assert!(bytes.len() > 10_000);
+        let e = crate::output::plot::profiles::write(&dir.path().join("m.pdf"), "t", &profiles).unwrap_err();
+        assert!(e.to_string().contains(".svg or .png"), "{e}");
+        // The summary of the same points.
+        let s = crate::device::measurement_summary::summarise(summary_points(&points));
+        assert_eq!(s.len(), 1);
+        assert_eq!(s[0].readings[0].mean, 81.5);
+        assert_eq!(s[0].flags.get("saturated"), Some(&1));
+    }
 }

@@ -4,6 +4,7 @@
 pub mod budget;
 pub mod link;
 pub mod measurement;
+pub mod measurement_summary;
 pub mod memory_map;
 pub mod provision;
 pub mod qemu_demo;

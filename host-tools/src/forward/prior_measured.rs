@@ -10,7 +10,8 @@
 //! - `merl`: the vendored MERL set (100 measured materials);
 //! - a prior TOML file (`ward_grid`, `samples`, `csv`);
 //! - a measured file: `.csv` goniometric (`angle_deg,value`), `.binary`
-//!   (MERL), `.json` (NBRDF networks: every material in it);
+//!   (MERL), `.json` (NBRDF networks: every material in it), `.astm`
+//!   (ASTM E1392 table: its in-plane profile at the instrument's view);
 //! - a directory: every such file in it, in name order;
 //! - a comma-separated list of measured files.
 //!
@@ -19,7 +20,7 @@
 //! weights.
 use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::merl_binary::MerlTable;
-use crate::forward::brdf::{Brdf, NbrdfSet};
+use crate::forward::brdf::{AstmTable, Brdf, NbrdfSet};
 use crate::forward::grid::AngleGrid;
 use crate::forward::prior::{Prior, PriorSpec, read_measured_csv};
 use anyhow::{Context, bail, ensure};
@@ -35,7 +36,7 @@ pub enum Family {
     Merl,
     /// A prior TOML file.
     Toml(PathBuf),
-    /// Measured files (`.csv`, `.binary`, `.json`).
+    /// Measured files (`.csv`, `.binary`, `.json`, `.astm`).
     Files(Vec<PathBuf>),
 }
 
@@ -46,7 +47,7 @@ pub struct PriorMix {
     pub families: Vec<(String, Family, f64)>,
 }
 
-const MEASURED_EXTS: [&str; 3] = ["csv", "binary", "json"];
+const MEASURED_EXTS: [&str; 4] = ["csv", "binary", "json", "astm"];
 
 fn ext_of(p: &Path) -> String {
     p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
@@ -61,7 +62,7 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
             for f in &files {
                 ensure!(
                     MEASURED_EXTS.contains(&ext_of(f).as_str()),
-                    "{}: a list holds measured files (.csv, .binary, .json)",
+                    "{}: a list holds measured files (.csv, .binary, .json, .astm)",
                     f.display()
                 );
             }
@@ -78,7 +79,7 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
                 files.sort();
                 ensure!(
                     !files.is_empty(),
-                    "{}: no measured files (.csv, .binary, .json) in the directory",
+                    "{}: no measured files (.csv, .binary, .json, .astm) in the directory",
                     p.display()
                 );
                 Family::Files(files)
@@ -88,7 +89,7 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
                 Family::Files(vec![p])
             } else {
                 bail!(
-                    "prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json file"
+                    "prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json/.astm file"
                 )
             }
         }
@@ -242,7 +243,19 @@ pub fn family_samples(
                         names.push(f.display().to_string());
                     }
                     "json" => add_set(&NbrdfSet::load(f)?, &f.display().to_string(), &mut cols, &mut names),
-                    _ => bail!("{}: not a measured file (.csv, .binary, .json)", f.display()),
+                    "astm" => {
+                        let table = AstmTable::load(f)?;
+                        let t = table.at_view(view_deg)?;
+                        let mut col = DVector::zeros(grid.n());
+                        for (j, th) in grid.bins_deg().iter().enumerate() {
+                            col[j] = t.at(*th).with_context(|| {
+                                format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", f.display())
+                            })?;
+                        }
+                        cols.push(col);
+                        names.push(f.display().to_string());
+                    }
+                    _ => bail!("{}: not a measured file (.csv, .binary, .json, .astm)", f.display()),
                 }
             }
         }
@@ -273,6 +286,45 @@ mod tests {
             let e = format!("{:#}", PriorMix::parse(bad).unwrap_err());
             assert!(e.contains(why), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn an_astm_e1392_file_is_a_prior_sample_at_the_instruments_view() {
+        use crate::output::profile::{ExportInfo, Profile};
+        let dir = tempfile::tempdir().unwrap();
+        let grid = AngleGrid::patent();
+        let ward = crate::forward::brdf::Ward::new(0.3, 0.7, 0.08).unwrap();
+        let truth = on_grid(&ward, &grid, 45.0);
+        let p = Profile {
+            line: 0,
+            point: 3,
+            flags: Vec::new(),
+            theta_i_deg: grid.bins_deg().to_vec(),
+            reflectance: truth.iter().copied().collect(),
+            uncertainty: vec![0.01; grid.n()],
+            readings: Vec::new(),
+        };
+        let info = ExportInfo {
+            view_deg: 45.0,
+            source: "test".into(),
+            instrument: "test".into(),
+            calibration: "none".into(),
+            timestamp: "2026-11-22T00:00:00+00:00".into(),
+            solid_angle_sr: None,
+        };
+        let f = dir.path().join("w.astm");
+        crate::output::astm_e1392::write(&f, std::slice::from_ref(&p), &info).unwrap();
+        let (ws, names) = PriorMix::parse(&f.display().to_string()).unwrap().samples(&grid, 45.0, LUMINANCE).unwrap();
+        assert_eq!(names, vec![f.display().to_string()]);
+        for j in 0..grid.n() {
+            assert!((ws.samples[(j, 0)] - truth[j]).abs() < 1e-12 * truth[j].max(1.0), "bin {j}");
+        }
+        // Another view has no data: the error names the file and the views it has.
+        let e = format!(
+            "{:#}",
+            PriorMix::parse(&f.display().to_string()).unwrap().samples(&grid, 30.0, LUMINANCE).unwrap_err()
+        );
+        assert!(e.contains("w.astm") && e.contains("viewer at 30 deg") && e.contains("[45.0]"), "{e}");
     }
 
     #[test]

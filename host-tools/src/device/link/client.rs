@@ -366,6 +366,16 @@ impl<T: Transport> Client<T> {
     /// Checks the stream: sequence numbers without gaps, `MeasureDone` with the
     /// line count; an error the device sends mid-stream is returned.
     pub fn measure(&mut self, lines: u32) -> Result<Vec<PointRecord>, LinkError> {
+        self.measure_observed(lines, &mut |_| {})
+    }
+
+    /// [`Self::measure`], calling `on_point` as each point arrives (for a
+    /// progress display).
+    pub fn measure_observed(
+        &mut self,
+        lines: u32,
+        on_point: &mut dyn FnMut(&PointRecord),
+    ) -> Result<Vec<PointRecord>, LinkError> {
         assert!(lines >= 1, "use start/stop for continuous measurement");
         let seq = self.send(&Request::Measure { lines })?;
         let mut points = Vec::new();
@@ -389,6 +399,7 @@ impl<T: Transport> Client<T> {
                             p.seq
                         )));
                     }
+                    on_point(&p);
                     points.push(p);
                 }
                 Reply::Msg(Response::Error(e)) if !started => return Err(LinkError::Device(e)),

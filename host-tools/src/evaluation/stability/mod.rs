@@ -138,6 +138,20 @@ pub fn run(
     kernel: DeviceKernel,
     threads: usize,
 ) -> (RunSummary, Vec<CaseReport>) {
+    run_observed(families, cases, first_seed, solver, kernel, threads, &|| {})
+}
+
+/// [`run`], calling `case_done` (from any worker thread) after each case,
+/// so a caller can show progress.
+pub fn run_observed(
+    families: &[Family],
+    cases: usize,
+    first_seed: u64,
+    solver: &dyn Solver,
+    kernel: DeviceKernel,
+    threads: usize,
+    case_done: &(dyn Fn() + Sync),
+) -> (RunSummary, Vec<CaseReport>) {
     let jobs: Vec<(Family, u64)> =
         families.iter().flat_map(|f| (0..cases as u64).map(move |s| (*f, first_seed + s))).collect();
     let threads = threads.max(1);
@@ -150,7 +164,11 @@ pub fn run(
                         jobs.iter()
                             .skip(t)
                             .step_by(threads)
-                            .map(|(f, s)| check_case(&generate(*f, *s), solver, kernel))
+                            .map(|(f, s)| {
+                                let r = check_case(&generate(*f, *s), solver, kernel);
+                                case_done();
+                                r
+                            })
                             .collect::<Vec<_>>()
                     })
                 })

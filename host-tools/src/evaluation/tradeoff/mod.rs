@@ -343,6 +343,12 @@ fn wiener(h: &DMatrix<f64>, prior: &Prior, noise_rel: f64) -> anyhow::Result<est
 
 /// Runs everything.
 pub fn run(cfg: &Config) -> anyhow::Result<Report> {
+    run_observed(cfg, &|_| {})
+}
+
+/// [`run`], telling `stage` which part it starts (for a progress display).
+pub fn run_observed(cfg: &Config, stage: &dyn Fn(&str)) -> anyhow::Result<Report> {
+    stage("estimators on the test set");
     let mut notes = Vec::new();
     let inst = Instrument::patent_profile();
     let data = patent_data(&inst, cfg.noise_rel, cfg.seed, cfg.draws)?;
@@ -354,6 +360,7 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
 
     // Device costs from QEMU.
     let kernels = if cfg.qemu {
+        stage("device kernels in QEMU");
         match kernel_bench::run_bench(&cfg.root) {
             Ok(kc) => Some(kc),
             Err(e) => {
@@ -370,8 +377,11 @@ pub fn run(cfg: &Config) -> anyhow::Result<Report> {
     }
     mark_pareto(&mut rows);
 
+    stage("zones");
     let zones = zones::run(cfg, &pri.dense).context("zones")?;
+    stage("LED counts");
     let leds = led_count::run(cfg).context("LED counts")?;
+    stage("host batch speed");
     let speed = speed::run(cfg).context("batch speed")?;
     let target = target(&rows);
     Ok(Report {

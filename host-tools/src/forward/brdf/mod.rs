@@ -9,6 +9,7 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+pub mod astm_table;
 mod ggx;
 mod lambert;
 pub mod merl_binary;
@@ -17,6 +18,7 @@ pub mod smooth_dielectric;
 mod tabulated;
 mod ward;
 
+pub use astm_table::AstmTable;
 pub use ggx::Ggx;
 pub use lambert::Lambertian;
 pub use nbrdf::{Nbrdf, NbrdfSet};
@@ -142,6 +144,12 @@ pub enum BrdfSpec {
         /// Material name, e.g. `"blue-acrylic"` (host-tools/data/merl-nbrdf.json).
         material: String,
     },
+    /// A measured table in ASTM E1392 form (`.astm`; in-plane values, by
+    /// reciprocity too), its path relative to the current directory.
+    AstmE1392 {
+        /// The file.
+        file: std::path::PathBuf,
+    },
     /// A polished dielectric black behind its surface (the black-glass gloss
     /// standard: n = 1.567): Fresnel reflection only, a mirror spike.
     SmoothDielectric {
@@ -157,7 +165,7 @@ fn black_glass_index() -> f64 {
 
 /// Why a model description was refused.
 #[derive(Debug, thiserror::Error, PartialEq)]
-#[error("{model}: parameter `{field}` = {value} is invalid: {why}")]
+#[error("{model}: parameter `{field}`{} is invalid: {why}", if value.is_nan() { String::new() } else { format!(" = {value}") })]
 pub struct BrdfParamError {
     /// Model name.
     pub model: &'static str,
@@ -166,7 +174,7 @@ pub struct BrdfParamError {
     /// Value given.
     pub value: f64,
     /// What is allowed.
-    pub why: &'static str,
+    pub why: String,
 }
 
 pub(crate) fn check(
@@ -180,7 +188,7 @@ pub(crate) fn check(
     if value.is_finite() && value >= lo && value <= hi {
         Ok(())
     } else {
-        Err(BrdfParamError { model, field, value, why })
+        Err(BrdfParamError { model, field, value, why: why.into() })
     }
 }
 
@@ -199,7 +207,7 @@ impl BrdfSpec {
                     model: "merl",
                     field: "material",
                     value: f64::NAN,
-                    why: "not a material of the vendored MERL set (names as in host-tools/data/merl-nbrdf.json)",
+                    why: "not a material of the vendored MERL set (names as in host-tools/data/merl-nbrdf.json)".into(),
                 }
             });
         }
@@ -207,6 +215,12 @@ impl BrdfSpec {
             BrdfSpec::Ward { rho_d, rho_s, alpha } => Box::new(Ward::new(rho_d, rho_s.unwrap_or(1.0 - rho_d), alpha)?),
             BrdfSpec::Lambertian { rho } => Box::new(Lambertian::new(rho)?),
             BrdfSpec::Ggx { rho_d, k_s, alpha, f0 } => Box::new(Ggx::new(rho_d, k_s, alpha, f0)?),
+            BrdfSpec::AstmE1392 { ref file } => Box::new(AstmTable::load(file).map_err(|e| BrdfParamError {
+                model: "astm-e1392",
+                field: "file",
+                value: f64::NAN,
+                why: format!("{e:#}"),
+            })?),
             BrdfSpec::SmoothDielectric { n } => Box::new(SmoothDielectric::new(n)?),
             BrdfSpec::Merl { .. } => unreachable!("built above"),
         })

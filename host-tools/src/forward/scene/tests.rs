@@ -649,3 +649,39 @@ fn scenes_survive_a_toml_round_trip() {
         assert_eq!(back, s, "{}", path.display());
     }
 }
+
+#[test]
+fn an_astm_e1392_table_is_a_scene_surface_and_a_bad_one_names_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("tile.astm");
+    // A measured profile at the instrument's 45 deg view: the Ward surface's.
+    let w = ward().build().unwrap();
+    let rows: String = (0..=17)
+        .map(|k| {
+            let t = 5.0 * k as f64;
+            format!("{t},180,45,0,555,0,{:e}\n", w.reflectance(t, 45.0) / std::f64::consts::PI)
+        })
+        .collect();
+    std::fs::write(&f, format!("VARS theta_i,phi_i,theta_s,phi_s,wavelength,polarization,BRDF\n{rows}")).unwrap();
+    let text = std::fs::read_to_string(scenes_dir().join("patent-profile.toml")).unwrap();
+    let start = text.find("[surface]").unwrap();
+    let mut scene_text = text[..start].to_string();
+    scene_text
+        .push_str(&format!("[surface]\nbrdf = {{ model = \"astm-e1392\", file = {:?} }}\n", f.display().to_string()));
+    let s = Scene::parse(&scene_text, "astm-scene.toml").unwrap();
+    let (models, _) = s.surface_brdfs().unwrap();
+    for t in [5.0, 40.0, 45.0, 85.0] {
+        let (a, b) = (models[0].reflectance(t, 45.0), w.reflectance(t, 45.0));
+        assert!((a - b).abs() < 1e-9 * b, "{t}: {a} vs {b}");
+    }
+    // Linear between the 5-degree samples.
+    let mid = 0.5 * (w.reflectance(20.0, 45.0) + w.reflectance(25.0, 45.0));
+    assert!((models[0].reflectance(22.5, 45.0) - mid).abs() < 1e-9 * mid);
+    // The scene simulates with it.
+    let r = sim(&s).simulate_line(0, Mode::NoNoise);
+    assert!(r.corrected.iter().all(|x| x.is_finite() && *x > 0.0));
+    // A missing file: the scene's error names the field and the file.
+    let bad = scene_text.replace("tile.astm", "missing.astm");
+    let e = Scene::parse(&bad, "astm-scene.toml").unwrap_err().to_string();
+    assert!(e.contains("surface.brdf") && e.contains("missing.astm"), "{e}");
+}

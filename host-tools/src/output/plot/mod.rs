@@ -1,6 +1,8 @@
-//! Plot output shared by every command that draws (`simulate`, `tradeoff`):
+//! Plot output shared by every command that draws (`simulate`, `tradeoff`,
+//! `measure`/`estimate --plot`):
 //! one font set-up, and SVG and PNG rendered from the same drawing code into
 //! memory, so the caller writes both files atomically.
+pub mod profiles;
 pub mod simulate;
 pub mod tradeoff;
 

@@ -1,0 +1,118 @@
+//! The options `measure` and `estimate` share for what they hand the user
+//! besides their CSV/JSON: a plot of chosen points' BRDF profiles and the
+//! standard files (BiRD universal BRDF JSON, ASTM E1392 tables).
+use crate::output::profile::{ExportInfo, Profile};
+use anyhow::{bail, ensure};
+use std::path::PathBuf;
+
+/// Plot and standard-file options.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct ExportArgs {
+    /// Plot chosen points' BRDF profiles with their uncertainty band and
+    /// gloss readings; .svg or .png by the name.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Points to plot, comma-separated (measure: pixels of the first line
+    /// measured; estimate: rows of the readings); default: first, middle, last.
+    #[arg(long, value_delimiter = ',', value_name = "P,P,...")]
+    pub plot_points: Vec<usize>,
+    /// Write every point as one BiRD universal BRDF JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub bird: Option<PathBuf>,
+    /// Write every point as an ASTM E1392 table (BRDF in sr^-1); more than
+    /// one point: one file each, named STEM-l<line>-p<point>.EXT.
+    #[arg(long, value_name = "FILE")]
+    pub astm: Option<PathBuf>,
+    /// The instrument's view angle (deg): the scatter direction in the files.
+    #[arg(long, default_value_t = 45.0, value_name = "DEG")]
+    pub view_deg: f64,
+    /// Solid angle one detector element sees (sr), for the BiRD file (its
+    /// schema requires it; the meter's description does not hold it).
+    #[arg(long, value_name = "SR")]
+    pub solid_angle_sr: Option<f64>,
+}
+
+impl ExportArgs {
+    /// Refuses impossible options before anything is measured.
+    pub fn check(&self) -> anyhow::Result<()> {
+        ensure!(
+            self.view_deg.is_finite() && (0.0..90.0).contains(&self.view_deg),
+            "--view-deg {}: a view angle is in [0, 90) deg",
+            self.view_deg
+        );
+        if let Some(sr) = self.solid_angle_sr {
+            ensure!(
+                sr.is_finite() && sr > 0.0 && sr <= 4.0 * std::f64::consts::PI,
+                "--solid-angle-sr {sr}: must be in (0, 4 pi]"
+            );
+        }
+        if let Some(p) = &self.plot {
+            let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            if ext != "svg" && ext != "png" {
+                bail!(
+                    "--plot {}: the plot is written as .svg or .png; give a file name with one of those",
+                    p.display()
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The points to plot: `plot_points` among the first line's points, or
+    /// its first, middle and last.
+    pub fn chosen<'a>(&self, profiles: &'a [Profile]) -> anyhow::Result<Vec<&'a Profile>> {
+        let Some(first) = profiles.first().map(|p| p.line) else { bail!("no points to plot") };
+        let line: Vec<&Profile> = profiles.iter().filter(|p| p.line == first).collect();
+        if self.plot_points.is_empty() {
+            let mut idx = vec![0, line.len() / 2, line.len() - 1];
+            idx.dedup();
+            return Ok(idx.into_iter().map(|i| line[i]).collect());
+        }
+        self.plot_points
+            .iter()
+            .map(|&k| {
+                line.iter().copied().find(|p| usize::from(p.point) == k).ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--plot-points {k}: line {first} has points {}..={}; choose among them",
+                        line.first().map_or(0, |p| p.point),
+                        line.last().map_or(0, |p| p.point)
+                    )
+                })
+            })
+            .collect()
+    }
+
+    /// Writes what was asked for; returns one line per file for the user.
+    pub fn write(&self, profiles: &[Profile], info: &ExportInfo, title: &str) -> anyhow::Result<Vec<String>> {
+        let mut said = Vec::new();
+        if let Some(p) = &self.plot {
+            let chosen: Vec<Profile> = self.chosen(profiles)?.into_iter().cloned().collect();
+            crate::output::plot::profiles::write(p, title, &chosen)?;
+            said.push(format!("plot of {} point(s): {}", chosen.len(), p.display()));
+        }
+        if let Some(p) = &self.bird {
+            crate::output::bird::write(p, profiles, info)?;
+            let missing = crate::output::bird::check_required(&crate::output::bird::document(profiles, info));
+            said.push(format!("BiRD universal BRDF file: {}", p.display()));
+            if !missing.is_empty() {
+                said.push(format!(
+                    "  the BiRD schema also requires {} (give --solid-angle-sr for the detector's solid angle)",
+                    missing.join(", ")
+                ));
+            }
+        }
+        if let Some(p) = &self.astm {
+            let names = crate::output::astm_e1392::write(p, profiles, info)?;
+            said.push(match names.as_slice() {
+                [one] => format!("ASTM E1392 table: {}", one.display()),
+                many => format!(
+                    "ASTM E1392 tables: {} files, {} .. {}",
+                    many.len(),
+                    many[0].display(),
+                    many[many.len() - 1].display()
+                ),
+            });
+        }
+        Ok(said)
+    }
+}
