@@ -836,6 +836,13 @@ impl<'a> BlobView<'a> {
         self.out_of_prior_threshold()?;
         bytemuck::try_cast_slice(self.bytes.get(self.lay.out_of_prior..self.lay.crc)?).ok()
     }
+    /// All zones' per-bin standard uncertainties (Z x K x n) as an `f32`
+    /// slice in place, when the blob sits at a 4-byte aligned address.
+    #[cfg(target_endian = "little")]
+    pub fn uncertainty_in_place(&self) -> Option<&'a [f32]> {
+        let len = 4 * self.dims.zones * self.lay.clusters * self.dims.n;
+        bytemuck::try_cast_slice(self.bytes.get(self.lay.uncertainty..self.lay.uncertainty + len)?).ok()
+    }
     /// Format version of this blob (1 or 2).
     pub fn version(&self) -> u16 {
         get_u16(self.bytes, 4)

@@ -10,18 +10,39 @@ pub(crate) const HEADER: usize = 8;
 pub(crate) const CRC_LEN: usize = 4;
 
 /// Encodes `msg` with sequence number `seq` into `out` as one complete frame
-/// (COBS + delimiter); returns the frame length.
+/// (COBS + delimiter); returns the frame length. The three steps
+/// ([`serialise`], [`seal`], [`stuff`]) are public so the line bench can
+/// count each.
 pub fn encode<T: Serialize>(seq: u32, msg: &T, out: &mut [u8]) -> Result<usize, FrameError> {
     let mut raw = [0u8; MAX_PAYLOAD];
+    let len = serialise(seq, msg, &mut raw)?;
+    seal(&mut raw[..len]);
+    stuff(&raw[..len], out)
+}
+
+/// Header and postcard body of `msg` into `raw`; returns the payload length,
+/// the 4 CRC bytes at its end included (not yet written).
+pub fn serialise<T: Serialize>(seq: u32, msg: &T, raw: &mut [u8; MAX_PAYLOAD]) -> Result<usize, FrameError> {
     let body_len =
         postcard::to_slice(msg, &mut raw[HEADER..MAX_PAYLOAD - CRC_LEN]).map_err(|_| FrameError::TooLarge)?.len();
     let len = HEADER + body_len + CRC_LEN;
     raw[0..2].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
     raw[2..4].copy_from_slice(&(len as u16).to_le_bytes());
     raw[4..8].copy_from_slice(&seq.to_le_bytes());
-    let crc = crate::blob::CRC32.checksum(&raw[..len - CRC_LEN]);
-    raw[len - CRC_LEN..len].copy_from_slice(&crc.to_le_bytes());
-    let n = cobs::try_encode(&raw[..len], out).map_err(|_| FrameError::TooLarge)?;
+    Ok(len)
+}
+
+/// Writes the CRC-32 of everything before the payload's last 4 bytes into them.
+pub fn seal(payload: &mut [u8]) {
+    let n = payload.len() - CRC_LEN;
+    let crc = crate::blob::CRC32.checksum(&payload[..n]);
+    payload[n..].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// COBS-encodes `payload` into `out` and appends the delimiter; returns the
+/// frame length.
+pub fn stuff(payload: &[u8], out: &mut [u8]) -> Result<usize, FrameError> {
+    let n = cobs::try_encode(payload, out).map_err(|_| FrameError::TooLarge)?;
     if n >= out.len() {
         return Err(FrameError::TooLarge);
     }

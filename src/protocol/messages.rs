@@ -64,6 +64,8 @@ pub enum Request<'a> {
     Measure {
         /// Number of lines, 0 for continuous.
         lines: u32,
+        /// What the stream carries: value encoding and bins.
+        format: super::StreamFormat,
     },
     /// Stops a measurement after the line in progress.
     Stop,
@@ -133,14 +135,17 @@ pub enum Response<'a> {
     /// The request (or the measurement) failed; nothing was changed unless the
     /// error says so.
     Error(DeviceError),
+    /// Consecutive points of one line (protocol 3's stream).
+    Points(#[serde(borrow)] super::PointsFrame<'a>),
 }
 
 impl<'a> Response<'a> {
-    /// Every reply but a point frame owns its data: returns it with a
-    /// `'static` life, or the point frame (which borrows the frame buffer).
-    pub fn detach(self) -> Result<Response<'static>, PointFrame<'a>> {
+    /// Every reply but a point or line frame owns its data: returns it with
+    /// a `'static` life, or the frame (which borrows the frame buffer).
+    pub fn detach(self) -> Result<Response<'static>, Streamed<'a>> {
         Ok(match self {
-            Self::Point(p) => return Err(p),
+            Self::Point(p) => return Err(Streamed::Point(p)),
+            Self::Points(p) => return Err(Streamed::Points(p)),
             Self::Info(x) => Response::Info(x),
             Self::Status(x) => Response::Status(x),
             Self::ProvisionReady { slot, max_chunk } => Response::ProvisionReady { slot, max_chunk },
@@ -154,6 +159,15 @@ impl<'a> Response<'a> {
             Self::Error(e) => Response::Error(e),
         })
     }
+}
+
+/// A streamed frame, borrowing the frame buffer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Streamed<'a> {
+    /// One point (protocol 2's stream).
+    Point(PointFrame<'a>),
+    /// Points of a line.
+    Points(super::PointsFrame<'a>),
 }
 
 /// Build-time sizes and identity of the device.
@@ -231,7 +245,9 @@ pub mod flags {
     pub const OUT_OF_PRIOR: u8 = 1 << 3;
 }
 
-/// One point's estimate, streamed during a measurement.
+/// One point's estimate in a frame of its own, f32 (protocol 2's stream; a
+/// protocol 3 device streams [`super::PointsFrame`]s, which the rate report
+/// compares with this).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct PointFrame<'a> {
     /// Line number within the measurement (0-based).
