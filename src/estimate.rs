@@ -76,6 +76,11 @@ pub struct PointMeta {
     /// What the calibration's per-bin uncertainty is multiplied by for this
     /// point: the readings' scale for the scale-free kinds, 1 otherwise.
     pub sigma_scale: f32,
+    /// The point's gloss readings ([`crate::gloss`]); NaN when the
+    /// calibration carries none.
+    pub readings: [f32; crate::shape::READINGS],
+    /// Their standard uncertainties, NaN with the readings.
+    pub reading_sigma: [f32; crate::shape::READINGS],
 }
 
 /// The calibration holder: the RAM budget buffer and the active calibration.
@@ -272,7 +277,14 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> PointMeta {
         let a = self.active.as_ref().expect("no active calibration");
         let z = a.zone_of[p] as usize;
-        let mut meta = PointMeta { zone: z as u16, cluster: 0, flags: 0, sigma_scale: 1.0 };
+        let mut meta = PointMeta {
+            zone: z as u16,
+            cluster: 0,
+            flags: 0,
+            sigma_scale: 1.0,
+            readings: crate::gloss::NO_READINGS,
+            reading_sigma: crate::gloss::NO_READINGS,
+        };
         let s = match a.kind {
             EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
                 let s = scale(v.as_slice());
@@ -377,7 +389,17 @@ mod tests {
             let (mut a, mut b) = (SVector::zeros(), SVector::zeros());
             let ma = ram.estimate_pixel(p, &v, &mut a);
             let mb = flash.estimate_pixel(p, &v, &mut b);
-            assert_eq!(ma, mb);
+            let bits = |m: PointMeta| {
+                (
+                    m.zone,
+                    m.cluster,
+                    m.flags,
+                    m.sigma_scale.to_bits(),
+                    m.readings.map(f32::to_bits),
+                    m.reading_sigma.map(f32::to_bits),
+                )
+            };
+            assert_eq!(bits(ma), bits(mb));
             // A linear calibration without out-of-prior data: no flag, unscaled uncertainty.
             assert_eq!((ma.flags, ma.sigma_scale), (0, 1.0));
             let za = ma.zone;

@@ -14,6 +14,8 @@
 //! - [`store`]: the two-slot calibration store on any NOR flash.
 //! - [`kernel`]: the estimator kernels (f32, Q15, cluster selection).
 //! - [`estimate`]: the active calibration and one point's estimate.
+//! - [`gloss`]: the gloss readings (specular gloss, haze, distinctness) and
+//!   their uncertainties, from a point's estimate.
 //! - [`acquire`]: raw frames to corrected readings.
 //! - [`protocol`]: the wire protocol (messages, errors, framing).
 //! - [`hw`]: the hardware traits the application needs.
@@ -36,6 +38,7 @@ pub mod app;
 pub mod blob;
 pub mod estimate;
 pub mod frame_store;
+pub mod gloss;
 pub mod hw;
 pub mod kernel;
 pub mod platform;

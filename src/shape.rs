@@ -12,6 +12,9 @@ pub const BINS: usize = 81;
 pub const LEDS: usize = 7;
 /// Frames per line: one dark frame, then one per LED.
 pub const FRAMES_PER_LINE: usize = LEDS + 1;
+/// Gloss readings streamed with every point (specular gloss, haze,
+/// distinctness; their order and definitions: `crate::gloss`).
+pub const READINGS: usize = 3;
 
 /// NOR erase unit of the STM32L475VG's flash (and of every flash fake).
 pub const FLASH_PAGE: usize = 2048;

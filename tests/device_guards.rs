@@ -159,6 +159,7 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
     let b = hostile_blob(huge_zone, tiny_px);
     let view = BlobView::parse(&b).unwrap();
     let mut c = Client::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), ZONES)).unwrap();
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     c.provision(&b, |_, _| {}).unwrap();
     let mut scene = analytic_scene(&view, 2, FULL_SCALE);
     for line in scene.iter_mut() {
@@ -180,8 +181,22 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
         // The host's reproduction (same correction, kernel and guard) agrees bit for bit.
         let want = &expected_line(&view, &scene[k / P], FULL_SCALE)[px];
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "point {px}"
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();

@@ -5,7 +5,7 @@ use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::hw::SensorError;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{
-    DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode, flags,
+    DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, StreamFormat, encode, flags,
 };
 use brdf_meter::signed::SignatureFault;
 use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
@@ -20,8 +20,12 @@ fn flash() -> SimFlash {
     SimFlash::new(2 * SLOT_LEN as usize)
 }
 
+/// A client asking for f32 values (bit for bit); the other encodings have
+/// tests of their own.
 fn client(flash: SimFlash, ram_zones: usize) -> Client<SimDevice> {
-    Client::new(SimDevice::boot(flash, ram_zones)).unwrap()
+    let mut c = Client::new(SimDevice::boot(flash, ram_zones)).unwrap();
+    c.format = StreamFormat::LOSSLESS;
+    c
 }
 
 /// A signed test calibration (development key).
@@ -39,8 +43,22 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "point {k}"
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
@@ -196,7 +214,7 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     );
 
     // Truncated: the last payload bytes lost (COBS still valid).
-    let n = encode(78, &Request::Measure { lines: 5 }, &mut frame).unwrap();
+    let n = encode(78, &Request::Measure { lines: 5, format: StreamFormat::LOSSLESS }, &mut frame).unwrap();
     let mut raw = [0u8; MAX_FRAME];
     let m = cobs::decode(&frame[..n - 1], &mut raw).unwrap();
     let mut t = vec![0u8; MAX_FRAME];
@@ -263,28 +281,29 @@ fn continuous_measurement_refuses_provisioning_and_stops_on_request() {
     c.provision(&b, |_, _| {}).unwrap();
     let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 3, FULL_SCALE);
     c.load_scene(&scene).unwrap();
-    let seq = c.send(&Request::Measure { lines: 0 }).unwrap();
+    let seq = c.send(&Request::Measure { lines: 0, format: StreamFormat::LOSSLESS }).unwrap();
     // Let a few lines stream.
     let mut points = Vec::new();
     while points.len() < 3 * P {
         match c.next_frame(std::time::Duration::from_secs(1)).unwrap() {
             f if f.seq != seq => panic!("unexpected frame {f:?}"),
             f => {
-                if let Reply::Point(p) = f.reply {
-                    points.push(p)
+                if let Reply::Points(ps) = f.reply {
+                    points.extend(ps)
                 }
             }
         }
     }
     let begin = Request::ProvisionBegin { len: b.len() as u32, crc: CRC32.checksum(&b) };
     let s2 = c.send(&begin).unwrap();
-    let s3 = c.send(&Request::Measure { lines: 1 }).unwrap();
+    let s3 = c.send(&Request::Measure { lines: 1, format: StreamFormat::LOSSLESS }).unwrap();
     let s4 = c.send(&Request::Stop).unwrap();
     let mut replies = Vec::new();
     let done_lines = loop {
         let f = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
         match f.reply {
-            Reply::Point(p) => points.push(p),
+            Reply::Points(ps) => points.extend(ps),
+            Reply::Point(p) => panic!("a protocol 2 point frame: {p:?}"),
             Reply::Msg(Response::MeasureDone { lines_done }) => break lines_done,
             Reply::Msg(m) => replies.push((f.seq, m)),
         }

@@ -26,8 +26,22 @@ fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRec
         let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (want.zone, want.cluster, want.flags, want.sigma_scale.to_bits()),
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                want.zone,
+                want.cluster,
+                want.flags,
+                want.sigma_scale.to_bits(),
+                want.readings.map(f32::to_bits),
+                want.reading_sigma.map(f32::to_bits)
+            ),
             "zone/flags of point {k}"
         );
         for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {
@@ -55,6 +69,8 @@ fn signed_for_scene(scene: &host_tools::forward::scene::Scene, zones: usize, noi
 fn connect(q: &host_tools::device::link::qemu::QemuInstrument) -> Client<TcpTransport> {
     let mut c = q.connect().unwrap();
     c.timeout = Duration::from_secs(20);
+    // f32 values (bit for bit) unless a test asks for another encoding.
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     c
 }
 

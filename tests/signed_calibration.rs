@@ -32,13 +32,28 @@ fn measures_with(c: &mut Client<SimDevice>, blob: &[u8]) {
     let view = BlobView::parse(blob).unwrap();
     let scene = analytic_scene(&view, 1, FULL_SCALE);
     c.load_scene(&scene).unwrap();
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     let pts = c.measure(1).unwrap();
     let want = expected_line(&view, &scene[0], FULL_SCALE);
     assert_eq!(pts.len(), P);
     for (p, w) in pts.iter().zip(&want) {
         assert_eq!(
-            (p.zone, p.cluster, p.flags, p.sigma_scale.to_bits()),
-            (w.zone, w.cluster, w.flags, w.sigma_scale.to_bits())
+            (
+                p.zone,
+                p.cluster,
+                p.flags,
+                p.sigma_scale.to_bits(),
+                p.readings.map(f32::to_bits),
+                p.reading_sigma.map(f32::to_bits)
+            ),
+            (
+                w.zone,
+                w.cluster,
+                w.flags,
+                w.sigma_scale.to_bits(),
+                w.readings.map(f32::to_bits),
+                w.reading_sigma.map(f32::to_bits)
+            )
         );
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = w.values.iter().map(|x| x.to_bits()).collect();

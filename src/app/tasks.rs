@@ -166,12 +166,16 @@ where
                             cluster: m.cluster,
                             flags: m.flags,
                             sigma_scale: m.sigma_scale,
+                            readings: m.readings,
+                            reading_sigma: m.reading_sigma,
                         },
                         None => PointMetaWire {
                             zone: u16::MAX,
                             cluster: 0,
                             flags: buf.flags[p] | flags::NON_FINITE,
                             sigma_scale: 1.0,
+                            readings: crate::gloss::NO_READINGS,
+                            reading_sigma: crate::gloss::NO_READINGS,
                         },
                     };
                     let push = |block: &mut PointsBlock| {

@@ -269,6 +269,15 @@ pub struct PointFrame<'a> {
     /// estimate scales with the point, and so does its uncertainty), 1 for
     /// the linear ones.
     pub sigma_scale: f32,
+    /// The point's gloss readings, in the order of `crate::gloss`
+    /// (specular gloss in GU, haze in HU, distinctness in %). NaN means "no
+    /// reading": the calibration carries no gloss section, or the point's
+    /// estimate was not finite (then [`flags::NON_FINITE`] is set too).
+    pub readings: [f32; crate::shape::READINGS],
+    /// The standard uncertainty (k = 1) of each reading, from the
+    /// calibration's error covariance, already multiplied by
+    /// `sigma_scale` where it applies; NaN with the reading.
+    pub reading_sigma: [f32; crate::shape::READINGS],
     /// The n estimated values, f32 little-endian.
     #[serde(borrow)]
     pub values: LeBytes<'a>,

@@ -12,13 +12,15 @@
 //! | 2 | 1 | cluster |
 //! | 3 | 1 | [`super::flags`] |
 //! | 4 | 4 | `sigma_scale`, f32 |
+//! | 8 | 4 x R | the gloss readings, f32 ([`crate::gloss`], R = [`READINGS`]) |
+//! | 8 + 4 R | 4 x R | their standard uncertainties, f32 |
 //!
 //! `data` holds, point after point, what the frame's [`Encoding`] says:
 //! - [`Encoding::F32`]: the selected bins' values, f32 (bit for bit);
 //! - [`Encoding::Sigma16`]: the selected bins' values as i16 multiples of
 //!   [`sigma16_step`] of the bin's standard uncertainty (the blob's per-bin
 //!   uncertainty of the point's zone and cluster times `|sigma_scale|`);
-//! - [`Encoding::Readings`]: the point's m corrected readings, f32, from
+//! - [`Encoding::Corrected`]: the point's m white-corrected readings, f32, from
 //!   which the host computes the estimate with the same kernel and blob.
 //!
 //! # Sigma16's error bound
@@ -32,10 +34,11 @@
 //! cannot be sent so: the device then sends that point alone in an
 //! [`Encoding::F32`] frame, so the bound always holds.
 use super::{LeBytes, MAX_PAYLOAD};
+use crate::shape::READINGS;
 use serde::{Deserialize, Serialize};
 
 /// Bytes of one point's record in [`PointsFrame::meta`].
-pub const POINT_META_LEN: usize = 8;
+pub const POINT_META_LEN: usize = 8 + 8 * READINGS;
 
 /// How a measurement's values travel.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -49,7 +52,7 @@ pub enum Encoding {
     Sigma16,
     /// The m corrected readings; the host, which holds the same blob
     /// (checked by its CRC), computes `W v` with the same kernel (lossless).
-    Readings,
+    Corrected,
 }
 
 impl Encoding {
@@ -58,7 +61,7 @@ impl Encoding {
         match self {
             Self::F32 => 4 * bins,
             Self::Sigma16 => 2 * bins,
-            Self::Readings => 4 * m,
+            Self::Corrected => 4 * m,
         }
     }
 }
@@ -125,12 +128,12 @@ pub struct PointsFrame<'a> {
     pub first_point: u16,
     /// CRC of the calibration blob that made the estimates: the host needs
     /// the same blob to decode [`Encoding::Sigma16`] and
-    /// [`Encoding::Readings`], and refuses a frame of another.
+    /// [`Encoding::Corrected`], and refuses a frame of another.
     pub blob_crc: u32,
     /// How `data` is encoded (the requested encoding, or [`Encoding::F32`]
     /// for a point Sigma16 cannot carry within its bound).
     pub encoding: Encoding,
-    /// The bins the values are (for [`Encoding::Readings`], the bins the host
+    /// The bins the values are (for [`Encoding::Corrected`], the bins the host
     /// is to compute).
     pub bins: BinRange,
     /// Per-point records, [`POINT_META_LEN`] bytes each (module docs).
@@ -152,6 +155,10 @@ pub struct PointMetaWire {
     pub flags: u8,
     /// Multiplies the calibration's per-bin uncertainty for this point.
     pub sigma_scale: f32,
+    /// The gloss readings ([`crate::gloss`]; NaN: none).
+    pub readings: [f32; READINGS],
+    /// Their standard uncertainties.
+    pub reading_sigma: [f32; READINGS],
 }
 
 impl PointMetaWire {
@@ -160,6 +167,9 @@ impl PointMetaWire {
         out[2] = self.cluster;
         out[3] = self.flags;
         out[4..8].copy_from_slice(&self.sigma_scale.to_le_bytes());
+        for (k, x) in self.readings.iter().chain(&self.reading_sigma).enumerate() {
+            out[8 + 4 * k..12 + 4 * k].copy_from_slice(&x.to_le_bytes());
+        }
     }
     fn read(b: &[u8]) -> Self {
         Self {
@@ -167,8 +177,14 @@ impl PointMetaWire {
             cluster: b[2],
             flags: b[3],
             sigma_scale: f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+            readings: core::array::from_fn(|k| f32_at(b, 8 + 4 * k)),
+            reading_sigma: core::array::from_fn(|k| f32_at(b, 8 + 4 * (READINGS + k))),
         }
     }
+}
+
+fn f32_at(b: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
 /// Why a [`PointsFrame`]'s contents cannot be read.
@@ -237,7 +253,7 @@ pub fn sigma16_quantise(v: f32, step: f32) -> Option<i16> {
     // Division by a power of two is exact (barring underflow, which only
     // rounds a value far below the step to 0 or +-1 steps' worth).
     let t = v / step;
-    if !(t.abs() <= 32767.0) {
+    if !(t.abs() < 32767.5) {
         return None;
     }
     // |t| < 2^15, so t +- 0.5 is exact and truncation rounds half away from 0.
@@ -394,7 +410,7 @@ impl PointsBlock {
                 }
                 2 * self.bins.count as usize
             }
-            Encoding::Readings => {
+            Encoding::Corrected => {
                 for (k, x) in p.readings.iter().enumerate() {
                     d[4 * k..4 * k + 4].copy_from_slice(&x.to_le_bytes());
                 }

@@ -6,12 +6,16 @@
 //!
 //! Input: one row per point, m white-corrected readings in the blob's LED
 //! order (a header row is optional). Output: CSV (point, flags, the n bin
-//! values, the n per-bin standard uncertainties) and optionally JSON
-//! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "flags": [...]}]}`.
+//! values, the n per-bin standard uncertainties, the gloss readings and
+//! their standard uncertainties, `brdf_meter::gloss`) and optionally JSON
+//! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "readings": [...],
+//! "reading_sigma": [...], "flags": [...]}]}` (a reading the blob does not
+//! carry is NaN in the CSV, null in the JSON).
 //! Everything is checked and computed before anything is written.
 use crate::device::reference::{PointEstimate, PointEstimator};
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
+use brdf_meter::gloss;
 use brdf_meter::protocol::flags;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -92,11 +96,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut header = vec!["point".to_string(), "flags".to_string()];
     header.extend(bins.iter().map(|b| format!("rho_{b}")));
     header.extend(bins.iter().map(|b| format!("sigma_{b}")));
+    header.extend(gloss::NAMES.iter().map(|r| r.to_string()));
+    header.extend(gloss::NAMES.iter().map(|r| format!("u_{r}")));
     w.write_record(&header)?;
     for (i, p) in points.iter().enumerate() {
         let mut rec = vec![i.to_string(), p.flags.join("|")];
         rec.extend(p.rho.iter().map(|x| x.to_string()));
         rec.extend(p.sigma.iter().map(|x| x.to_string()));
+        rec.extend(p.readings.iter().chain(&p.reading_sigma).map(|x| x.to_string()));
         w.write_record(&rec)?;
     }
     let csv_bytes = w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))?;
@@ -168,7 +175,7 @@ mod tests {
         assert_eq!(got, out);
         let csv = std::fs::read_to_string(dir.path().join("e.csv")).unwrap();
         assert_eq!(csv.lines().count(), 3);
-        assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81);
+        assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81 + 2 * brdf_meter::shape::READINGS);
         assert!(csv.lines().nth(2).unwrap().starts_with("1,out-of-prior,"));
     }
 

@@ -1,9 +1,14 @@
 //! A measurement as files: one CSV row and one JSON object per point, with
-//! its BRDF vector, flags and the calibration's predicted per-bin
-//! uncertainty for the point's zone.
+//! its BRDF vector, flags, the calibration's predicted per-bin
+//! uncertainty for the point's zone, and the point's gloss readings with
+//! their standard uncertainties as the device streamed them
+//! (`brdf_meter::gloss`; NaN in the CSV, null in the JSON, when the
+//! calibration carries no gloss section).
 use crate::device::link::PointRecord;
 use crate::device::reference::flag_names;
 use brdf_meter::blob::BlobView;
+use brdf_meter::gloss;
+use brdf_meter::shape::READINGS;
 use serde::Serialize;
 
 /// One point in the JSON.
@@ -15,6 +20,8 @@ pub struct PointJson<'a> {
     pub flags: Vec<&'static str>,
     pub values: &'a [f32],
     pub uncertainty: Vec<f32>,
+    pub readings: [f32; READINGS],
+    pub reading_sigma: [f32; READINGS],
 }
 
 /// The JSON document.
@@ -45,6 +52,12 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
     for g in &angles {
         csv.push_str(&format!(",u_{g}"));
     }
+    for r in gloss::NAMES {
+        csv.push_str(&format!(",{r}"));
+    }
+    for r in gloss::NAMES {
+        csv.push_str(&format!(",u_{r}"));
+    }
     csv.push('\n');
     for p in points {
         csv.push_str(&format!("{},{},{},{}", p.line, p.point, p.zone, flag_names(p.flags).join("|")));
@@ -53,6 +66,9 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
         }
         for u in unc(p) {
             csv.push_str(&format!(",{u:e}"));
+        }
+        for r in p.readings.iter().chain(&p.reading_sigma) {
+            csv.push_str(&format!(",{r:e}"));
         }
         csv.push('\n');
     }
@@ -69,6 +85,8 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
                 flags: flag_names(p.flags),
                 values: &p.values,
                 uncertainty: unc(p),
+                readings: p.readings,
+                reading_sigma: p.reading_sigma,
             })
             .collect(),
     };

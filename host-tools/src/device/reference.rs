@@ -19,6 +19,7 @@ use brdf_meter::kernel::scale_free::{
 };
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
 use brdf_meter::protocol::flags;
+use brdf_meter::shape::READINGS;
 use serde::Serialize;
 
 /// One point's estimate, as the device computes it.
@@ -28,6 +29,11 @@ pub struct PointEstimate {
     pub rho: Vec<f32>,
     /// Per-bin standard uncertainty (for the scale-free kinds scaled by the point).
     pub sigma: Vec<f32>,
+    /// The gloss readings (`brdf_meter::gloss`: specular GU, haze HU,
+    /// distinctness %; NaN, written as null, when the blob has none).
+    pub readings: [f32; READINGS],
+    /// Their standard uncertainties (k = 1).
+    pub reading_sigma: [f32; READINGS],
     /// Flag names.
     pub flags: Vec<&'static str>,
     /// Flag bits as the device frames them.
@@ -143,12 +149,23 @@ impl<'a> PointEstimator<'a> {
             rho.fill(0.0);
             sigma.fill(0.0);
         }
-        PointEstimate { rho, sigma, flags: flag_names(bits), flag_bits: bits, cluster, sigma_scale, stat }
+        let (readings, reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
+        PointEstimate {
+            rho,
+            sigma,
+            readings,
+            reading_sigma,
+            flags: flag_names(bits),
+            flag_bits: bits,
+            cluster,
+            sigma_scale,
+            stat,
+        }
     }
 }
 
 /// What the device streams for one point: zone, flags, the uncertainty's
-/// scale and the n values.
+/// scale, the gloss readings with their uncertainties and the n values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExpectedPoint {
     /// The pixel's zone.
@@ -159,6 +176,10 @@ pub struct ExpectedPoint {
     pub cluster: u8,
     /// The frame's `sigma_scale`.
     pub sigma_scale: f32,
+    /// The frame's `readings`.
+    pub readings: [f32; READINGS],
+    /// The frame's `reading_sigma`.
+    pub reading_sigma: [f32; READINGS],
     /// The n values.
     pub values: Vec<f32>,
 }
@@ -187,6 +208,8 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
                 cluster: e.cluster,
                 flags: flags | e.flag_bits,
                 sigma_scale: e.sigma_scale,
+                readings: e.readings,
+                reading_sigma: e.reading_sigma,
                 values: e.rho,
             }
         })

@@ -6,6 +6,7 @@ use brdf_meter::protocol::{
     self, BinRange, CalInfo, DeviceError, DeviceInfo, DeviceStatus, Encoding, FrameError, FrameReader, LeBytes,
     MAX_FRAME, MAX_SIM_BYTES, Pushed, Request, Response, StreamFormat, Streamed,
 };
+use brdf_meter::shape::READINGS;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -49,10 +50,14 @@ pub struct PointRecord {
     pub cluster: u8,
     /// What the calibration's per-bin uncertainty is multiplied by for this point.
     pub sigma_scale: f32,
+    /// The gloss readings (`brdf_meter::gloss`; NaN: none).
+    pub readings: [f32; READINGS],
+    /// Their standard uncertainties (k = 1).
+    pub reading_sigma: [f32; READINGS],
     /// The bins `values` are (all n unless the measurement asked for fewer).
     pub bins: BinRange,
-    /// How the values travelled (f32 and readings: bit for bit; Sigma16:
-    /// within 1/256 of the bin's uncertainty).
+    /// How the values travelled (f32 and corrected readings: bit for bit;
+    /// Sigma16: within 1/256 of the bin's uncertainty).
     pub encoding: Encoding,
     /// The values of `bins`.
     pub values: Vec<f32>,
@@ -742,6 +747,8 @@ mod tolerant_tests {
             cluster: 0,
             flags: 0,
             sigma_scale: 1.0,
+            readings: [1.0; READINGS],
+            reading_sigma: [0.5; READINGS],
             values: LeBytes(values),
         })
     }

@@ -13,7 +13,7 @@ use brdf_meter::protocol::{
 /// Why a line frame could not be decoded.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum DecodeError {
-    /// Sigma16 or readings without the calibration blob.
+    /// Sigma16 or corrected readings without the calibration blob.
     #[error("a {0:?} frame needs the calibration blob the device runs (give it with --blob)")]
     NeedsBlob(Encoding),
     /// The frame was made with another calibration.
@@ -89,6 +89,8 @@ impl From<PointFrame<'_>> for PointRecord {
             cluster: p.cluster,
             flags: p.flags,
             sigma_scale: p.sigma_scale,
+            readings: p.readings,
+            reading_sigma: p.reading_sigma,
             bins: BinRange::all(values.len()),
             encoding: Encoding::F32,
             values,
@@ -145,7 +147,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
                     })
                     .collect::<Result<_, _>>()?
             }
-            Encoding::Readings => {
+            Encoding::Corrected => {
                 let v = view.expect("checked by decode_points");
                 if !zone_ok(v) {
                     return Err(DecodeError::BadZone { point, zone: meta.zone });
@@ -184,6 +186,8 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
             cluster: meta.cluster,
             flags: meta.flags,
             sigma_scale: meta.sigma_scale,
+            readings: meta.readings,
+            reading_sigma: meta.reading_sigma,
             bins: f.bins,
             encoding: f.encoding,
             values,
