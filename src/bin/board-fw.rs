@@ -34,9 +34,9 @@ const P: usize = shape::board::PIXELS;
 const RAM_ZONES: usize = shape::board::RAM_ZONES;
 
 /// Acquisition settings: integration per frame and LED settling before it
-/// (written down in `platform::board_timing`, where the host's line-rate
+/// (written down in `platform::timing`, where the host's line-rate
 /// budget reads them too).
-const ACQ: AcqConfig = brdf_meter::platform::board_timing::ACQUISITION;
+const ACQ: AcqConfig = brdf_meter::platform::timing::ACQUISITION;
 
 type BoardShared = Shared<CalFlash, N, M, P>;
 

@@ -9,11 +9,11 @@
 //!   flash, in-memory link, simulated optics), used by tests/.
 //! - [`nor_fake`]: the NOR flash rules both flash fakes share.
 //! - [`watchdog_health`]: the board's watchdog rule, pure logic tested on the host.
-//! - [`board_timing`]: the board's acquisition settings and sensor timing
+//! - [`timing`]: the board's acquisition settings and sensor timing
 //!   (not gated: the host's line-rate budget derives from them).
 #[cfg(all(feature = "board", target_os = "none"))]
 pub mod board;
-pub mod board_timing;
+pub mod timing;
 #[cfg(any(test, feature = "sim"))]
 pub mod host_sim;
 #[cfg(any(test, feature = "sim", all(feature = "qemu", target_os = "none")))]

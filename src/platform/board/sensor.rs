@@ -31,15 +31,15 @@ pub const PIXELS: usize = crate::shape::board::PIXELS;
 /// 12-bit ADC: readings at or above this are saturated.
 pub const FULL_SCALE: u16 = 4095;
 /// ADC conversions averaged per pixel.
-pub const OVERSAMPLE: usize = crate::platform::board_timing::OVERSAMPLE;
+pub const OVERSAMPLE: usize = crate::platform::timing::OVERSAMPLE;
 /// Longest integration the TSL1401 datasheet allows (100 ms); longer requests
 /// are clamped.
 pub const MAX_EXPOSURE_US: u32 = 100_000;
 /// Clock after SI at which the next integration starts (datasheet).
-use crate::platform::board_timing::INTEGRATION_START_CLOCK;
+use crate::platform::timing::INTEGRATION_START_CLOCK;
 /// AO settling and half CLK periods, in cycles at 80 MHz (the numbers and
-/// their reasons: `crate::platform::board_timing`).
-use crate::platform::board_timing::{HALF_CLK_CYCLES, SETTLE_CYCLES};
+/// their reasons: `crate::platform::timing`).
+use crate::platform::timing::{HALF_CLK_CYCLES, SETTLE_CYCLES};
 /// Longest time one pixel's DMA read may take before the sensor is declared
 /// dead (4 conversions take about 2 us).
 const PIXEL_TIMEOUT: Duration = Duration::from_millis(2);

@@ -153,7 +153,7 @@ fn cycles(i: &Insn, taken: bool) -> f64 {
 
 /// One segment between two marks.
 #[derive(Clone, Debug)]
-pub(crate) struct Segment {
+pub struct Segment {
     /// The words of its `SEG` line.
     pub name: Vec<String>,
     /// Instructions executed.
@@ -172,7 +172,7 @@ fn words(line: &str, tag: &str) -> Option<Vec<u32>> {
 /// execution of the function `mark`, and counts each segment's instructions
 /// (the mark's own excluded) and cycles (the module's table), named by the
 /// `SEG` lines the firmware printed, in order.
-pub(crate) fn count_segments(dir: &Path, mark_symbol: &str) -> anyhow::Result<Vec<Segment>> {
+pub fn count_segments(dir: &Path, mark_symbol: &str) -> anyhow::Result<Vec<Segment>> {
     let read =
         |f: &str| std::fs::read_to_string(dir.join(f)).with_context(|| format!("reading {}", dir.join(f).display()));
     let nm = read("nm.txt")?;

@@ -1,13 +1,17 @@
-//! The board's acquisition timing, written down once: the firmware's
-//! settings ([`ACQUISITION`]) and the TSL1401 readout's clock and ADC
-//! numbers that `platform::board::sensor` runs with, so the host's line-rate
-//! budget (`host-tools rate`) derives the acquisition time from the very
-//! numbers the board uses. Not gated: host builds read it too.
+//! Acquisition timing, written down once: the board firmware's settings
+//! ([`ACQUISITION`]) and the TSL1401 readout's clock and ADC numbers that
+//! `platform::board::sensor` runs with, and the QEMU firmware's settings
+//! ([`QEMU_ACQUISITION`]), so the host's line-rate budget (`host-tools rate`)
+//! derives the acquisition time from the very numbers the firmware uses. Not
+//! gated: host builds read it too.
 use crate::acquire::AcqConfig;
 
 /// The board firmware's acquisition settings: integration per frame, LED
 /// settling before it, full drive.
 pub const ACQUISITION: AcqConfig = AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX };
+/// The QEMU firmware's acquisition settings: short, it is a simulation
+/// (its simulated sensor reads a frame at once).
+pub const QEMU_ACQUISITION: AcqConfig = AcqConfig { exposure_us: 200, settle_us: 100, intensity: u16::MAX };
 /// SYSCLK (and the ADC's clock: `adcsel = SYS`, no prescaler needed at 80 MHz).
 pub const SYSCLK_HZ: u32 = 80_000_000;
 /// ADC conversions averaged per pixel.
