@@ -285,6 +285,8 @@ fn main() -> ! {
         run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, fsb);
         run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
     }
+    // Closes the last segment (each boundary opens one).
+    line_bench_mark();
     let mut l = Line::new();
     l.push(b"DONE");
     l.end();

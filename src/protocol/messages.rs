@@ -4,8 +4,27 @@ use super::DeviceError;
 use serde::{Deserialize, Serialize};
 
 /// Raw little-endian bytes of a numeric array, borrowed from the frame.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+///
+/// On the wire: a varint length and the bytes (postcard's encoding of a
+/// byte sequence), written as bytes in one copy rather than element by
+/// element (what serde's derive of a `&[u8]` field would do; same bytes).
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LeBytes<'a>(#[serde(borrow)] pub &'a [u8]);
+
+impl Serialize for LeBytes<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_newtype_struct("LeBytes", &Bytes(self.0))
+    }
+}
+
+/// A byte slice serialised as bytes.
+struct Bytes<'a>(&'a [u8]);
+
+impl Serialize for Bytes<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(self.0)
+    }
+}
 
 impl<'a> LeBytes<'a> {
     /// Wraps f32 values without copying (both our targets are little-endian).

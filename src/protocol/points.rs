@@ -261,6 +261,26 @@ pub fn sigma16_quantise(v: f32, step: f32) -> Option<i16> {
     Some(r as i32 as i16)
 }
 
+/// [`sigma16_quantise`] of `v` with [`sigma16_step`] of `u`, in one step
+/// (the device's per-bin path): the step's reciprocal is built from `u`'s
+/// exponent, and multiplying by a power of two is as exact as dividing.
+#[inline]
+fn sigma16_encode(v: f32, u: f32) -> Option<i16> {
+    let bits = u.to_bits();
+    // One compare for every u with no step: negative, zero, subnormal,
+    // biased exponent <= 7, infinite or NaN (biased exponent 8..=254 pass).
+    if bits.wrapping_sub(8 << 23) >= 247 << 23 {
+        return None;
+    }
+    // step = 2^(b - 7 - 127) for u's biased exponent b, so 1 / step =
+    // 2^(127 - (b - 7)): biased exponent 261 - b.
+    let t = v * f32::from_bits((261 << 23) - (bits & 0x7f80_0000));
+    if !(t.abs() < 32767.5) {
+        return None;
+    }
+    Some((t + 0.5f32.copysign(t)) as i32 as i16)
+}
+
 /// Why [`PointsBlock::push`] did not take a point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PushError {
@@ -393,22 +413,40 @@ impl PointsBlock {
             return Err(PushError::Full);
         }
         let d = &mut self.data[self.data_len..];
+        let (first, step, count) = (self.bins.first as usize, self.bins.step as usize, self.bins.count as usize);
         let written = match self.encoding {
             Encoding::F32 => {
-                for (k, j) in self.bins.bins().enumerate() {
-                    d[4 * k..4 * k + 4].copy_from_slice(&p.values[j].to_le_bytes());
+                if step == 1 {
+                    // Contiguous bins: one copy (both targets are little-endian).
+                    let src: &[u8] = bytemuck::cast_slice(&p.values[first..first + count]);
+                    d[..4 * count].copy_from_slice(src);
+                } else {
+                    for (o, j) in d[..4 * count].chunks_exact_mut(4).zip(self.bins.bins()) {
+                        o.copy_from_slice(&p.values[j].to_le_bytes());
+                    }
                 }
-                4 * self.bins.count as usize
+                4 * count
             }
             Encoding::Sigma16 => {
-                for (k, j) in self.bins.bins().enumerate() {
-                    let sigma = *p.sigma.get(j).ok_or(PushError::NotRepresentable)?;
-                    let step =
-                        sigma16_step(point_uncertainty(sigma, p.meta.sigma_scale)).ok_or(PushError::NotRepresentable)?;
-                    let q = sigma16_quantise(p.values[j], step).ok_or(PushError::NotRepresentable)?;
-                    d[2 * k..2 * k + 2].copy_from_slice(&q.to_le_bytes());
+                let last = first + (count - 1) * step;
+                if p.sigma.len() <= last || p.values.len() <= last {
+                    return Err(PushError::NotRepresentable);
                 }
-                2 * self.bins.count as usize
+                let scale = p.meta.sigma_scale.abs();
+                let out = &mut d[..2 * count];
+                if step == 1 {
+                    let (v, s) = (&p.values[first..first + count], &p.sigma[first..first + count]);
+                    for ((o, v), s) in out.chunks_exact_mut(2).zip(v).zip(s) {
+                        let q = sigma16_encode(*v, *s * scale).ok_or(PushError::NotRepresentable)?;
+                        o.copy_from_slice(&q.to_le_bytes());
+                    }
+                } else {
+                    for (o, j) in out.chunks_exact_mut(2).zip(self.bins.bins()) {
+                        let q = sigma16_encode(p.values[j], p.sigma[j] * scale).ok_or(PushError::NotRepresentable)?;
+                        o.copy_from_slice(&q.to_le_bytes());
+                    }
+                }
+                2 * count
             }
             Encoding::Corrected => {
                 for (k, x) in p.readings.iter().enumerate() {

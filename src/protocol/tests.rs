@@ -1,5 +1,6 @@
 //! Round trips and wire bytes of every message, framing and its errors.
 use super::*;
+use super::framing::cobs_encode;
 use crate::blob::BlobError;
 use crate::hw::SensorError;
 use serde::Serialize;
@@ -384,4 +385,66 @@ fn bin_ranges_are_checked_against_the_bins() {
     assert!(!BinRange { first: 0, step: 1, count: 0 }.fits(81));
     assert!(!BinRange { first: 81, step: 1, count: 1 }.fits(81));
     assert_eq!(BinRange { first: 2, step: 3, count: 3 }.bins().collect::<Vec<_>>(), [2, 5, 8]);
+}
+
+#[test]
+fn the_run_wise_cobs_encoder_gives_the_cobs_crates_bytes() {
+    let mut x = 0x1234_5678u32;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        x
+    };
+    let mut inputs: Vec<Vec<u8>> = vec![vec![], vec![0], vec![0, 0], vec![1], vec![1; 253], vec![1; 254], vec![1; 255]];
+    inputs.push([vec![1; 254], vec![0]].concat());
+    inputs.push([vec![0], vec![7; 508], vec![0]].concat());
+    for _ in 0..2000 {
+        let len = (next() % 700) as usize;
+        // Zeros now dense, now rare, so runs of every length up to 254 and beyond occur.
+        let density = 1 + next() % 400;
+        inputs.push((0..len).map(|_| if next() % density == 0 { 0 } else { 1 + (next() % 255) as u8 }).collect());
+    }
+    for src in inputs {
+        let mut want = vec![0u8; src.len() + src.len() / 254 + 2];
+        let n = cobs::encode(&src, &mut want);
+        let mut got = vec![0u8; src.len() + src.len() / 254 + 2];
+        let m = cobs_encode(&src, &mut got).unwrap();
+        assert_eq!(got[..m], want[..n], "input of {} bytes", src.len());
+        if m > 0 {
+            assert_eq!(cobs_encode(&src, &mut got[..m - 1]), None, "too small a buffer is refused");
+        }
+    }
+}
+
+#[test]
+fn the_devices_sigma16_path_rounds_as_the_definition_does() {
+    let mut x = 0x9E37_79B9u32;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        f32::from_bits(x)
+    };
+    let mut checked = 0;
+    for _ in 0..200_000 {
+        let (v, u) = (next(), next().abs());
+        let want = sigma16_step(u).and_then(|s| sigma16_quantise(v, s));
+        let values = [v];
+        let sigma = [u];
+        let mut b = PointsBlock::new();
+        b.start(0, 0, 0, 0, Encoding::Sigma16, BinRange::all(1), 1);
+        let mut m = meta(0);
+        m.sigma_scale = 1.0;
+        let got = b.push(&PointIn { meta: m, values: &values, readings: &[0.0], sigma: &sigma });
+        match want {
+            Some(q) => {
+                assert_eq!(got, Ok(()));
+                assert_eq!(b.frame().data.0, q.to_le_bytes());
+                checked += 1;
+            }
+            None => assert_eq!(got, Err(PushError::NotRepresentable), "v {v:e}, u {u:e}"),
+        }
+    }
+    assert!(checked > 1000, "{checked}");
 }
