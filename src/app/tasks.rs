@@ -182,7 +182,9 @@ where
                         shared.core.lock(|c| {
                             let c = c.borrow();
                             let sigma = match c.cal.active() {
-                                Some(_) if meta.is_some() => c.cal.uncertainty(wire.zone as usize, wire.cluster as usize),
+                                Some(_) if meta.is_some() => {
+                                    c.cal.uncertainty(wire.zone as usize, wire.cluster as usize)
+                                }
                                 _ => &[],
                             };
                             let pin =

@@ -299,7 +299,12 @@ fn main() -> ! {
 fn read_file(path: &[u8], buf: &mut [u8]) -> usize {
     // SAFETY: semihosting calls with valid pointers and lengths.
     unsafe {
-        let fd = cortex_m_semihosting::syscall!(OPEN, path.as_ptr(), cortex_m_semihosting::nr::open::R_BINARY, path.len() - 1);
+        let fd = cortex_m_semihosting::syscall!(
+            OPEN,
+            path.as_ptr(),
+            cortex_m_semihosting::nr::open::R_BINARY,
+            path.len() - 1
+        );
         if fd == usize::MAX {
             fail(b"line-bench: cannot open target/line-bench/data.bin");
         }

@@ -13,12 +13,12 @@
 //!   (not gated: the host's line-rate budget derives from them).
 #[cfg(all(feature = "board", target_os = "none"))]
 pub mod board;
-pub mod timing;
 #[cfg(any(test, feature = "sim"))]
 pub mod host_sim;
 #[cfg(any(test, feature = "sim", all(feature = "qemu", target_os = "none")))]
 pub mod nor_fake;
 #[cfg(all(feature = "qemu", target_os = "none"))]
 pub mod qemu;
+pub mod timing;
 #[cfg(any(test, all(feature = "board", target_os = "none")))]
 pub mod watchdog_health;

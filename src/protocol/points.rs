@@ -86,9 +86,7 @@ impl BinRange {
     }
     /// Whether the range is non-empty and within `n` bins.
     pub fn fits(&self, n: usize) -> bool {
-        self.count >= 1
-            && self.step >= 1
-            && (self.first as usize + (self.count as usize - 1) * self.step as usize) < n
+        self.count >= 1 && self.step >= 1 && (self.first as usize + (self.count as usize - 1) * self.step as usize) < n
     }
     /// The bin indices.
     pub fn bins(&self) -> impl Iterator<Item = usize> + use<> {

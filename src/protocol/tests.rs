@@ -1,6 +1,6 @@
 //! Round trips and wire bytes of every message, framing and its errors.
-use super::*;
 use super::framing::cobs_encode;
+use super::*;
 use crate::blob::BlobError;
 use crate::hw::SensorError;
 use serde::Serialize;

@@ -99,7 +99,10 @@ fn decode_line_frame(f: &PointsFrame<'_>) {
         if let Ok(recs) = decode_with(f, v) {
             assert_eq!(recs.len(), f.count());
             for (k, r) in recs.iter().enumerate() {
-                assert_eq!((r.line, r.seq, r.point as u32), (f.line, f.seq.wrapping_add(k as u32), f.first_point as u32 + k as u32));
+                assert_eq!(
+                    (r.line, r.seq, r.point as u32),
+                    (f.line, f.seq.wrapping_add(k as u32), f.first_point as u32 + k as u32)
+                );
                 assert_eq!(r.values.len(), f.bins.count as usize);
             }
         }

@@ -3,6 +3,7 @@ use crate::device::link::{Endpoint, PointRecord};
 use crate::forward::scene::frames::named_scene_frames;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::{BinRange, Encoding, StreamFormat};
 use std::path::PathBuf;
 
 /// Measure N lines; write one row (CSV) / object (JSON) per point with its
@@ -33,6 +34,50 @@ pub struct Args {
     /// Scene lines to load (the device cycles through them), 1..=4.
     #[arg(long, default_value_t = 1)]
     pub scene_lines: usize,
+    /// How the values travel: `sigma16` (16-bit, error at most 1/256 of each
+    /// bin's uncertainty), `f32` (bit for bit) or `corrected` (the corrected
+    /// readings; the host computes the estimate with the blob, bit for bit).
+    #[arg(long, value_enum, default_value_t = EncodingArg::Sigma16)]
+    pub encoding: EncodingArg,
+    /// Only these bins: FIRST:STEP:COUNT (0-based), e.g. 0:2:41.
+    #[arg(long, value_name = "FIRST:STEP:COUNT")]
+    pub bins: Option<String>,
+}
+
+/// `--encoding`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EncodingArg {
+    /// 16-bit multiples of a step under 1/128 of each bin's uncertainty.
+    Sigma16,
+    /// f32 values.
+    F32,
+    /// The corrected readings.
+    Corrected,
+}
+
+impl From<EncodingArg> for Encoding {
+    fn from(e: EncodingArg) -> Self {
+        match e {
+            EncodingArg::Sigma16 => Encoding::Sigma16,
+            EncodingArg::F32 => Encoding::F32,
+            EncodingArg::Corrected => Encoding::Corrected,
+        }
+    }
+}
+
+/// Parses `--bins FIRST:STEP:COUNT` for a calibration of `n` bins.
+pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
+    let parts: Vec<&str> = spec.split(':').collect();
+    let num = |s: &str| s.trim().parse::<u16>().ok();
+    let r = match parts.as_slice() {
+        [f, s, c] => num(f).zip(num(s)).zip(num(c)).map(|((first, step), count)| BinRange { first, step, count }),
+        _ => None,
+    }
+    .with_context(|| format!("--bins {spec}: expected FIRST:STEP:COUNT, e.g. 0:2:41"))?;
+    if !r.fits(n) {
+        bail!("--bins {spec}: needs at least one bin, a step of at least 1, and its last bin below {n}");
+    }
+    Ok(r)
 }
 
 /// Runs the command.
@@ -65,6 +110,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
     c.timeout = std::time::Duration::from_secs(10);
+    c.set_calibration(&bytes)?;
+    c.format = StreamFormat {
+        encoding: a.encoding.into(),
+        bins: a.bins.as_deref().map(|b| parse_bins(b, view.dims().n)).transpose()?,
+    };
     let points: Vec<PointRecord> = c.measure(a.lines).context("measuring")?;
     let (csv, json) = crate::device::measurement::measurement_files(&view, a.lines, &points);
     crate::output::io::write_atomic(&a.csv, csv.as_bytes())?;
@@ -79,4 +129,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.json.display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bin_subsets_parse_and_bad_ones_are_named() {
+        assert_eq!(parse_bins("0:2:41", 81).unwrap(), BinRange { first: 0, step: 2, count: 41 });
+        assert_eq!(parse_bins("80:1:1", 81).unwrap(), BinRange { first: 80, step: 1, count: 1 });
+        for bad in ["0:2:42", "0:0:3", "1:1:0", "a:1:1", "1:1", "-1:1:1"] {
+            let e = parse_bins(bad, 81).unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
 }

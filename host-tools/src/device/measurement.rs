@@ -34,15 +34,19 @@ pub struct MeasureJson<'a> {
 }
 
 /// The CSV text and the JSON document of `points`, measured over `lines`
-/// lines with the calibration `view`.
+/// lines with the calibration `view`, on the bins the measurement streamed
+/// (every bin unless it asked for a subset; one subset per measurement).
 pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [PointRecord]) -> (String, MeasureJson<'a>) {
     let d = view.dims();
-    let angles: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
+    let bins: Vec<usize> = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins).bins().collect();
+    let angles: Vec<f32> = bins.iter().map(|&j| view.grid_deg(j)).collect();
     // The calibration's per-bin uncertainty for the point's zone, times the
     // point's own scale (1 for the linear estimators; the readings' scale for
     // the scale-free ones, whose estimate and uncertainty scale with the point).
     let unc = |p: &PointRecord| -> Vec<f32> {
-        (0..d.n).map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
+        bins.iter()
+            .map(|&j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs())
+            .collect()
     };
     // CSV: one row per point, rho then uncertainty for each angle.
     let mut csv = String::from("line,point,zone,flags");

@@ -9,8 +9,8 @@ mod stream;
 mod tcp;
 
 pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
-pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
 pub use serial::SerialTransport;
+pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
 pub use tcp::TcpTransport;
 
 use std::time::Duration;

@@ -141,7 +141,10 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
                     .bins()
                     .zip(data.chunks_exact(2))
                     .map(|(j, c)| {
-                        let u = point_uncertainty(v.uncertainty_of(meta.zone as usize, meta.cluster as usize, j), meta.sigma_scale);
+                        let u = point_uncertainty(
+                            v.uncertainty_of(meta.zone as usize, meta.cluster as usize, j),
+                            meta.sigma_scale,
+                        );
                         let step = sigma16_step(u).ok_or(DecodeError::BadStep { point })?;
                         Ok(i16::from_le_bytes([c[0], c[1]]) as f32 * step)
                     })
@@ -158,7 +161,9 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
                 }
                 let est = match &mut estimators[z] {
                     Some(e) => e,
-                    slot => slot.insert(PointEstimator::new(*v, z).map_err(|_| DecodeError::BadZone { point, zone: meta.zone })?),
+                    slot => slot.insert(
+                        PointEstimator::new(*v, z).map_err(|_| DecodeError::BadZone { point, zone: meta.zone })?,
+                    ),
                 };
                 let readings: Vec<f32> =
                     data.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();

@@ -12,8 +12,8 @@ use crate::device::reference::PointEstimator;
 use brdf_meter::acquire::correct_point_into;
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{
-    self, BinRange, Encoding, LeBytes, MAX_FRAME, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError,
-    Response, point_uncertainty,
+    self, BinRange, Encoding, LeBytes, MAX_FRAME, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError, Response,
+    point_uncertainty,
 };
 use serde::Serialize;
 
@@ -63,7 +63,12 @@ fn encode(r: &Response<'_>) -> Vec<u8> {
 
 /// The frames of one line in `encoding` (`None`: protocol 2's one f32 frame
 /// per point), as the device sends them.
-pub fn line_frames(view: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, encoding: Option<Encoding>) -> Vec<Vec<u8>> {
+pub fn line_frames(
+    view: &BlobView<'_>,
+    frames: &[Vec<u16>],
+    full_scale: u16,
+    encoding: Option<Encoding>,
+) -> Vec<Vec<u8>> {
     let pts = device_points(view, frames, full_scale);
     let m = view.dims().m;
     let bins = BinRange::all(view.dims().n);

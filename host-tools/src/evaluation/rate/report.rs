@@ -15,7 +15,10 @@ pub fn markdown(builds: &[BuildBudget], practical: f64) -> String {
         s,
         "## Line budget per stage (instructions exact from QEMU; cycles: Cortex-M4 timings; ms at 80 MHz)\n"
     );
-    let _ = writeln!(s, "| build | encoding | stage | instructions/line | cycles/line | ms/line |\n|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| build | encoding | stage | instructions/line | cycles/line | ms/line |\n|---|---|---|---|---|---|"
+    );
     for b in builds {
         for e in &b.encodings {
             for (stage, c) in e.stages.iter().chain([("total".to_string(), e.compute)].iter()) {
@@ -106,7 +109,8 @@ pub fn csv(builds: &[BuildBudget]) -> String {
         for e in &b.encodings {
             for (stage, c) in e.stages.iter().chain([("total".to_string(), e.compute)].iter()) {
                 let Cost { instructions, cycles } = *c;
-                let _ = writeln!(s, "{},{},{},{stage},{instructions},{cycles},{:.3}", b.name, b.pixels, e.encoding, c.us());
+                let _ =
+                    writeln!(s, "{},{},{},{stage},{instructions},{cycles},{:.3}", b.name, b.pixels, e.encoding, c.us());
             }
         }
     }
