@@ -249,6 +249,7 @@ fn qemu_serves_the_same_protocol_over_a_serial_port() {
     .unwrap();
     let mut c = q.connect_serial().unwrap();
     c.timeout = Duration::from_secs(20);
+    c.format = StreamFormat::LOSSLESS;
     assert!(q.addr.starts_with("/dev/pts/"), "{}", q.addr);
     let scene = patent_scene(PIXELS);
     let blob = signed_for_scene(&scene, 2, 0.02);

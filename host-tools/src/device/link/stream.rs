@@ -98,12 +98,12 @@ impl From<PointFrame<'_>> for PointRecord {
     }
 }
 
-/// Decodes every point of `f`: with `decoder` for Sigma16 and readings
-/// (refused when its blob is not the frame's), and for f32 without one
-/// (any n up to the frame's bins).
+/// Decodes every point of `f`: with `decoder` for Sigma16 and corrected
+/// readings (refused when its blob is not the frame's); f32 values need no
+/// blob (any n up to the frame's bins).
 pub fn decode_points(f: &PointsFrame<'_>, decoder: Option<&StreamDecoder>) -> Result<Vec<PointRecord>, DecodeError> {
     let view = match (f.encoding, decoder) {
-        (Encoding::F32, None) => None,
+        (Encoding::F32, _) => None,
         (e, None) => return Err(DecodeError::NeedsBlob(e)),
         (_, Some(d)) => {
             if d.crc() != f.blob_crc {
