@@ -59,6 +59,25 @@
 //! before the CRC. A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
 //!
+//! # Format version 3
+//! Version 2 (every field and section as above, also for the version 1
+//! kinds) with the gloss section: written only when a calibration carries
+//! gloss readings; a blob without them is written as version 1 or 2,
+//! byte for byte as before. Header flag bit 2 says the section is present
+//! (it must be set in version 3 and is refused in 1 and 2). The section
+//! follows the out-of-prior data, before the CRC:
+//!
+//! | size | field |
+//! |---|---|
+//! | 4 | the gloss standard's assigned value, GU (finite, > 0; 100 for the black-glass standard) |
+//! | 4 | the standard's refractive index at the sodium D line (finite, > 1; 1.567), a record of what it was |
+//! | 4Z | per zone, the standard's specular linear reading `S_z` through the zone's estimator (finite, > 0) |
+//! | 4ZK(4m + 10) | per zone, then cluster: the rows `A W` of the 4 linear readings (4 x m, row-major), then their error covariance packed row by row (upper triangle, 10 values; per unit scale for the scale-free kinds; diagonal >= 0) |
+//!
+//! What the values mean and how the device combines them: `crate::gloss`.
+//! A device running a version 1 or 2 blob streams NaN readings ("no
+//! reading").
+//!
 //! # Compatibility rules
 //! - A parser accepts exactly the format versions it knows; a new field that
 //!   old firmware could misread bumps the version.
@@ -71,7 +90,10 @@ use core::fmt;
 pub const MAGIC: [u8; 4] = *b"BRDW";
 /// The newest format version this library writes and reads (it also reads
 /// [`FORMAT_VERSION_1`], and writes it whenever a blob does not need more).
-pub const FORMAT_VERSION: u16 = 2;
+pub const FORMAT_VERSION: u16 = 3;
+/// The format version that added K clusters and the out-of-prior data, still
+/// written for blobs that need no gloss section.
+pub const FORMAT_VERSION_2: u16 = 2;
 /// The first format version, still written for blobs that need nothing newer.
 pub const FORMAT_VERSION_1: u16 = 1;
 /// Length of the fixed header.
@@ -85,6 +107,10 @@ pub const MAX_PIXELS: usize = 4096;
 
 const FLAG_FAR_FIELD: u16 = 1;
 const FLAG_OUT_OF_PRIOR: u16 = 2;
+const FLAG_GLOSS: u16 = 4;
+/// Values of the gloss section before the per-zone data: the assigned value
+/// and the refractive index.
+const GLOSS_HEAD: usize = 2;
 
 /// CRC used for blobs (and by the calibration store and wire protocol).
 pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
@@ -171,6 +197,8 @@ pub enum Section {
     Centroids,
     /// The out-of-prior means, whitening matrices and threshold (format version 2).
     OutOfPrior,
+    /// The gloss readings' reference values, rows and covariances (format version 3).
+    Gloss,
 }
 
 /// Why a blob was rejected.
@@ -264,7 +292,7 @@ impl fmt::Display for BlobError {
             Self::UnsupportedVersion(v) => {
                 write!(
                     f,
-                    "blob format version {v} is not supported (this build reads {FORMAT_VERSION_1} and {FORMAT_VERSION})"
+                    "blob format version {v} is not supported (this build reads {FORMAT_VERSION_1} to {FORMAT_VERSION})"
                 )
             }
             Self::BadHeaderLen(l) => write!(f, "header length {l} is not {HEADER_LEN}"),
@@ -316,6 +344,7 @@ struct Layout {
     matrices: usize,
     centroids: usize,
     out_of_prior: usize,
+    gloss: usize,
     crc: usize,
     total: usize,
     clusters: usize,
@@ -340,7 +369,8 @@ impl Dims {
         let matrices = uncertainty + 4 * self.zones * k * self.n;
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
-        let crc = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
+        let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
+        let crc = gloss + if x.gloss { 4 * gloss_len(self.zones, k, self.m) } else { 0 };
         Layout {
             grid,
             led_order,
@@ -350,6 +380,7 @@ impl Dims {
             matrices,
             centroids,
             out_of_prior,
+            gloss,
             crc,
             total: crc + 4,
             clusters: k,
@@ -390,6 +421,24 @@ pub const fn out_of_prior_len(m: usize) -> usize {
     (m - 1) + m * (m - 1) / 2
 }
 
+/// Values of the gloss section for Z zones, K clusters and m readings.
+pub const fn gloss_len(zones: usize, clusters: usize, m: usize) -> usize {
+    GLOSS_HEAD + zones + zones * clusters * crate::gloss::block_len(m)
+}
+
+/// The gloss section of a blob (`crate::gloss`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlossData<'a> {
+    /// The gloss standard's assigned value, GU.
+    pub assigned_gu: f32,
+    /// The standard's refractive index (a record).
+    pub refractive_index: f32,
+    /// Per zone, the standard's specular linear reading through its estimator (Z).
+    pub reference: &'a [f32],
+    /// Per zone and cluster, `crate::gloss::block_len(m)` values (Z x K blocks).
+    pub blocks: &'a [f32],
+}
+
 /// The out-of-prior data of a blob.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutOfPriorData<'a> {
@@ -409,11 +458,13 @@ pub struct BlobExtras<'a> {
     pub centroids: &'a [f32],
     /// The out-of-prior section, if any.
     pub out_of_prior: Option<OutOfPriorData<'a>>,
+    /// The gloss section, if any (format version 3).
+    pub gloss: Option<GlossData<'a>>,
 }
 
 impl BlobExtras<'_> {
     /// Nothing added.
-    pub const NONE: BlobExtras<'static> = BlobExtras { clusters: 1, centroids: &[], out_of_prior: None };
+    pub const NONE: BlobExtras<'static> = BlobExtras { clusters: 1, centroids: &[], out_of_prior: None, gloss: None };
 }
 
 /// The layout-relevant part of the extras.
@@ -422,16 +473,18 @@ struct Extras {
     clusters: usize,
     piecewise: bool,
     out_of_prior: bool,
+    gloss: bool,
 }
 
 impl Extras {
-    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false };
+    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
         Extras {
             clusters: x.clusters,
             piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
             out_of_prior: x.out_of_prior.is_some(),
+            gloss: x.gloss.is_some(),
         }
     }
 
@@ -515,13 +568,27 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     if let Some(o) = &extras.out_of_prior {
         sized(d.m >= 2 && o.data.len() == d.zones * out_of_prior_len(d.m), Section::OutOfPrior)?;
     }
+    if let Some(g) = &extras.gloss {
+        sized(
+            g.reference.len() == d.zones && g.blocks.len() == d.zones * k * crate::gloss::block_len(d.m),
+            Section::Gloss,
+        )?;
+    }
     if out.len() < lay.total {
         return Err(BlobError::BufferTooSmall { need: lay.total });
     }
     let out = &mut out[..lay.total];
     out.fill(0);
     out[0..4].copy_from_slice(&MAGIC);
-    put_u16(out, 4, if v2 { FORMAT_VERSION } else { FORMAT_VERSION_1 });
+    let version = if ex.gloss {
+        FORMAT_VERSION
+    } else if v2 {
+        FORMAT_VERSION_2
+    } else {
+        FORMAT_VERSION_1
+    };
+    let v2 = v2 || ex.gloss;
+    put_u16(out, 4, version);
     put_u16(out, 6, HEADER_LEN as u16);
     put_u16(out, 8, d.n as u16);
     put_u16(out, 10, d.m as u16);
@@ -530,7 +597,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     put_f32(out, 16, c.noise_rel);
     put_u16(out, 20, c.estimator as u16);
     let oop_flag = if ex.out_of_prior { FLAG_OUT_OF_PRIOR } else { 0 };
-    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag);
+    let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
+    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag);
     if v2 {
         put_u16(out, 48, k as u16);
         put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
@@ -549,7 +617,14 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         put_u16(out, lay.zones + 2 * i, *z);
     }
     let oop: &[f32] = extras.out_of_prior.map_or(&[], |o| o.data);
+    if let Some(g) = &extras.gloss {
+        put_f32(out, lay.gloss, g.assigned_gu);
+        put_f32(out, lay.gloss + 4, g.refractive_index);
+    }
+    let (gref, gblocks): (&[f32], &[f32]) = extras.gloss.map_or((&[], &[]), |g| (g.reference, g.blocks));
     for (off, xs) in [
+        (lay.gloss + 4 * GLOSS_HEAD, gref),
+        (lay.gloss + 4 * (GLOSS_HEAD + d.zones), gblocks),
         (lay.white, c.white),
         (lay.uncertainty, c.uncertainty),
         (lay.matrices, c.matrices),
@@ -587,7 +662,7 @@ impl<'a> BlobView<'a> {
             return Err(BlobError::BadMagic);
         }
         let version = get_u16(bytes, 4);
-        if version != FORMAT_VERSION && version != FORMAT_VERSION_1 {
+        if !(FORMAT_VERSION_1..=FORMAT_VERSION).contains(&version) {
             return Err(BlobError::UnsupportedVersion(version));
         }
         let hl = get_u16(bytes, 6);
@@ -614,8 +689,13 @@ impl<'a> BlobView<'a> {
                 clusters: get_u16(bytes, 48) as usize,
                 piecewise: kind == EstimatorKind::ScaleFreePiecewise,
                 out_of_prior: flags & FLAG_OUT_OF_PRIOR != 0,
+                gloss: flags & FLAG_GLOSS != 0,
             }
         };
+        // Version 3 exists for the gloss section: it carries it, 2 never does.
+        if (version == FORMAT_VERSION) != ex.gloss {
+            return Err(BlobError::ReservedNotZero);
+        }
         ex.check(kind)?;
         if ex.out_of_prior && dims.m < 2 {
             return Err(BlobError::BadDimension { field: "m", value: dims.m as u16 });
@@ -640,7 +720,7 @@ impl<'a> BlobView<'a> {
             bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
         } else {
             bytes[50..52].iter().chain(&bytes[56..64]).all(|b| *b == 0)
-                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR) == 0
+                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS) == 0
                 && (ex.out_of_prior || get_u32(bytes, 52) == 0)
         };
         if !reserved_ok {
@@ -701,8 +781,36 @@ impl<'a> BlobView<'a> {
         view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * k * dims.n, false)?;
         view.check_finite(Section::Matrices, lay.matrices, dims.zones * k * dims.n * dims.m, false)?;
         view.check_finite(Section::Centroids, lay.centroids, (lay.out_of_prior - lay.centroids) / 4, false)?;
-        view.check_finite(Section::OutOfPrior, lay.out_of_prior, (lay.crc - lay.out_of_prior) / 4, false)?;
+        view.check_finite(Section::OutOfPrior, lay.out_of_prior, (lay.gloss - lay.out_of_prior) / 4, false)?;
+        if ex.gloss {
+            view.check_gloss()?;
+        }
         Ok(view)
+    }
+
+    /// The gloss section's rules: everything finite; the assigned value and
+    /// the zones' references > 0, the refractive index > 1, the covariances'
+    /// diagonals >= 0. Indices count f32 values from the section's start.
+    fn check_gloss(&self) -> Result<(), BlobError> {
+        let (z, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
+        let block = crate::gloss::block_len(m);
+        let diag = [0, 1, 2, 3].map(|i| crate::gloss::LINEAR * m + crate::gloss::cov_index(i, i));
+        for i in 0..gloss_len(z, k, m) {
+            let x = get_f32(self.bytes, self.lay.gloss + 4 * i);
+            if !x.is_finite() {
+                return Err(BlobError::NonFinite { section: Section::Gloss, index: i });
+            }
+            let ok = match i {
+                0 => x > 0.0,
+                1 => x > 1.0,
+                _ if i < GLOSS_HEAD + z => x > 0.0,
+                _ => !diag.contains(&((i - GLOSS_HEAD - z) % block)) || x >= 0.0,
+            };
+            if !ok {
+                return Err(BlobError::OutOfRange { section: Section::Gloss, index: i });
+            }
+        }
+        Ok(())
     }
 
     fn check_finite(&self, section: Section, off: usize, count: usize, positive: bool) -> Result<(), BlobError> {
@@ -843,7 +951,45 @@ impl<'a> BlobView<'a> {
         let len = 4 * self.dims.zones * self.lay.clusters * self.dims.n;
         bytemuck::try_cast_slice(self.bytes.get(self.lay.uncertainty..self.lay.uncertainty + len)?).ok()
     }
-    /// Format version of this blob (1 or 2).
+    /// The gloss section (`crate::gloss`) in place, when the blob carries it
+    /// and sits at a 4-byte aligned address: (assigned value, refractive
+    /// index, the zones' references Z, the blocks Z x K).
+    #[cfg(target_endian = "little")]
+    pub fn gloss_in_place(&self) -> Option<GlossData<'a>> {
+        if self.lay.crc == self.lay.gloss {
+            return None;
+        }
+        let all: &'a [f32] = bytemuck::try_cast_slice(self.bytes.get(self.lay.gloss..self.lay.crc)?).ok()?;
+        let z = self.dims.zones;
+        Some(GlossData {
+            assigned_gu: all[0],
+            refractive_index: all[1],
+            reference: &all[GLOSS_HEAD..GLOSS_HEAD + z],
+            blocks: &all[GLOSS_HEAD + z..],
+        })
+    }
+    /// Whether the blob carries the gloss section.
+    pub fn has_gloss(&self) -> bool {
+        self.lay.crc != self.lay.gloss
+    }
+    /// The gloss section's values copied out (any alignment): assigned value,
+    /// refractive index, then zone `z`'s reference and the block of cluster
+    /// `c` into `block`; `None` when the blob has no gloss section.
+    pub fn copy_gloss(&self, z: usize, c: usize, block: &mut [f32]) -> Option<(f32, f32, f32)> {
+        if !self.has_gloss() {
+            return None;
+        }
+        let (zones, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
+        let bl = crate::gloss::block_len(m);
+        assert!(z < zones && c < k && block.len() == bl);
+        let at = |i: usize| get_f32(self.bytes, self.lay.gloss + 4 * i);
+        let off = GLOSS_HEAD + zones + (z * k + c) * bl;
+        for (i, b) in block.iter_mut().enumerate() {
+            *b = at(off + i);
+        }
+        Some((at(0), at(1), at(GLOSS_HEAD + z)))
+    }
+    /// Format version of this blob (1, 2 or 3).
     pub fn version(&self) -> u16 {
         get_u16(self.bytes, 4)
     }
@@ -1053,6 +1199,7 @@ mod tests {
             clusters: 3,
             centroids: &cents,
             out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }),
+            gloss: None,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1104,7 +1251,7 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None };
+        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None, gloss: None };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
         // The threshold must be positive.
@@ -1114,6 +1261,7 @@ mod tests {
             clusters: 1,
             centroids: &[],
             out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }),
+            gloss: None,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1123,10 +1271,104 @@ mod tests {
             clusters: 1,
             centroids: &[],
             out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }),
+            gloss: None,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
             Err(BlobError::ContentMismatch { section: Section::OutOfPrior })
         );
+    }
+
+    /// A version 3 blob's gloss section for `o` with K clusters.
+    fn gloss_parts(o: &Owned, k: usize) -> (Vec<f32>, Vec<f32>) {
+        let d = o.dims;
+        let reference = (0..d.zones).map(|z| 80.0 + z as f32).collect();
+        let bl = crate::gloss::block_len(d.m);
+        let blocks = (0..d.zones * k * bl)
+            .map(|i| if (i % bl) >= crate::gloss::LINEAR * d.m { 0.25 } else { (i as f32 * 0.3).sin() })
+            .collect();
+        (reference, blocks)
+    }
+
+    #[test]
+    fn version_3_carries_the_gloss_section_and_its_rules_hold() {
+        let o = sample(6, 4, 2, 5);
+        let (reference, blocks) = gloss_parts(&o, 1);
+        let c = contents(&o);
+        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        assert_eq!(buf.len(), o.dims.blob_len() + 4 * gloss_len(2, 1, 4));
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!((v.version(), v.clusters(), v.estimator(), v.has_gloss()), (3, 1, EstimatorKind::Wiener, true));
+        let mut block = vec![0.0; crate::gloss::block_len(4)];
+        assert_eq!(v.copy_gloss(1, 0, &mut block), Some((100.0, 1.567, 81.0)));
+        assert_eq!(block, blocks[block.len()..]);
+        let mut aligned = vec![0u32; buf.len() / 4];
+        bytemuck::cast_slice_mut::<u32, u8>(&mut aligned).copy_from_slice(&buf);
+        let va = BlobView::parse(bytemuck::cast_slice(&aligned)).unwrap();
+        assert_eq!(va.gloss_in_place(), Some(g));
+        for pos in 0..buf.len() {
+            let mut bad = buf.clone();
+            bad[pos] ^= 0x5A;
+            assert!(BlobView::parse(&bad).is_err(), "corruption at byte {pos} accepted");
+        }
+        // A blob without the section: as before, and no readings.
+        let old = encode(&o);
+        let vo = BlobView::parse(&old).unwrap();
+        assert_eq!((vo.version(), vo.has_gloss(), vo.copy_gloss(0, 0, &mut block)), (1, false, None));
+        // The flag bit and the version go together, with a good CRC.
+        let resealed = |mut b: Vec<u8>, f: &dyn Fn(&mut Vec<u8>)| {
+            f(&mut b);
+            let at = b.len() - 4;
+            let crc = CRC32.checksum(&b[..at]);
+            put_u32(&mut b, at, crc);
+            BlobView::parse(&b).map(|_| ())
+        };
+        assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 2)), Err(BlobError::ReservedNotZero));
+        assert_eq!(resealed(old.clone(), &|b| put_u16(b, 22, 4)), Err(BlobError::ReservedNotZero));
+        assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 4)), Err(BlobError::UnsupportedVersion(4)));
+        // Every malformed value is named by its index in the section.
+        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::Wiener));
+        let bl = crate::gloss::block_len(4);
+        let cov00 = 2 + 2 + 4 * 4;
+        for (i, x, want) in [
+            (0, 0.0, BlobError::OutOfRange { section: Section::Gloss, index: 0 }),
+            (1, 1.0, BlobError::OutOfRange { section: Section::Gloss, index: 1 }),
+            (3, -1.0, BlobError::OutOfRange { section: Section::Gloss, index: 3 }),
+            (5, f32::NAN, BlobError::NonFinite { section: Section::Gloss, index: 5 }),
+            (cov00 + bl, -0.5, BlobError::OutOfRange { section: Section::Gloss, index: cov00 + bl }),
+        ] {
+            assert_eq!(resealed(buf.clone(), &|b| put_f32(b, lay.gloss + 4 * i, x)), Err(want), "index {i}");
+        }
+        // An off-diagonal covariance and a row may be negative.
+        assert_eq!(resealed(buf.clone(), &|b| put_f32(b, lay.gloss + 4 * (cov00 + 1), -0.5)), Ok(()));
+        assert_eq!(resealed(buf.clone(), &|b| put_f32(b, lay.gloss + 4 * 4, -7.0)), Ok(()));
+        // The writer checks the section's size.
+        let short = GlossData { blocks: &blocks[1..], ..g };
+        let ex = BlobExtras { gloss: Some(short), ..BlobExtras::NONE };
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Err(BlobError::ContentMismatch { section: Section::Gloss }));
+        // With K clusters (piecewise scale-free), blocks per zone and cluster.
+        let (unc, mats, cents, oop) = v2_extras(&o, 3);
+        let (reference, blocks) = gloss_parts(&o, 3);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let ex = BlobExtras {
+            clusters: 3,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
+            gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
+        };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        write_blob_with(&c, &ex, &mut buf).unwrap();
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!(v.copy_gloss(1, 2, &mut block), Some((100.0, 1.567, 81.0)));
+        assert_eq!(block, blocks[5 * bl..6 * bl]);
+        let (mut mean, mut gg) = (vec![0.0; 3], vec![0.0; 6]);
+        assert!(v.copy_out_of_prior(1, &mut mean, &mut gg));
+        assert_eq!(mean, oop[9..12]);
     }
 }

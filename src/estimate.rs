@@ -15,7 +15,7 @@
 //! cannot be copied into its 128 KiB of RAM and runs in place; the QEMU build
 //! and the host simulation copy to RAM (and the host simulation tests the
 //! in-place case too, with a small budget).
-use crate::blob::{BlobView, EstimatorKind};
+use crate::blob::{BlobView, EstimatorKind, GlossData};
 use crate::kernel::scale_free::{out_of_prior_stat, scale, whitening_len};
 use crate::protocol::{CalInfo, DeviceError, SizeField};
 use crate::store::SlotInfo;
@@ -61,6 +61,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     /// The blob's per-bin uncertainties in flash, Z x K x n (what the
     /// Sigma16 stream encoding scales its steps by).
     uncertainty: &'static [f32],
+    /// The blob's gloss section in flash, when it carries one.
+    gloss: Option<GlossData<'static>>,
 }
 
 /// What one point's estimate adds to its frame besides the values.
@@ -160,6 +162,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             None => (&[], f32::INFINITY),
         };
         let uncertainty = view.uncertainty_in_place().ok_or(DeviceError::Storage)?;
+        let gloss = if view.has_gloss() { Some(view.gloss_in_place().ok_or(DeviceError::Storage)?) } else { None };
         let mut white = [[0.0f32; M]; P];
         for (p, wp) in white.iter_mut().enumerate() {
             for (i, x) in wp.iter_mut().enumerate() {
@@ -194,6 +197,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             out_of_prior,
             out_of_prior_threshold,
             uncertainty,
+            gloss,
         });
         Ok(())
     }
@@ -240,7 +244,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// One point as the device streams it: [`Self::estimate_pixel`], then
     /// [`guard_estimate`], with every flag in the returned meta: the
     /// readings' own (`reading_flags`, from the correction), the estimate's
-    /// and the guard's.
+    /// and the guard's. A point whose estimate is not finite has no gloss
+    /// readings either (NaN).
     pub fn estimate_point(
         &self,
         p: usize,
@@ -250,6 +255,10 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     ) -> PointMeta {
         let mut meta = self.estimate_pixel(p, v, out);
         meta.flags |= reading_flags | guard_estimate(out.as_mut_slice());
+        if meta.flags & crate::protocol::flags::NON_FINITE != 0 {
+            meta.readings = crate::gloss::NO_READINGS;
+            meta.reading_sigma = crate::gloss::NO_READINGS;
+        }
         meta
     }
 
@@ -268,7 +277,10 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     ///   [`crate::kernel::select_cluster`] picks from the zone's centroids;
     ///
     /// and, when the blob carries out-of-prior data, flags the point whose
-    /// statistic is above the threshold (or not a number).
+    /// statistic is above the threshold (or not a number); and, when it
+    /// carries the gloss section, computes the point's gloss readings and
+    /// their uncertainties from the same kernel input ([`crate::gloss`]:
+    /// 4 x m multiply-adds more), else leaves them NaN.
     ///
     /// Not inlined, so the firmware has one symbol for the whole per-point
     /// path, whose instructions scripts/qemu-icount.sh counts with those of
@@ -285,7 +297,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             readings: crate::gloss::NO_READINGS,
             reading_sigma: crate::gloss::NO_READINGS,
         };
-        let s = match a.kind {
+        let mut x = *v;
+        let (s, c) = match a.kind {
             EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
                 let s = scale(v.as_slice());
                 let c = if a.centroids.is_empty() {
@@ -294,19 +307,15 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                     let km = a.clusters * M;
                     crate::kernel::select_cluster(&a.centroids[z * km..(z + 1) * km], v.as_slice())
                 };
-                let mut vs = *v;
-                vs[M - 1] = s;
-                point_kernel(self.matrix_of(z, c), &vs, out);
+                x[M - 1] = s;
+                point_kernel(self.matrix_of(z, c), &x, out);
                 meta.cluster = c as u8;
                 meta.sigma_scale = s;
-                s
+                (s, c)
             }
             _ => {
                 point_kernel(self.matrix(z), v, out);
-                if a.out_of_prior.is_empty() {
-                    return meta;
-                }
-                scale(v.as_slice())
+                (if a.out_of_prior.is_empty() { 0.0 } else { scale(v.as_slice()) }, 0)
             }
         };
         if !a.out_of_prior.is_empty() {
@@ -314,6 +323,12 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             let data = &a.out_of_prior[z * per..(z + 1) * per];
             let stat = out_of_prior_stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
             meta.flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
+        }
+        if let Some(g) = &a.gloss {
+            let bl = crate::gloss::block_len(M);
+            let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
+            let q = g.assigned_gu / g.reference[z];
+            (meta.readings, meta.reading_sigma) = crate::gloss::readings(block, x.as_slice(), q, meta.sigma_scale);
         }
         meta
     }

@@ -1,16 +1,44 @@
 //! Gloss readings: what the meter tells its user about a point besides its
-//! BRDF vector, defined once here for the device and the host.
+//! BRDF vector, computed on the device from the point's estimate and
+//! defined once here for the device and the host (which calls these same
+//! functions, so both give the same bits).
 //!
 //! Each point frame carries [`crate::shape::READINGS`] readings, in this
-//! order, and a standard uncertainty for each:
+//! order, and a standard uncertainty (k = 1) for each:
 //! - [`SPECULAR_GU`]: specular gloss in gloss units (GU), the black-glass
-//!   standard (n = 1.567) reading 100;
-//! - [`HAZE_HU`]: haze in haze units (HU), reflection just off the specular
-//!   direction on the same black-glass scale;
-//! - [`DISTINCTNESS`]: distinctness of the specular peak, in %.
+//!   standard (n = 1.567) reading its assigned value (100);
+//! - [`HAZE_HU`]: haze in haze units (HU): reflection just off the specular
+//!   direction, on the same black-glass scale;
+//! - [`DISTINCTNESS`]: distinctness of the specular peak in %: 100 for a
+//!   peak narrower than the instrument resolves, 0 for a flat one.
+//!
+//! # How they are computed
+//! Every reading is built from [`LINEAR`] *linear* readings of the estimate,
+//! `L_r = a_r^T rho` (the weights `a_r` over the angle grid are the
+//! definitions; host-tools' `forward::gloss` has them). Since `rho = W x`
+//! (x the kernel's input: the readings, or for the scale-free kinds the
+//! readings with the last replaced by their scale), `L = (A W) x`: training
+//! stores the rows `A W` per zone and cluster, so the device spends
+//! [`LINEAR`] x m multiply-adds, not n x [`LINEAR`]. Then
+//!
+//! - gloss `G = q L_0`, haze `H = q L_1`, with `q = assigned / S_z` (the
+//!   standard's assigned value over zone z's reading of it: the calibration
+//!   on the gloss standard);
+//! - distinctness `D = 100 (L_2 - L_3) / L_2` (peak against its shoulders;
+//!   NaN when `L_2 <= 0`, no peak to compare).
+//!
+//! # Uncertainties
+//! Training stores the covariance `C = A E A^T` of the linear readings'
+//! errors (E the estimator's error covariance, per unit scale for the
+//! scale-free kinds), packed, per zone and cluster. With `s` the point's
+//! `sigma_scale` (1 for the linear kinds):
+//! `u(G) = q s sqrt(C_00)`, `u(H) = q s sqrt(C_11)`, and to first order in
+//! `(L_2, L_3)`, with `r = L_3 / L_2`,
+//! `u(D) = 100 s sqrt(r^2 C_22 - 2 r C_23 + C_33) / |L_2|`.
 //!
 //! A reading of NaN means "no reading": the calibration carries no gloss
-//! section, or the point's estimate was not finite.
+//! section (blob format 1 or 2), the point's estimate was not finite, or
+//! (distinctness only) there is no peak.
 
 /// Index of the specular gloss (GU) in a point's readings.
 pub const SPECULAR_GU: usize = 0;
@@ -22,3 +50,128 @@ pub const DISTINCTNESS: usize = 2;
 pub const NAMES: [&str; crate::shape::READINGS] = ["gloss_gu", "haze_hu", "distinctness_pct"];
 /// What a point without readings streams.
 pub const NO_READINGS: [f32; crate::shape::READINGS] = [f32::NAN; crate::shape::READINGS];
+
+/// Linear readings per point: specular aperture, haze windows, peak,
+/// shoulders.
+pub const LINEAR: usize = 4;
+/// Packed upper-triangular covariance of the linear readings: (0,0), (0,1),
+/// (0,2), (0,3), (1,1), (1,2), (1,3), (2,2), (2,3), (3,3).
+pub const COV_LEN: usize = LINEAR * (LINEAR + 1) / 2;
+
+/// Values per zone and cluster in the blob's gloss section for m readings:
+/// the rows (LINEAR x m, row-major), then the packed covariance.
+pub const fn block_len(m: usize) -> usize {
+    LINEAR * m + COV_LEN
+}
+
+/// Index of `(i, j)`, `i <= j`, in the packed covariance.
+pub const fn cov_index(i: usize, j: usize) -> usize {
+    // Row i starts after rows 0..i, row k holding LINEAR - k entries.
+    i * LINEAR - i * (i + 1) / 2 + j
+}
+
+/// `sqrt(max(x, 0))`, IEEE-exact on both sides: the M4's `VSQRT` on the
+/// device, libm (correctly rounded) elsewhere.
+#[inline]
+fn sqrt0(x: f32) -> f32 {
+    let x = if x > 0.0 { x } else { 0.0 };
+    #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
+    {
+        let bits: u32;
+        // SAFETY: one FPU instruction on a core register moved in and out, no memory access.
+        unsafe {
+            core::arch::asm!(
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {r}, s0",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) bits,
+                out("s0") _,
+                options(pure, nomem, nostack)
+            )
+        };
+        f32::from_bits(bits)
+    }
+    #[cfg(not(all(target_arch = "arm", target_os = "none", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
+/// One point's readings and their standard uncertainties.
+///
+/// `block` is the zone and cluster's [`block_len`]`(m)` values, `x` the
+/// estimator kernel's input (the corrected readings; for the scale-free
+/// kinds the readings with the last replaced by their scale), `q` the
+/// zone's `assigned / S_z` and `s` the point's `sigma_scale`. The linear
+/// readings are accumulated in index order, unfused, like the kernel.
+///
+/// # Panics
+/// If `block.len() != block_len(x.len())`.
+#[inline]
+pub fn readings(
+    block: &[f32],
+    x: &[f32],
+    q: f32,
+    s: f32,
+) -> ([f32; crate::shape::READINGS], [f32; crate::shape::READINGS]) {
+    let m = x.len();
+    assert!(block.len() == block_len(m), "a gloss block is LINEAR x m rows and the covariance");
+    let mut l = [0.0f32; LINEAR];
+    for (lr, row) in l.iter_mut().zip(block.chunks_exact(m)) {
+        let mut acc = 0.0f32;
+        for (w, xi) in row.iter().zip(x) {
+            acc += *w * *xi;
+        }
+        *lr = acc;
+    }
+    let c = &block[LINEAR * m..];
+    let qs = q * s.abs();
+    let r = l[3] / l[2];
+    let d = if l[2] > 0.0 { 100.0 * ((l[2] - l[3]) / l[2]) } else { f32::NAN };
+    let var_d = (r * r) * c[7] - 2.0 * r * c[8] + c[9];
+    let u_d = if l[2] > 0.0 { 100.0 * s.abs() * (sqrt0(var_d) / l[2]) } else { f32::NAN };
+    ([q * l[0], q * l[1], d], [qs * sqrt0(c[0]), qs * sqrt0(c[4]), u_d])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_covariance_indices_run_row_by_row() {
+        let mut k = 0;
+        for i in 0..LINEAR {
+            for j in i..LINEAR {
+                assert_eq!(cov_index(i, j), k, "({i}, {j})");
+                k += 1;
+            }
+        }
+        assert_eq!(k, COV_LEN);
+    }
+
+    #[test]
+    fn readings_follow_their_definitions() {
+        // m = 2; rows pick x_0, x_1, x_0 + x_1, x_0 - x_1.
+        let mut block = [1.0f32, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        // Covariance: diag 4, 9, 1, 0.25; cov(2,3) = 0.1.
+        block[8 + cov_index(0, 0)] = 4.0;
+        block[8 + cov_index(1, 1)] = 9.0;
+        block[8 + cov_index(2, 2)] = 1.0;
+        block[8 + cov_index(2, 3)] = 0.1;
+        block[8 + cov_index(3, 3)] = 0.25;
+        let (r, u) = readings(&block, &[3.0, 1.0], 2.0, 0.5);
+        assert_eq!(r[SPECULAR_GU], 6.0);
+        assert_eq!(r[HAZE_HU], 2.0);
+        assert_eq!(r[DISTINCTNESS], 100.0 * (4.0 - 2.0) / 4.0);
+        assert_eq!(u[SPECULAR_GU], 2.0 * 0.5 * 2.0);
+        assert_eq!(u[HAZE_HU], 2.0 * 0.5 * 3.0);
+        let rr = 2.0f64 / 4.0;
+        let want = 100.0 * 0.5 * (rr * rr * 1.0 - 2.0 * rr * 0.1 + 0.25f64).sqrt() / 4.0;
+        assert!((f64::from(u[DISTINCTNESS]) - want).abs() < 1e-5 * want, "{} {want}", u[DISTINCTNESS]);
+        // No peak: no distinctness.
+        let (r, u) = readings(&block, &[-3.0, 1.0], 2.0, 1.0);
+        assert!(r[DISTINCTNESS].is_nan() && u[DISTINCTNESS].is_nan());
+        assert!(r[SPECULAR_GU].is_finite());
+    }
+}

@@ -134,11 +134,29 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         clusters: k,
         centroids: &centroids,
         out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }),
+        gloss: None,
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
     b2.truncate(n);
     out.push(("blob.v2".into(), b2));
+    // Format 3: a Wiener blob with the gloss section.
+    let p3 = TestBlobParts::new(9, 3, 2, 6, 0.75);
+    let reference = [84.5f32, 91.25];
+    let blocks: Vec<f32> = (0..2 * brdf_meter::gloss::block_len(3)).map(|i| 0.125 * (i % 9) as f32).collect();
+    let ex3 = BlobExtras {
+        gloss: Some(brdf_meter::blob::GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference,
+            blocks: &blocks,
+        }),
+        ..BlobExtras::NONE
+    };
+    let mut b3 = vec![0u8; p3.dims.blob_len_with(&ex3)];
+    let n = write_blob_with(&p3.contents(), &ex3, &mut b3).expect("a valid format 3 blob");
+    b3.truncate(n);
+    out.push(("blob.v3".into(), b3));
 
     // The store's slot header.
     out.push(("slot_header".into(), encode_slot_header(7, 4096, 0x1234_5678).to_vec()));

@@ -37,6 +37,12 @@ fn blob(seed: f32) -> Vec<u8> {
 /// Checks that `points` (of `lines` lines) are bit-identical to the host's
 /// computation on the scene line each device line saw.
 fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines: usize) {
+    if brdf_meter::blob::BlobView::parse(blob).unwrap().has_gloss() {
+        assert!(
+            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
+            "gloss readings computed on the device"
+        );
+    }
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(points.len(), lines * P);
     for (k, p) in points.iter().enumerate() {

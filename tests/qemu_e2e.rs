@@ -23,6 +23,13 @@ const ZONES: usize = 4;
 fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRecord], lines: usize, full_scale: u16) {
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(points.len(), lines * PIXELS, "one frame per point");
+    // A calibration with the gloss section: the device computes the readings (not NaN).
+    if view.has_gloss() {
+        assert!(
+            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
+            "gloss readings computed on the device"
+        );
+    }
     let mut compared = 0;
     for (k, p) in points.iter().enumerate() {
         let line = k / PIXELS;

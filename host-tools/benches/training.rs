@@ -48,6 +48,7 @@ fn bench(c: &mut Criterion) {
                 bins_deg: grid.bins_deg(),
                 zones,
                 pixels: 128,
+                view_deg: inst.view_deg,
                 prior: &prior,
                 noise_rel: 0.02,
                 estimator: EstimatorKind::Wiener,

@@ -1,9 +1,11 @@
 //! Calibration: the estimators (W from H, the prior and the noise model) and
-//! training (one W per zone, the f32 gate, the blob) and signing (key files,
+//! training (one W per zone, the f32 gate, the gloss readings' rows and the
+//! calibration on the gloss standard, the blob) and signing (key files,
 //! the signed calibration). Consumes the forward
 //! model; knows nothing of the device link or of evaluation.
 pub mod demo;
 pub mod estimators;
+pub mod gloss_rows;
 pub mod signing;
 pub mod train;
 pub mod train_scale_free;

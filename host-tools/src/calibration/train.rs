@@ -13,10 +13,11 @@
 //! tolerance and what to do. The largest relative difference is recorded as
 //! `f32_rel_error`.
 use crate::calibration::estimators::{self, EstimatorInputs, EstimatorSummary, LinearEstimator, NoiseModel, kind_name};
+use crate::calibration::gloss_rows::{self, GlossSection};
 use crate::forward::prior::Prior;
 use crate::forward::zone_optics::ZoneOptics;
 use anyhow::{Context, bail, ensure};
-use brdf_meter::blob::{BlobContents, BlobView, Dims, EstimatorKind, TrainingSummary, write_blob};
+use brdf_meter::blob::{BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, TrainingSummary, write_blob_with};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -29,6 +30,9 @@ pub struct TrainSpec<'a> {
     pub zones: Vec<ZoneOptics>,
     /// Pixels P of the line sensor.
     pub pixels: usize,
+    /// The view's angle, degrees: its mirror incidence is the specular
+    /// direction of the gloss readings (`crate::forward::gloss`).
+    pub view_deg: f64,
     /// The prior (R_pp and its samples).
     pub prior: &'a Prior,
     /// Relative measurement noise (the patent's 0.02).
@@ -170,13 +174,42 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
         uncertainty: &uncertainty,
         matrices: &matrices,
     };
-    let mut blob = vec![0u8; dims.blob_len()];
-    let len =
-        write_blob(&contents, &mut blob).map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
+    let gloss = gloss_section(spec, &zones, &plans)?;
+    let extras = BlobExtras { gloss: gloss.as_ref().map(GlossSection::data), ..BlobExtras::NONE };
+    let mut blob = vec![0u8; dims.blob_len_with(&extras)];
+    let len = write_blob_with(&contents, &extras, &mut blob)
+        .map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
     Ok(Trained { dims, bins_deg: spec.bins_deg.to_vec(), zones, summary, f32_rel_error, f32_exponents, blob })
+}
+
+/// The gloss section of a linear calibration: per zone the rows `A W` (W
+/// as the blob holds it, with the f32 gate's power-of-two column factors),
+/// `A E A^T` from the zone's full error covariance, and the zone's reading
+/// of the black glass through the blob's own matrices. `None` when the
+/// grid does not cover the specular aperture about the view (no readings
+/// then; the device streams NaN).
+fn gloss_section(
+    spec: &TrainSpec<'_>,
+    zones: &[TrainedZone],
+    plans: &[F32Plan],
+) -> anyhow::Result<Option<GlossSection>> {
+    let Ok(a) = gloss_rows::weights(spec.bins_deg, spec.view_deg) else { return Ok(None) };
+    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new() };
+    for (z, (tz, plan)) in zones.iter().zip(plans).enumerate() {
+        let noise = NoiseModel::Relative(spec.noise_rel);
+        let r_nn = noise.covariance(&tz.h, &spec.prior.r_pp).with_context(|| format!("zone {z}: noise covariance"))?;
+        let e = estimators::error_covariance(&tz.estimator.w, &tz.h, &spec.prior.r_pp, &r_nn);
+        let (n, m) = tz.estimator.w.shape();
+        let w_blob = DMatrix::from_fn(n, m, |j, i| tz.estimator.w[(j, i)] * 2f64.powi(plan.exponents[i]));
+        let block = gloss_rows::block(&a, &w_blob, &e);
+        let v = gloss_rows::black_glass_readings(&tz.h, spec.bins_deg, spec.view_deg);
+        out.reference.push(gloss_rows::standard_reading(&block, &plan.readings(&v), z)?);
+        out.blocks.extend(block);
+    }
+    Ok(Some(out))
 }
 
 /// The device's f32 tolerance: the largest `|f32 kernel - f64|` over the
@@ -477,6 +510,7 @@ mod tests {
             bins_deg: bins,
             zones: zs,
             pixels,
+            view_deg: inst.view_deg,
             prior,
             noise_rel: 0.02,
             estimator: kind,

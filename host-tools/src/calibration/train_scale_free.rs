@@ -5,6 +5,7 @@
 //! device's own function (`brdf_meter::kernel::scale_free::estimate_scale_free`) on
 //! the prior's samples against f64, as [`crate::calibration::train::f32_gate`] does for W.
 use crate::calibration::estimators::scale_free::{ScaleFreeOptions, ScaleFreeZone, WeightedSamples, train_zone};
+use crate::calibration::gloss_rows::{self, GlossSection};
 use crate::calibration::train::{F32_TOLERANCE, TrainSpec};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::{
@@ -161,14 +162,41 @@ pub fn train_scale_free(
         uncertainty: &uncertainty,
         matrices: &matrices,
     };
-    let extras =
-        BlobExtras { clusters: k, centroids: &centroids, out_of_prior: Some(OutOfPriorData { threshold, data: &oop }) };
+    let gloss = gloss_section(spec, &zones)?;
+    let extras = BlobExtras {
+        clusters: k,
+        centroids: &centroids,
+        out_of_prior: Some(OutOfPriorData { threshold, data: &oop }),
+        gloss: gloss.as_ref().map(GlossSection::data),
+    };
     let mut blob = vec![0u8; dims.blob_len_with(&extras)];
     let len = write_blob_with(&contents, &extras, &mut blob)
         .map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     Ok(TrainedScaleFree { dims, zones, f32_rel_error, threshold, blob })
+}
+
+/// The gloss section of a scale-free calibration: per zone and cluster the
+/// rows `A [W' | b]` (the same kernel input as the estimate: the readings
+/// with the last replaced by their scale) and `A E A^T` per unit scale;
+/// each zone's reading of the black glass by the device's rule (its cluster,
+/// its scale). `None` when the grid does not cover the specular aperture.
+fn gloss_section(spec: &TrainSpec<'_>, zones: &[ScaleFreeZone]) -> anyhow::Result<Option<GlossSection>> {
+    let Ok(a) = gloss_rows::weights(spec.bins_deg, spec.view_deg) else { return Ok(None) };
+    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new() };
+    for (z, (zo, tz)) in spec.zones.iter().zip(zones).enumerate() {
+        let blocks: Vec<Vec<f32>> = tz.maps.iter().map(|mp| gloss_rows::block(&a, &mp.w, &mp.err_unit)).collect();
+        let v = gloss_rows::black_glass_readings(&zo.h, spec.bins_deg, spec.view_deg);
+        let mut x: Vec<f32> = v.iter().map(|t| *t as f32).collect();
+        let c = if tz.centroids.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&tz.centroids, &x) };
+        let s = brdf_meter::kernel::scale_free::scale(&x);
+        let m = x.len();
+        x[m - 1] = s;
+        out.reference.push(gloss_rows::standard_reading(&blocks[c], &x, z)?);
+        out.blocks.extend(blocks.into_iter().flatten());
+    }
+    Ok(Some(out))
 }
 
 impl TrainedScaleFree {

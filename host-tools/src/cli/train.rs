@@ -130,6 +130,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bins_deg: grid.bins_deg(),
         zones,
         pixels,
+        view_deg: inst.view_deg,
         prior: &prior,
         noise_rel: noise,
         estimator: a.estimator.into(),

@@ -30,6 +30,7 @@ pub fn run(
         bins_deg: grid.bins_deg(),
         zones,
         pixels,
+        view_deg: inst.view_deg,
         prior: &prior,
         noise_rel: noise,
         estimator: kind,

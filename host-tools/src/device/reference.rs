@@ -72,6 +72,8 @@ pub struct PointEstimator<'a> {
     sigma: Vec<Vec<f32>>,
     centroids: Vec<f32>,
     out_of_prior: Option<(Vec<f32>, Vec<f32>, f32)>,
+    /// Per cluster the gloss block, and `assigned / S_z` (`brdf_meter::gloss`).
+    gloss: Option<(Vec<Vec<f32>>, f32)>,
 }
 
 impl<'a> PointEstimator<'a> {
@@ -103,7 +105,20 @@ impl<'a> PointEstimator<'a> {
             view.copy_out_of_prior(zone, &mut mean, &mut g);
             (mean, g, t)
         });
-        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior })
+        let gloss = view.has_gloss().then(|| {
+            let mut q = 0.0f32;
+            let blocks = (0..k)
+                .map(|c| {
+                    let mut b = vec![0.0f32; brdf_meter::gloss::block_len(d.m)];
+                    let (assigned, _, reference) = view.copy_gloss(zone, c, &mut b).expect("the blob has the section");
+                    // The device's operation, so the same bits.
+                    q = assigned / reference;
+                    b
+                })
+                .collect();
+            (blocks, q)
+        });
+        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior, gloss })
     }
 
     /// Readings per point m.
@@ -145,11 +160,20 @@ impl<'a> PointEstimator<'a> {
             bits |= out_of_prior_flag(stat, *t);
         }
         bits |= guard_estimate(&mut rho);
+        let (mut readings, mut reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
+        if let Some((blocks, q)) = &self.gloss {
+            // The kernel's input: the scale-free kinds replace the last reading by the scale.
+            let mut x = v.to_vec();
+            if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+                x[v.len() - 1] = s;
+            }
+            (readings, reading_sigma) = brdf_meter::gloss::readings(&blocks[cluster as usize], &x, *q, sigma_scale);
+        }
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);
             sigma.fill(0.0);
+            (readings, reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
         }
-        let (readings, reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
         PointEstimate {
             rho,
             sigma,

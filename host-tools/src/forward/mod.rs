@@ -1,7 +1,10 @@
 //! The forward model: what the instrument reads for a surface.
 //! BRDF models -> angle grid -> optics (rays, system matrix H) -> priors ->
-//! per-zone optics -> scenes (the scene simulator and raw frames).
+//! per-zone optics -> scenes (the scene simulator and raw frames); and
+//! what the instrument reports from a BRDF besides it: the gloss readings'
+//! definitions (`gloss`).
 pub mod brdf;
+pub mod gloss;
 pub mod grid;
 pub mod optics;
 pub mod prior;

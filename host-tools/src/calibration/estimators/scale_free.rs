@@ -71,6 +71,9 @@ pub struct ScaleFreeMap {
     pub w: DMatrix<f64>,
     /// Predicted standard uncertainty per unit scale, per bin (n).
     pub sigma_unit: DVector<f64>,
+    /// The full error covariance per unit scale (n x n): its diagonal is
+    /// `sigma_unit` squared; the gloss readings' covariance is taken from it.
+    pub err_unit: DMatrix<f64>,
 }
 
 impl ScaleFreeMap {
@@ -217,7 +220,7 @@ fn fit_map(mo: &Moments, ridge: f64) -> anyhow::Result<ScaleFreeMap> {
     w.set_column(m1, &b);
     let err = &mo.sy * mo.sy.transpose() - &wp * &cyu.transpose();
     let sigma_unit = DVector::from_fn(n, |j, _| err[(j, j)].max(0.0).sqrt());
-    Ok(ScaleFreeMap { w, sigma_unit })
+    Ok(ScaleFreeMap { w, sigma_unit, err_unit: err })
 }
 
 /// Packed `chol(C')^-1` (lower triangular) of the predictive covariance.

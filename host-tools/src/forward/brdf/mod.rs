@@ -13,12 +13,14 @@ mod ggx;
 mod lambert;
 pub mod merl_binary;
 pub mod nbrdf;
+pub mod smooth_dielectric;
 mod tabulated;
 mod ward;
 
 pub use ggx::Ggx;
 pub use lambert::Lambertian;
 pub use nbrdf::{Nbrdf, NbrdfSet};
+pub use smooth_dielectric::SmoothDielectric;
 pub use tabulated::Tabulated;
 pub use ward::Ward;
 
@@ -32,6 +34,63 @@ pub trait Brdf: Send + Sync + std::fmt::Debug {
     fn reflectance(&self, theta_i_deg: f64, theta_o_deg: f64) -> f64 {
         std::f64::consts::PI * self.f_r(&light_dir(theta_i_deg), &view_dir(theta_o_deg))
     }
+
+    /// The reflectance of the part of the reflection concentrated in the
+    /// mirror direction (a smooth surface's Fresnel reflection) at
+    /// incidence `theta_deg`; 0 for a rough model, whose `f_r` holds all.
+    fn mirror_reflectance(&self, _theta_deg: f64) -> f64 {
+        0.0
+    }
+}
+
+/// Out-of-plane extent of the receptor aperture of the 45 deg gloss
+/// geometry (ASTM D2457 / ASTM C346: 8.0 deg in the plane of incidence x
+/// 10.0 deg across it), degrees: what ties the in-plane model's mirror
+/// spike to the 3-D flux a gloss meter receives ([`mirror_area_deg`]).
+pub const GLOSS_APERTURE_ACROSS_DEG: f64 = 10.0;
+
+/// The in-plane weight of a mirror spike: `R(theta) = A delta(theta -
+/// theta_o)` with `A` (reflectance factor x degrees) such that a mirror of
+/// reflectance `f` and a diffuser of reflectance factor `R` send the flux
+/// ratio of the 3-D gloss geometry into a receptor of extent `beta` across
+/// the plane of incidence: the diffuser's `(R/pi) cos(theta_o) alpha beta`
+/// over the mirror's `f` equals the in-plane `R alpha_deg / A`, so
+/// `A = 180 f / (cos(theta_o) beta_rad)`.
+pub fn mirror_area_deg(f: f64, theta_o_deg: f64) -> f64 {
+    180.0 * f / (theta_o_deg.to_radians().cos() * GLOSS_APERTURE_ACROSS_DEG.to_radians())
+}
+
+/// The reflectance factor one ray sees, as the forward model integrates it:
+/// `pi f_r` plus the mirror spike spread over the angle grid's bin kernel
+/// (the triangle of half-width `step_deg` by which a ray's weight is split
+/// between bins, normalised to unit area), centred on the view's mirror
+/// incidence `theta_o_deg`. So a mirror's readings are exactly `H rho` of
+/// its binned spike ([`binned_reflectance`]) whenever `theta_o` is a bin.
+pub fn ray_reflectance(
+    brdf: &dyn Brdf,
+    wi: &Vector3<f64>,
+    wo: &Vector3<f64>,
+    theta_ray_deg: f64,
+    theta_o_deg: f64,
+    step_deg: f64,
+) -> f64 {
+    std::f64::consts::PI * brdf.f_r(wi, wo) + spike(brdf, theta_ray_deg, theta_o_deg, step_deg)
+}
+
+fn spike(brdf: &dyn Brdf, theta_deg: f64, theta_o_deg: f64, step_deg: f64) -> f64 {
+    let f = brdf.mirror_reflectance(theta_o_deg);
+    if f == 0.0 {
+        return 0.0;
+    }
+    let t = 1.0 - (theta_deg - theta_o_deg).abs() / step_deg;
+    if t <= 0.0 { 0.0 } else { mirror_area_deg(f, theta_o_deg) * t / step_deg }
+}
+
+/// The model's true binned BRDF at bin centre `theta_deg` (view `theta_o_deg`,
+/// grid step `step_deg`): the reflectance factor there, plus a mirror spike
+/// projected onto the bin (the same kernel as [`ray_reflectance`]).
+pub fn binned_reflectance(brdf: &dyn Brdf, theta_deg: f64, theta_o_deg: f64, step_deg: f64) -> f64 {
+    brdf.reflectance(theta_deg, theta_o_deg) + spike(brdf, theta_deg, theta_o_deg, step_deg)
 }
 
 /// Unit direction towards an in-plane light at incidence `theta_deg` (-x side).
@@ -83,6 +142,17 @@ pub enum BrdfSpec {
         /// Material name, e.g. `"blue-acrylic"` (host-tools/data/merl-nbrdf.json).
         material: String,
     },
+    /// A polished dielectric black behind its surface (the black-glass gloss
+    /// standard: n = 1.567): Fresnel reflection only, a mirror spike.
+    SmoothDielectric {
+        /// Refractive index (default 1.567, black glass at the sodium D line).
+        #[serde(default = "black_glass_index")]
+        n: f64,
+    },
+}
+
+fn black_glass_index() -> f64 {
+    smooth_dielectric::BLACK_GLASS_INDEX
 }
 
 /// Why a model description was refused.
@@ -137,6 +207,7 @@ impl BrdfSpec {
             BrdfSpec::Ward { rho_d, rho_s, alpha } => Box::new(Ward::new(rho_d, rho_s.unwrap_or(1.0 - rho_d), alpha)?),
             BrdfSpec::Lambertian { rho } => Box::new(Lambertian::new(rho)?),
             BrdfSpec::Ggx { rho_d, k_s, alpha, f0 } => Box::new(Ggx::new(rho_d, k_s, alpha, f0)?),
+            BrdfSpec::SmoothDielectric { n } => Box::new(SmoothDielectric::new(n)?),
             BrdfSpec::Merl { .. } => unreachable!("built above"),
         })
     }

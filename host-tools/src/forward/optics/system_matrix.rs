@@ -81,12 +81,17 @@ pub fn system_matrix_at(optics: &Optics, grid: &AngleGrid, point: &Vector3<f64>)
 /// discretisation error of H is real, not hidden.
 pub fn simulate_readings(inst: &Instrument, brdf: &dyn Brdf, far_field: bool) -> DVector<f64> {
     let wo = surface_view(inst);
+    // A mirror spike is spread over the grid's bin kernel (`brdf::ray_reflectance`).
+    let step = inst.grid().map_or(0.5, |g| g.step_deg());
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
     DVector::from_iterator(
         inst.m(),
         (0..inst.m()).map(|led| {
             rays(inst, led, far_field)
                 .iter()
-                .map(|r| r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, &wo))
+                .map(|r| {
+                    r.weight * crate::forward::brdf::ray_reflectance(brdf, &r.dir, &wo, r.theta_deg, theta_o, step)
+                })
                 .sum::<f64>()
         }),
     )

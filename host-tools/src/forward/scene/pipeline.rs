@@ -13,9 +13,9 @@
 //! listed effect and none for an unlisted one.
 use super::Scene;
 use super::effects::{EffectSpec, NoiseModel, STAGE_ORDER};
-use crate::forward::brdf::Brdf;
+use crate::forward::brdf::{Brdf, ray_reflectance};
 use crate::forward::optics::{Optics, RayModel};
-use anyhow::bail;
+use anyhow::{Context, bail};
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -304,6 +304,7 @@ impl Simulator {
         let optics = Optics::new(inst, pipeline.model);
         let (brdfs, of_pixel) = scene.surface_brdfs()?;
         let gain = inst.sensor.gain;
+        let step = inst.grid().context("the scene's angle grid")?.step_deg();
         // Light per (point, model): computed once per distinct pair. Without
         // per-pixel geometry there is one point, so one evaluation per LED
         // and model serves every pixel.
@@ -318,8 +319,14 @@ impl Simulator {
             let key = pt * brdfs.len() + b;
             if memo[key].is_none() || white_memo[pt].is_none() {
                 // One pass over the rays gives the surface's light and the white tile's.
-                let (l, w) =
-                    light(&optics, &scene.pixel_point(px as f64), &pixel_view(scene, px), brdfs[b].as_ref(), gain);
+                let (l, w) = light(
+                    &optics,
+                    &scene.pixel_point(px as f64),
+                    &pixel_view(scene, px),
+                    brdfs[b].as_ref(),
+                    gain,
+                    step,
+                );
                 memo[key].get_or_insert(l);
                 white_memo[pt].get_or_insert(w);
             }
@@ -429,13 +436,23 @@ impl Simulator {
 
 /// Per LED: gain x sum over rays of weight x R(ray, view), and the same for
 /// a perfect diffuser (R = 1 wherever the viewer sees the surface).
-fn light(optics: &Optics, point: &Vector3<f64>, wo: &Vector3<f64>, brdf: &dyn Brdf, gain: f64) -> (Vec<f64>, Vec<f64>) {
+/// A mirror spike is spread over the angle grid's bin kernel (`step_deg`)
+/// about the view's mirror incidence (`crate::forward::brdf::ray_reflectance`).
+fn light(
+    optics: &Optics,
+    point: &Vector3<f64>,
+    wo: &Vector3<f64>,
+    brdf: &dyn Brdf,
+    gain: f64,
+    step_deg: f64,
+) -> (Vec<f64>, Vec<f64>) {
     let seen = if wo.z > 0.0 { 1.0 } else { 0.0 };
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
     (0..optics.m())
         .map(|led| {
             let (mut s, mut w) = (0.0, 0.0);
             optics.for_each_ray(led, point, |r| {
-                s += r.weight * std::f64::consts::PI * brdf.f_r(&r.dir, wo);
+                s += r.weight * ray_reflectance(brdf, &r.dir, wo, r.theta_deg, theta_o, step_deg);
                 w += r.weight;
             });
             (gain * s, gain * w * seen)
