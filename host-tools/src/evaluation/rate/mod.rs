@@ -57,13 +57,19 @@ pub struct BuildInput {
 }
 
 /// Trains the two builds' calibrations and simulates a line of each:
-/// the handheld scene (`scenes/handheld.toml`, P = 128, 8 zones: the board's
-/// RAM budget) and the QEMU demo's patent-profile scene (P = 32, 4 zones).
-pub fn prepare(root: &Path) -> anyhow::Result<Vec<BuildInput>> {
+/// the handheld scene (`scenes/handheld.toml`, P = 128, `board_zones` zones,
+/// at most the board's RAM budget of 8) and the QEMU demo's patent-profile
+/// scene (P = 32, 4 zones). The per-point instruction counts do not depend on
+/// the number of zones (the zone only picks a matrix).
+pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput>> {
+    ensure!(
+        (1..=brdf_meter::shape::board::RAM_ZONES).contains(&board_zones),
+        "board zones {board_zones}: 1 to {} (the board's RAM budget)",
+        brdf_meter::shape::board::RAM_ZONES
+    );
     let frames_per_line = brdf_meter::shape::FRAMES_PER_LINE;
     let path = root.join("scenes/handheld.toml");
     let handheld = Scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
-    let board_zones = brdf_meter::shape::board::RAM_ZONES;
     let board = BuildInput {
         name: "board",
         pixels: handheld.instrument.sensor.pixels,
