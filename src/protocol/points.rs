@@ -251,7 +251,8 @@ pub fn sigma16_quantise(v: f32, step: f32) -> Option<i16> {
     // Division by a power of two is exact (barring underflow, which only
     // rounds a value far below the step to 0 or +-1 steps' worth).
     let t = v / step;
-    if !(t.abs() < 32767.5) {
+    // NaN fails the comparison too.
+    if t.abs().partial_cmp(&32767.5) != Some(core::cmp::Ordering::Less) {
         return None;
     }
     // |t| < 2^15, so t +- 0.5 is exact and truncation rounds half away from 0.
@@ -273,7 +274,8 @@ fn sigma16_encode(v: f32, u: f32) -> Option<i16> {
     // step = 2^(b - 7 - 127) for u's biased exponent b, so 1 / step =
     // 2^(127 - (b - 7)): biased exponent 261 - b.
     let t = v * f32::from_bits((261 << 23) - (bits & 0x7f80_0000));
-    if !(t.abs() < 32767.5) {
+    // NaN fails the comparison too.
+    if t.abs().partial_cmp(&32767.5) != Some(core::cmp::Ordering::Less) {
         return None;
     }
     Some((t + 0.5f32.copysign(t)) as i32 as i16)

@@ -166,14 +166,18 @@ impl std::ops::AddAssign for Cost {
     }
 }
 
+/// Per (build pixels, encoding): per stage, its cost over the line and its
+/// number of segments (for the framing stages: frames).
+pub type StageCosts = BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>>;
+
 /// The stages of an encoding's line, in order.
 pub const STAGES: [&str; 7] = ["correct", "estimate", "push", "serialise", "seal", "stuff", "copy"];
 
 /// Sums the bench's segments by (build pixels, encoding, stage); the
 /// correction (run once per build) is filed under every encoding, and
 /// protocol 2's stages under "p2" without their prefix.
-pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>>> {
-    let mut out: BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>> = BTreeMap::new();
+pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<StageCosts> {
+    let mut out = StageCosts::new();
     let mut correct: BTreeMap<usize, Cost> = BTreeMap::new();
     for s in segments {
         ensure!(s.name.len() == 3, "segment name {:?}", s.name);
@@ -250,7 +254,7 @@ pub struct BuildBudget {
 /// The budget of every build and encoding from the bench's counts.
 pub fn budget(
     builds: &[BuildInput],
-    costs: &BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>>,
+    costs: &StageCosts,
     practical_packets_per_ms: f64,
 ) -> anyhow::Result<Vec<BuildBudget>> {
     builds
