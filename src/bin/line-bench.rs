@@ -159,14 +159,14 @@ fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, 
         let e = enc_name(encoding);
         let bins = StreamFormat { encoding, bins: None }.bin_range(N);
         block.start(0, 0, 0, crc, encoding, bins, M);
-        for p in 0..P {
+        for (p, vp) in v.iter().enumerate() {
             b.at("estimate", e);
             let meta = estimate(p, &mut rho);
             b.at("push", e);
             let pin = PointIn {
                 meta,
                 values: rho.as_slice(),
-                readings: v[p].as_slice(),
+                readings: vp.as_slice(),
                 sigma: cal.uncertainty(meta.zone as usize, meta.cluster as usize),
             };
             match block.push(&pin) {

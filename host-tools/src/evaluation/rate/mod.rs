@@ -19,7 +19,9 @@
 //! The three run concurrently (two line buffers: line k+1 is acquired while
 //! line k is estimated and sent), except the correction, which the
 //! acquisition task runs after each line; so the line period is the largest
-//! of acquisition + correction, the CPU's work, and the link's time.
+//! of acquisition + correction, the CPU's work (compute and framing plus the
+//! acquisition's own busy time: flush and readout; one core), and the
+//! link's time.
 pub mod acquisition;
 pub mod frames;
 pub mod link;
@@ -225,7 +227,8 @@ pub struct EncodingBudget {
     pub link_us: (f64, f64),
     /// Line period, us: the largest of the stages below.
     pub period_us: f64,
-    /// The stage that sets it: "acquisition", "compute" or "link".
+    /// The stage that sets it: "acquisition", "CPU" (its work for the line
+    /// plus the acquisition's busy time: one core) or "link".
     pub limit: String,
     /// Compute (without the correction, which the acquisition task runs in
     /// series) over acquisition time: the target is at most 1/4.
@@ -285,9 +288,12 @@ pub fn budget(
                     let traffic = frames::traffic(&line);
                     let link_us =
                         (traffic.time_us(link::THEORETICAL_PACKETS_PER_MS), traffic.time_us(practical_packets_per_ms));
+                    // One core: the CPU's period holds its work for the line
+                    // and the acquisition's own busy time (flush, readout).
+                    let acq_busy = b.acquisition.line_us - b.acquisition.cpu_free_us;
                     let candidates = [
                         ("acquisition", b.acquisition.line_us + correct_us),
-                        ("compute", compute.us()),
+                        ("CPU", compute.us() + acq_busy),
                         ("link", link_us.1),
                     ];
                     let (limit, period_us) =
