@@ -120,6 +120,7 @@ pub fn decode_points(f: &PointsFrame<'_>, decoder: Option<&StreamDecoder>) -> Re
 /// behind the CRC check.
 pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<Vec<PointRecord>, DecodeError> {
     let (n, m) = match view {
+        None if f.encoding != Encoding::F32 => return Err(DecodeError::NeedsBlob(f.encoding)),
         Some(v) => (v.dims().n, v.dims().m),
         // An f32 frame read without a blob: its bins define the shape.
         None => (f.bins.first as usize + (f.bins.count.max(1) as usize - 1) * f.bins.step as usize + 1, 0),
@@ -133,7 +134,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
         let values: Vec<f32> = match f.encoding {
             Encoding::F32 => data.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
             Encoding::Sigma16 => {
-                let v = view.expect("checked by decode_points");
+                let v = view.expect("checked above: not f32");
                 if !zone_ok(v) || meta.cluster as usize >= v.clusters() {
                     return Err(DecodeError::BadZone { point, zone: meta.zone });
                 }
@@ -151,7 +152,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
                     .collect::<Result<_, _>>()?
             }
             Encoding::Corrected => {
-                let v = view.expect("checked by decode_points");
+                let v = view.expect("checked above: not f32");
                 if !zone_ok(v) {
                     return Err(DecodeError::BadZone { point, zone: meta.zone });
                 }
