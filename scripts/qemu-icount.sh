@@ -12,8 +12,8 @@
 #
 # It also counts the whole per-point estimation path: the instructions of
 # `Calibration::estimate_pixel` (not inlined) and of every function it calls
-# (matrix selection, the kernel, cluster selection, the scale and the
-# out-of-prior statistic), per call; with a scale-free demo calibration this
+# (matrix selection, the kernel, cluster selection, the scale, the
+# out-of-prior statistic and the gloss readings), per call; with a scale-free demo calibration this
 # is the cost the scale-free estimators add to the plain kernel.
 #
 #   scripts/qemu-icount.sh [LINES] [wiener|scale-free|scale-free-piecewise]
@@ -54,7 +54,7 @@ awk -v sym="$sym" -v st="${start#"${start%%[!0]*}"}" -v psym="$path_sym" -v pst=
       n++
     }
     if (pc == pst) { if (p) print p > paths; p = 0; inpath = 1 }
-    if (inpath && (index($0, psym) || index($0, sym) || index($0, "matrix_of") || index($0, "select_cluster") || index($0, "scale_free"))) p++
+    if (inpath && (index($0, psym) || index($0, sym) || index($0, "matrix_of") || index($0, "select_cluster") || index($0, "scale_free") || index($0, "gloss"))) p++
   }
   END { if (n) print n > calls; if (p) print p > paths }' "$work/trace" &
 counter=$!

@@ -72,7 +72,7 @@
 //! | 4 | the gloss standard's assigned value, GU (finite, > 0; 100 for the black-glass standard) |
 //! | 4 | the standard's refractive index at the sodium D line (finite, > 1; 1.567), a record of what it was |
 //! | 4Z | per zone, the standard's specular linear reading `S_z` through the zone's estimator (finite, > 0) |
-//! | 4ZK(4m + 10) | per zone, then cluster: the rows `A W` of the 4 linear readings (4 x m, row-major), then their error covariance packed row by row (upper triangle, 10 values; per unit scale for the scale-free kinds; diagonal >= 0) |
+//! | 4ZK(4m + 12) | per zone, then cluster: the rows `A W` of the 4 linear readings (4 x m, row-major), then their error covariance packed row by row (upper triangle, 10 values; per unit scale for the scale-free kinds; diagonal >= 0), then the square roots of its first two diagonal entries (>= 0) |
 //!
 //! What the values mean and how the device combines them: `crate::gloss`.
 //! A device running a version 1 or 2 blob streams NaN readings ("no
@@ -790,11 +790,14 @@ impl<'a> BlobView<'a> {
 
     /// The gloss section's rules: everything finite; the assigned value and
     /// the zones' references > 0, the refractive index > 1, the covariances'
-    /// diagonals >= 0. Indices count f32 values from the section's start.
+    /// diagonals and standard deviations >= 0. Indices count f32 values
+    /// from the section's start.
     fn check_gloss(&self) -> Result<(), BlobError> {
         let (z, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
         let block = crate::gloss::block_len(m);
-        let diag = [0, 1, 2, 3].map(|i| crate::gloss::LINEAR * m + crate::gloss::cov_index(i, i));
+        let rows = crate::gloss::LINEAR * m;
+        let diag = [0, 1, 2, 3].map(|i| rows + crate::gloss::cov_index(i, i));
+        let sd = [rows + crate::gloss::COV_LEN, rows + crate::gloss::COV_LEN + 1];
         for i in 0..gloss_len(z, k, m) {
             let x = get_f32(self.bytes, self.lay.gloss + 4 * i);
             if !x.is_finite() {
@@ -804,7 +807,10 @@ impl<'a> BlobView<'a> {
                 0 => x > 0.0,
                 1 => x > 1.0,
                 _ if i < GLOSS_HEAD + z => x > 0.0,
-                _ => !diag.contains(&((i - GLOSS_HEAD - z) % block)) || x >= 0.0,
+                _ => {
+                    let at = (i - GLOSS_HEAD - z) % block;
+                    !(diag.contains(&at) || sd.contains(&at)) || x >= 0.0
+                }
             };
             if !ok {
                 return Err(BlobError::OutOfRange { section: Section::Gloss, index: i });

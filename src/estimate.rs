@@ -63,6 +63,9 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     uncertainty: &'static [f32],
     /// The blob's gloss section in flash, when it carries one.
     gloss: Option<GlossData<'static>>,
+    /// Per pixel, its zone's gloss scale `assigned / S_z` (`crate::gloss`),
+    /// divided once at load rather than per point.
+    gloss_q: [f32; P],
 }
 
 /// What one point's estimate adds to its frame besides the values.
@@ -169,7 +172,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                 *x = view.white(p, i);
             }
         }
-        let zone_of = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
+        let zone_of: [u16; P] = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
+        let gloss_q = core::array::from_fn(|p| gloss.map_or(0.0, |g| g.assigned_gu / g.reference[zone_of[p] as usize]));
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
             for (i, dst) in self.ram[..z * k].iter_mut().enumerate() {
@@ -198,6 +202,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             out_of_prior_threshold,
             uncertainty,
             gloss,
+            gloss_q,
         });
         Ok(())
     }
@@ -289,15 +294,12 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> PointMeta {
         let a = self.active.as_ref().expect("no active calibration");
         let z = a.zone_of[p] as usize;
-        let mut meta = PointMeta {
-            zone: z as u16,
-            cluster: 0,
-            flags: 0,
-            sigma_scale: 1.0,
-            readings: crate::gloss::NO_READINGS,
-            reading_sigma: crate::gloss::NO_READINGS,
-        };
-        let mut x = *v;
+        // Built in locals and written once at the end (the frame's fields
+        // are not stored twice per point).
+        let (mut cluster, mut flags, mut sigma_scale) = (0u8, 0u8, 1.0f32);
+        // The kernel's input: the readings, or (scale-free) a copy whose last is the scale.
+        let mut vs;
+        let mut x = v;
         let (s, c) = match a.kind {
             EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
                 let s = scale(v.as_slice());
@@ -307,10 +309,12 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                     let km = a.clusters * M;
                     crate::kernel::select_cluster(&a.centroids[z * km..(z + 1) * km], v.as_slice())
                 };
-                x[M - 1] = s;
-                point_kernel(self.matrix_of(z, c), &x, out);
-                meta.cluster = c as u8;
-                meta.sigma_scale = s;
+                vs = *v;
+                vs[M - 1] = s;
+                x = &vs;
+                point_kernel(self.matrix_of(z, c), x, out);
+                cluster = c as u8;
+                sigma_scale = s;
                 (s, c)
             }
             _ => {
@@ -322,15 +326,17 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             let per = M - 1 + whitening_len(M);
             let data = &a.out_of_prior[z * per..(z + 1) * per];
             let stat = out_of_prior_stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
-            meta.flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
+            flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
         }
-        if let Some(g) = &a.gloss {
-            let bl = crate::gloss::block_len(M);
-            let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
-            let q = g.assigned_gu / g.reference[z];
-            (meta.readings, meta.reading_sigma) = crate::gloss::readings(block, x.as_slice(), q, meta.sigma_scale);
-        }
-        meta
+        let (readings, reading_sigma) = match &a.gloss {
+            Some(g) => {
+                let bl = crate::gloss::block_len(M);
+                let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
+                crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
+            }
+            None => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
+        };
+        PointMeta { zone: z as u16, cluster, flags, sigma_scale, readings, reading_sigma }
     }
 }
 

@@ -24,7 +24,8 @@
 //! - gloss `G = q L_0`, haze `H = q L_1`, with `q = assigned / S_z` (the
 //!   standard's assigned value over zone z's reading of it: the calibration
 //!   on the gloss standard);
-//! - distinctness `D = 100 (L_2 - L_3) / L_2` (peak against its shoulders;
+//! - distinctness `D = 100 (L_2 - L_3) / L_2`, computed as `100 - 100 r`
+//!   with `r = L_3 / L_2` (peak against its shoulders;
 //!   NaN when `L_2 <= 0`, no peak to compare).
 //!
 //! # Uncertainties
@@ -32,7 +33,8 @@
 //! errors (E the estimator's error covariance, per unit scale for the
 //! scale-free kinds), packed, per zone and cluster. With `s` the point's
 //! `sigma_scale` (1 for the linear kinds):
-//! `u(G) = q s sqrt(C_00)`, `u(H) = q s sqrt(C_11)`, and to first order in
+//! `u(G) = q s sqrt(C_00)`, `u(H) = q s sqrt(C_11)` (both square roots
+//! stored beside C, [`SD_LEN`]), and to first order in
 //! `(L_2, L_3)`, with `r = L_3 / L_2`,
 //! `u(D) = 100 s sqrt(r^2 C_22 - 2 r C_23 + C_33) / |L_2|`.
 //!
@@ -58,10 +60,16 @@ pub const LINEAR: usize = 4;
 /// (0,2), (0,3), (1,1), (1,2), (1,3), (2,2), (2,3), (3,3).
 pub const COV_LEN: usize = LINEAR * (LINEAR + 1) / 2;
 
+/// Standard deviations stored beside the covariance: `sqrt(C_00)` and
+/// `sqrt(C_11)`, the per-zone constants of the gloss's and the haze's
+/// uncertainty (so the device takes no square root for them per point).
+pub const SD_LEN: usize = 2;
+
 /// Values per zone and cluster in the blob's gloss section for m readings:
-/// the rows (LINEAR x m, row-major), then the packed covariance.
+/// the rows (LINEAR x m, row-major), the packed covariance, then
+/// `sqrt(C_00)`, `sqrt(C_11)`.
 pub const fn block_len(m: usize) -> usize {
-    LINEAR * m + COV_LEN
+    LINEAR * m + COV_LEN + SD_LEN
 }
 
 /// Index of `(i, j)`, `i <= j`, in the packed covariance.
@@ -77,8 +85,10 @@ fn sqrt0(x: f32) -> f32 {
     let x = if x > 0.0 { x } else { 0.0 };
     #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
     {
+        // Through core registers: naming an FPU register needs the `vfp2`
+        // target feature, which rustc does not expose on stable.
         let bits: u32;
-        // SAFETY: one FPU instruction on a core register moved in and out, no memory access.
+        // SAFETY: one FPU instruction on a register moved in and out, no memory access.
         unsafe {
             core::arch::asm!(
                 "vmov s0, {x}",
@@ -118,20 +128,17 @@ pub fn readings(
     let m = x.len();
     assert!(block.len() == block_len(m), "a gloss block is LINEAR x m rows and the covariance");
     let mut l = [0.0f32; LINEAR];
-    for (lr, row) in l.iter_mut().zip(block.chunks_exact(m)) {
-        let mut acc = 0.0f32;
-        for (w, xi) in row.iter().zip(x) {
-            acc += *w * *xi;
-        }
-        *lr = acc;
-    }
+    // The estimator's own kernel (its accumulation order; VLDM/VMLA on the M4).
+    crate::kernel::mat_vec_f32_4(&block[..LINEAR * m], x, &mut l);
     let c = &block[LINEAR * m..];
+    let sd = &c[COV_LEN..];
     let qs = q * s.abs();
     let r = l[3] / l[2];
-    let d = if l[2] > 0.0 { 100.0 * ((l[2] - l[3]) / l[2]) } else { f32::NAN };
+    // 100 (L_2 - L_3) / L_2, as 100 - 100 r (one multiply-subtract).
+    let d = if l[2] > 0.0 { 100.0 - 100.0 * r } else { f32::NAN };
     let var_d = (r * r) * c[7] - 2.0 * r * c[8] + c[9];
     let u_d = if l[2] > 0.0 { 100.0 * s.abs() * (sqrt0(var_d) / l[2]) } else { f32::NAN };
-    ([q * l[0], q * l[1], d], [qs * sqrt0(c[0]), qs * sqrt0(c[4]), u_d])
+    ([q * l[0], q * l[1], d], [qs * sd[0], qs * sd[1], u_d])
 }
 
 #[cfg(test)]
@@ -153,7 +160,9 @@ mod tests {
     #[test]
     fn readings_follow_their_definitions() {
         // m = 2; rows pick x_0, x_1, x_0 + x_1, x_0 - x_1.
-        let mut block = [1.0f32, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let mut block = [0.0f32; 20];
+        block[..8].copy_from_slice(&[1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0]);
+        block[18..].copy_from_slice(&[2.0, 3.0]);
         // Covariance: diag 4, 9, 1, 0.25; cov(2,3) = 0.1.
         block[8 + cov_index(0, 0)] = 4.0;
         block[8 + cov_index(1, 1)] = 9.0;
@@ -163,7 +172,7 @@ mod tests {
         let (r, u) = readings(&block, &[3.0, 1.0], 2.0, 0.5);
         assert_eq!(r[SPECULAR_GU], 6.0);
         assert_eq!(r[HAZE_HU], 2.0);
-        assert_eq!(r[DISTINCTNESS], 100.0 * (4.0 - 2.0) / 4.0);
+        assert_eq!(r[DISTINCTNESS], 100.0 - 100.0 * (2.0 / 4.0));
         assert_eq!(u[SPECULAR_GU], 2.0 * 0.5 * 2.0);
         assert_eq!(u[HAZE_HU], 2.0 * 0.5 * 3.0);
         let rr = 2.0f64 / 4.0;

@@ -72,6 +72,29 @@ pub fn mat_vec_f32_into<const N: usize, const M: usize>(
     }
 }
 
+/// `out[r] = sum_i w[r*m + i] * v[i]` for four rows (the gloss readings'
+/// rows, `crate::gloss`): the same accumulation as [`mat_vec_f32_slice`],
+/// with a four-row assembly form on the Cortex-M4F for m = 7 (two VLDM of
+/// two rows, 28 VMLA, one VSTM) instead of the general kernel's row-by-row
+/// tail.
+///
+/// # Panics
+/// If `w.len() != 4 * v.len()`.
+#[inline]
+pub fn mat_vec_f32_4(w: &[f32], v: &[f32], out: &mut [f32; 4]) {
+    let m = v.len();
+    assert_eq!(w.len(), 4 * m, "four rows of m");
+    #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
+    if m == 7 {
+        // SAFETY: lengths checked above.
+        unsafe { arm_f32::f32_m7_x4(w.as_ptr(), v.as_ptr(), out.as_mut_ptr()) };
+        return;
+    }
+    for (row, o) in w.chunks_exact(m.max(1)).zip(out.iter_mut()) {
+        *o = dot(row, v);
+    }
+}
+
 /// The one accumulation both targets share. Sequential and unfused on purpose.
 #[inline(always)]
 fn dot(row: &[f32], v: &[f32]) -> f32 {
@@ -90,6 +113,60 @@ mod arm_f32 {
     //! so the bits are those of the portable code. v stays in s0-s6; eight
     //! rows per iteration: two rows (14 words) per VLDM, accumulators zeroed
     //! two at a time from a zero core register, eight results per VSTM.
+
+    /// Four rows: `out[r] = sum_i w[7r + i] v[i]`, each accumulated in i
+    /// order by VMLA from 0, as [`super::dot`].
+    ///
+    /// # Safety
+    /// `w` holds 28 f32, `v` 7, `out` 4.
+    #[inline(always)]
+    pub(super) unsafe fn f32_m7_x4(w: *const f32, v: *const f32, out: *mut f32) {
+        // SAFETY: the caller guarantees the buffers; every register written is declared.
+        unsafe {
+            core::arch::asm!(
+                "vldmia {v}, {{s0-s6}}",
+                "movs {v}, #0",
+                "vmov s8, s9, {v}, {v}",
+                "vmov s10, s11, {v}, {v}",
+                "vldmia {w}!, {{s16-s29}}",
+                "vmla.f32 s8, s16, s0",
+                "vmla.f32 s9, s23, s0",
+                "vmla.f32 s8, s17, s1",
+                "vmla.f32 s9, s24, s1",
+                "vmla.f32 s8, s18, s2",
+                "vmla.f32 s9, s25, s2",
+                "vmla.f32 s8, s19, s3",
+                "vmla.f32 s9, s26, s3",
+                "vmla.f32 s8, s20, s4",
+                "vmla.f32 s9, s27, s4",
+                "vmla.f32 s8, s21, s5",
+                "vmla.f32 s9, s28, s5",
+                "vmla.f32 s8, s22, s6",
+                "vmla.f32 s9, s29, s6",
+                "vldmia {w}!, {{s16-s29}}",
+                "vmla.f32 s10, s16, s0",
+                "vmla.f32 s11, s23, s0",
+                "vmla.f32 s10, s17, s1",
+                "vmla.f32 s11, s24, s1",
+                "vmla.f32 s10, s18, s2",
+                "vmla.f32 s11, s25, s2",
+                "vmla.f32 s10, s19, s3",
+                "vmla.f32 s11, s26, s3",
+                "vmla.f32 s10, s20, s4",
+                "vmla.f32 s11, s27, s4",
+                "vmla.f32 s10, s21, s5",
+                "vmla.f32 s11, s28, s5",
+                "vmla.f32 s10, s22, s6",
+                "vmla.f32 s11, s29, s6",
+                "vstmia {o}, {{s8-s11}}",
+                w = inout(reg) w => _,
+                v = inout(reg) v => _,
+                o = in(reg) out,
+                out("s0") _, out("s1") _, out("s2") _, out("s3") _, out("s4") _, out("s5") _, out("s6") _, out("s8") _, out("s9") _, out("s10") _, out("s11") _, out("s16") _, out("s17") _, out("s18") _, out("s19") _, out("s20") _, out("s21") _, out("s22") _, out("s23") _, out("s24") _, out("s25") _, out("s26") _, out("s27") _, out("s28") _, out("s29") _,
+                options(nostack),
+            );
+        }
+    }
 
     /// # Safety
     /// `w` holds `rows * 7` f32, `v` 7, `out` `rows`.

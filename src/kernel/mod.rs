@@ -14,5 +14,5 @@ pub mod q15;
 pub mod scale_free;
 
 pub use self::cluster::select_cluster;
-pub use self::f32::{mat_vec_f32, mat_vec_f32_into, mat_vec_f32_slice};
+pub use self::f32::{mat_vec_f32, mat_vec_f32_4, mat_vec_f32_into, mat_vec_f32_slice};
 pub use self::q15::*;

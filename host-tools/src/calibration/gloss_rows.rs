@@ -12,9 +12,14 @@
 use crate::forward::brdf::SmoothDielectric;
 use crate::forward::brdf::smooth_dielectric::BLACK_GLASS_INDEX;
 use crate::forward::gloss::{ASSIGNED_GU, reading_weights, true_rho};
-use anyhow::{Context, ensure};
+use anyhow::Context;
 use brdf_meter::gloss::{LINEAR, block_len, cov_index};
 use nalgebra::{DMatrix, DVector};
+
+/// What `train` says when a calibration carries no gloss readings.
+pub const NO_GLOSS_NOTE: &str = "no gloss readings in this calibration (the device streams NaN): the angle grid does not \
+     cover the 8 deg specular aperture about the view, or a zone does not see the black-glass standard's mirror \
+     reflection (no LED ray within a bin of the specular direction from that zone)";
 
 /// The gloss section training writes.
 #[derive(Clone, Debug, PartialEq)]
@@ -37,8 +42,8 @@ impl GlossSection {
     }
 }
 
-/// One zone and cluster's block: rows `A W` (LINEAR x m) and the packed
-/// `A E A^T`.
+/// One zone and cluster's block: rows `A W` (LINEAR x m), the packed
+/// `A E A^T` and the square roots of its first two diagonal entries.
 pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
     let m = w.ncols();
     let rows = a * w;
@@ -53,6 +58,7 @@ pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
         }
     }
     out.extend(packed);
+    out.extend([cov[(0, 0)].max(0.0).sqrt() as f32, cov[(1, 1)].max(0.0).sqrt() as f32]);
     out
 }
 
@@ -65,16 +71,14 @@ pub fn black_glass_readings(h: &DMatrix<f64>, bins: &[f64], view_deg: f64) -> DV
 /// The zone's reading `S_z` of the standard: the device's own linear
 /// reading `L_0` (f32, `brdf_meter::gloss::readings` with q = 1) of the
 /// black glass's readings `v` (already the kernel input `x`), through
-/// `block`. Refuses a non-positive reading: the estimator cannot see the
-/// standard, so no gloss scale can be set.
-pub fn standard_reading(block: &[f32], x: &[f32], zone: usize) -> anyhow::Result<f32> {
+/// `block`. `None` for a reading that is not positive: the zone does not
+/// see the standard's mirror reflection (no LED ray near the specular
+/// direction from where it looks), so no gloss scale can be set and the
+/// calibration carries no gloss readings.
+pub fn standard_reading(block: &[f32], x: &[f32]) -> Option<f32> {
     let (r, _) = brdf_meter::gloss::readings(block, x, 1.0, 1.0);
     let s = r[brdf_meter::gloss::SPECULAR_GU];
-    ensure!(
-        s.is_finite() && s > 0.0,
-        "zone {zone}: the estimator reads the black-glass standard's specular reflection as {s}; no gloss scale can be set"
-    );
-    Ok(s)
+    (s.is_finite() && s > 0.0).then_some(s)
 }
 
 /// The weights of the definitions, or why the grid cannot carry them.

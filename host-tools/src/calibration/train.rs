@@ -189,8 +189,8 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
 /// as the blob holds it, with the f32 gate's power-of-two column factors),
 /// `A E A^T` from the zone's full error covariance, and the zone's reading
 /// of the black glass through the blob's own matrices. `None` when the
-/// grid does not cover the specular aperture about the view (no readings
-/// then; the device streams NaN).
+/// grid does not cover the specular aperture about the view, or a zone does
+/// not see the standard (no readings then; the device streams NaN).
 fn gloss_section(
     spec: &TrainSpec<'_>,
     zones: &[TrainedZone],
@@ -206,7 +206,8 @@ fn gloss_section(
         let w_blob = DMatrix::from_fn(n, m, |j, i| tz.estimator.w[(j, i)] * 2f64.powi(plan.exponents[i]));
         let block = gloss_rows::block(&a, &w_blob, &e);
         let v = gloss_rows::black_glass_readings(&tz.h, spec.bins_deg, spec.view_deg);
-        out.reference.push(gloss_rows::standard_reading(&block, &plan.readings(&v), z)?);
+        let Some(s) = gloss_rows::standard_reading(&block, &plan.readings(&v)) else { return Ok(None) };
+        out.reference.push(s);
         out.blocks.extend(block);
     }
     Ok(Some(out))

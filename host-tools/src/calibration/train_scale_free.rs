@@ -181,11 +181,12 @@ pub fn train_scale_free(
 /// rows `A [W' | b]` (the same kernel input as the estimate: the readings
 /// with the last replaced by their scale) and `A E A^T` per unit scale;
 /// each zone's reading of the black glass by the device's rule (its cluster,
-/// its scale). `None` when the grid does not cover the specular aperture.
+/// its scale). `None` when the grid does not cover the specular aperture or
+/// a zone does not see the standard.
 fn gloss_section(spec: &TrainSpec<'_>, zones: &[ScaleFreeZone]) -> anyhow::Result<Option<GlossSection>> {
     let Ok(a) = gloss_rows::weights(spec.bins_deg, spec.view_deg) else { return Ok(None) };
     let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new() };
-    for (z, (zo, tz)) in spec.zones.iter().zip(zones).enumerate() {
+    for (zo, tz) in spec.zones.iter().zip(zones) {
         let blocks: Vec<Vec<f32>> = tz.maps.iter().map(|mp| gloss_rows::block(&a, &mp.w, &mp.err_unit)).collect();
         let v = gloss_rows::black_glass_readings(&zo.h, spec.bins_deg, spec.view_deg);
         let mut x: Vec<f32> = v.iter().map(|t| *t as f32).collect();
@@ -193,7 +194,8 @@ fn gloss_section(spec: &TrainSpec<'_>, zones: &[ScaleFreeZone]) -> anyhow::Resul
         let s = brdf_meter::kernel::scale_free::scale(&x);
         let m = x.len();
         x[m - 1] = s;
-        out.reference.push(gloss_rows::standard_reading(&blocks[c], &x, z)?);
+        let Some(s) = gloss_rows::standard_reading(&blocks[c], &x) else { return Ok(None) };
+        out.reference.push(s);
         out.blocks.extend(blocks.into_iter().flatten());
     }
     Ok(Some(out))

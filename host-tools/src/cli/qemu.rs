@@ -61,6 +61,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let link = if a.pty { format!("--port {addr}") } else { format!("--tcp {addr}") };
     if let Some(blob_path) = &a.demo {
         let mut c = connect(&addr, a.pty)?;
+        if a.measure_and_exit.is_some() {
+            // A counting run traces every instruction: provisioning (its
+            // signature check) takes far longer than the interactive 5 s.
+            c.timeout = Duration::from_secs(600);
+        }
         eprintln!("training a {:?} calibration for the simulated optics ...", a.demo_estimator);
         let (blob, cal) = set_up(&mut c, blob_path, a.demo_estimator)?;
         eprintln!(

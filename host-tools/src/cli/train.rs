@@ -168,6 +168,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         s.condition_h, s.condition_system, s.effective_rank, s.regularisation, s.predicted_rmse, trained.f32_rel_error
     );
     println!("{}", s.method);
+    if !view.has_gloss() {
+        println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
+    }
     match &a.sign {
         Some(key) => println!(
             "wrote {} ({} bytes, CRC {:#010x}, signed with {})",

@@ -91,6 +91,9 @@ pub fn run(
         crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
     let view = BlobView::parse(&blob).expect("validated");
+    if !view.has_gloss() {
+        println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
+    }
     println!("wrote {} ({} bytes, format {}, CRC {:#010x})", a.out.display(), blob.len(), view.version(), view.crc());
     Ok(())
 }
@@ -122,15 +125,17 @@ pub(crate) mod tests {
     fn measured_and_mixed_priors_train_every_kind_into_the_right_format() {
         let dir = tempfile::tempdir().unwrap();
         for (est, prior, kind, version) in [
-            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 2),
-            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 2),
-            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 1),
+            // Format 3: every kind carries the gloss section on the patent profile.
+            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 3),
+            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 3),
+            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 3),
         ] {
             train_run(args(dir.path(), est, prior)).unwrap();
             let blob = std::fs::read(dir.path().join("cal.blob")).unwrap();
             let v = BlobView::parse(&blob).unwrap();
             assert_eq!((v.estimator(), v.version()), (kind, version), "{prior}");
-            assert_eq!(v.out_of_prior_threshold().is_some(), version == 2);
+            assert!(v.has_gloss());
+            assert_eq!(v.out_of_prior_threshold().is_some(), kind != EstimatorKind::Wiener);
             assert!(dir.path().join("cal.json").exists());
         }
     }
