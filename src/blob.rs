@@ -950,6 +950,13 @@ impl<'a> BlobView<'a> {
         self.out_of_prior_threshold()?;
         bytemuck::try_cast_slice(self.bytes.get(self.lay.out_of_prior..self.lay.crc)?).ok()
     }
+    /// All zones' per-bin standard uncertainties (Z x K x n) as an `f32`
+    /// slice in place, when the blob sits at a 4-byte aligned address.
+    #[cfg(target_endian = "little")]
+    pub fn uncertainty_in_place(&self) -> Option<&'a [f32]> {
+        let len = 4 * self.dims.zones * self.lay.clusters * self.dims.n;
+        bytemuck::try_cast_slice(self.bytes.get(self.lay.uncertainty..self.lay.uncertainty + len)?).ok()
+    }
     /// The gloss section (`crate::gloss`) in place, when the blob carries it
     /// and sits at a 4-byte aligned address: (assigned value, refractive
     /// index, the zones' references Z, the blocks Z x K).

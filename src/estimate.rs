@@ -58,6 +58,9 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     /// packed whitening), with its threshold; empty when it has none.
     out_of_prior: &'static [f32],
     out_of_prior_threshold: f32,
+    /// The blob's per-bin uncertainties in flash, Z x K x n (what the
+    /// Sigma16 stream encoding scales its steps by).
+    uncertainty: &'static [f32],
     /// The blob's gloss section in flash, when it carries one.
     gloss: Option<GlossData<'static>>,
     /// Per pixel, its zone's gloss scale `assigned / S_z` (`crate::gloss`),
@@ -161,6 +164,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(t) => (view.out_of_prior_in_place().ok_or(DeviceError::Storage)?, t),
             None => (&[], f32::INFINITY),
         };
+        let uncertainty = view.uncertainty_in_place().ok_or(DeviceError::Storage)?;
         let gloss = if view.has_gloss() { Some(view.gloss_in_place().ok_or(DeviceError::Storage)?) } else { None };
         let mut white = [[0.0f32; M]; P];
         for (p, wp) in white.iter_mut().enumerate() {
@@ -196,6 +200,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             centroids,
             out_of_prior,
             out_of_prior_threshold,
+            uncertainty,
             gloss,
             gloss_q,
         });
@@ -227,6 +232,39 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             MatrixHome::Ram => self.ram[i].as_view(),
             MatrixHome::InPlace => SMatrixView::from_slice(&a.in_place[i * N * M..(i + 1) * N * M]),
         }
+    }
+
+    /// The blob's per-bin standard uncertainty of zone `z`, cluster `c` (n
+    /// values; for the scale-free kinds per unit scale).
+    ///
+    /// # Panics
+    /// If there is no active calibration or `(z, c)` is not one of its matrices.
+    pub fn uncertainty(&self, z: usize, c: usize) -> &[f32] {
+        let a = self.active.as_ref().expect("no active calibration");
+        assert!(z < a.zones && c < a.clusters);
+        let i = z * a.clusters + c;
+        &a.uncertainty[i * N..(i + 1) * N]
+    }
+
+    /// One point as the device streams it: [`Self::estimate_pixel`], then
+    /// [`guard_estimate`], with every flag in the returned meta: the
+    /// readings' own (`reading_flags`, from the correction), the estimate's
+    /// and the guard's. A point whose estimate is not finite has no gloss
+    /// readings either (NaN).
+    pub fn estimate_point(
+        &self,
+        p: usize,
+        v: &SVector<f32, M>,
+        reading_flags: u8,
+        out: &mut SVector<f32, N>,
+    ) -> PointMeta {
+        let mut meta = self.estimate_pixel(p, v, out);
+        meta.flags |= reading_flags | guard_estimate(out.as_mut_slice());
+        if meta.flags & crate::protocol::flags::NON_FINITE != 0 {
+            meta.readings = crate::gloss::NO_READINGS;
+            meta.reading_sigma = crate::gloss::NO_READINGS;
+        }
+        meta
     }
 
     /// Where the matrices are read from.

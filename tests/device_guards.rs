@@ -159,6 +159,7 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
     let b = hostile_blob(huge_zone, tiny_px);
     let view = BlobView::parse(&b).unwrap();
     let mut c = Client::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), ZONES)).unwrap();
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     c.provision(&b, |_, _| {}).unwrap();
     let mut scene = analytic_scene(&view, 2, FULL_SCALE);
     for line in scene.iter_mut() {

@@ -17,8 +17,8 @@
 use brdf_meter::blob::{BlobExtras, EstimatorKind, OutOfPriorData, Section, write_blob_with};
 use brdf_meter::hw::SensorError;
 use brdf_meter::protocol::{
-    BlobFault, CalInfo, DeviceError, DeviceInfo, DeviceStatus, FrameError, LeBytes, MAX_FRAME, PointFrame, Request,
-    Response, SizeField, encode, flags,
+    BinRange, BlobFault, CalInfo, DeviceError, DeviceInfo, DeviceStatus, Encoding, FrameError, LeBytes, MAX_FRAME,
+    PointFrame, PointIn, PointMetaWire, PointsBlock, Request, Response, SizeField, StreamFormat, encode, flags,
 };
 use brdf_meter::store::encode_slot_header;
 use brdf_meter::test_blobs::TestBlobParts;
@@ -76,6 +76,11 @@ fn response_name(r: &Response<'_>) -> &'static str {
         Response::MeasureDone { .. } => "MeasureDone",
         Response::SimLoaded => "SimLoaded",
         Response::Point(_) => "Point",
+        Response::Points(p) => match p.encoding {
+            Encoding::F32 => "Points.F32",
+            Encoding::Sigma16 => "Points.Sigma16",
+            Encoding::Corrected => "Points.Corrected",
+        },
         Response::Error(e) => error_name(e),
     }
 }
@@ -98,6 +103,7 @@ fn error_name(e: &DeviceError) -> &'static str {
         DeviceError::Sensor(_) => "Error.Sensor",
         DeviceError::Simulation => "Error.Simulation",
         DeviceError::SignatureRejected(_) => "Error.SignatureRejected",
+        DeviceError::BadBins { .. } => "Error.BadBins",
     }
 }
 
@@ -165,7 +171,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         Request::ProvisionChunk { offset: 512, data: &chunk },
         Request::ProvisionCommit,
         Request::ProvisionAbort,
-        Request::Measure { lines: 3 },
+        Request::Measure { lines: 3, format: StreamFormat::default() },
         Request::Stop,
         Request::SimFrame { line: 1, frame: 2, first_pixel: 16, pixels: LeBytes(&px) },
         Request::SimLines { lines: 4 },
@@ -173,6 +179,13 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     for r in &requests {
         out.push((format!("request.{}", request_name(r)), request_frame(42, r)));
     }
+    // The measure request with every encoding and a bin subset.
+    for (name, encoding) in [("F32", Encoding::F32), ("Corrected", Encoding::Corrected)] {
+        let m = Request::Measure { lines: 0, format: StreamFormat { encoding, bins: None } };
+        out.push((format!("request.Measure.{name}"), request_frame(42, &m)));
+    }
+    let subset = StreamFormat { encoding: Encoding::Sigma16, bins: Some(BinRange { first: 2, step: 3, count: 20 }) };
+    out.push(("request.Measure.bins".into(), request_frame(42, &Request::Measure { lines: 1, format: subset })));
 
     // One frame of every response, and of every device error.
     let vals: Vec<u8> = [0.5f32, -0.0, 1.25e-3].iter().flat_map(|x| x.to_le_bytes()).collect();
@@ -234,8 +247,40 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         DeviceError::Sensor(SensorError::NoData),
         DeviceError::Simulation,
         DeviceError::SignatureRejected(brdf_meter::signed::SignatureFault::UnknownKey),
+        DeviceError::BadBins { bins: 81 },
     ] {
         responses.push(Response::Error(e));
+    }
+    // Line frames of every encoding: two points each, as the device's
+    // builder makes them (9 bins, 3 readings, one bin subset).
+    let blocks: Vec<PointsBlock> = [
+        (Encoding::F32, BinRange::all(9)),
+        (Encoding::Sigma16, BinRange { first: 1, step: 2, count: 4 }),
+        (Encoding::Corrected, BinRange::all(9)),
+    ]
+    .into_iter()
+    .map(|(encoding, bins)| {
+        let mut b = PointsBlock::new();
+        b.start(4, 99, 30, 0xDEAD_BEEF, encoding, bins, 3);
+        for k in 0..2u16 {
+            let values: Vec<f32> = (0..9).map(|j| 0.5 - 0.125 * (j + k) as f32).collect();
+            let sigma: Vec<f32> = (0..9).map(|j| 0.01 + 0.002 * j as f32).collect();
+            let meta = PointMetaWire {
+                zone: 3 + k,
+                cluster: 1,
+                flags: if k == 0 { 0 } else { flags::OUT_OF_PRIOR },
+                sigma_scale: 2.5,
+                readings: [97.5, 1.25, 80.0],
+                reading_sigma: [0.5, 0.125, 2.0],
+            };
+            b.push(&PointIn { meta, values: &values, readings: &[0.25, 1.5, -0.0], sigma: &sigma })
+                .expect("two points fit");
+        }
+        b
+    })
+    .collect();
+    for b in &blocks {
+        responses.push(Response::Points(b.frame()));
     }
     for r in &responses {
         out.push((format!("response.{}", response_name(r)), response_frame(7, r)));

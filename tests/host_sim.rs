@@ -5,11 +5,12 @@ use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::hw::SensorError;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{
-    DeviceError, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode, flags,
+    BinRange, DeviceError, Encoding, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField,
+    StreamFormat, encode, flags, point_uncertainty,
 };
 use brdf_meter::signed::SignatureFault;
 use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
-use host_tools::device::link::{Client, LinkError, PointRecord, Reply};
+use host_tools::device::link::{Client, DecodeError, LinkError, PointRecord, Reply};
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
 use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
@@ -20,8 +21,12 @@ fn flash() -> SimFlash {
     SimFlash::new(2 * SLOT_LEN as usize)
 }
 
+/// A client asking for f32 values (bit for bit); the other encodings have
+/// tests of their own.
 fn client(flash: SimFlash, ram_zones: usize) -> Client<SimDevice> {
-    Client::new(SimDevice::boot(flash, ram_zones)).unwrap()
+    let mut c = Client::new(SimDevice::boot(flash, ram_zones)).unwrap();
+    c.format = StreamFormat::LOSSLESS;
+    c
 }
 
 /// A signed test calibration (development key).
@@ -216,7 +221,7 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     );
 
     // Truncated: the last payload bytes lost (COBS still valid).
-    let n = encode(78, &Request::Measure { lines: 5 }, &mut frame).unwrap();
+    let n = encode(78, &Request::Measure { lines: 5, format: StreamFormat::LOSSLESS }, &mut frame).unwrap();
     let mut raw = [0u8; MAX_FRAME];
     let m = cobs::decode(&frame[..n - 1], &mut raw).unwrap();
     let mut t = vec![0u8; MAX_FRAME];
@@ -283,28 +288,29 @@ fn continuous_measurement_refuses_provisioning_and_stops_on_request() {
     c.provision(&b, |_, _| {}).unwrap();
     let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 3, FULL_SCALE);
     c.load_scene(&scene).unwrap();
-    let seq = c.send(&Request::Measure { lines: 0 }).unwrap();
+    let seq = c.send(&Request::Measure { lines: 0, format: StreamFormat::LOSSLESS }).unwrap();
     // Let a few lines stream.
     let mut points = Vec::new();
     while points.len() < 3 * P {
         match c.next_frame(std::time::Duration::from_secs(1)).unwrap() {
             f if f.seq != seq => panic!("unexpected frame {f:?}"),
             f => {
-                if let Reply::Point(p) = f.reply {
-                    points.push(p)
+                if let Reply::Points(ps) = f.reply {
+                    points.extend(ps)
                 }
             }
         }
     }
     let begin = Request::ProvisionBegin { len: b.len() as u32, crc: CRC32.checksum(&b) };
     let s2 = c.send(&begin).unwrap();
-    let s3 = c.send(&Request::Measure { lines: 1 }).unwrap();
+    let s3 = c.send(&Request::Measure { lines: 1, format: StreamFormat::LOSSLESS }).unwrap();
     let s4 = c.send(&Request::Stop).unwrap();
     let mut replies = Vec::new();
     let done_lines = loop {
         let f = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
         match f.reply {
-            Reply::Point(p) => points.push(p),
+            Reply::Points(ps) => points.extend(ps),
+            Reply::Point(p) => panic!("a protocol 2 point frame: {p:?}"),
             Reply::Msg(Response::MeasureDone { lines_done }) => break lines_done,
             Reply::Msg(m) => replies.push((f.seq, m)),
         }
@@ -412,5 +418,99 @@ fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_pri
         check_points(&t.blob, &odd, &pts, 1);
         let flagged = pts.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
         assert!(flagged > 0, "no synthetic point flagged out-of-prior (piecewise {piecewise})");
+    }
+}
+
+/// What every encoding must give: the f32 stream's points, values bit for
+/// bit (f32, corrected readings) or within 1/256 of each bin's uncertainty
+/// (Sigma16), on the bins asked for.
+fn check_against_exact(view: &BlobView<'_>, exact: &[PointRecord], got: &[PointRecord], fmt: StreamFormat) {
+    assert_eq!(got.len(), exact.len());
+    let bins = fmt.bin_range(N);
+    for (g, e) in got.iter().zip(exact) {
+        let meta = |p: &PointRecord| {
+            (p.line, p.seq, p.point, p.zone, p.cluster, p.flags, p.sigma_scale.to_bits(), p.readings.map(f32::to_bits))
+        };
+        assert_eq!(meta(g), meta(e));
+        assert_eq!(g.bins, bins);
+        assert_eq!(g.values.len(), bins.count as usize);
+        for (v, j) in g.values.iter().zip(bins.bins()) {
+            let want = e.values[j];
+            if g.encoding == Encoding::Sigma16 {
+                let u = point_uncertainty(view.uncertainty_of(g.zone as usize, g.cluster as usize, j), g.sigma_scale);
+                assert!((v - want).abs() <= u / 256.0, "point {} bin {j}: {v} vs {want} (u {u})", g.seq);
+            } else {
+                assert_eq!(v.to_bits(), want.to_bits(), "point {} bin {j}", g.seq);
+            }
+        }
+    }
+}
+
+#[test]
+fn every_encoding_and_bin_subset_decodes_to_the_f32_streams_points() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(3.0);
+    c.provision(&b, |_, _| {}).unwrap();
+    let view = BlobView::parse(&b).unwrap();
+    let scene = analytic_scene(&view, 2, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let exact = c.measure(2).unwrap();
+    check_points(&b, &scene, &exact, 2);
+    c.set_calibration(&b).unwrap();
+    let subset = Some(BinRange { first: 1, step: 4, count: 20 });
+    let mut sigma16 = 0;
+    for fmt in [
+        StreamFormat::default(),
+        StreamFormat { encoding: Encoding::Corrected, bins: None },
+        StreamFormat { encoding: Encoding::F32, bins: subset },
+        StreamFormat { encoding: Encoding::Sigma16, bins: subset },
+        StreamFormat { encoding: Encoding::Corrected, bins: subset },
+    ] {
+        c.format = fmt;
+        c.load_scene(&scene).unwrap(); // a measurement starts at the scene's first line
+        let got = c.measure(2).unwrap();
+        check_against_exact(&view, &exact, &got, fmt);
+        assert!(got.iter().all(|p| p.encoding == fmt.encoding || p.encoding == Encoding::F32));
+        sigma16 += got.iter().filter(|p| p.encoding == Encoding::Sigma16).count();
+    }
+    assert!(sigma16 > 0, "Sigma16 was exercised");
+    assert_eq!(StreamFormat::default().encoding, Encoding::Sigma16);
+}
+
+#[test]
+fn an_empty_or_out_of_range_bin_subset_is_refused() {
+    let mut c = client(flash(), ZONES);
+    c.provision(&blob(2.0), |_, _| {}).unwrap();
+    for bins in [BinRange { first: 0, step: 1, count: 0 }, BinRange { first: 80, step: 2, count: 2 }] {
+        c.format = StreamFormat { encoding: Encoding::F32, bins: Some(bins) };
+        assert_eq!(device_error(c.measure(1)), DeviceError::BadBins { bins: N as u16 });
+    }
+}
+
+#[test]
+fn values_decoded_with_another_calibration_or_none_are_refused() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(2.0);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 1, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
+    match c.measure(1) {
+        Err(LinkError::Stream(DecodeError::NeedsBlob(Encoding::Corrected))) => {}
+        other => panic!("decoded without the blob: {other:?}"),
+    }
+    c.resync().unwrap();
+    let other = blob(5.0);
+    c.set_calibration(&other).unwrap();
+    for encoding in [Encoding::Corrected, Encoding::Sigma16] {
+        c.format = StreamFormat { encoding, bins: None };
+        match c.measure(1) {
+            Err(LinkError::Stream(DecodeError::OtherBlob { device, host })) => {
+                assert_eq!(device, BlobView::parse(&b).unwrap().crc());
+                assert_eq!(host, BlobView::parse(&other).unwrap().crc());
+            }
+            other => panic!("decoded with another blob: {other:?}"),
+        }
+        c.resync().unwrap();
     }
 }

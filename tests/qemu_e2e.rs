@@ -4,7 +4,10 @@
 //! from host-tools' scene simulator, and check every streamed value bit for
 //! bit against the host's f32 computation on the same corrected readings.
 use brdf_meter::blob::{BlobView, CRC32};
-use brdf_meter::protocol::{DeviceError, FrameError, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, encode};
+use brdf_meter::protocol::{
+    BinRange, DeviceError, Encoding, FrameError, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField, StreamFormat,
+    encode, point_uncertainty,
+};
 use brdf_meter::signed::SignatureFault;
 use host_tools::calibration::demo::train_for_scene;
 use host_tools::calibration::signing::{sign_blob, sign_with_dev_key};
@@ -76,6 +79,8 @@ fn signed_for_scene(scene: &host_tools::forward::scene::Scene, zones: usize, noi
 fn connect(q: &host_tools::device::link::qemu::QemuInstrument) -> Client<TcpTransport> {
     let mut c = q.connect().unwrap();
     c.timeout = Duration::from_secs(20);
+    // f32 values (bit for bit) unless a test asks for another encoding.
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     c
 }
 
@@ -108,6 +113,40 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     assert!(points.iter().any(|p| p.values.iter().any(|v| *v > 0.1)));
     let st = c.status().unwrap();
     assert_eq!((st.lines_total, st.bad_frames, st.measuring), (lines as u32, 0, false));
+
+    // The other encodings, decoded with the blob: the corrected readings
+    // give the same bits (the host runs the device's kernel), Sigma16 is
+    // within 1/256 of each bin's uncertainty, a bin subset its bins.
+    c.set_calibration(&trained.blob).unwrap();
+    let view = BlobView::parse(&trained.blob).unwrap();
+    for format in [
+        StreamFormat { encoding: Encoding::Corrected, bins: None },
+        StreamFormat::default(),
+        StreamFormat { encoding: Encoding::Sigma16, bins: Some(BinRange { first: 3, step: 7, count: 11 }) },
+    ] {
+        c.format = format;
+        c.load_scene(&frames).unwrap(); // a measurement starts at the scene's first line
+        let got = c.measure(2).unwrap();
+        assert_eq!(got.len(), 2 * PIXELS);
+        let bins = format.bin_range(view.dims().n);
+        for (g, e) in got.iter().zip(&points) {
+            assert_eq!(
+                (g.seq, g.zone, g.cluster, g.flags, g.sigma_scale.to_bits()),
+                (e.seq, e.zone, e.cluster, e.flags, e.sigma_scale.to_bits())
+            );
+            assert_eq!(g.values.len(), bins.count as usize);
+            for (v, j) in g.values.iter().zip(bins.bins()) {
+                if g.encoding == Encoding::Sigma16 {
+                    let u =
+                        point_uncertainty(view.uncertainty_of(g.zone as usize, g.cluster as usize, j), g.sigma_scale);
+                    assert!((v - e.values[j]).abs() <= u / 256.0, "point {} bin {j}", g.seq);
+                } else {
+                    assert_eq!(v.to_bits(), e.values[j].to_bits(), "point {} bin {j}", g.seq);
+                }
+            }
+        }
+    }
+    c.format = StreamFormat::LOSSLESS;
 
     // A scale-free piecewise calibration on the MERL prior: the Cortex-M4F
     // gives the host's bits too (values, cluster, out-of-prior flag, scale).
@@ -217,6 +256,7 @@ fn qemu_serves_the_same_protocol_over_a_serial_port() {
     .unwrap();
     let mut c = q.connect_serial().unwrap();
     c.timeout = Duration::from_secs(20);
+    c.format = StreamFormat::LOSSLESS;
     assert!(q.addr.starts_with("/dev/pts/"), "{}", q.addr);
     let scene = patent_scene(PIXELS);
     let blob = signed_for_scene(&scene, 2, 0.02);

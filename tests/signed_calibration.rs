@@ -32,6 +32,7 @@ fn measures_with(c: &mut Client<SimDevice>, blob: &[u8]) {
     let view = BlobView::parse(blob).unwrap();
     let scene = analytic_scene(&view, 1, FULL_SCALE);
     c.load_scene(&scene).unwrap();
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     let pts = c.measure(1).unwrap();
     let want = expected_line(&view, &scene[0], FULL_SCALE);
     assert_eq!(pts.len(), P);

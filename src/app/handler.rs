@@ -54,10 +54,13 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted).map_err(DeviceError::from),
                 Request::Measure { .. } if measuring => Err(DeviceError::Busy),
                 Request::Measure { .. } if c.cal.active().is_none() => Err(DeviceError::NoCalibration),
-                Request::Measure { lines } => {
+                Request::Measure { format, .. } if !format.bin_range(N).fits(N) => {
+                    Err(DeviceError::BadBins { bins: N as u16 })
+                }
+                Request::Measure { lines, format } => {
                     c.status.measuring = true;
                     self.stop.store(false, Ordering::SeqCst);
-                    self.start.signal(Job { seq, lines });
+                    self.start.signal(Job { seq, lines, format });
                     Ok(Response::MeasureStarted { lines })
                 }
                 Request::Stop => {

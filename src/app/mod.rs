@@ -49,6 +49,8 @@ pub struct Job {
     pub seq: u32,
     /// Lines to measure, 0 for continuous.
     pub lines: u32,
+    /// What the stream carries (bins already checked against n).
+    pub format: crate::protocol::StreamFormat,
 }
 
 /// What travels in a line buffer.

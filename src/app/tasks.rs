@@ -4,7 +4,8 @@ use super::{Job, LineBuf, LineState, OutFrame, Shared};
 use crate::acquire::{acquire_line, correct_line};
 use crate::hw::{FrameInput, Leds, LineSensor, MappedFlash};
 use crate::protocol::{
-    self, DeviceError, FrameReader, LeBytes, MAX_FRAME, MAX_WIRE_BINS, PointFrame, Pushed, Request, Response, flags,
+    self, DeviceError, Encoding, FrameReader, MAX_FRAME, MAX_WIRE_BINS, PointIn, PointMetaWire, PointsBlock, PushError,
+    Pushed, Request, Response, flags,
 };
 use core::sync::atomic::Ordering;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
@@ -125,8 +126,9 @@ where
     }
 }
 
-/// The estimation task: `rho = W_zone v` for every point of each line, one
-/// frame per point.
+/// The estimation task: `rho = W_zone v` for every point of each line,
+/// several points per frame ([`crate::protocol::PointsFrame`]) in the
+/// encoding the job asks for.
 pub async fn estimation<F, const N: usize, const M: usize, const P: usize>(
     shared: &Shared<F, N, M, P>,
     mut lines_in: Receiver<'static, Cs, LineBuf<M, P>>,
@@ -134,9 +136,10 @@ pub async fn estimation<F, const N: usize, const M: usize, const P: usize>(
 where
     F: MappedFlash,
 {
-    const { assert!(N <= MAX_WIRE_BINS, "a point frame carries at most MAX_WIRE_BINS bins") };
+    const { assert!(N <= MAX_WIRE_BINS, "a frame carries at most MAX_WIRE_BINS bins") };
     let mut stream_seq = 0u32;
     let mut current: Option<Job> = None;
+    let mut block = PointsBlock::new();
     loop {
         let buf = lines_in.receive().await;
         match buf.state {
@@ -146,37 +149,74 @@ where
                     current = Some(job);
                     stream_seq = 0;
                 }
+                let bins = job.format.bin_range(N);
+                let encoding = job.format.encoding;
+                let crc = shared.core.lock(|c| c.borrow().cal.active().map_or(0, |a| a.info.blob_crc));
+                block.start(line, stream_seq, 0, crc, encoding, bins, M);
                 for p in 0..P {
                     let mut rho = SVector::<f32, N>::zeros();
                     let meta = shared.core.lock(|c| {
                         let c = c.borrow();
-                        c.cal.active().is_some().then(|| c.cal.estimate_pixel(p, &buf.v[p], &mut rho))
+                        c.cal.active().is_some().then(|| c.cal.estimate_point(p, &buf.v[p], buf.flags[p], &mut rho))
                     });
                     // Never stream NaN/inf: a non-finite point is zeroed and flagged.
-                    let mut fl = buf.flags[p] | crate::estimate::guard_estimate(rho.as_mut_slice());
-                    match meta {
-                        Some(m) => fl |= m.flags,
-                        None => fl |= flags::NON_FINITE,
+                    let wire = match meta {
+                        Some(m) => PointMetaWire {
+                            zone: m.zone,
+                            cluster: m.cluster,
+                            flags: m.flags,
+                            sigma_scale: m.sigma_scale,
+                            readings: m.readings,
+                            reading_sigma: m.reading_sigma,
+                        },
+                        None => PointMetaWire {
+                            zone: u16::MAX,
+                            cluster: 0,
+                            flags: buf.flags[p] | flags::NON_FINITE,
+                            sigma_scale: 1.0,
+                            readings: crate::gloss::NO_READINGS,
+                            reading_sigma: crate::gloss::NO_READINGS,
+                        },
+                    };
+                    let push = |block: &mut PointsBlock| {
+                        shared.core.lock(|c| {
+                            let c = c.borrow();
+                            let sigma = match c.cal.active() {
+                                Some(_) if meta.is_some() => {
+                                    c.cal.uncertainty(wire.zone as usize, wire.cluster as usize)
+                                }
+                                _ => &[],
+                            };
+                            let pin =
+                                PointIn { meta: wire, values: rho.as_slice(), readings: buf.v[p].as_slice(), sigma };
+                            block.push(&pin)
+                        })
+                    };
+                    match push(&mut block) {
+                        Ok(()) => {}
+                        Err(PushError::Full) => {
+                            shared.out.send(frame(job.seq, &Response::Points(block.frame()))).await;
+                            block.start(line, stream_seq, p as u16, crc, encoding, bins, M);
+                            // An empty block takes any point of the block's encoding, or
+                            // refuses it as not representable (handled below).
+                            if push(&mut block).is_err() {
+                                send_alone(shared, job.seq, &mut block, &push, crc, bins).await;
+                                block.start(line, stream_seq.wrapping_add(1), p as u16 + 1, crc, encoding, bins, M);
+                            }
+                        }
+                        Err(PushError::NotRepresentable) => {
+                            if !block.is_empty() {
+                                shared.out.send(frame(job.seq, &Response::Points(block.frame()))).await;
+                            }
+                            block.start(line, stream_seq, p as u16, crc, encoding, bins, M);
+                            send_alone(shared, job.seq, &mut block, &push, crc, bins).await;
+                            block.start(line, stream_seq.wrapping_add(1), p as u16 + 1, crc, encoding, bins, M);
+                        }
                     }
-                    // A point whose estimate is not finite has no readings either.
-                    let (readings, reading_sigma) = match meta {
-                        Some(m) if fl & flags::NON_FINITE == 0 => (m.readings, m.reading_sigma),
-                        _ => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
-                    };
-                    let pf = PointFrame {
-                        line,
-                        seq: stream_seq,
-                        point: p as u16,
-                        zone: meta.map_or(u16::MAX, |m| m.zone),
-                        cluster: meta.map_or(0, |m| m.cluster),
-                        flags: fl,
-                        sigma_scale: meta.map_or(1.0, |m| m.sigma_scale),
-                        readings,
-                        reading_sigma,
-                        values: LeBytes::from_f32(rho.as_slice()),
-                    };
                     stream_seq = stream_seq.wrapping_add(1);
-                    shared.out.send(frame(job.seq, &Response::Point(pf))).await;
+                }
+                if !block.is_empty() {
+                    shared.out.send(frame(job.seq, &Response::Points(block.frame()))).await;
                 }
                 shared.core.lock(|c| {
                     let mut c = c.borrow_mut();
@@ -194,4 +234,23 @@ where
         buf.state = LineState::Empty;
         lines_in.receive_done();
     }
+}
+
+/// Sends the point `push` pushes alone, f32 (the lossless fallback of a
+/// point its block's encoding cannot carry within its bound). `block` was
+/// just started at the point.
+async fn send_alone<F, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    job_seq: u32,
+    block: &mut PointsBlock,
+    push: &impl Fn(&mut PointsBlock) -> Result<(), PushError>,
+    crc: u32,
+    bins: crate::protocol::BinRange,
+) where
+    F: MappedFlash,
+{
+    block.start(block.line, block.seq, block.first_point, crc, Encoding::F32, bins, M);
+    // An f32 point always fits an empty block.
+    let _ = push(block);
+    shared.out.send(frame(job_seq, &Response::Points(block.frame()))).await;
 }

@@ -33,8 +33,10 @@ const M: usize = shape::LEDS;
 const P: usize = shape::board::PIXELS;
 const RAM_ZONES: usize = shape::board::RAM_ZONES;
 
-/// Acquisition settings: integration per frame and LED settling before it.
-const ACQ: AcqConfig = AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX };
+/// Acquisition settings: integration per frame and LED settling before it
+/// (written down in `platform::timing`, where the host's line-rate
+/// budget reads them too).
+const ACQ: AcqConfig = brdf_meter::platform::timing::ACQUISITION;
 
 type BoardShared = Shared<CalFlash, N, M, P>;
 

@@ -33,8 +33,8 @@ const RAM_ZONES: usize = shape::qemu::RAM_ZONES;
 const SLOT_LEN: usize = shape::qemu::SLOT_LEN as usize;
 /// Simulated 16-bit converter (the scene simulator's counts reach ~48k).
 const FULL_SCALE: u16 = u16::MAX;
-/// Acquisition timing: short, it is a simulation.
-const ACQ: AcqConfig = AcqConfig { exposure_us: 200, settle_us: 100, intensity: u16::MAX };
+/// Acquisition timing: short, it is a simulation (`platform::timing`).
+const ACQ: AcqConfig = brdf_meter::platform::timing::QEMU_ACQUISITION;
 
 type Flash = RamFlash<{ 2 * SLOT_LEN }>;
 type QemuShared = Shared<Flash, N, M, P>;

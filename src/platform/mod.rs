@@ -9,6 +9,8 @@
 //!   flash, in-memory link, simulated optics), used by tests/.
 //! - [`nor_fake`]: the NOR flash rules both flash fakes share.
 //! - [`watchdog_health`]: the board's watchdog rule, pure logic tested on the host.
+//! - [`timing`]: the board's acquisition settings and sensor timing
+//!   (not gated: the host's line-rate budget derives from them).
 #[cfg(all(feature = "board", target_os = "none"))]
 pub mod board;
 #[cfg(any(test, feature = "sim"))]
@@ -17,5 +19,6 @@ pub mod host_sim;
 pub mod nor_fake;
 #[cfg(all(feature = "qemu", target_os = "none"))]
 pub mod qemu;
+pub mod timing;
 #[cfg(any(test, all(feature = "board", target_os = "none")))]
 pub mod watchdog_health;

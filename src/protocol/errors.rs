@@ -155,6 +155,11 @@ pub enum DeviceError {
     /// untrusted key, or a signature that does not verify); the previous
     /// calibration is kept.
     SignatureRejected(SignatureFault),
+    /// A measurement's bin range is empty or beyond the device's n bins.
+    BadBins {
+        /// The device's bins n.
+        bins: u16,
+    },
 }
 
 impl From<SignatureFault> for DeviceError {
@@ -216,6 +221,9 @@ impl core::fmt::Display for DeviceError {
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
             Self::SignatureRejected(e) => {
                 write!(f, "the device refused the calibration's signature: {e}; the previous calibration is kept")
+            }
+            Self::BadBins { bins } => {
+                write!(f, "the bin range is empty or beyond the device's {bins} bins: nothing was measured")
             }
         }
     }

@@ -4,29 +4,112 @@
 use super::{FrameError, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION};
 use serde::{Deserialize, Serialize};
 
+/// The frames' CRC-32: the blob's (ISO-HDLC, one 1 KiB table). Measured on
+/// the line bench, the crate's slice-by-16 tables (16 KiB of flash) cost as
+/// many instructions per byte on the Cortex-M4 (6.7 against 6.5).
+const FRAME_CRC: crc::Crc<u32> = crate::blob::CRC32;
+
 /// Header bytes before the body: version, length, sequence.
 pub(crate) const HEADER: usize = 8;
 /// CRC bytes after the body.
 pub(crate) const CRC_LEN: usize = 4;
 
 /// Encodes `msg` with sequence number `seq` into `out` as one complete frame
-/// (COBS + delimiter); returns the frame length.
+/// (COBS + delimiter); returns the frame length. The three steps
+/// ([`serialise`], [`seal`], [`stuff`]) are public so the line bench can
+/// count each.
 pub fn encode<T: Serialize>(seq: u32, msg: &T, out: &mut [u8]) -> Result<usize, FrameError> {
     let mut raw = [0u8; MAX_PAYLOAD];
+    let len = serialise(seq, msg, &mut raw)?;
+    seal(&mut raw[..len]);
+    stuff(&raw[..len], out)
+}
+
+/// Header and postcard body of `msg` into `raw`; returns the payload length,
+/// the 4 CRC bytes at its end included (not yet written).
+pub fn serialise<T: Serialize>(seq: u32, msg: &T, raw: &mut [u8; MAX_PAYLOAD]) -> Result<usize, FrameError> {
     let body_len =
         postcard::to_slice(msg, &mut raw[HEADER..MAX_PAYLOAD - CRC_LEN]).map_err(|_| FrameError::TooLarge)?.len();
     let len = HEADER + body_len + CRC_LEN;
     raw[0..2].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
     raw[2..4].copy_from_slice(&(len as u16).to_le_bytes());
     raw[4..8].copy_from_slice(&seq.to_le_bytes());
-    let crc = crate::blob::CRC32.checksum(&raw[..len - CRC_LEN]);
-    raw[len - CRC_LEN..len].copy_from_slice(&crc.to_le_bytes());
-    let n = cobs::try_encode(&raw[..len], out).map_err(|_| FrameError::TooLarge)?;
+    Ok(len)
+}
+
+/// Writes the CRC-32 of everything before the payload's last 4 bytes into them.
+pub fn seal(payload: &mut [u8]) {
+    let n = payload.len() - CRC_LEN;
+    let crc = FRAME_CRC.checksum(&payload[..n]);
+    payload[n..].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// COBS-encodes `payload` into `out` and appends the delimiter; returns the
+/// frame length.
+pub fn stuff(payload: &[u8], out: &mut [u8]) -> Result<usize, FrameError> {
+    let n = cobs_encode(payload, out).ok_or(FrameError::TooLarge)?;
     if n >= out.len() {
         return Err(FrameError::TooLarge);
     }
     out[n] = 0;
     Ok(n + 1)
+}
+
+/// COBS encoding (the `cobs` crate's output, byte for byte: the tests
+/// compare them), a run of non-zero bytes at a time: zeros are found a
+/// word at a time and each run is copied whole, where a byte-wise encoder
+/// spends about 15 instructions per byte on the Cortex-M4.
+pub(crate) fn cobs_encode(src: &[u8], dst: &mut [u8]) -> Option<usize> {
+    if src.is_empty() {
+        return Some(0); // as the crate does (a frame is never empty)
+    }
+    let mut out = 0usize;
+    let mut start = 0usize;
+    loop {
+        let rest = &src[start..];
+        let max = rest.len().min(254);
+        let run = first_zero(&rest[..max]);
+        let end = out + 1 + run;
+        if end > dst.len() {
+            return None;
+        }
+        dst[out] = (run + 1) as u8;
+        if run <= 8 && rest.len() >= 8 && dst.len() >= out + 9 {
+            // A short run (zeros are common in f32 and i16 data): a fixed
+            // 8-byte copy, two word moves, beats a memcpy call; the bytes
+            // past the run are overwritten by what follows, or past the end.
+            dst[out + 1..out + 9].copy_from_slice(&rest[..8]);
+        } else {
+            dst[out + 1..end].copy_from_slice(&rest[..run]);
+        }
+        out = end;
+        start += run;
+        if run < max {
+            // A zero ends the block (a zero as the last byte is followed by
+            // an empty block, as the loop's next turn writes).
+            start += 1;
+        } else if start == src.len() {
+            return Some(out);
+        }
+    }
+}
+
+/// Index of the first zero byte of `s` (or its length).
+#[inline]
+fn first_zero(s: &[u8]) -> usize {
+    let mut i = 0;
+    for w in s.chunks_exact(4) {
+        // One (unaligned) word load; a zero byte sets its 0x80 bit here.
+        let w = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+        if w.wrapping_sub(0x0101_0101) & !w & 0x8080_8080 != 0 {
+            break;
+        }
+        i += 4;
+    }
+    while i < s.len() && s[i] != 0 {
+        i += 1;
+    }
+    i
 }
 
 /// Decodes one frame's bytes (without the `0x00` delimiter), in place.
@@ -50,7 +133,7 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<(u32, T), F
         return Err(FrameError::BadCrc);
     }
     let stored = u32::from_le_bytes([raw[n - 4], raw[n - 3], raw[n - 2], raw[n - 1]]);
-    if crate::blob::CRC32.checksum(&raw[..n - CRC_LEN]) != stored {
+    if FRAME_CRC.checksum(&raw[..n - CRC_LEN]) != stored {
         return Err(FrameError::BadCrc);
     }
     let version = u16::from_le_bytes([raw[0], raw[1]]);

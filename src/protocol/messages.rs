@@ -4,8 +4,27 @@ use super::DeviceError;
 use serde::{Deserialize, Serialize};
 
 /// Raw little-endian bytes of a numeric array, borrowed from the frame.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+///
+/// On the wire: a varint length and the bytes (postcard's encoding of a
+/// byte sequence), written as bytes in one copy rather than element by
+/// element (what serde's derive of a `&[u8]` field would do; same bytes).
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LeBytes<'a>(#[serde(borrow)] pub &'a [u8]);
+
+impl Serialize for LeBytes<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_newtype_struct("LeBytes", &Bytes(self.0))
+    }
+}
+
+/// A byte slice serialised as bytes.
+struct Bytes<'a>(&'a [u8]);
+
+impl Serialize for Bytes<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(self.0)
+    }
+}
 
 impl<'a> LeBytes<'a> {
     /// Wraps f32 values without copying (both our targets are little-endian).
@@ -64,6 +83,8 @@ pub enum Request<'a> {
     Measure {
         /// Number of lines, 0 for continuous.
         lines: u32,
+        /// What the stream carries: value encoding and bins.
+        format: super::StreamFormat,
     },
     /// Stops a measurement after the line in progress.
     Stop,
@@ -133,14 +154,17 @@ pub enum Response<'a> {
     /// The request (or the measurement) failed; nothing was changed unless the
     /// error says so.
     Error(DeviceError),
+    /// Consecutive points of one line (protocol 3's stream).
+    Points(#[serde(borrow)] super::PointsFrame<'a>),
 }
 
 impl<'a> Response<'a> {
-    /// Every reply but a point frame owns its data: returns it with a
-    /// `'static` life, or the point frame (which borrows the frame buffer).
-    pub fn detach(self) -> Result<Response<'static>, PointFrame<'a>> {
+    /// Every reply but a point or line frame owns its data: returns it with
+    /// a `'static` life, or the frame (which borrows the frame buffer).
+    pub fn detach(self) -> Result<Response<'static>, Streamed<'a>> {
         Ok(match self {
-            Self::Point(p) => return Err(p),
+            Self::Point(p) => return Err(Streamed::Point(p)),
+            Self::Points(p) => return Err(Streamed::Points(p)),
             Self::Info(x) => Response::Info(x),
             Self::Status(x) => Response::Status(x),
             Self::ProvisionReady { slot, max_chunk } => Response::ProvisionReady { slot, max_chunk },
@@ -154,6 +178,15 @@ impl<'a> Response<'a> {
             Self::Error(e) => Response::Error(e),
         })
     }
+}
+
+/// A streamed frame, borrowing the frame buffer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Streamed<'a> {
+    /// One point (protocol 2's stream).
+    Point(PointFrame<'a>),
+    /// Points of a line.
+    Points(super::PointsFrame<'a>),
 }
 
 /// Build-time sizes and identity of the device.
@@ -231,7 +264,9 @@ pub mod flags {
     pub const OUT_OF_PRIOR: u8 = 1 << 3;
 }
 
-/// One point's estimate, streamed during a measurement.
+/// One point's estimate in a frame of its own, f32 (protocol 2's stream; a
+/// protocol 3 device streams [`super::PointsFrame`]s, which the rate report
+/// compares with this).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct PointFrame<'a> {
     /// Line number within the measurement (0-based).

@@ -33,18 +33,24 @@
 //! - [`messages`]: the requests, replies and streamed points, and what they carry.
 //! - [`errors`]: the typed errors that travel (frame, blob, device).
 //! - [`framing`]: header + CRC + COBS around a message, and the frame reader.
+//! - [`points`]: line frames (several points per frame), their per-point
+//!   records and value encodings (f32, Sigma16, readings).
 mod errors;
 mod framing;
 mod messages;
+mod points;
 
 pub use errors::*;
 pub use framing::*;
 pub use messages::*;
+pub use points::*;
 
 /// The protocol version this library speaks.
 pub const PROTOCOL_VERSION: u16 = 3;
 /// Largest decoded payload (header + body + CRC) either side sends or accepts.
-pub const MAX_PAYLOAD: usize = 640;
+/// (1024: a line frame carries 5 points of 81 Sigma16 values, or 27 points'
+/// readings; the device holds 4 outgoing frames and one incoming.)
+pub const MAX_PAYLOAD: usize = 1024;
 /// Largest frame on the wire: COBS overhead plus the `0x00` delimiter.
 pub const MAX_FRAME: usize = MAX_PAYLOAD + MAX_PAYLOAD / 254 + 2;
 /// Largest data a [`Request::ProvisionChunk`] may carry.

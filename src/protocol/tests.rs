@@ -1,4 +1,5 @@
 //! Round trips and wire bytes of every message, framing and its errors.
+use super::framing::cobs_encode;
 use super::*;
 use crate::blob::BlobError;
 use crate::hw::SensorError;
@@ -44,8 +45,15 @@ fn every_request_round_trips() {
         Request::ProvisionChunk { offset: 0, data: &[0xAB; MAX_CHUNK] },
         Request::ProvisionCommit,
         Request::ProvisionAbort,
-        Request::Measure { lines: 0 },
-        Request::Measure { lines: u32::MAX },
+        Request::Measure { lines: 0, format: StreamFormat::default() },
+        Request::Measure { lines: u32::MAX, format: StreamFormat::LOSSLESS },
+        Request::Measure {
+            lines: 1,
+            format: StreamFormat {
+                encoding: Encoding::Corrected,
+                bins: Some(BinRange { first: 3, step: 2, count: 10 }),
+            },
+        },
         Request::Stop,
         Request::SimFrame { line: 3, frame: 7, first_pixel: 96, pixels: LeBytes::from_u16(&px) },
         Request::SimLines { lines: 2 },
@@ -174,7 +182,7 @@ fn every_truncation_is_a_typed_error() {
     // A cut that keeps the COBS structure valid is reported as truncated.
     let mut raw = [0u8; MAX_PAYLOAD];
     let mut enc = [0u8; MAX_FRAME];
-    let n = encode(3, &Request::Measure { lines: 2 }, &mut enc).unwrap();
+    let n = encode(3, &Request::Measure { lines: 2, format: StreamFormat::LOSSLESS }, &mut enc).unwrap();
     let m = cobs::decode(&enc[..n - 1], &mut raw).unwrap();
     let mut re = [0u8; MAX_FRAME];
     let k = cobs::encode(&raw[..m - 2], &mut re);
@@ -268,4 +276,175 @@ fn blob_errors_map_to_typed_faults() {
         e,
         DeviceError::BlobRejected { fault: BlobFault::NonFinite, section: Some(BlobSection::White), detail: 12 }
     );
+}
+
+fn meta(k: u16) -> PointMetaWire {
+    PointMetaWire {
+        zone: k,
+        cluster: 1,
+        flags: flags::OUT_OF_PRIOR,
+        sigma_scale: -1.5,
+        readings: [97.5, f32::NAN, 1.0],
+        reading_sigma: [0.5, f32::NAN, 0.25],
+    }
+}
+
+#[test]
+fn line_frames_of_every_encoding_round_trip_and_fill_the_payload() {
+    let n = crate::shape::BINS;
+    let m = crate::shape::LEDS;
+    let values: Vec<f32> = (0..n).map(|j| (j as f32 * 0.37).sin() * 40.0).collect();
+    let sigma: Vec<f32> = (0..n).map(|j| 0.5 + 0.01 * j as f32).collect();
+    let readings: Vec<f32> = (0..m).map(|i| 0.1 * i as f32).collect();
+    for (encoding, bins, per_frame) in [
+        (Encoding::F32, BinRange::all(n), 2),
+        (Encoding::Sigma16, BinRange::all(n), 5),
+        (Encoding::Sigma16, BinRange { first: 10, step: 10, count: 7 }, 21),
+        (Encoding::Corrected, BinRange::all(n), 16),
+    ] {
+        let mut b = PointsBlock::new();
+        b.start(7, 1000, 5, 0xABCD_0123, encoding, bins, m);
+        let mut k = 0u16;
+        let pin = |k: u16| PointIn { meta: meta(k), values: &values, readings: &readings, sigma: &sigma };
+        while b.push(&pin(k)).is_ok() {
+            k += 1;
+        }
+        assert_eq!(b.push(&pin(k)), Err(PushError::Full));
+        assert_eq!((b.len(), encoding), (per_frame, encoding), "points per frame");
+        // A full frame encodes within MAX_PAYLOAD.
+        let mut f = frame_of(3, &Response::Points(b.frame()));
+        f.pop();
+        let (_, back): (u32, Response<'_>) = decode(&mut f).unwrap();
+        let Response::Points(pf) = back else { panic!("not a line frame") };
+        assert_eq!(pf, b.frame());
+        let recs: Vec<_> = pf.records(n, m).unwrap().collect();
+        assert_eq!(recs.len(), per_frame);
+        for (k, (mw, data)) in recs.iter().enumerate() {
+            let want = meta(k as u16);
+            assert_eq!((mw.zone, mw.cluster, mw.flags, mw.sigma_scale), (want.zone, 1, flags::OUT_OF_PRIOR, -1.5));
+            assert_eq!(mw.readings.map(f32::to_bits), want.readings.map(f32::to_bits));
+            match encoding {
+                Encoding::F32 => {
+                    let got: Vec<f32> = LeBytes(data).f32s().collect();
+                    assert_eq!(got, values);
+                }
+                Encoding::Sigma16 => {
+                    for (q, j) in data.chunks_exact(2).zip(bins.bins()) {
+                        let u = point_uncertainty(sigma[j], -1.5);
+                        let step = sigma16_step(u).unwrap();
+                        let back = i16::from_le_bytes([q[0], q[1]]) as f32 * step;
+                        assert!((back - values[j]).abs() <= u / 256.0, "bin {j}: {back} vs {}", values[j]);
+                    }
+                }
+                Encoding::Corrected => assert_eq!(LeBytes(data).f32s().collect::<Vec<_>>(), readings),
+            }
+        }
+    }
+}
+
+#[test]
+fn sigma16_steps_are_powers_of_two_between_a_256th_and_a_128th_of_the_uncertainty() {
+    for u in [1e-30f32, 3.0e-3, 0.125, 0.2, 1.0, 7.9, 1e20] {
+        let s = sigma16_step(u).unwrap();
+        assert_eq!(s.to_bits() & 0x007f_ffff, 0, "a power of two");
+        assert!(s <= u / 128.0 && s > u / 256.0, "u {u}: step {s}");
+    }
+    for bad in [0.0f32, -1.0, f32::NAN, f32::INFINITY, 1e-40, 1e-36] {
+        assert_eq!(sigma16_step(bad), None, "{bad}");
+    }
+    assert_eq!(sigma16_quantise(2.5, 1.0), Some(3));
+    assert_eq!(sigma16_quantise(-2.5, 1.0), Some(-3));
+    assert_eq!(sigma16_quantise(32767.4, 1.0), Some(32767));
+    assert_eq!(sigma16_quantise(32768.0, 1.0), None);
+    assert_eq!(sigma16_quantise(f32::NAN, 1.0), None);
+}
+
+#[test]
+fn a_point_sigma16_cannot_carry_is_refused_and_the_block_left_unchanged() {
+    let values = [1.0f32, 1.0e6, 0.5];
+    let sigma = [0.1f32, 0.1, 0.1];
+    let mut b = PointsBlock::new();
+    b.start(0, 0, 0, 1, Encoding::Sigma16, BinRange::all(3), 2);
+    let ok = PointIn { meta: meta(0), values: &[1.0, 2.0, 3.0], readings: &[1.0, 2.0], sigma: &sigma };
+    b.push(&ok).unwrap();
+    let before = b.frame().data.0.to_vec();
+    let huge = PointIn { meta: meta(1), values: &values, readings: &[1.0, 2.0], sigma: &sigma };
+    assert_eq!(b.push(&huge), Err(PushError::NotRepresentable));
+    let no_sigma = PointIn { meta: meta(1), values: &[0.0; 3], readings: &[1.0, 2.0], sigma: &[] };
+    assert_eq!(b.push(&no_sigma), Err(PushError::NotRepresentable));
+    assert_eq!((b.len(), b.frame().data.0), (1, &before[..]));
+}
+
+#[test]
+fn bin_ranges_are_checked_against_the_bins() {
+    assert!(BinRange::all(81).fits(81));
+    assert!(BinRange { first: 80, step: 5, count: 1 }.fits(81));
+    assert!(BinRange { first: 0, step: 10, count: 9 }.fits(81));
+    assert!(!BinRange { first: 0, step: 10, count: 10 }.fits(81));
+    assert!(!BinRange { first: 0, step: 0, count: 2 }.fits(81));
+    assert!(!BinRange { first: 0, step: 1, count: 0 }.fits(81));
+    assert!(!BinRange { first: 81, step: 1, count: 1 }.fits(81));
+    assert_eq!(BinRange { first: 2, step: 3, count: 3 }.bins().collect::<Vec<_>>(), [2, 5, 8]);
+}
+
+#[test]
+fn the_run_wise_cobs_encoder_gives_the_cobs_crates_bytes() {
+    let mut x = 0x1234_5678u32;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        x
+    };
+    let mut inputs: Vec<Vec<u8>> = vec![vec![], vec![0], vec![0, 0], vec![1], vec![1; 253], vec![1; 254], vec![1; 255]];
+    inputs.push([vec![1; 254], vec![0]].concat());
+    inputs.push([vec![0], vec![7; 508], vec![0]].concat());
+    for _ in 0..2000 {
+        let len = (next() % 700) as usize;
+        // Zeros now dense, now rare, so runs of every length up to 254 and beyond occur.
+        let density = 1 + next() % 400;
+        inputs.push((0..len).map(|_| if next() % density == 0 { 0 } else { 1 + (next() % 255) as u8 }).collect());
+    }
+    for src in inputs {
+        let mut want = vec![0u8; src.len() + src.len() / 254 + 2];
+        let n = cobs::encode(&src, &mut want);
+        let mut got = vec![0u8; src.len() + src.len() / 254 + 2];
+        let m = cobs_encode(&src, &mut got).unwrap();
+        assert_eq!(got[..m], want[..n], "input of {} bytes", src.len());
+        if m > 0 {
+            assert_eq!(cobs_encode(&src, &mut got[..m - 1]), None, "too small a buffer is refused");
+        }
+    }
+}
+
+#[test]
+fn the_devices_sigma16_path_rounds_as_the_definition_does() {
+    let mut x = 0x9E37_79B9u32;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        f32::from_bits(x)
+    };
+    let mut checked = 0;
+    for _ in 0..200_000 {
+        let (v, u) = (next(), next().abs());
+        let want = sigma16_step(u).and_then(|s| sigma16_quantise(v, s));
+        let values = [v];
+        let sigma = [u];
+        let mut b = PointsBlock::new();
+        b.start(0, 0, 0, 0, Encoding::Sigma16, BinRange::all(1), 1);
+        let mut m = meta(0);
+        m.sigma_scale = 1.0;
+        let got = b.push(&PointIn { meta: m, values: &values, readings: &[0.0], sigma: &sigma });
+        match want {
+            Some(q) => {
+                assert_eq!(got, Ok(()));
+                assert_eq!(b.frame().data.0, q.to_le_bytes());
+                checked += 1;
+            }
+            None => assert_eq!(got, Err(PushError::NotRepresentable), "v {v:e}, u {u:e}"),
+        }
+    }
+    assert!(checked > 1000, "{checked}");
 }

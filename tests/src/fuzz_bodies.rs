@@ -15,10 +15,10 @@
 //! `tests/fuzz/`, and a line in [`TARGETS`].
 use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::platform::host_sim::SimFlash;
-use brdf_meter::protocol::{self, FrameReader, MAX_FRAME, Pushed, Request, Response};
+use brdf_meter::protocol::{self, FrameReader, MAX_FRAME, PointsFrame, Pushed, Request, Response, Streamed};
 use brdf_meter::store::Store;
 use brdf_meter::test_blobs::{dev_trusted, signed_test_blob as test_blob};
-use host_tools::device::link::{Client, LinkError, Transport};
+use host_tools::device::link::{Client, LinkError, Transport, decode_with};
 use std::time::Duration;
 
 /// A target's body: one input, a panic when a property breaks.
@@ -78,7 +78,33 @@ fn decode_frame(data: &[u8]) {
         // Replies the host keeps are detached from the frame's buffer.
         match resp.detach() {
             Ok(owned) => assert_round_trips!(Response<'_>, seq, &owned),
-            Err(point) => assert_round_trips!(Response<'_>, seq, &Response::Point(point)),
+            Err(Streamed::Point(point)) => assert_round_trips!(Response<'_>, seq, &Response::Point(point)),
+            Err(Streamed::Points(points)) => {
+                assert_round_trips!(Response<'_>, seq, &Response::Points(points));
+                decode_line_frame(&points);
+            }
+        }
+    }
+}
+
+/// A line frame decoded as the host does: without a blob, and with a small
+/// test calibration (whatever the frame's CRC, so the decoding behind the
+/// CRC check is reached): records or an error, never a panic, and every
+/// record the frame's, in order.
+fn decode_line_frame(f: &PointsFrame<'_>) {
+    static BLOB: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    let blob = BLOB.get_or_init(|| brdf_meter::test_blobs::test_blob(9, 3, 2, 6, 0.5));
+    let view = BlobView::parse(blob).expect("a valid test blob");
+    for v in [None, Some(&view)] {
+        if let Ok(recs) = decode_with(f, v) {
+            assert_eq!(recs.len(), f.count());
+            for (k, r) in recs.iter().enumerate() {
+                assert_eq!(
+                    (r.line, r.seq, r.point as u32),
+                    (f.line, f.seq.wrapping_add(k as u32), f.first_point as u32 + k as u32)
+                );
+                assert_eq!(r.values.len(), f.bins.count as usize);
+            }
         }
     }
 }
@@ -165,6 +191,9 @@ pub fn frame_reader(data: &[u8]) {
                 let direct = protocol::decode::<Response<'_>>(&mut copy);
                 match (direct, f) {
                     (Ok((seq, _)), Ok(frame)) => assert_eq!(frame.seq, seq),
+                    // A line frame that reads but does not decode into points
+                    // (this client holds no calibration blob).
+                    (Ok((_, Response::Points(_))), Err(LinkError::Stream(_))) => {}
                     (Err(e), Err(LinkError::Frame(g))) => assert_eq!(e, g),
                     (d, f) => panic!("client and decoder disagree: {d:?} vs {f:?}"),
                 }

@@ -188,8 +188,10 @@ impl FaultyLink {
     fn pass(&mut self, frame: Vec<u8>) {
         self.counts.device_frames += 1;
         let mut copy = frame[..frame.len() - 1].to_vec();
+        // A line frame carries several points: each shares the frame's fate.
         let point = match protocol::decode::<Response<'_>>(&mut copy) {
-            Ok((request, Response::Point(p))) => Some((request, p.seq)),
+            Ok((request, Response::Point(p))) => Some((request, p.seq, 1)),
+            Ok((request, Response::Points(p))) => Some((request, p.seq, p.count() as u32)),
             _ => None,
         };
         if point.is_some() {
@@ -261,8 +263,10 @@ impl FaultyLink {
             }
             self.out.extend(bytes.iter().copied());
         }
-        if let Some((request, seq)) = point {
-            self.fates.push(PointFate { request, seq, fault, intact });
+        if let Some((request, seq, count)) = point {
+            for k in 0..count {
+                self.fates.push(PointFate { request, seq: seq + k, fault, intact });
+            }
         }
     }
 }
@@ -446,6 +450,8 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
     let link = FaultyLink::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), ZONES), seed);
     let mut c = Client::new(link).expect("in-memory link");
     c.timeout = Duration::from_millis(40);
+    // f32 values, so every accepted point is checked bit for bit.
+    c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     // Set-up without faults: the first calibration and the scene.
     c.provision(&signed[0], |_, _| {}).expect("first provisioning");
     // One scene line: the sensor cycles through the loaded lines across

@@ -6,6 +6,7 @@ use crate::forward::scene::frames::named_scene_frames;
 use crate::output::profile::ExportInfo;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::{BinRange, Encoding, StreamFormat};
 use std::path::PathBuf;
 
 /// Measure N lines; write one row (CSV) / object (JSON) per point with its
@@ -39,6 +40,50 @@ pub struct Args {
     /// Plot and standard files.
     #[command(flatten)]
     pub exports: crate::cli::exports::ExportArgs,
+    /// How the values travel: `sigma16` (16-bit, error at most 1/256 of each
+    /// bin's uncertainty), `f32` (bit for bit) or `corrected` (the corrected
+    /// readings; the host computes the estimate with the blob, bit for bit).
+    #[arg(long, value_enum, default_value_t = EncodingArg::Sigma16)]
+    pub encoding: EncodingArg,
+    /// Only these bins: FIRST:STEP:COUNT (0-based), e.g. 0:2:41.
+    #[arg(long, value_name = "FIRST:STEP:COUNT")]
+    pub bins: Option<String>,
+}
+
+/// `--encoding`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EncodingArg {
+    /// 16-bit multiples of a step under 1/128 of each bin's uncertainty.
+    Sigma16,
+    /// f32 values.
+    F32,
+    /// The corrected readings.
+    Corrected,
+}
+
+impl From<EncodingArg> for Encoding {
+    fn from(e: EncodingArg) -> Self {
+        match e {
+            EncodingArg::Sigma16 => Encoding::Sigma16,
+            EncodingArg::F32 => Encoding::F32,
+            EncodingArg::Corrected => Encoding::Corrected,
+        }
+    }
+}
+
+/// Parses `--bins FIRST:STEP:COUNT` for a calibration of `n` bins.
+pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
+    let parts: Vec<&str> = spec.split(':').collect();
+    let num = |s: &str| s.trim().parse::<u16>().ok();
+    let r = match parts.as_slice() {
+        [f, s, c] => num(f).zip(num(s)).zip(num(c)).map(|((first, step), count)| BinRange { first, step, count }),
+        _ => None,
+    }
+    .with_context(|| format!("--bins {spec}: expected FIRST:STEP:COUNT, e.g. 0:2:41"))?;
+    if !r.fits(n) {
+        bail!("--bins {spec}: needs at least one bin, a step of at least 1, and its last bin below {n}");
+    }
+    Ok(r)
 }
 
 /// Runs the command.
@@ -75,6 +120,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
     c.timeout = std::time::Duration::from_secs(10);
+    c.set_calibration(&bytes)?;
+    c.format = StreamFormat {
+        encoding: a.encoding.into(),
+        bins: a.bins.as_deref().map(|b| parse_bins(b, view.dims().n)).transpose()?,
+    };
     let progress = crate::output::progress::bar(u64::from(a.lines) * u64::from(info.pixels), "points");
     let points = c.measure_observed(a.lines, &mut |_| progress.inc(1));
     progress.finish_and_clear();
@@ -115,4 +165,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("{line}");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bin_subsets_parse_and_bad_ones_are_named() {
+        assert_eq!(parse_bins("0:2:41", 81).unwrap(), BinRange { first: 0, step: 2, count: 41 });
+        assert_eq!(parse_bins("80:1:1", 81).unwrap(), BinRange { first: 80, step: 1, count: 1 });
+        for bad in ["0:2:42", "0:0:3", "1:1:0", "a:1:1", "1:1", "-1:1:1"] {
+            let e = parse_bins(bad, 81).unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
 }

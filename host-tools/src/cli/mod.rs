@@ -13,6 +13,7 @@ pub mod measure;
 pub mod provision;
 pub mod provision_swd;
 pub mod qemu;
+pub mod rate;
 pub mod reproduce;
 pub mod sign;
 pub mod simulate;
@@ -57,6 +58,8 @@ pub enum Command {
     Estimate(estimate::Args),
     /// Accuracy against time for every estimator: table, JSON, plot, QEMU kernel counts.
     Tradeoff(tradeoff::Args),
+    /// The line rate end to end: device compute by stage (QEMU counts), acquisition, link; the limiting stage.
+    Rate(rate::Args),
     /// Leave-one-material-out over measured materials: errors, flags, worst-case plot.
     Materials(materials::Args),
     /// Run the hard-case numerical stability checks over many generated cases.
@@ -78,6 +81,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Measure(a) => measure::run(a),
         Command::Estimate(a) => estimate::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),
+        Command::Rate(a) => rate::run(a),
         Command::Materials(a) => materials::run(a),
         Command::Stability(a) => stability::run(a),
     }

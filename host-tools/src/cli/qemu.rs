@@ -76,6 +76,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         if let Some(lines) = a.measure_and_exit {
             c.timeout = Duration::from_secs(600);
+            c.set_calibration(&blob)?;
             let pts = c.measure(lines).context("measuring")?;
             let d = brdf_meter::blob::BlobView::parse(&blob).expect("trained blobs parse").dims();
             println!("measured {lines} lines: {} points, {} multiply-accumulates", pts.len(), pts.len() * d.n * d.m);

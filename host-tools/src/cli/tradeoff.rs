@@ -43,7 +43,7 @@ pub struct Args {
 
 /// The repository root: the current directory if it holds scripts/ and
 /// scenes/, else the one this binary was built from.
-fn repo_root() -> PathBuf {
+pub(crate) fn repo_root() -> PathBuf {
     let cwd = std::env::current_dir().unwrap_or_default();
     if cwd.join("scripts/kernel-bench.sh").exists() && cwd.join("scenes").exists() {
         return cwd;

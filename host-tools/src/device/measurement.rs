@@ -34,10 +34,12 @@ pub struct MeasureJson<'a> {
 }
 
 /// The CSV text and the JSON document of `points`, measured over `lines`
-/// lines with the calibration `view`.
+/// lines with the calibration `view`, on the bins the measurement streamed
+/// (every bin unless it asked for a subset; one subset per measurement).
 pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [PointRecord]) -> (String, MeasureJson<'a>) {
     let d = view.dims();
-    let angles: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
+    let bins: Vec<usize> = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins).bins().collect();
+    let angles: Vec<f32> = bins.iter().map(|&j| view.grid_deg(j)).collect();
     // The calibration's per-bin uncertainty for the point's zone, times the
     // point's own scale (1 for the linear estimators; the readings' scale for
     // the scale-free ones, whose estimate and uncertainty scale with the point).
@@ -92,23 +94,21 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
 }
 
 /// The calibration's per-bin standard uncertainty for point `p`: its zone's
-/// and cluster's, times the point's scale.
+/// and cluster's, times the point's scale, on the bins the point carries.
 pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
-    (0..view.dims().n)
-        .map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs())
-        .collect()
+    p.bins.bins().map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
 }
 
 /// The points as profiles for the plot and the standard files.
 pub fn profiles(view: &BlobView<'_>, points: &[PointRecord]) -> Vec<crate::output::profile::Profile> {
-    let angles: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
     points
         .iter()
         .map(|p| crate::output::profile::Profile {
             line: p.line,
             point: p.point,
             flags: flag_names(p.flags).into_iter().map(String::from).collect(),
-            theta_i_deg: angles.clone(),
+            // The bins the point carries (all, unless the measurement asked for a subset).
+            theta_i_deg: p.bins.bins().map(|j| f64::from(view.grid_deg(j))).collect(),
             reflectance: p.values.iter().map(|x| f64::from(*x)).collect(),
             uncertainty: point_uncertainty(view, p).into_iter().map(f64::from).collect(),
             readings: readings_of(&p.readings, &p.reading_sigma),
@@ -152,6 +152,8 @@ mod tests {
             sigma_scale: scale,
             readings: [80.0 + f32::from(point), 2.0, f32::NAN],
             reading_sigma: [0.5, 0.1, f32::NAN],
+            bins: brdf_meter::protocol::BinRange::all(9),
+            encoding: brdf_meter::protocol::Encoding::F32,
             values: (0..9).map(|j| 0.5 + 0.1 * j as f32 * scale).collect(),
         }
     }

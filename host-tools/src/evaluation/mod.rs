@@ -5,6 +5,7 @@
 pub mod device_cost;
 pub mod fitting;
 pub mod held_out;
+pub mod rate;
 pub mod reproduce;
 pub mod stability;
 pub mod timing;

@@ -44,7 +44,7 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::{Config, Peri, bind_interrupts};
 
 /// SYSCLK the board runs at.
-pub const SYSCLK_HZ: u32 = 80_000_000;
+pub const SYSCLK_HZ: u32 = crate::platform::timing::SYSCLK_HZ;
 
 bind_interrupts!(
     /// Interrupts the board layer's drivers need.

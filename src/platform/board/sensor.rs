@@ -31,18 +31,15 @@ pub const PIXELS: usize = crate::shape::board::PIXELS;
 /// 12-bit ADC: readings at or above this are saturated.
 pub const FULL_SCALE: u16 = 4095;
 /// ADC conversions averaged per pixel.
-pub const OVERSAMPLE: usize = 4;
+pub const OVERSAMPLE: usize = crate::platform::timing::OVERSAMPLE;
 /// Longest integration the TSL1401 datasheet allows (100 ms); longer requests
 /// are clamped.
 pub const MAX_EXPOSURE_US: u32 = 100_000;
 /// Clock after SI at which the next integration starts (datasheet).
-const INTEGRATION_START_CLOCK: usize = 18;
-/// AO settling after a CLK rising edge (datasheet: 120 ns) plus margin:
-/// cycles at 80 MHz.
-const SETTLE_CYCLES: u32 = 16;
-/// Half a CLK period for the clocks that are not sampled: 8 cycles at 80 MHz
-/// gives a 5 MHz CLK, within the TSL1401's 8 MHz.
-const HALF_CLK_CYCLES: u32 = 8;
+use crate::platform::timing::INTEGRATION_START_CLOCK;
+/// AO settling and half CLK periods, in cycles at 80 MHz (the numbers and
+/// their reasons: `crate::platform::timing`).
+use crate::platform::timing::{HALF_CLK_CYCLES, SETTLE_CYCLES};
 /// Longest time one pixel's DMA read may take before the sensor is declared
 /// dead (4 conversions take about 2 us).
 const PIXEL_TIMEOUT: Duration = Duration::from_millis(2);

@@ -1,9 +1,10 @@
 //! The protocol client: request/reply with sequence numbers and typed errors,
 //! chunked provisioning, measurement streams, simulated scenes.
 use super::Transport;
+use super::stream::{DecodeError, StreamDecoder, decode_points};
 use brdf_meter::protocol::{
-    self, CalInfo, DeviceError, DeviceInfo, DeviceStatus, FrameError, FrameReader, LeBytes, MAX_FRAME, MAX_SIM_BYTES,
-    PointFrame, Pushed, Request, Response,
+    self, BinRange, CalInfo, DeviceError, DeviceInfo, DeviceStatus, Encoding, FrameError, FrameReader, LeBytes,
+    MAX_FRAME, MAX_SIM_BYTES, Pushed, Request, Response, StreamFormat, Streamed,
 };
 use brdf_meter::shape::READINGS;
 use std::collections::VecDeque;
@@ -27,6 +28,9 @@ pub enum LinkError {
     /// The device answered something else than the protocol allows here.
     #[error("unexpected reply from the device: {0}")]
     Unexpected(String),
+    /// A line frame that read as a frame but could not be decoded into points.
+    #[error("{0}")]
+    Stream(#[from] DecodeError),
 }
 
 /// A point's estimate, owned.
@@ -50,25 +54,13 @@ pub struct PointRecord {
     pub readings: [f32; READINGS],
     /// Their standard uncertainties (k = 1).
     pub reading_sigma: [f32; READINGS],
-    /// The n values.
+    /// The bins `values` are (all n unless the measurement asked for fewer).
+    pub bins: BinRange,
+    /// How the values travelled (f32 and corrected readings: bit for bit;
+    /// Sigma16: within 1/256 of the bin's uncertainty).
+    pub encoding: Encoding,
+    /// The values of `bins`.
     pub values: Vec<f32>,
-}
-
-impl From<PointFrame<'_>> for PointRecord {
-    fn from(p: PointFrame<'_>) -> Self {
-        Self {
-            line: p.line,
-            seq: p.seq,
-            point: p.point,
-            zone: p.zone,
-            cluster: p.cluster,
-            flags: p.flags,
-            sigma_scale: p.sigma_scale,
-            readings: p.readings,
-            reading_sigma: p.reading_sigma,
-            values: p.values.f32s().collect(),
-        }
-    }
 }
 
 /// A decoded frame from the device.
@@ -76,8 +68,10 @@ impl From<PointFrame<'_>> for PointRecord {
 pub enum Reply {
     /// Any reply but a point.
     Msg(Response<'static>),
-    /// A point.
+    /// A point (a protocol 2 point frame).
     Point(PointRecord),
+    /// The points of a line frame, decoded.
+    Points(Vec<PointRecord>),
 }
 
 /// A frame: its sequence number and content.
@@ -165,12 +159,16 @@ fn link_fault(e: &LinkError) -> bool {
 pub struct Client<T> {
     t: T,
     frames: FrameReader,
-    ready: VecDeque<Result<Frame, FrameError>>,
+    ready: VecDeque<Result<Frame, LinkError>>,
     seq: u32,
     /// How long a request waits for its reply.
     pub timeout: Duration,
     /// What went wrong on the link so far.
     pub stats: LinkStats,
+    /// What measurements ask the stream to carry (default: Sigma16, every bin).
+    pub format: StreamFormat,
+    /// The calibration blob line frames are decoded with ([`Self::set_calibration`]).
+    decoder: Option<StreamDecoder>,
 }
 
 impl<T: Transport> Client<T> {
@@ -185,7 +183,16 @@ impl<T: Transport> Client<T> {
             seq: 0,
             timeout: Duration::from_secs(5),
             stats: LinkStats::default(),
+            format: StreamFormat::default(),
+            decoder: None,
         })
+    }
+
+    /// The calibration blob the device runs: Sigma16 and readings frames
+    /// are decoded with it (and refused when they were made with another).
+    pub fn set_calibration(&mut self, blob: &[u8]) -> anyhow::Result<()> {
+        self.decoder = Some(StreamDecoder::new(blob)?);
+        Ok(())
     }
 
     /// The transport (tests use it to send raw bytes).
@@ -212,7 +219,7 @@ impl<T: Transport> Client<T> {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(f) = self.ready.pop_front() {
-                return f.map_err(LinkError::Frame);
+                return f;
             }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
@@ -223,15 +230,18 @@ impl<T: Transport> Client<T> {
             for &b in &buf[..n] {
                 match self.frames.push(b) {
                     Pushed::More => {}
-                    Pushed::Oversized => self.ready.push_back(Err(FrameError::Oversized)),
+                    Pushed::Oversized => self.ready.push_back(Err(LinkError::Frame(FrameError::Oversized))),
                     Pushed::Frame(f) => {
-                        let r = protocol::decode::<Response<'_>>(f).map(|(seq, r)| Frame {
-                            seq,
-                            reply: match r.detach() {
-                                Ok(m) => Reply::Msg(m),
-                                Err(p) => Reply::Point(p.into()),
+                        let r = match protocol::decode::<Response<'_>>(f) {
+                            Err(e) => Err(LinkError::Frame(e)),
+                            Ok((seq, r)) => match r.detach() {
+                                Ok(m) => Ok(Frame { seq, reply: Reply::Msg(m) }),
+                                Err(Streamed::Point(p)) => Ok(Frame { seq, reply: Reply::Point(p.into()) }),
+                                Err(Streamed::Points(p)) => decode_points(&p, self.decoder.as_ref())
+                                    .map(|pts| Frame { seq, reply: Reply::Points(pts) })
+                                    .map_err(LinkError::Stream),
                             },
-                        });
+                        };
                         self.ready.push_back(r);
                     }
                 }
@@ -377,7 +387,7 @@ impl<T: Transport> Client<T> {
         on_point: &mut dyn FnMut(&PointRecord),
     ) -> Result<Vec<PointRecord>, LinkError> {
         assert!(lines >= 1, "use start/stop for continuous measurement");
-        let seq = self.send(&Request::Measure { lines })?;
+        let seq = self.send(&Request::Measure { lines, format: self.format })?;
         let mut points = Vec::new();
         let mut started = false;
         let mut error = None;
@@ -391,17 +401,8 @@ impl<T: Transport> Client<T> {
             }
             match f.reply {
                 Reply::Msg(Response::MeasureStarted { .. }) => started = true,
-                Reply::Point(p) => {
-                    if p.seq as usize != points.len() {
-                        return Err(LinkError::Unexpected(format!(
-                            "point frame {} lost (got stream sequence {})",
-                            points.len(),
-                            p.seq
-                        )));
-                    }
-                    on_point(&p);
-                    points.push(p);
-                }
+                Reply::Point(p) => Self::take_in_order(&mut points, vec![p], on_point)?,
+                Reply::Points(ps) => Self::take_in_order(&mut points, ps, on_point)?,
                 Reply::Msg(Response::Error(e)) if !started => return Err(LinkError::Device(e)),
                 Reply::Msg(Response::Error(e)) => error = Some(e),
                 Reply::Msg(Response::MeasureDone { lines_done }) => {
@@ -418,12 +419,57 @@ impl<T: Transport> Client<T> {
         }
     }
 
+    /// Appends `got` to `points`, each the next of the stream.
+    fn take_in_order(
+        points: &mut Vec<PointRecord>,
+        got: Vec<PointRecord>,
+        on_point: &mut dyn FnMut(&PointRecord),
+    ) -> Result<(), LinkError> {
+        for p in got {
+            if p.seq as usize != points.len() {
+                return Err(LinkError::Unexpected(format!(
+                    "point {} lost (got stream sequence {})",
+                    points.len(),
+                    p.seq
+                )));
+            }
+            on_point(&p);
+            points.push(p);
+        }
+        Ok(())
+    }
+
     fn count(&mut self, e: &LinkError) {
         match e {
             LinkError::Timeout(..) => self.stats.timeouts += 1,
             LinkError::Frame(_) => self.stats.bad_frames += 1,
             _ => {}
         }
+    }
+
+    /// Takes streamed points into a tolerant measurement's report: repeats
+    /// dropped, gaps reported missing.
+    fn take_tolerant(
+        &mut self,
+        rep: &mut StreamReport,
+        next: &mut u32,
+        total: u32,
+        got: Vec<PointRecord>,
+    ) -> Result<(), LinkError> {
+        for p in got {
+            if p.seq < *next {
+                rep.duplicates.push(p.seq);
+                self.stats.duplicate_points += 1;
+                continue;
+            }
+            if p.seq >= total {
+                return Err(LinkError::Unexpected(format!("point {} of a {total}-point measurement", p.seq)));
+            }
+            rep.missing.extend(*next..p.seq);
+            *next = p.seq + 1;
+            rep.points.push(p);
+        }
+        Ok(())
     }
 
     /// Starts afresh after a fault: a delimiter ends any partial frame the
@@ -438,7 +484,7 @@ impl<T: Transport> Client<T> {
         let deadline = Instant::now() + self.timeout * 20;
         while Instant::now() < deadline {
             match self.next_frame(self.timeout) {
-                Ok(_) | Err(LinkError::Frame(_)) => {}
+                Ok(_) | Err(LinkError::Frame(_) | LinkError::Stream(_)) => {}
                 Err(LinkError::Timeout(..)) => return Ok(()),
                 Err(e) => return Err(e),
             }
@@ -591,7 +637,7 @@ impl<T: Transport> Client<T> {
     pub fn measure_tolerant(&mut self, lines: u32, points_per_line: u32) -> Result<StreamReport, LinkError> {
         assert!(lines >= 1, "use start/stop for continuous measurement");
         let total = lines * points_per_line;
-        let mut seq = self.send(&Request::Measure { lines })?;
+        let mut seq = self.send(&Request::Measure { lines, format: self.format })?;
         let mut sends = 1;
         let mut rep = StreamReport::default();
         let mut next = 0u32;
@@ -611,7 +657,7 @@ impl<T: Transport> Client<T> {
                     // The request or everything after it was lost.
                     self.stats.retries += 1;
                     self.resync()?;
-                    seq = self.send(&Request::Measure { lines })?;
+                    seq = self.send(&Request::Measure { lines, format: self.format })?;
                     sends += 1;
                     continue;
                 }
@@ -624,23 +670,17 @@ impl<T: Transport> Client<T> {
                 Reply::Msg(Response::MeasureStarted { .. }) => started = true,
                 Reply::Point(p) => {
                     started = true;
-                    if p.seq < next {
-                        rep.duplicates.push(p.seq);
-                        self.stats.duplicate_points += 1;
-                        continue;
-                    }
-                    if p.seq >= total {
-                        return Err(LinkError::Unexpected(format!("point {} of a {total}-point measurement", p.seq)));
-                    }
-                    rep.missing.extend(next..p.seq);
-                    next = p.seq + 1;
-                    rep.points.push(p);
+                    self.take_tolerant(&mut rep, &mut next, total, vec![p])?;
+                }
+                Reply::Points(ps) => {
+                    started = true;
+                    self.take_tolerant(&mut rep, &mut next, total, ps)?;
                 }
                 // The device could not read our Measure: send it again.
                 Reply::Msg(Response::Error(DeviceError::Frame(_))) if f.seq == 0 && !started && sends < 4 => {
                     self.stats.retries += 1;
                     self.resync()?;
-                    seq = self.send(&Request::Measure { lines })?;
+                    seq = self.send(&Request::Measure { lines, format: self.format })?;
                     sends += 1;
                 }
                 Reply::Msg(Response::Error(_)) if f.seq == 0 => {}
@@ -648,7 +688,7 @@ impl<T: Transport> Client<T> {
                 Reply::Msg(Response::Error(DeviceError::Busy)) if !started && sends < 4 => {
                     self.stats.retries += 1;
                     self.resync()?;
-                    seq = self.send(&Request::Measure { lines })?;
+                    seq = self.send(&Request::Measure { lines, format: self.format })?;
                     sends += 1;
                 }
                 Reply::Msg(Response::Error(e)) if !started => return Err(LinkError::Device(e)),
@@ -714,7 +754,7 @@ mod tolerant_tests {
     }
 
     fn point(seq: u32, values: &[u8]) -> Response<'_> {
-        Response::Point(PointFrame {
+        Response::Point(protocol::PointFrame {
             line: 0,
             seq,
             point: seq as u16,

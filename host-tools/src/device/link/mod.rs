@@ -5,10 +5,12 @@
 mod client;
 pub mod qemu;
 mod serial;
+mod stream;
 mod tcp;
 
 pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
 pub use serial::SerialTransport;
+pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
 pub use tcp::TcpTransport;
 
 use std::time::Duration;

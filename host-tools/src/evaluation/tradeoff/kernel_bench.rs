@@ -153,15 +153,87 @@ fn cycles(i: &Insn, taken: bool) -> f64 {
 
 /// One segment between two marks.
 #[derive(Clone, Debug)]
-struct Segment {
-    name: Vec<String>,
-    instructions: f64,
-    cycles: f64,
+pub struct Segment {
+    /// The words of its `SEG` line.
+    pub name: Vec<String>,
+    /// Instructions executed.
+    pub instructions: f64,
+    /// Their cycle estimate.
+    pub cycles: f64,
 }
 
 fn words(line: &str, tag: &str) -> Option<Vec<u32>> {
     let rest = line.strip_prefix(tag)?;
     Some(rest.split_whitespace().filter_map(|h| u32::from_str_radix(h, 16).ok()).collect())
+}
+
+/// Cuts a bench's trace (`trace.txt`, with `nm.txt`, `objdump.txt` and
+/// `stdout.txt` beside it, as the bench scripts write them) at every
+/// execution of the function `mark`, and counts each segment's instructions
+/// (the mark's own excluded) and cycles (the module's table), named by the
+/// `SEG` lines the firmware printed, in order.
+pub fn count_segments(dir: &Path, mark_symbol: &str) -> anyhow::Result<Vec<Segment>> {
+    let read =
+        |f: &str| std::fs::read_to_string(dir.join(f)).with_context(|| format!("reading {}", dir.join(f).display()));
+    let nm = read("nm.txt")?;
+    let (mark, mark_size) = nm
+        .lines()
+        .filter_map(|l| {
+            let p: Vec<&str> = l.split_whitespace().collect();
+            (p.len() == 4 && p[3] == mark_symbol)
+                .then(|| (u32::from_str_radix(p[0], 16).ok(), u32::from_str_radix(p[1], 16).ok()))
+        })
+        .next()
+        .and_then(|(a, s)| Some((a?, s?)))
+        .with_context(|| format!("no {mark_symbol} symbol in nm.txt"))?;
+    let insns = parse_objdump(&read("objdump.txt")?);
+    let stdout = read("stdout.txt")?;
+    let seg_names: Vec<Vec<String>> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("SEG "))
+        .map(|s| s.split_whitespace().map(str::to_string).collect())
+        .collect();
+    let trace = std::fs::File::open(dir.join("trace.txt")).context("opening trace.txt")?;
+    let mut segs: Vec<(f64, f64)> = Vec::new();
+    let mut cur: Option<(f64, f64)> = None;
+    use std::io::BufRead;
+    // One pc behind: a taken branch is one whose next pc is not the fall-through.
+    let mut pending: Option<u32> = None;
+    let account = |cur: &mut Option<(f64, f64)>, pc: u32, next: Option<u32>| {
+        if (mark..mark + mark_size).contains(&pc) {
+            return;
+        }
+        if let Some(c) = cur.as_mut() {
+            c.0 += 1.0;
+            let cyc = match insns.get(&pc) {
+                Some(i) => cycles(i, next.is_some_and(|nx| nx != pc + i.len)),
+                None => 1.0,
+            };
+            c.1 += cyc;
+        }
+    };
+    for line in std::io::BufReader::new(trace).lines() {
+        let line = line?;
+        let Some(field) = line.split('/').nth(1) else { continue };
+        let Ok(pc) = u64::from_str_radix(field, 16) else { continue };
+        let pc = pc as u32 & !1;
+        if let Some(prev) = pending.take() {
+            account(&mut cur, prev, Some(pc));
+        }
+        if pc == mark {
+            if let Some(c) = cur.take() {
+                segs.push(c);
+            }
+            cur = Some((0.0, 0.0));
+            continue;
+        }
+        pending = Some(pc);
+    }
+    if let Some(prev) = pending.take() {
+        account(&mut cur, prev, None);
+    }
+    ensure!(segs.len() == seg_names.len(), "trace has {} segments, the firmware named {}", segs.len(), seg_names.len());
+    Ok(seg_names.into_iter().zip(segs).map(|(name, (i, c))| Segment { name, instructions: i, cycles: c }).collect())
 }
 
 /// Runs `scripts/kernel-bench.sh` in `root` and analyses its output.
@@ -181,67 +253,9 @@ pub fn run_bench(root: &Path) -> anyhow::Result<KernelCounts> {
 
 /// Analyses a kernel-bench output directory (see the module docs).
 pub fn analyse(dir: &Path) -> anyhow::Result<KernelCounts> {
-    let read =
-        |f: &str| std::fs::read_to_string(dir.join(f)).with_context(|| format!("reading {}", dir.join(f).display()));
-    let nm = read("nm.txt")?;
-    let (mark, mark_size) = nm
-        .lines()
-        .filter_map(|l| {
-            let p: Vec<&str> = l.split_whitespace().collect();
-            (p.len() == 4 && p[3] == "kernel_bench_mark")
-                .then(|| (u32::from_str_radix(p[0], 16).ok(), u32::from_str_radix(p[1], 16).ok()))
-        })
-        .next()
-        .and_then(|(a, s)| Some((a?, s?)))
-        .context("no kernel_bench_mark symbol in nm.txt")?;
-    let insns = parse_objdump(&read("objdump.txt")?);
-    let stdout = read("stdout.txt")?;
-    let seg_names: Vec<Vec<String>> = stdout
-        .lines()
-        .filter_map(|l| l.strip_prefix("SEG "))
-        .map(|s| s.split_whitespace().map(str::to_string).collect())
-        .collect();
-
-    // Count.
-    let trace = std::fs::File::open(dir.join("trace.txt")).context("opening trace.txt")?;
-    let mut segs: Vec<(f64, f64)> = Vec::new();
-    let mut cur: Option<(f64, f64)> = None;
-    let mut prev: Option<u32> = None;
-    use std::io::BufRead;
-    let mut pcs = Vec::new();
-    for line in std::io::BufReader::new(trace).lines() {
-        let line = line?;
-        let Some(field) = line.split('/').nth(1) else { continue };
-        let Ok(pc) = u64::from_str_radix(field, 16) else { continue };
-        pcs.push(pc as u32 & !1);
-    }
-    for (idx, &pc) in pcs.iter().enumerate() {
-        let _ = prev;
-        prev = Some(pc);
-        if pc == mark {
-            if let Some(c) = cur.take() {
-                segs.push(c);
-            }
-            cur = Some((0.0, 0.0));
-            continue;
-        }
-        if (mark..mark + mark_size).contains(&pc) {
-            continue;
-        }
-        if let Some(c) = cur.as_mut() {
-            c.0 += 1.0;
-            let insn = insns.get(&pc);
-            let next = pcs.get(idx + 1).copied();
-            let cyc = match insn {
-                Some(i) => cycles(i, next.is_some_and(|nx| nx != pc + i.len)),
-                None => 1.0,
-            };
-            c.1 += cyc;
-        }
-    }
-    ensure!(segs.len() == seg_names.len(), "trace has {} segments, the firmware named {}", segs.len(), seg_names.len());
-    let segments: Vec<Segment> =
-        seg_names.into_iter().zip(segs).map(|(name, (i, c))| Segment { name, instructions: i, cycles: c }).collect();
+    let stdout = std::fs::read_to_string(dir.join("stdout.txt"))
+        .with_context(|| format!("reading {}", dir.join("stdout.txt").display()))?;
+    let segments = count_segments(dir, "kernel_bench_mark")?;
     let avg = |kind: &str, extra: Option<&str>| -> anyhow::Result<(f64, f64)> {
         let sel: Vec<&Segment> = segments
             .iter()

@@ -1,0 +1,355 @@
+//! The instrument's measurement rate, end to end: which stage limits the
+//! line rate, for the handheld (the board, P = 128) and the QEMU build
+//! (P = 32).
+//!
+//! - Device compute and framing per line: exact instruction counts of the
+//!   line bench firmware (`src/bin/line-bench.rs`, `scripts/line-bench.sh`)
+//!   in QEMU, stage by stage (correction, estimation, value encoding,
+//!   postcard serialisation, CRC, COBS, the copy to the outgoing frame),
+//!   turned into cycles with the Cortex-M4 timings of the kernel bench
+//!   (`tradeoff::kernel_bench`) and into time at 80 MHz. Its data: a blob
+//!   trained for the build's scene and one line of that scene's raw frames
+//!   from the scene simulator.
+//! - Acquisition per line: derived from the firmware's settings and the
+//!   sensor's timing ([`acquisition`]).
+//! - The link: bytes and USB packets per line of the frames the device
+//!   sends (rebuilt on the host with the same library, [`frames`], and
+//!   checked against the bench's frame count), at USB full speed ([`link`]).
+//!
+//! The three run concurrently (two line buffers: line k+1 is acquired while
+//! line k is estimated and sent), except the correction, which the
+//! acquisition task runs after each line; so the line period is the largest
+//! of acquisition + correction, the CPU's work (compute and framing plus the
+//! acquisition's own busy time: flush and readout; one core), and the
+//! link's time.
+pub mod acquisition;
+pub mod frames;
+pub mod link;
+pub mod report;
+
+use crate::calibration::demo::train_for_scene;
+use crate::evaluation::tradeoff::kernel_bench::{Segment, count_segments};
+use crate::forward::scene::Scene;
+use crate::forward::scene::frames::{patent_scene, scene_frames};
+use anyhow::{Context, ensure};
+use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::Encoding;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// One build's inputs to the bench.
+pub struct BuildInput {
+    /// "board" or "qemu".
+    pub name: &'static str,
+    /// Pixels P.
+    pub pixels: usize,
+    /// Zones of the trained calibration.
+    pub zones: usize,
+    /// The calibration blob.
+    pub blob: Vec<u8>,
+    /// One line of raw frames (frame 0 dark, 1 + k under LED k).
+    pub frames: Vec<Vec<u16>>,
+    /// Sensor full scale.
+    pub full_scale: u16,
+    /// The line's acquisition time.
+    pub acquisition: acquisition::LineAcquisition,
+    /// Where the scene came from.
+    pub scene: String,
+}
+
+/// Trains the two builds' calibrations and simulates a line of each:
+/// the handheld scene (`scenes/handheld.toml`, P = 128, `board_zones` zones,
+/// at most the board's RAM budget of 8) and the QEMU demo's patent-profile
+/// scene (P = 32, 4 zones). The per-point instruction counts do not depend on
+/// the number of zones (the zone only picks a matrix).
+pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput>> {
+    ensure!(
+        (1..=brdf_meter::shape::board::RAM_ZONES).contains(&board_zones),
+        "board zones {board_zones}: 1 to {} (the board's RAM budget)",
+        brdf_meter::shape::board::RAM_ZONES
+    );
+    let frames_per_line = brdf_meter::shape::FRAMES_PER_LINE;
+    let path = root.join("scenes/handheld.toml");
+    let handheld = Scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
+    let board = BuildInput {
+        name: "board",
+        pixels: handheld.instrument.sensor.pixels,
+        zones: board_zones,
+        blob: train_for_scene(&handheld, board_zones, 0.02)?.blob,
+        frames: scene_frames(&handheld, 1)?.remove(0),
+        full_scale: handheld.instrument.sensor.full_scale as u16,
+        acquisition: acquisition::board(
+            &brdf_meter::platform::timing::ACQUISITION,
+            brdf_meter::shape::board::PIXELS,
+            frames_per_line,
+        ),
+        scene: "scenes/handheld.toml".into(),
+    };
+    ensure!(board.pixels == brdf_meter::shape::board::PIXELS, "the handheld scene is not the board's P");
+    let qemu_scene = patent_scene(brdf_meter::shape::qemu::PIXELS);
+    let qemu_zones = brdf_meter::shape::qemu::RAM_ZONES;
+    let qemu = BuildInput {
+        name: "qemu",
+        pixels: brdf_meter::shape::qemu::PIXELS,
+        zones: qemu_zones,
+        blob: train_for_scene(&qemu_scene, qemu_zones, 0.02)?.blob,
+        frames: scene_frames(&qemu_scene, 1)?.remove(0),
+        full_scale: u16::MAX,
+        acquisition: acquisition::qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, frames_per_line),
+        scene: "patent profile (the QEMU demo's)".into(),
+    };
+    Ok(vec![board, qemu])
+}
+
+/// Writes the line bench's input file (layout: `src/bin/line-bench.rs`):
+/// `LBD1`, then per build pixels, full scale, blob length, frames length
+/// (u32 LE), the blob padded to 4 bytes, the frames in reading order (u16 LE).
+pub fn write_bench_data(path: &Path, builds: &[BuildInput]) -> anyhow::Result<()> {
+    let mut out = b"LBD1".to_vec();
+    for b in builds {
+        let view = BlobView::parse(&b.blob).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let mut frames = Vec::new();
+        let mut put = |f: &Vec<u16>| frames.extend(f.iter().flat_map(|x| x.to_le_bytes()));
+        put(&b.frames[0]);
+        for &led in view.led_order() {
+            put(&b.frames[led as usize + 1]);
+        }
+        for x in [b.pixels, b.full_scale as usize, b.blob.len(), frames.len()] {
+            out.extend((x as u32).to_le_bytes());
+        }
+        out.extend(&b.blob);
+        out.resize(out.len().next_multiple_of(4), 0);
+        out.extend(frames);
+    }
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    crate::output::io::write_atomic(path, &out)
+}
+
+/// Runs `scripts/line-bench.sh` in `root` and counts its segments; the
+/// trace (hundreds of MB) is deleted once counted.
+pub fn run_bench(root: &Path) -> anyhow::Result<Vec<Segment>> {
+    let script = root.join("scripts/line-bench.sh");
+    let dir = root.join("target/line-bench");
+    let status = std::process::Command::new("bash")
+        .arg(&script)
+        .arg(&dir)
+        .current_dir(root)
+        .status()
+        .with_context(|| format!("running {}", script.display()))?;
+    ensure!(status.success(), "{} failed ({status})", script.display());
+    let segs = count_segments(&dir, "line_bench_mark");
+    let _ = std::fs::remove_file(dir.join("trace.txt"));
+    segs
+}
+
+/// Instructions and cycles of one stage over a line.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct Cost {
+    /// Instructions executed (exact, QEMU).
+    pub instructions: f64,
+    /// Cortex-M4 cycle estimate.
+    pub cycles: f64,
+}
+
+impl Cost {
+    /// Microseconds at the board's 80 MHz.
+    pub fn us(&self) -> f64 {
+        self.cycles / brdf_meter::platform::timing::SYSCLK_HZ as f64 * 1e6
+    }
+}
+
+impl std::ops::AddAssign for Cost {
+    fn add_assign(&mut self, o: Self) {
+        self.instructions += o.instructions;
+        self.cycles += o.cycles;
+    }
+}
+
+/// Per (build pixels, encoding): per stage, its cost over the line and its
+/// number of segments (for the framing stages: frames).
+pub type StageCosts = BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>>;
+
+/// The stages of an encoding's line, in order.
+pub const STAGES: [&str; 7] = ["correct", "estimate", "push", "serialise", "seal", "stuff", "copy"];
+
+/// Sums the bench's segments by (build pixels, encoding, stage); the
+/// correction (run once per build) is filed under every encoding, and
+/// protocol 2's stages under "p2" without their prefix.
+pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<StageCosts> {
+    let mut out = StageCosts::new();
+    let mut correct: BTreeMap<usize, Cost> = BTreeMap::new();
+    for s in segments {
+        ensure!(s.name.len() == 3, "segment name {:?}", s.name);
+        let build: usize = s.name[0].parse().with_context(|| format!("segment build {:?}", s.name))?;
+        let cost = Cost { instructions: s.instructions, cycles: s.cycles };
+        match s.name[1].as_str() {
+            "end" => {}
+            "correct" => *correct.entry(build).or_default() += cost,
+            stage => {
+                let stage = stage.strip_prefix("p2-").unwrap_or(stage);
+                let e = out.entry((build, s.name[2].clone())).or_default().entry(stage.to_string()).or_default();
+                e.0 += cost;
+                e.1 += 1;
+            }
+        }
+    }
+    for ((build, _), stages) in out.iter_mut() {
+        let c = *correct.get(build).with_context(|| format!("no correction segment for P = {build}"))?;
+        stages.insert("correct".into(), (c, 1));
+    }
+    Ok(out)
+}
+
+/// The encodings the report covers: the three of protocol 3 and protocol
+/// 2's one frame per point.
+pub const ENCODINGS: [(&str, Option<Encoding>); 4] = [
+    ("sigma16", Some(Encoding::Sigma16)),
+    ("f32", Some(Encoding::F32)),
+    ("corrected", Some(Encoding::Corrected)),
+    ("p2", None),
+];
+
+/// One build and encoding's line budget.
+#[derive(Clone, Debug, Serialize)]
+pub struct EncodingBudget {
+    /// Encoding name (`p2`: protocol 2, one f32 frame per point).
+    pub encoding: String,
+    /// Per stage, in [`STAGES`] order.
+    pub stages: Vec<(String, Cost)>,
+    /// Everything the CPU does for the line.
+    pub compute: Cost,
+    /// The line's traffic.
+    pub traffic: link::LineTraffic,
+    /// Link time at the theoretical and the practical packet rate, us.
+    pub link_us: (f64, f64),
+    /// Line period, us: the largest of the stages below.
+    pub period_us: f64,
+    /// The stage that sets it: "acquisition", "CPU" (its work for the line
+    /// plus the acquisition's busy time: one core) or "link".
+    pub limit: String,
+    /// Compute (without the correction, which the acquisition task runs in
+    /// series) over acquisition time: the target is at most 1/4.
+    pub compute_share: f64,
+}
+
+/// One build's budget.
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildBudget {
+    /// "board" or "qemu".
+    pub name: String,
+    /// Pixels.
+    pub pixels: usize,
+    /// Zones of the calibration measured.
+    pub zones: usize,
+    /// The scene its line came from.
+    pub scene: String,
+    /// Acquisition time per line.
+    pub acquisition: acquisition::LineAcquisition,
+    /// Per encoding.
+    pub encodings: Vec<EncodingBudget>,
+    /// Sigma16's error against the uncertainty, on this line.
+    pub sigma16: frames::QuantisationError,
+}
+
+/// The budget of every build and encoding from the bench's counts.
+pub fn budget(
+    builds: &[BuildInput],
+    costs: &StageCosts,
+    practical_packets_per_ms: f64,
+) -> anyhow::Result<Vec<BuildBudget>> {
+    builds
+        .iter()
+        .map(|b| {
+            let view = BlobView::parse(&b.blob).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let encodings = ENCODINGS
+                .iter()
+                .map(|(name, enc)| {
+                    let st = costs
+                        .get(&(b.pixels, name.to_string()))
+                        .with_context(|| format!("no bench counts for P = {}, {name}", b.pixels))?;
+                    let line = frames::line_frames(&view, &b.frames, b.full_scale, *enc);
+                    let bench_frames = st.get("serialise").map_or(0, |s| s.1);
+                    ensure!(
+                        bench_frames == line.len(),
+                        "P = {}, {name}: the bench framed {bench_frames} frames, the host {}",
+                        b.pixels,
+                        line.len()
+                    );
+                    let stages: Vec<(String, Cost)> =
+                        STAGES.iter().map(|s| (s.to_string(), st.get(*s).map_or(Cost::default(), |c| c.0))).collect();
+                    let mut compute = Cost::default();
+                    for (_, c) in &stages {
+                        compute += *c;
+                    }
+                    let correct_us = stages[0].1.us();
+                    let traffic = frames::traffic(&line);
+                    let link_us =
+                        (traffic.time_us(link::THEORETICAL_PACKETS_PER_MS), traffic.time_us(practical_packets_per_ms));
+                    // One core: the CPU's period holds its work for the line
+                    // and the acquisition's own busy time (flush, readout).
+                    let acq_busy = b.acquisition.line_us - b.acquisition.cpu_free_us;
+                    let candidates = [
+                        ("acquisition", b.acquisition.line_us + correct_us),
+                        ("CPU", compute.us() + acq_busy),
+                        ("link", link_us.1),
+                    ];
+                    let (limit, period_us) =
+                        candidates.iter().copied().fold(("", 0.0f64), |a, c| if c.1 > a.1 { c } else { a });
+                    Ok(EncodingBudget {
+                        encoding: name.to_string(),
+                        compute_share: (compute.us() - correct_us) / b.acquisition.line_us,
+                        stages,
+                        compute,
+                        traffic,
+                        link_us,
+                        period_us,
+                        limit: limit.to_string(),
+                    })
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            Ok(BuildBudget {
+                name: b.name.into(),
+                pixels: b.pixels,
+                zones: b.zones,
+                scene: b.scene.clone(),
+                acquisition: b.acquisition.clone(),
+                encodings,
+                sigma16: frames::sigma16_error(&view, &b.blob, &b.frames, b.full_scale)?,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seg(name: &str, i: f64) -> Segment {
+        Segment { name: name.split(' ').map(str::to_string).collect(), instructions: i, cycles: 2.0 * i }
+    }
+
+    #[test]
+    fn segments_are_summed_by_build_encoding_and_stage() {
+        let segs = [
+            seg("128 correct -", 100.0),
+            seg("128 estimate f32", 10.0),
+            seg("128 push f32", 5.0),
+            seg("128 serialise f32", 1.0),
+            seg("128 estimate f32", 10.0),
+            seg("128 serialise f32", 2.0),
+            seg("128 estimate p2", 10.0),
+            seg("128 p2-seal p2", 3.0),
+            seg("128 end -", 1e9),
+        ];
+        let c = stage_costs(&segs).unwrap();
+        let f = &c[&(128, "f32".to_string())];
+        assert_eq!(f["estimate"], (Cost { instructions: 20.0, cycles: 40.0 }, 2));
+        assert_eq!(f["serialise"].1, 2);
+        assert_eq!(f["correct"].0.instructions, 100.0);
+        assert_eq!(c[&(128, "p2".to_string())]["seal"].0.instructions, 3.0);
+        assert!(stage_costs(&[seg("32 estimate f32", 1.0)]).is_err(), "no correction");
+    }
+}

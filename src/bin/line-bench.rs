@@ -1,0 +1,377 @@
+//! Line bench firmware for QEMU (b-l475e-iot01a): the device's whole
+//! per-line path, stage by stage, on real data, so that
+//! `scripts/line-bench.sh` can count each stage's instructions exactly from
+//! QEMU's execution trace (as `kernel-bench` does for the kernels) and
+//! `host-tools rate` can turn them into the line-rate budget.
+//!
+//! Input: `target/line-bench/data.bin` (written by `host-tools rate`), read
+//! over semihosting: per build (P = 128, the board; P = 32, QEMU) a trained
+//! calibration blob and one line of raw frames from the scene simulator.
+//! For each build it runs the library functions the firmware runs, between
+//! calls of [`line_bench_mark`]:
+//! - `correct`: `acquire::correct_line` (dark, white, saturation and
+//!   exposure flags) of the whole line;
+//! - `estimate`: `Calibration::estimate_point` for every point (zone,
+//!   cluster selection, the kernel, scale, out-of-prior, the derived gloss
+//!   readings when the device computes them, the guard);
+//! - per encoding (f32, Sigma16, corrected readings), per frame: `push`
+//!   (`PointsBlock::push` of its points: value encoding), `serialise`
+//!   (header + postcard), `seal` (CRC-32), `stuff` (COBS), `copy` (into an
+//!   outgoing frame buffer, as the estimation task's channel does);
+//! - protocol 2's stream for comparison: one f32 `PointFrame` per point
+//!   (`p2-serialise`, `p2-seal`, `p2-stuff`).
+//!
+//! The segment structure depends on the data (a point Sigma16 cannot carry
+//! goes alone as f32), so each build runs twice: once naming the segments
+//! (printed as `SEG <build> <stage> <encoding>` lines), once marking them.
+//! The loop glue between the calls (a few instructions per point) is the
+//! bench's, not the task's; the tasks' async machinery (channel waits,
+//! executor polls) is not counted.
+#![no_std]
+#![no_main]
+
+use brdf_meter::acquire::{RawLine, correct_line};
+use brdf_meter::blob::BlobView;
+use brdf_meter::estimate::{Calibration, ZoneMatrix};
+use brdf_meter::nalgebra::SVector;
+use brdf_meter::protocol::{
+    self, Encoding, LeBytes, MAX_FRAME, MAX_PAYLOAD, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError,
+    Response, StreamFormat,
+};
+use brdf_meter::shape;
+use brdf_meter::store::SlotInfo;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hio};
+
+const N: usize = shape::BINS;
+const M: usize = shape::LEDS;
+const BOARD_P: usize = shape::board::PIXELS;
+const QEMU_P: usize = shape::qemu::PIXELS;
+const DATA_LEN: usize = 44 * 1024;
+
+/// A segment boundary for the trace counter. Never inlined: its address is
+/// what the analysis looks for.
+#[inline(never)]
+#[unsafe(no_mangle)]
+pub fn line_bench_mark() {
+    // SAFETY: a plain no-op.
+    unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
+}
+
+#[repr(C, align(4))]
+struct Aligned([u8; DATA_LEN]);
+
+static mut DATA: Aligned = Aligned([0; DATA_LEN]);
+static mut RAM_BOARD: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
+    [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
+static mut RAM_QEMU: [ZoneMatrix<N, M>; shape::qemu::RAM_ZONES] =
+    [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::qemu::RAM_ZONES];
+/// Where a frame goes after encoding (the estimation task's channel slot).
+static mut OUT_SLOT: heapless::Vec<u8, MAX_FRAME> = heapless::Vec::new();
+
+/// Names the segments (first pass) or marks them (second pass).
+struct Bounds {
+    marking: bool,
+    build: usize,
+}
+
+impl Bounds {
+    #[inline(always)]
+    fn at(&self, stage: &str, enc: &str) {
+        if self.marking {
+            line_bench_mark();
+        } else {
+            let mut l = Line::new();
+            l.push(b"SEG ");
+            l.num(self.build as u32);
+            l.push(b" ");
+            l.push(stage.as_bytes());
+            l.push(b" ");
+            l.push(enc.as_bytes());
+            l.end();
+        }
+    }
+}
+
+fn enc_name(e: Encoding) -> &'static str {
+    match e {
+        Encoding::F32 => "f32",
+        Encoding::Sigma16 => "sigma16",
+        Encoding::Corrected => "corrected",
+    }
+}
+
+/// Frames the block as the estimation task does: serialise, seal, stuff,
+/// copy to the outgoing slot.
+fn send(b: &Bounds, block: &PointsBlock, enc: &str, seq: u32) {
+    let msg = Response::Points(block.frame());
+    send_msg(b, &msg, enc, seq, "");
+}
+
+fn send_msg(b: &Bounds, msg: &Response<'_>, enc: &str, seq: u32, prefix: &'static str) {
+    let stage = |s: &'static str| -> &'static str {
+        match (prefix, s) {
+            ("p2-", "serialise") => "p2-serialise",
+            ("p2-", "seal") => "p2-seal",
+            ("p2-", "stuff") => "p2-stuff",
+            (_, s) => s,
+        }
+    };
+    let mut raw = [0u8; MAX_PAYLOAD];
+    let mut out = heapless::Vec::<u8, MAX_FRAME>::new();
+    b.at(stage("serialise"), enc);
+    let len = protocol::serialise(seq, msg, &mut raw).expect("fits");
+    b.at(stage("seal"), enc);
+    protocol::seal(&mut raw[..len]);
+    b.at(stage("stuff"), enc);
+    let _ = out.resize(MAX_FRAME, 0);
+    let n = protocol::stuff(&raw[..len], &mut out).expect("fits");
+    out.truncate(n);
+    if prefix.is_empty() {
+        b.at("copy", enc);
+        // SAFETY: single-threaded firmware; nothing else touches the slot.
+        unsafe { *core::ptr::addr_of_mut!(OUT_SLOT) = core::hint::black_box(out) };
+    }
+}
+
+/// One build's line, stage by stage.
+fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, P>, full_scale: u16) {
+    let white = &cal.active().expect("loaded").white;
+    let crc = cal.active().expect("loaded").info.blob_crc;
+    let mut v = [SVector::<f32, M>::zeros(); P];
+    let mut fl = [0u8; P];
+    b.at("correct", "-");
+    correct_line(raw, white, full_scale, &mut v, &mut fl);
+    let mut block = PointsBlock::new();
+    let mut rho = SVector::<f32, N>::zeros();
+    let estimate = |p: usize, rho: &mut SVector<f32, N>| {
+        let m = cal.estimate_point(p, &v[p], fl[p], rho);
+        PointMetaWire {
+            zone: m.zone,
+            cluster: m.cluster,
+            flags: m.flags,
+            sigma_scale: m.sigma_scale,
+            readings: m.readings,
+            reading_sigma: m.reading_sigma,
+        }
+    };
+    for encoding in [Encoding::F32, Encoding::Sigma16, Encoding::Corrected] {
+        let e = enc_name(encoding);
+        let bins = StreamFormat { encoding, bins: None }.bin_range(N);
+        block.start(0, 0, 0, crc, encoding, bins, M);
+        for (p, vp) in v.iter().enumerate() {
+            b.at("estimate", e);
+            let meta = estimate(p, &mut rho);
+            b.at("push", e);
+            let pin = PointIn {
+                meta,
+                values: rho.as_slice(),
+                readings: vp.as_slice(),
+                sigma: cal.uncertainty(meta.zone as usize, meta.cluster as usize),
+            };
+            match block.push(&pin) {
+                Ok(()) => {}
+                Err(PushError::Full) => {
+                    send(b, &block, e, 1);
+                    block.start(0, p as u32, p as u16, crc, encoding, bins, M);
+                    b.at("push", e);
+                    if block.push(&pin).is_err() {
+                        block.start(0, p as u32, p as u16, crc, Encoding::F32, bins, M);
+                        let _ = block.push(&pin);
+                        send(b, &block, e, 1);
+                        block.start(0, p as u32 + 1, p as u16 + 1, crc, encoding, bins, M);
+                    }
+                }
+                Err(PushError::NotRepresentable) => {
+                    if !block.is_empty() {
+                        send(b, &block, e, 1);
+                    }
+                    block.start(0, p as u32, p as u16, crc, Encoding::F32, bins, M);
+                    b.at("push", e);
+                    let _ = block.push(&pin);
+                    send(b, &block, e, 1);
+                    block.start(0, p as u32 + 1, p as u16 + 1, crc, encoding, bins, M);
+                }
+            }
+        }
+        if !block.is_empty() {
+            send(b, &block, e, 1);
+        }
+    }
+    // Protocol 2: one f32 frame per point.
+    for p in 0..P {
+        b.at("estimate", "p2");
+        let meta = estimate(p, &mut rho);
+        let pf = PointFrame {
+            line: 0,
+            seq: p as u32,
+            point: p as u16,
+            zone: meta.zone,
+            cluster: meta.cluster,
+            flags: meta.flags,
+            sigma_scale: meta.sigma_scale,
+            readings: meta.readings,
+            reading_sigma: meta.reading_sigma,
+            values: LeBytes::from_f32(rho.as_slice()),
+        };
+        send_msg(b, &Response::Point(pf), "p2", 1, "p2-");
+    }
+    b.at("end", "-");
+}
+
+fn u32_at(d: &[u8], at: usize) -> usize {
+    u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
+}
+
+/// One build's inputs in the data file, from `at`: (pixels, full scale,
+/// blob, raw frames in reading order, the offset after them).
+fn build_at(d: &'static [u8], at: usize) -> (usize, u16, &'static [u8], &'static [u8], usize) {
+    let pixels = u32_at(d, at);
+    let full_scale = u32_at(d, at + 4) as u16;
+    let blob_len = u32_at(d, at + 8);
+    let frames_len = u32_at(d, at + 12);
+    let blob_at = at + 16;
+    let frames_at = blob_at + blob_len.div_ceil(4) * 4;
+    (pixels, full_scale, &d[blob_at..blob_at + blob_len], &d[frames_at..frames_at + frames_len], frames_at + frames_len)
+}
+
+fn raw_line<const P: usize>(frames: &[u8]) -> RawLine<M, P> {
+    let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
+    let mut raw = RawLine::<M, P>::new();
+    for p in 0..P {
+        raw.dark[p] = px(0, p);
+        for i in 0..M {
+            raw.lit[i][p] = px(1 + i, p);
+        }
+    }
+    raw
+}
+
+fn load<const P: usize>(ram: &'static mut [ZoneMatrix<N, M>], blob: &'static [u8]) -> Calibration<N, M, P> {
+    let view = BlobView::parse(blob).unwrap_or_else(|_| fail(b"line-bench: bad blob"));
+    let slot = SlotInfo { slot: 0, sequence: 1, blob_len: blob.len() as u32, blob_crc: 0 };
+    let mut cal = Calibration::<N, M, P>::new(ram);
+    if cal.load(&view, slot).is_err() {
+        fail(b"line-bench: the blob does not fit this build");
+    }
+    cal
+}
+
+#[entry]
+fn main() -> ! {
+    // SAFETY: single-threaded firmware, no interrupts use these statics.
+    let (data, ram_board, ram_qemu) = unsafe {
+        (
+            &mut (*core::ptr::addr_of_mut!(DATA)).0,
+            &mut *core::ptr::addr_of_mut!(RAM_BOARD),
+            &mut *core::ptr::addr_of_mut!(RAM_QEMU),
+        )
+    };
+    let n = read_file(b"target/line-bench/data.bin\0", data);
+    let data: &'static [u8] = &data[..n];
+    if n < 8 || &data[..4] != b"LBD1" {
+        fail(b"line-bench: no data (run `host-tools rate`)");
+    }
+    let (pb, fsb, blob_b, frames_b, next) = build_at(data, 4);
+    let (pq, fsq, blob_q, frames_q, _) = build_at(data, next);
+    if pb != BOARD_P || pq != QEMU_P {
+        fail(b"line-bench: the data is for other pixel counts");
+    }
+    let cal_b = load::<BOARD_P>(ram_board, blob_b);
+    let cal_q = load::<QEMU_P>(ram_qemu, blob_q);
+    let raw_b = raw_line::<BOARD_P>(frames_b);
+    let raw_q = raw_line::<QEMU_P>(frames_q);
+    for marking in [false, true] {
+        run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, fsb);
+        run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
+    }
+    // Closes the last segment (each boundary opens one).
+    line_bench_mark();
+    let mut l = Line::new();
+    l.push(b"DONE");
+    l.end();
+    debug::exit(debug::EXIT_SUCCESS);
+    halt()
+}
+
+/// Reads a host file (path NUL-terminated, relative to QEMU's working
+/// directory) over semihosting; returns the bytes read.
+fn read_file(path: &[u8], buf: &mut [u8]) -> usize {
+    // SAFETY: semihosting calls with valid pointers and lengths.
+    unsafe {
+        let fd = cortex_m_semihosting::syscall!(
+            OPEN,
+            path.as_ptr(),
+            cortex_m_semihosting::nr::open::R_BINARY,
+            path.len() - 1
+        );
+        if fd == usize::MAX {
+            fail(b"line-bench: cannot open target/line-bench/data.bin");
+        }
+        let left = cortex_m_semihosting::syscall!(READ, fd, buf.as_mut_ptr(), buf.len());
+        cortex_m_semihosting::syscall!(CLOSE, fd);
+        buf.len() - left
+    }
+}
+
+/// A line written to the semihosting console with SYS_WRITE0.
+struct Line {
+    buf: [u8; 96],
+    len: usize,
+}
+
+impl Line {
+    const fn new() -> Self {
+        Self { buf: [0; 96], len: 0 }
+    }
+    fn push(&mut self, s: &[u8]) {
+        for &c in s {
+            if self.len + 2 < self.buf.len() {
+                self.buf[self.len] = c;
+                self.len += 1;
+            }
+        }
+    }
+    fn num(&mut self, mut x: u32) {
+        let mut d = [0u8; 10];
+        let mut k = d.len();
+        loop {
+            k -= 1;
+            d[k] = b'0' + (x % 10) as u8;
+            x /= 10;
+            if x == 0 {
+                break;
+            }
+        }
+        self.push(&d[k..]);
+    }
+    fn end(&mut self) {
+        self.push(b"\n");
+        self.buf[self.len] = 0;
+        // SAFETY: SYS_WRITE0 takes a NUL-terminated string: `buf` holds one.
+        unsafe { cortex_m_semihosting::syscall1!(WRITE0, self.buf.as_ptr()) };
+        self.len = 0;
+    }
+}
+
+fn fail(msg: &[u8]) -> ! {
+    if let Ok(mut err) = hio::hstderr() {
+        let _ = err.write_all(msg);
+        let _ = err.write_all(b"\n");
+    }
+    debug::exit(debug::EXIT_FAILURE);
+    halt()
+}
+
+/// After a semihosting exit QEMU has stopped; on anything else, wait here.
+fn halt() -> ! {
+    loop {
+        // SAFETY: wait for an interrupt; nothing else.
+        unsafe { core::arch::asm!("wfi", options(nomem, nostack)) };
+    }
+}
+
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
+    fail(b"line-bench panic")
+}
