@@ -180,25 +180,7 @@ fn no_nan_or_infinity_reaches_a_streamed_frame() {
         assert!(p.values.iter().all(|x| x.is_finite()), "point {px} of line {} streamed {:?}", p.line, p.values);
         // The host's reproduction (same correction, kernel and guard) agrees bit for bit.
         let want = &expected_line(&view, &scene[k / P], FULL_SCALE)[px];
-        assert_eq!(
-            (
-                p.zone,
-                p.cluster,
-                p.flags,
-                p.sigma_scale.to_bits(),
-                p.readings.map(f32::to_bits),
-                p.reading_sigma.map(f32::to_bits)
-            ),
-            (
-                want.zone,
-                want.cluster,
-                want.flags,
-                want.sigma_scale.to_bits(),
-                want.readings.map(f32::to_bits),
-                want.reading_sigma.map(f32::to_bits)
-            ),
-            "point {px}"
-        );
+        assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(want), "point {px}");
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "point {px}");

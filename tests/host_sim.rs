@@ -49,25 +49,7 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
         let line = k / P;
         let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
-        assert_eq!(
-            (
-                p.zone,
-                p.cluster,
-                p.flags,
-                p.sigma_scale.to_bits(),
-                p.readings.map(f32::to_bits),
-                p.reading_sigma.map(f32::to_bits)
-            ),
-            (
-                want.zone,
-                want.cluster,
-                want.flags,
-                want.sigma_scale.to_bits(),
-                want.readings.map(f32::to_bits),
-                want.reading_sigma.map(f32::to_bits)
-            ),
-            "point {k}"
-        );
+        assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(want), "point {k}");
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = want.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp, "values of point {k} differ");

@@ -35,25 +35,7 @@ fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRec
         let line = k / PIXELS;
         let want = &expected_line(&view, &frames[line % frames.len()], full_scale)[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
-        assert_eq!(
-            (
-                p.zone,
-                p.cluster,
-                p.flags,
-                p.sigma_scale.to_bits(),
-                p.readings.map(f32::to_bits),
-                p.reading_sigma.map(f32::to_bits)
-            ),
-            (
-                want.zone,
-                want.cluster,
-                want.flags,
-                want.sigma_scale.to_bits(),
-                want.readings.map(f32::to_bits),
-                want.reading_sigma.map(f32::to_bits)
-            ),
-            "zone/flags of point {k}"
-        );
+        assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(want), "zone/flags of point {k}");
         for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {
             assert_eq!(g.to_bits(), w.to_bits(), "point {k} bin {j}: device {g:e}, host {w:e}");
             compared += 1;
@@ -298,6 +280,8 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
             view_deg: 45.0,
             solid_angle_sr: Some(1e-3),
         },
+        encoding: host_tools::cli::measure::EncodingArg::Sigma16,
+        bins: None,
     };
     host_tools::cli::measure::run(args).unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
     let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();

@@ -37,24 +37,7 @@ fn measures_with(c: &mut Client<SimDevice>, blob: &[u8]) {
     let want = expected_line(&view, &scene[0], FULL_SCALE);
     assert_eq!(pts.len(), P);
     for (p, w) in pts.iter().zip(&want) {
-        assert_eq!(
-            (
-                p.zone,
-                p.cluster,
-                p.flags,
-                p.sigma_scale.to_bits(),
-                p.readings.map(f32::to_bits),
-                p.reading_sigma.map(f32::to_bits)
-            ),
-            (
-                w.zone,
-                w.cluster,
-                w.flags,
-                w.sigma_scale.to_bits(),
-                w.readings.map(f32::to_bits),
-                w.reading_sigma.map(f32::to_bits)
-            )
-        );
+        assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(w));
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();
         let exp: Vec<u32> = w.values.iter().map(|x| x.to_bits()).collect();
         assert_eq!(got, exp);
