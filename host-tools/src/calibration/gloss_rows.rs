@@ -24,6 +24,16 @@
 //! the two mixed at equal weight ([`STANDARDS_WEIGHT`], [`augmented_r_pp`],
 //! [`augmented_samples`]); the rows' covariance is that same augmented
 //! estimator's.
+//!
+//! # The stated uncertainty
+//! The posterior covariance is too small for materials outside the prior and
+//! leaves out the standard's own misreading, which every gloss and haze
+//! reading inherits through `q`. Training holds the prior's samples out in
+//! [`HELD_OUT_FOLDS`] folds, trains each fold's rows (and their reading of
+//! the standard) on the others, reads the held-out samples by the device's
+//! function and scales the covariance per reading so that [`COVERAGE`] of
+//! them fall within [`COVERAGE_K`] u ([`uncertainty_factors`],
+//! [`scale_block`]). Training data only: the test set never enters it.
 use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::smooth_dielectric::{BLACK_GLASS_INDEX, fresnel_unpolarised};
 use crate::forward::brdf::{Lambertian, SmoothDielectric};
