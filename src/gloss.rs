@@ -31,7 +31,9 @@
 //! # Uncertainties
 //! Training stores the covariance `C = A E A^T` of the linear readings'
 //! errors (E the estimator's error covariance, per unit scale for the
-//! scale-free kinds), packed, per zone and cluster. With `s` the point's
+//! scale-free kinds), packed, per zone and cluster, each reading's rows and
+//! columns scaled by the factor training calibrated on held-out samples
+//! (host-tools' `calibration::gloss_rows`). With `s` the point's
 //! `sigma_scale` (1 for the linear kinds):
 //! `u(G) = q s sqrt(C_00)`, `u(H) = q s sqrt(C_11)` (both square roots
 //! stored beside C, [`SD_LEN`]), and to first order in

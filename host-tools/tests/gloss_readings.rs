@@ -3,16 +3,28 @@
 //! (`device::reference::PointEstimator`, bit for bit the firmware's), truth
 //! from the true BRDF by the same definition (`forward::gloss`).
 //!
-//! Prints the readings table of the scene library and the coverage of the
-//! stated uncertainties: `cargo test --release -p host-tools --test
+//! Two surface sets, each with the calibrations made for it:
+//! - the scene library (patent profile, black glass, matt white) with the
+//!   calibrations trained for the patent-profile scene (Wiener on the
+//!   Table 5 Ward prior, the scale-free kinds on the MERL prior);
+//! - the MERL materials, held out: 5 folds, every material read by
+//!   calibrations trained on the other four folds only (Wiener on their
+//!   R_pp, scale-free, scale-free piecewise).
+//!
+//! Coverage is the fraction of readings whose error is within k = 2 stated
+//! standard uncertainties; for the scale-free kinds it is also given on
+//! the points the out-of-prior flag leaves trusted. Prints the readings
+//! table and the coverage: `cargo test --release -p host-tools --test
 //! gloss_readings -- --nocapture`.
-use brdf_meter::blob::BlobView;
+use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::gloss::{DISTINCTNESS, HAZE_HU, SPECULAR_GU};
-use host_tools::calibration::demo::{train_for_scene, train_scale_free_for_scene};
+use host_tools::calibration::demo::{train_for_scene, train_measured_for_scene, train_scale_free_for_scene};
+use host_tools::calibration::estimators::scale_free::WeightedSamples;
 use host_tools::device::reference::PointEstimator;
 use host_tools::forward::brdf::{Brdf, NbrdfSet};
 use host_tools::forward::gloss::{true_readings, true_rho};
 use host_tools::forward::optics::simulate_readings;
+use host_tools::forward::prior_measured::PriorMix;
 use host_tools::forward::scene::Scene;
 use host_tools::forward::scene::pipeline::{Mode, Simulator};
 use rand::SeedableRng;
@@ -25,7 +37,14 @@ fn scene(name: &str) -> Scene {
 
 /// Coverage factor: expanded uncertainty U = K u (the GUM's ~95 % convention).
 const K: f64 = 2.0;
+/// The coverage the stated uncertainties must reach.
+const REQUIRED: f64 = 0.95;
+/// Held-out folds of the MERL set.
+const FOLDS: usize = 5;
+/// The out-of-prior flag bit of a point.
+const OUT_OF_PRIOR: u8 = 1 << 3;
 
+#[derive(Default)]
 struct Tally {
     inside: [usize; 3],
     total: [usize; 3],
@@ -45,87 +64,102 @@ impl Tally {
     fn coverage(&self, r: usize) -> f64 {
         self.inside[r] as f64 / self.total[r].max(1) as f64
     }
+    fn line(&self) -> String {
+        format!(
+            "gloss {:.3}, haze {:.3}, distinctness {:.3} (of {})",
+            self.coverage(SPECULAR_GU),
+            self.coverage(HAZE_HU),
+            self.coverage(DISTINCTNESS),
+            self.total[SPECULAR_GU]
+        )
+    }
 }
 
-fn blobs() -> Vec<(&'static str, Vec<u8>)> {
-    let s = scene("patent-profile.toml");
-    vec![
-        ("wiener", train_for_scene(&s, 1, 0.02).unwrap().blob),
-        ("scale-free", train_scale_free_for_scene(&s, 1, 0.02, false).unwrap().blob),
-        ("scale-free-piecewise", train_scale_free_for_scene(&s, 1, 0.02, true).unwrap().blob),
-    ]
+fn kind_label(kind: EstimatorKind) -> &'static str {
+    host_tools::calibration::estimators::kind_name(kind)
 }
 
-#[test]
-fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
-    let lib = ["patent-profile.toml", "black-glass.toml", "matte-white.toml"];
-    for (kind, blob) in blobs() {
-        let view = BlobView::parse(&blob).unwrap();
-        assert_eq!(view.version(), 3, "{kind}: training writes the gloss section");
-        let est = PointEstimator::new(view, 0).unwrap();
-        // The calibration's scale against the definition's: how the estimator
-        // misreads the black glass (the standard's L_0 by the definition over
-        // the zone's reading of it).
-        let mut block = vec![0.0f32; brdf_meter::gloss::block_len(view.dims().m)];
-        let (_, _, s_ref) = view.copy_gloss(0, 0, &mut block).unwrap();
-        let scale_bias = host_tools::forward::gloss::black_glass_specular(45.0) / f64::from(s_ref);
-        println!("\n{kind}: black glass L_0 by definition / as the zone reads it = {scale_bias:.3}");
-        let bins: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
-        let step = bins[1] - bins[0];
-        println!("\n{kind}: scene | truth G H D | device mean G H D | stated u G H D");
-        for name in lib {
-            let sc = scene(name);
-            let sim = Simulator::new(&sc).unwrap();
-            let (brdfs, _) = sc.surface_brdfs().unwrap();
-            let truth = true_readings(&true_rho(brdfs[0].as_ref(), &bins, 45.0, step), &bins, 45.0).unwrap();
-            let mut tally = Tally { inside: [0; 3], total: [0; 3] };
-            let (mut mean, mut u) = ([0.0f64; 3], [0.0f64; 3]);
-            let lines = 200;
-            for line in 0..lines {
-                let c = sim.simulate_line(line, Mode::Full).corrected;
-                let v: Vec<f32> = c.iter().map(|x| *x as f32).collect();
-                let e = est.apply(&v);
-                tally.add(&e.readings, &e.reading_sigma, &truth);
-                for r in 0..3 {
-                    mean[r] += f64::from(e.readings[r]) / lines as f64;
-                    u[r] += f64::from(e.reading_sigma[r]) / lines as f64;
-                }
-            }
-            println!(
-                "{name:20} | {:7.2} {:6.2} {:6.1} | {:7.2} {:6.2} {:6.1} | {:6.2} {:6.2} {:6.1} | coverage {:.2} {:.2} {:.2}",
-                truth[0],
-                truth[1],
-                truth[2],
-                mean[0],
-                mean[1],
-                mean[2],
-                u[0],
-                u[1],
-                u[2],
-                tally.coverage(0),
-                tally.coverage(1),
-                tally.coverage(2)
-            );
-            if name == "black-glass.toml" {
-                // Calibrated on it: the noise-free tile reads 100 GU through the
-                // scene simulator's full pipeline, and so does the mean of noisy lines.
-                let c = sim.simulate_line(0, Mode::NoNoise).corrected;
-                let v: Vec<f32> = c.iter().map(|x| *x as f32).collect();
-                let g = est.apply(&v).readings[SPECULAR_GU];
-                assert!((g - 100.0).abs() < 0.5, "{kind}: the noise-free black glass reads {g} GU");
-                assert!((mean[SPECULAR_GU] - 100.0).abs() < 0.5, "{kind}: black glass reads {} GU", mean[0]);
+/// The library's scenes through `blob`; returns the coverage over all of them.
+fn library(kind: EstimatorKind, blob: &[u8]) -> Tally {
+    let view = BlobView::parse(blob).unwrap();
+    assert_eq!(view.version(), 3, "{kind:?}: training writes the gloss section");
+    let est = PointEstimator::new(view, 0).unwrap();
+    // The standard's L_0 by the definition over the zone's reading of it:
+    // 1 when the rows read the black glass right.
+    let mut block = vec![0.0f32; brdf_meter::gloss::block_len(view.dims().m)];
+    let (_, _, s_ref) = view.copy_gloss(0, 0, &mut block).unwrap();
+    let ratio = host_tools::forward::gloss::black_glass_specular(45.0) / f64::from(s_ref);
+    println!("\n{}: black glass L_0 by definition / as the zone reads it = {ratio:.3}", kind_label(kind));
+    let bins: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
+    let step = bins[1] - bins[0];
+    println!("scene | truth G H D | device mean G H D | stated u G H D | coverage at k = {K}");
+    let mut all = Tally::default();
+    for name in ["patent-profile.toml", "black-glass.toml", "matte-white.toml"] {
+        let sc = scene(name);
+        let sim = Simulator::new(&sc).unwrap();
+        let (brdfs, _) = sc.surface_brdfs().unwrap();
+        let truth = true_readings(&true_rho(brdfs[0].as_ref(), &bins, 45.0, step), &bins, 45.0).unwrap();
+        let mut tally = Tally::default();
+        let (mut mean, mut u) = ([0.0f64; 3], [0.0f64; 3]);
+        let lines = 200;
+        for line in 0..lines {
+            let c = sim.simulate_line(line, Mode::Full).corrected;
+            let v: Vec<f32> = c.iter().map(|x| *x as f32).collect();
+            let e = est.apply(&v);
+            tally.add(&e.readings, &e.reading_sigma, &truth);
+            all.add(&e.readings, &e.reading_sigma, &truth);
+            for r in 0..3 {
+                mean[r] += f64::from(e.readings[r]) / lines as f64;
+                u[r] += f64::from(e.reading_sigma[r]) / lines as f64;
             }
         }
-        // Measured materials: MERL, 4 noise draws each (2 % proportional).
-        let set = NbrdfSet::merl();
-        let inst = host_tools::forward::optics::Instrument::patent_profile();
-        let mut tally = Tally { inside: [0; 3], total: [0; 3] };
-        // The same with the definition's scale instead of the black-glass calibration.
-        let mut uncal = Tally { inside: [0; 3], total: [0; 3] };
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let names: Vec<String> = set.names().map(str::to_string).collect();
-        for name in &names {
-            let mat = set.by_name(name, inst.spectral_weights).unwrap();
+        println!(
+            "{name:20} | {:7.2} {:6.2} {:6.1} | {:7.2} {:6.2} {:6.1} | {:6.2} {:6.2} {:6.1} | {:.2} {:.2} {:.2}",
+            truth[0],
+            truth[1],
+            truth[2],
+            mean[0],
+            mean[1],
+            mean[2],
+            u[0],
+            u[1],
+            u[2],
+            tally.coverage(0),
+            tally.coverage(1),
+            tally.coverage(2)
+        );
+        if name == "black-glass.toml" {
+            // Calibrated on it: the noise-free tile reads 100 GU through the
+            // scene simulator's full pipeline, and so does the mean of noisy lines.
+            let c = sim.simulate_line(0, Mode::NoNoise).corrected;
+            let v: Vec<f32> = c.iter().map(|x| *x as f32).collect();
+            let g = est.apply(&v).readings[SPECULAR_GU];
+            assert!((g - 100.0).abs() < 0.5, "{kind:?}: the noise-free black glass reads {g} GU");
+            assert!((mean[SPECULAR_GU] - 100.0).abs() < 0.5, "{kind:?}: black glass reads {} GU", mean[0]);
+        }
+    }
+    println!("library, all points: {}", all.line());
+    all
+}
+
+/// The MERL materials held out in folds; returns the coverage on every
+/// point and on the points not flagged out of prior, and the flagged count.
+fn merl_held_out(kind: EstimatorKind) -> (Tally, Tally, usize) {
+    let sc = scene("patent-profile.toml");
+    let inst = host_tools::forward::optics::Instrument::patent_profile();
+    let grid = sc.instrument.grid().unwrap();
+    let (samples, names) = PriorMix::parse("merl").unwrap().samples(&grid, 45.0, inst.spectral_weights).unwrap();
+    let set = NbrdfSet::merl();
+    let bins = grid.bins_deg().to_vec();
+    let step = bins[1] - bins[0];
+    let (mut all, mut trusted, mut flagged) = (Tally::default(), Tally::default(), 0);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for fold in 0..FOLDS {
+        let train: Vec<usize> = (0..names.len()).filter(|i| i % FOLDS != fold).collect();
+        let blob = train_measured_for_scene(&sc, 1, 0.02, kind, &WeightedSamples::subset(&samples, &train)).unwrap();
+        let est = PointEstimator::new(BlobView::parse(&blob).unwrap(), 0).unwrap();
+        for name in names.iter().enumerate().filter(|(i, _)| i % FOLDS == fold).map(|(_, n)| n) {
+            let mat = set.by_name(name.trim_start_matches("merl:"), inst.spectral_weights).unwrap();
             let truth = true_readings(&true_rho(&mat as &dyn Brdf, &bins, 45.0, step), &bins, 45.0).unwrap();
             let clean = simulate_readings(&inst, &mat, false);
             for _ in 0..4 {
@@ -134,22 +168,55 @@ fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
                     .map(|x| (x + Normal::new(0.0, 0.02 * x.abs()).unwrap().sample(&mut rng)) as f32)
                     .collect();
                 let e = est.apply(&v);
-                tally.add(&e.readings, &e.reading_sigma, &truth);
-                let f = |x: [f32; 3]| [x[0] / scale_bias as f32, x[1] / scale_bias as f32, x[2]];
-                uncal.add(&f(e.readings), &f(e.reading_sigma), &truth);
+                all.add(&e.readings, &e.reading_sigma, &truth);
+                if e.flag_bits & OUT_OF_PRIOR != 0 {
+                    flagged += 1;
+                } else {
+                    trusted.add(&e.readings, &e.reading_sigma, &truth);
+                }
             }
         }
-        println!(
-            "MERL ({} materials x 4 draws): coverage at k = {K}: gloss {:.3}, haze {:.3}, distinctness {:.3}",
-            names.len(),
-            tally.coverage(SPECULAR_GU),
-            tally.coverage(HAZE_HU),
-            tally.coverage(DISTINCTNESS)
-        );
-        println!(
-            "  same on the definition's scale (no black-glass calibration): gloss {:.3}, haze {:.3}",
-            uncal.coverage(SPECULAR_GU),
-            uncal.coverage(HAZE_HU)
-        );
+    }
+    println!(
+        "\n{}: MERL held out ({} materials in {FOLDS} folds x 4 draws), coverage at k = {K}: {}",
+        kind_label(kind),
+        names.len(),
+        all.line()
+    );
+    if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+        println!("  {flagged} points flagged out of prior; on the others: {}", trusted.line());
+    }
+    (all, trusted, flagged)
+}
+
+#[test]
+fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
+    let s = scene("patent-profile.toml");
+    let lib = [
+        (EstimatorKind::Wiener, train_for_scene(&s, 1, 0.02).unwrap().blob),
+        (EstimatorKind::ScaleFree, train_scale_free_for_scene(&s, 1, 0.02, false).unwrap().blob),
+        (EstimatorKind::ScaleFreePiecewise, train_scale_free_for_scene(&s, 1, 0.02, true).unwrap().blob),
+    ];
+    // The library: every kind, every reading, at least 95 % within k = 2.
+    for (kind, blob) in &lib {
+        let t = library(*kind, blob);
+        for (r, what) in [(SPECULAR_GU, "gloss"), (HAZE_HU, "haze"), (DISTINCTNESS, "distinctness")] {
+            assert!(t.coverage(r) >= REQUIRED, "{kind:?}: library {what} coverage {:.3}", t.coverage(r));
+        }
+    }
+    // MERL held out. Met: the scale-free kind's gloss (0.953 on every point,
+    // 0.950 on the unflagged). Not met, printed and asserted only as a floor
+    // against regression: its haze and distinctness (0.943, 0.945), the
+    // piecewise kind's (0.922, 0.943, 0.948) and Wiener's (0.940, 0.930,
+    // distinctness 0.708).
+    for kind in [EstimatorKind::Wiener, EstimatorKind::ScaleFree, EstimatorKind::ScaleFreePiecewise] {
+        let (all, _, _) = merl_held_out(kind);
+        for r in [SPECULAR_GU, HAZE_HU] {
+            assert!(all.coverage(r) >= 0.9, "{kind:?}: MERL coverage of reading {r}: {:.3}", all.coverage(r));
+        }
+        assert!(all.coverage(DISTINCTNESS) >= 0.65, "{kind:?}: MERL distinctness {:.3}", all.coverage(DISTINCTNESS));
+        if kind == EstimatorKind::ScaleFree {
+            assert!(all.coverage(SPECULAR_GU) >= REQUIRED, "scale-free MERL gloss {:.3}", all.coverage(SPECULAR_GU));
+        }
     }
 }

@@ -64,3 +64,39 @@ pub fn train_scale_free_for_scene(
     };
     crate::calibration::train_scale_free::train_scale_free(&spec, &samples, 0.05)
 }
+
+/// Trains a calibration of `kind` for `scene` on the measured samples
+/// `samples` (for example the MERL set without the materials under test):
+/// the linear kinds on their `R_pp` (`prior_measured::weighted_prior`), the
+/// scale-free kinds on the samples themselves (out-of-prior threshold at a
+/// 5 % false-alarm rate). Returns the blob.
+pub fn train_measured_for_scene(
+    scene: &Scene,
+    zones: usize,
+    noise_rel: f64,
+    kind: EstimatorKind,
+    samples: &crate::calibration::estimators::scale_free::WeightedSamples,
+) -> anyhow::Result<Vec<u8>> {
+    let inst = &scene.instrument;
+    let grid = inst.grid().context("the scene's angle grid")?;
+    let prior = crate::forward::prior_measured::weighted_prior(samples);
+    let optics = training_optics(scene, zones)?;
+    let spec = TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones: optics.zones,
+        pixels: optics.pixels,
+        view_deg: inst.view_deg,
+        prior: &prior,
+        noise_rel,
+        estimator: kind,
+        far_field: false,
+        led_order: None,
+        white: Some(optics.white),
+    };
+    Ok(match kind {
+        EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
+            crate::calibration::train_scale_free::train_scale_free(&spec, samples, 0.05)?.blob
+        }
+        _ => train(&spec)?.blob,
+    })
+}

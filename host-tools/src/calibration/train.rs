@@ -19,6 +19,7 @@ use crate::forward::zone_optics::ZoneOptics;
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::{BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, TrainingSummary, write_blob_with};
 use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
 use serde::Serialize;
 
 /// Everything training needs.
@@ -185,32 +186,98 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
     Ok(Trained { dims, bins_deg: spec.bins_deg.to_vec(), zones, summary, f32_rel_error, f32_exponents, blob })
 }
 
-/// The gloss section of a linear calibration: per zone the rows `A W` (W
-/// as the blob holds it, with the f32 gate's power-of-two column factors),
-/// `A E A^T` from the zone's full error covariance, and the zone's reading
+/// The gloss section of a linear calibration: per zone the rows `A W_g`
+/// (`W_g` the same kind trained on the prior augmented with the gloss
+/// standards, `gloss_rows`' module doc; with the f32 gate's power-of-two
+/// column factors of the blob's W), `A E_g A^T` from that estimator's full
+/// error covariance under the augmented prior, and the zone's reading
 /// of the black glass through the blob's own matrices. `None` when the
 /// grid does not cover the specular aperture about the view, or a zone does
-/// not see the standard (no readings then; the device streams NaN).
+/// not see the standard (no readings then; the device streams NaN). The
+/// stated uncertainties are scaled per reading by
+/// `gloss_rows::uncertainty_factors` of the prior's samples held out in
+/// folds (each fold read by rows trained without it).
 fn gloss_section(
     spec: &TrainSpec<'_>,
     zones: &[TrainedZone],
     plans: &[F32Plan],
 ) -> anyhow::Result<Option<GlossSection>> {
     let Ok(a) = gloss_rows::weights(spec.bins_deg, spec.view_deg) else { return Ok(None) };
+    let standards = gloss_rows::gloss_standards(spec.bins_deg, spec.view_deg);
+    let samples = &spec.prior.samples;
     let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new() };
-    for (z, (tz, plan)) in zones.iter().zip(plans).enumerate() {
-        let noise = NoiseModel::Relative(spec.noise_rel);
-        let r_nn = noise.covariance(&tz.h, &spec.prior.r_pp).with_context(|| format!("zone {z}: noise covariance"))?;
-        let e = estimators::error_covariance(&tz.estimator.w, &tz.h, &spec.prior.r_pp, &r_nn);
-        let (n, m) = tz.estimator.w.shape();
-        let w_blob = DMatrix::from_fn(n, m, |j, i| tz.estimator.w[(j, i)] * 2f64.powi(plan.exponents[i]));
-        let block = gloss_rows::block(&a, &w_blob, &e);
-        let v = gloss_rows::black_glass_readings(&tz.h, spec.bins_deg, spec.view_deg);
-        let Some(s) = gloss_rows::standard_reading(&block, &plan.readings(&v)) else { return Ok(None) };
+    for (z, ((tz, zo), plan)) in zones.iter().zip(&spec.zones).zip(plans).enumerate() {
+        let rows = |r_pp: &DMatrix<f64>| {
+            linear_rows(spec, &tz.h, &zo.centres_deg, r_pp, &standards, plan, &a)
+                .with_context(|| format!("zone {z}: the gloss rows' estimator on the augmented prior"))
+        };
+        let (mut block, s) = rows(&spec.prior.r_pp)?;
+        let Some(s) = s else { return Ok(None) };
+        // The uncertainty's scale factors from held-out prior samples: each
+        // fold's rows trained on the other folds (equal weights).
+        let mut zs = Vec::new();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(z as u64 ^ 0x6105);
+        for fold in 0..gloss_rows::HELD_OUT_FOLDS {
+            let train: Vec<usize> = (0..samples.ncols()).filter(|k| k % gloss_rows::HELD_OUT_FOLDS != fold).collect();
+            if train.is_empty() || train.len() == samples.ncols() {
+                continue;
+            }
+            let cols: Vec<DVector<f64>> = train.iter().map(|k| samples.column(*k).into_owned()).collect();
+            let st = DMatrix::from_columns(&cols);
+            let r_fold = &st * st.transpose() / train.len() as f64;
+            let (fb, fs) = rows(&r_fold)?;
+            let Some(fs) = fs else { continue };
+            let q = (crate::forward::gloss::ASSIGNED_GU / f64::from(fs)) as f32;
+            for k in (0..samples.ncols()).filter(|k| k % gloss_rows::HELD_OUT_FOLDS == fold) {
+                let rho = samples.column(k).into_owned();
+                let Some(truth) = crate::forward::gloss::true_readings(&rho, spec.bins_deg, spec.view_deg) else {
+                    continue;
+                };
+                let v = &tz.h * &rho;
+                for _ in 0..gloss_rows::HELD_OUT_DRAWS {
+                    let x = plan.readings(&gloss_rows::noisy(&v, spec.noise_rel, &mut rng));
+                    zs.push(gloss_rows::z_scores(&fb, &x, q, 1.0, &truth));
+                }
+            }
+        }
+        gloss_rows::scale_block(&mut block, tz.h.nrows(), gloss_rows::uncertainty_factors(&zs));
         out.reference.push(s);
         out.blocks.extend(block);
     }
     Ok(Some(out))
+}
+
+/// One zone's gloss block from the rows' estimator trained on `r_pp`
+/// augmented with the `standards`, and the zone's reading of the black
+/// glass through it (`None` when it does not see it).
+fn linear_rows(
+    spec: &TrainSpec<'_>,
+    h: &DMatrix<f64>,
+    centres_deg: &[f64],
+    r_pp: &DMatrix<f64>,
+    standards: &DMatrix<f64>,
+    plan: &F32Plan,
+    a: &DMatrix<f64>,
+) -> anyhow::Result<(Vec<f32>, Option<f32>)> {
+    let r_pp = gloss_rows::augmented_r_pp(r_pp, standards);
+    let noise = NoiseModel::Relative(spec.noise_rel);
+    let inputs = EstimatorInputs {
+        h,
+        r_pp: &r_pp,
+        prior_samples: spec.prior.samples.ncols() + standards.ncols(),
+        noise: noise.clone(),
+        bins_deg: spec.bins_deg,
+        centres_deg,
+    };
+    let est = estimators::build(spec.estimator, &inputs)?;
+    let r_nn = noise.covariance(h, &r_pp)?;
+    let e = estimators::error_covariance(&est.w, h, &r_pp, &r_nn);
+    let (n, m) = est.w.shape();
+    let w_blob = DMatrix::from_fn(n, m, |j, i| est.w[(j, i)] * 2f64.powi(plan.exponents[i]));
+    let block = gloss_rows::block(a, &w_blob, &e);
+    let v = gloss_rows::black_glass_readings(h, spec.bins_deg, spec.view_deg);
+    let s = gloss_rows::standard_reading(&block, &plan.readings(&v));
+    Ok((block, s))
 }
 
 /// The device's f32 tolerance: the largest `|f32 kernel - f64|` over the

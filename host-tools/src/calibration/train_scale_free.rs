@@ -4,7 +4,9 @@
 //! out-of-prior mean, whitening and threshold. The f32 gate runs the
 //! device's own function (`brdf_meter::kernel::scale_free::estimate_scale_free`) on
 //! the prior's samples against f64, as [`crate::calibration::train::f32_gate`] does for W.
-use crate::calibration::estimators::scale_free::{ScaleFreeOptions, ScaleFreeZone, WeightedSamples, train_zone};
+use crate::calibration::estimators::scale_free::{
+    ScaleFreeOptions, ScaleFreeZone, WeightedSamples, maps_for_zone, train_zone,
+};
 use crate::calibration::gloss_rows::{self, GlossSection};
 use crate::calibration::train::{F32_TOLERANCE, TrainSpec};
 use anyhow::{Context, ensure};
@@ -12,6 +14,7 @@ use brdf_meter::blob::{
     BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, OutOfPriorData, TrainingSummary, write_blob_with,
 };
 use nalgebra::DVector;
+use rand::SeedableRng;
 use serde::Serialize;
 
 /// A trained scale-free calibration.
@@ -162,7 +165,7 @@ pub fn train_scale_free(
         uncertainty: &uncertainty,
         matrices: &matrices,
     };
-    let gloss = gloss_section(spec, &zones)?;
+    let gloss = gloss_section(spec, &zones, prior)?;
     let extras = BlobExtras {
         clusters: k,
         centroids: &centroids,
@@ -178,27 +181,97 @@ pub fn train_scale_free(
 }
 
 /// The gloss section of a scale-free calibration: per zone and cluster the
-/// rows `A [W' | b]` (the same kernel input as the estimate: the readings
-/// with the last replaced by their scale) and `A E A^T` per unit scale;
+/// rows `A [W_g' | b_g]` (the same kernel input as the estimate: the
+/// readings with the last replaced by their scale; the maps refitted with
+/// the zone's ridge and clusters on the prior augmented with the gloss
+/// standards, `gloss_rows`' module doc) and their `A E A^T` per unit scale;
 /// each zone's reading of the black glass by the device's rule (its cluster,
 /// its scale). `None` when the grid does not cover the specular aperture or
 /// a zone does not see the standard.
-fn gloss_section(spec: &TrainSpec<'_>, zones: &[ScaleFreeZone]) -> anyhow::Result<Option<GlossSection>> {
+fn gloss_section(
+    spec: &TrainSpec<'_>,
+    zones: &[ScaleFreeZone],
+    prior: &WeightedSamples,
+) -> anyhow::Result<Option<GlossSection>> {
     let Ok(a) = gloss_rows::weights(spec.bins_deg, spec.view_deg) else { return Ok(None) };
+    let standards = gloss_rows::gloss_standards(spec.bins_deg, spec.view_deg);
     let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new() };
-    for (zo, tz) in spec.zones.iter().zip(zones) {
-        let blocks: Vec<Vec<f32>> = tz.maps.iter().map(|mp| gloss_rows::block(&a, &mp.w, &mp.err_unit)).collect();
-        let v = gloss_rows::black_glass_readings(&zo.h, spec.bins_deg, spec.view_deg);
-        let mut x: Vec<f32> = v.iter().map(|t| *t as f32).collect();
-        let c = if tz.centroids.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&tz.centroids, &x) };
-        let s = brdf_meter::kernel::scale_free::scale(&x);
-        let m = x.len();
-        x[m - 1] = s;
-        let Some(s) = gloss_rows::standard_reading(&blocks[c], &x) else { return Ok(None) };
+    for (z, (zo, tz)) in spec.zones.iter().zip(zones).enumerate() {
+        // A zone that sees no light from a standard cannot learn from it (its
+        // readings have no scale); such a zone cannot read the standard either.
+        let seen: Vec<_> = standards.column_iter().filter(|c| (&zo.h * c).sum() > 0.0).collect();
+        if seen.is_empty() {
+            return Ok(None);
+        }
+        let seen = nalgebra::DMatrix::from_columns(&seen);
+        let Some((mut blocks, s)) = scale_free_rows(spec, zo, tz, prior, &seen, &a)
+            .with_context(|| format!("zone {z}: the gloss rows' maps on the augmented prior"))?
+        else {
+            return Ok(None);
+        };
+        // The uncertainty's scale factors from held-out prior samples: each
+        // fold's rows trained on the other folds.
+        let k = prior.samples.ncols();
+        let mut zs = Vec::new();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(z as u64 ^ 0x6105);
+        for fold in 0..gloss_rows::HELD_OUT_FOLDS {
+            let train: Vec<usize> = (0..k).filter(|i| i % gloss_rows::HELD_OUT_FOLDS != fold).collect();
+            if train.is_empty() || train.len() == k {
+                continue;
+            }
+            let Ok(Some((fb, fs))) = scale_free_rows(spec, zo, tz, &prior.subset(&train), &seen, &a) else { continue };
+            let q = (crate::forward::gloss::ASSIGNED_GU / f64::from(fs)) as f32;
+            for i in (0..k).filter(|i| i % gloss_rows::HELD_OUT_FOLDS == fold) {
+                let rho = prior.samples.column(i).into_owned();
+                let Some(truth) = crate::forward::gloss::true_readings(&rho, spec.bins_deg, spec.view_deg) else {
+                    continue;
+                };
+                let v = &zo.h * &rho;
+                for _ in 0..gloss_rows::HELD_OUT_DRAWS {
+                    let noisy = gloss_rows::noisy(&v, spec.noise_rel, &mut rng);
+                    let (c, x, sc) = kernel_input(tz, &noisy);
+                    zs.push(gloss_rows::z_scores(&fb[c], &x, q, sc, &truth));
+                }
+            }
+        }
+        let f = gloss_rows::uncertainty_factors(&zs);
+        for b in &mut blocks {
+            gloss_rows::scale_block(b, zo.h.nrows(), f);
+        }
         out.reference.push(s);
         out.blocks.extend(blocks.into_iter().flatten());
     }
     Ok(Some(out))
+}
+
+/// The device's cluster, kernel input (the readings with the last replaced
+/// by their scale) and scale for readings `v`.
+fn kernel_input(tz: &ScaleFreeZone, v: &DVector<f64>) -> (usize, Vec<f32>, f32) {
+    let mut x: Vec<f32> = v.iter().map(|t| *t as f32).collect();
+    let c = if tz.centroids.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&tz.centroids, &x) };
+    let s = brdf_meter::kernel::scale_free::scale(&x);
+    let m = x.len();
+    x[m - 1] = s;
+    (c, x, s)
+}
+
+/// One zone's gloss blocks (per cluster) from maps refitted on `prior`
+/// augmented with `standards`, and the zone's reading of the black glass
+/// through them (`None` when it does not see it).
+fn scale_free_rows(
+    spec: &TrainSpec<'_>,
+    zo: &crate::forward::zone_optics::ZoneOptics,
+    tz: &ScaleFreeZone,
+    prior: &WeightedSamples,
+    standards: &nalgebra::DMatrix<f64>,
+    a: &nalgebra::DMatrix<f64>,
+) -> anyhow::Result<Option<(Vec<Vec<f32>>, f32)>> {
+    let augmented = gloss_rows::augmented_samples(prior, standards);
+    let maps = maps_for_zone(&zo.h, &augmented, tz, spec.noise_rel)?;
+    let blocks: Vec<Vec<f32>> = maps.iter().map(|mp| gloss_rows::block(a, &mp.w, &mp.err_unit)).collect();
+    let v = gloss_rows::black_glass_readings(&zo.h, spec.bins_deg, spec.view_deg);
+    let (c, x, _) = kernel_input(tz, &v);
+    Ok(gloss_rows::standard_reading(&blocks[c], &x).map(|s| (blocks, s)))
 }
 
 impl TrainedScaleFree {

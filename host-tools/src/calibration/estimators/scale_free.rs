@@ -321,6 +321,24 @@ fn fit(
     let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let (cents, _) = kmeans(&feats, clusters, seed);
     let c32: Vec<f32> = cents.iter().flatten().map(|x| *x as f32).collect();
+    let maps = cluster_maps(nz, weights, idx, noise_rel, ridge, &c32, m)?;
+    Ok(Fitted { maps, centroids: c32 })
+}
+
+/// One map per centroid of `c32` (K x m, the device's selection rule): each
+/// trained on the samples of `idx` the rule sends to it and, so that every
+/// cluster has enough samples for a stable covariance, the nearest others.
+fn cluster_maps(
+    nz: &Normalised,
+    weights: &[f64],
+    idx: &[usize],
+    noise_rel: f64,
+    ridge: f64,
+    c32: &[f32],
+    m: usize,
+) -> anyhow::Result<Vec<ScaleFreeMap>> {
+    let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
+    let cents: Vec<Vec<f64>> = c32.chunks(m).map(|c| c.iter().map(|x| f64::from(*x)).collect()).collect();
     let k_eff = cents.len();
     // Each cluster trains on its members and, so that every cluster has
     // enough samples for a stable covariance, the nearest others.
@@ -338,7 +356,7 @@ fn fit(
             .zip(&feats)
             .filter(|(_, f)| {
                 let v32: Vec<f32> = f.iter().map(|x| *x as f32).collect();
-                brdf_meter::kernel::select_cluster(&c32, &v32) == c
+                brdf_meter::kernel::select_cluster(c32, &v32) == c
             })
             .map(|(&k, _)| k)
             .collect();
@@ -352,7 +370,24 @@ fn fit(
         }
         maps.push(fit_map(&moments(nz, weights, &members, noise_rel), ridge)?);
     }
-    Ok(Fitted { maps, centroids: c32 })
+    Ok(maps)
+}
+
+/// Maps for another use of the same zone (the gloss readings' rows, trained
+/// on an augmented prior): the zone's ridge and clusters (its centroids, so
+/// the device's cluster choice is unchanged), fitted on every sample of `prior`.
+pub fn maps_for_zone(
+    h: &DMatrix<f64>,
+    prior: &WeightedSamples,
+    zone: &ScaleFreeZone,
+    noise_rel: f64,
+) -> anyhow::Result<Vec<ScaleFreeMap>> {
+    let nz = normalise(h, prior)?;
+    let all: Vec<usize> = (0..prior.samples.ncols()).collect();
+    if zone.centroids.is_empty() {
+        return Ok(vec![fit_map(&moments(&nz, &prior.weights, &all, noise_rel), zone.ridge)?]);
+    }
+    cluster_maps(&nz, &prior.weights, &all, noise_rel, zone.ridge, &zone.centroids, h.nrows())
 }
 
 /// Trains one zone: chooses the ridge (and K) by cross-validation, fits on
