@@ -206,6 +206,9 @@ pub struct ExpectedPoint {
     pub reading_sigma: [f32; READINGS],
     /// The n values.
     pub values: Vec<f32>,
+    /// The corrected readings the values were estimated from (in reading
+    /// order): what the corrected-readings encoding sends.
+    pub corrected: Vec<f32>,
 }
 
 /// What the device must send for one scene line, point by point, computed
@@ -235,6 +238,7 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) 
                 readings: e.readings,
                 reading_sigma: e.reading_sigma,
                 values: e.rho,
+                corrected: v,
             }
         })
         .collect()

@@ -8,8 +8,7 @@
 //! bin's uncertainty by decoding these frames as the host does.
 use super::link::LineTraffic;
 use crate::device::link::{StreamDecoder, decode_points};
-use crate::device::reference::PointEstimator;
-use brdf_meter::acquire::correct_point_into;
+use crate::device::reference::expected_line;
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{
     self, BinRange, Encoding, LeBytes, MAX_FRAME, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError, Response,
@@ -26,31 +25,21 @@ struct DevicePoint {
 }
 
 fn device_points(view: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<DevicePoint> {
-    let d = view.dims();
-    let order = view.led_order();
-    let zones: Vec<PointEstimator<'_>> =
-        (0..d.zones).map(|z| PointEstimator::new(*view, z).expect("a calibration the device runs")).collect();
-    (0..d.pixels)
-        .map(|p| {
-            let lit: Vec<u16> = order.iter().map(|&led| frames[led as usize + 1][p]).collect();
-            let white: Vec<f32> = (0..d.m).map(|i| view.white(p, i)).collect();
-            let mut v = vec![0.0f32; d.m];
-            let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &mut v);
-            let z = view.zone_of_pixel(p);
-            let e = zones[z].apply(&v);
-            DevicePoint {
-                meta: PointMetaWire {
-                    zone: z as u16,
-                    cluster: e.cluster,
-                    flags: flags | e.flag_bits,
-                    sigma_scale: e.sigma_scale,
-                    readings: e.readings,
-                    reading_sigma: e.reading_sigma,
-                },
-                sigma: (0..d.n).map(|j| view.uncertainty_of(z, e.cluster as usize, j)).collect(),
-                values: e.rho,
-                readings: v,
-            }
+    let n = view.dims().n;
+    expected_line(view, frames, full_scale)
+        .into_iter()
+        .map(|e| DevicePoint {
+            meta: PointMetaWire {
+                zone: e.zone,
+                cluster: e.cluster,
+                flags: e.flags,
+                sigma_scale: e.sigma_scale,
+                readings: e.readings,
+                reading_sigma: e.reading_sigma,
+            },
+            sigma: (0..n).map(|j| view.uncertainty_of(e.zone as usize, e.cluster as usize, j)).collect(),
+            values: e.values,
+            readings: e.corrected,
         })
         .collect()
 }
