@@ -1357,7 +1357,7 @@ mod tests {
             Err(BlobError::NonFinite { section: Section::Gloss, index: in_zone2 })
         );
         assert_eq!(
-            resealed(&|b| put_f32(b, lay.gloss + 4 * (2 + 0), f32::NAN)),
+            resealed(&|b| put_f32(b, lay.gloss + 4 * 2, f32::NAN)),
             Err(BlobError::OutOfRange { section: Section::Gloss, index: head })
         );
         // The assigned value is never NaN.
