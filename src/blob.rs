@@ -78,6 +78,13 @@
 //! A device running a version 1 or 2 blob streams NaN readings ("no
 //! reading").
 //!
+//! A zone that cannot read the standard (no LED ray near the specular
+//! direction from where it looks) has no reading: its `S_z` is NaN and so
+//! is every value of its blocks (all of them or none; the NaN rules above
+//! hold for the other zones). The device then streams NaN readings for
+//! that zone's points by the same arithmetic as the others' (`q` and the
+//! rows are NaN), so a zone's "no reading" costs nothing per point.
+//!
 //! # Compatibility rules
 //! - A parser accepts exactly the format versions it knows; a new field that
 //!   old firmware could misread bumps the version.
@@ -790,16 +797,30 @@ impl<'a> BlobView<'a> {
 
     /// The gloss section's rules: everything finite; the assigned value and
     /// the zones' references > 0, the refractive index > 1, the covariances'
-    /// diagonals and standard deviations >= 0. Indices count f32 values
-    /// from the section's start.
+    /// diagonals and standard deviations >= 0; except a zone without a
+    /// reading, whose reference and every value of its blocks are NaN (no
+    /// mix). Indices count f32 values from the section's start.
     fn check_gloss(&self) -> Result<(), BlobError> {
         let (z, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
         let block = crate::gloss::block_len(m);
         let rows = crate::gloss::LINEAR * m;
         let diag = [0, 1, 2, 3].map(|i| rows + crate::gloss::cov_index(i, i));
         let sd = [rows + crate::gloss::COV_LEN, rows + crate::gloss::COV_LEN + 1];
+        // Zone `zz` without a reading: its reference and all its blocks NaN.
+        let no_reading = |zz: usize| get_f32(self.bytes, self.lay.gloss + 4 * (GLOSS_HEAD + zz)).is_nan();
         for i in 0..gloss_len(z, k, m) {
             let x = get_f32(self.bytes, self.lay.gloss + 4 * i);
+            let zone = match i {
+                _ if i < GLOSS_HEAD => None,
+                _ if i < GLOSS_HEAD + z => Some(i - GLOSS_HEAD),
+                _ => Some((i - GLOSS_HEAD - z) / (k * block)),
+            };
+            if zone.is_some_and(no_reading) {
+                if !x.is_nan() {
+                    return Err(BlobError::OutOfRange { section: Section::Gloss, index: i });
+                }
+                continue;
+            }
             if !x.is_finite() {
                 return Err(BlobError::NonFinite { section: Section::Gloss, index: i });
             }
@@ -1282,6 +1303,67 @@ mod tests {
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
             Err(BlobError::ContentMismatch { section: Section::OutOfPrior })
+        );
+    }
+
+    #[test]
+    fn a_zone_without_a_gloss_reading_is_all_nan_and_nothing_else_is() {
+        let o = sample(6, 4, 3, 5);
+        let (unc, mats, cents, oop) = v2_extras(&o, 2);
+        let (mut reference, mut blocks) = gloss_parts(&o, 2);
+        let bl = crate::gloss::block_len(4);
+        // Zone 1 cannot see the standard.
+        reference[1] = f32::NAN;
+        blocks[2 * bl..4 * bl].fill(f32::NAN);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let ex = BlobExtras {
+            clusters: 2,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
+            gloss: Some(g),
+        };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        write_blob_with(&c, &ex, &mut buf).unwrap();
+        let v = BlobView::parse(&buf).unwrap();
+        let mut block = vec![0.0; bl];
+        let (_, _, s) = v.copy_gloss(1, 1, &mut block).unwrap();
+        assert!(s.is_nan() && block.iter().all(|x| x.is_nan()));
+        assert_eq!(v.copy_gloss(2, 0, &mut block), Some((100.0, 1.567, 82.0)));
+        assert!(block.iter().all(|x| x.is_finite()));
+        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::ScaleFreePiecewise));
+        let resealed = |f: &dyn Fn(&mut Vec<u8>)| {
+            let mut b = buf.clone();
+            f(&mut b);
+            let at = b.len() - 4;
+            let crc = CRC32.checksum(&b[..at]);
+            put_u32(&mut b, at, crc);
+            BlobView::parse(&b).map(|_| ())
+        };
+        let head = 2 + 3;
+        // A finite value in the marked zone's blocks, a NaN in another zone's,
+        // a NaN reference over finite blocks: all refused.
+        let in_zone1 = head + 2 * bl + 7;
+        assert_eq!(
+            resealed(&|b| put_f32(b, lay.gloss + 4 * in_zone1, 0.5)),
+            Err(BlobError::OutOfRange { section: Section::Gloss, index: in_zone1 })
+        );
+        let in_zone2 = head + 4 * bl + 3;
+        assert_eq!(
+            resealed(&|b| put_f32(b, lay.gloss + 4 * in_zone2, f32::NAN)),
+            Err(BlobError::NonFinite { section: Section::Gloss, index: in_zone2 })
+        );
+        assert_eq!(
+            resealed(&|b| put_f32(b, lay.gloss + 4 * 2, f32::NAN)),
+            Err(BlobError::OutOfRange { section: Section::Gloss, index: head })
+        );
+        // The assigned value is never NaN.
+        assert_eq!(
+            resealed(&|b| put_f32(b, lay.gloss, f32::NAN)),
+            Err(BlobError::NonFinite { section: Section::Gloss, index: 0 })
         );
     }
 

@@ -41,7 +41,10 @@
 //! `u(D) = 100 s sqrt(r^2 C_22 - 2 r C_23 + C_33) / |L_2|`.
 //!
 //! A reading of NaN means "no reading": the calibration carries no gloss
-//! section (blob format 1 or 2), the point's estimate was not finite, or
+//! section (blob format 1 or 2), the point's zone cannot read the standard
+//! (its `S_z` and rows NaN, `crate::blob`'s per-zone marker: `q` and the
+//! linear readings are NaN, so every reading and uncertainty is, with no
+//! branch of its own), the point's estimate was not finite, or
 //! (distinctness only) there is no peak.
 
 /// Index of the specular gloss (GU) in a point's readings.

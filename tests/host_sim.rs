@@ -37,13 +37,19 @@ fn blob(seed: f32) -> Vec<u8> {
 /// Checks that `points` (of `lines` lines) are bit-identical to the host's
 /// computation on the scene line each device line saw.
 fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines: usize) {
-    if brdf_meter::blob::BlobView::parse(blob).unwrap().has_gloss() {
-        assert!(
-            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
-            "gloss readings computed on the device"
-        );
-    }
     let view = BlobView::parse(blob).unwrap();
+    // Readings computed on the device where the zone has them, NaN where
+    // the calibration has none.
+    for p in points {
+        if system_tests::zone_has_gloss_reading(&view, p.zone as usize) {
+            assert!(
+                p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite(),
+                "gloss readings computed on the device"
+            );
+        } else {
+            assert!(p.readings.iter().chain(&p.reading_sigma).all(|x| x.is_nan()), "no reading: NaN");
+        }
+    }
     assert_eq!(points.len(), lines * P);
     for (k, p) in points.iter().enumerate() {
         let line = k / P;
@@ -401,6 +407,29 @@ fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_pri
         let flagged = pts.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
         assert!(flagged > 0, "no synthetic point flagged out-of-prior (piecewise {piecewise})");
     }
+}
+
+/// A calibration with a zone that cannot read the gloss standard (its
+/// reference and rows NaN, as training marks it): the device streams NaN
+/// readings for that zone's points and real ones for the others, bit for
+/// bit as the host's reference computes them.
+#[test]
+fn a_zone_without_a_gloss_reading_streams_nan_readings_bit_identically() {
+    use host_tools::calibration::demo::train_for_scene;
+    use host_tools::forward::scene::frames::{patent_scene, scene_frames};
+    let scene = patent_scene(P);
+    let trained = train_for_scene(&scene, 2, 0.02).unwrap();
+    let marked = system_tests::without_gloss_reading(&trained.blob, 1);
+    let view = BlobView::parse(&marked).unwrap();
+    assert!(system_tests::zone_has_gloss_reading(&view, 0) && !system_tests::zone_has_gloss_reading(&view, 1));
+    let mut c = client(flash(), ZONES);
+    c.provision(&sign_for_tests(&marked), |_, _| {}).unwrap();
+    let frames = scene_frames(&scene, 2).unwrap();
+    c.load_scene(&frames).unwrap();
+    let pts = c.measure(2).unwrap();
+    check_points(&marked, &frames, &pts, 2);
+    assert!(pts.iter().any(|p| p.zone == 0 && p.readings[0].is_finite()));
+    assert!(pts.iter().any(|p| p.zone == 1));
 }
 
 /// What every encoding must give: the f32 stream's points, values bit for

@@ -23,12 +23,17 @@ const ZONES: usize = 4;
 fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRecord], lines: usize, full_scale: u16) {
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(points.len(), lines * PIXELS, "one frame per point");
-    // A calibration with the gloss section: the device computes the readings (not NaN).
-    if view.has_gloss() {
-        assert!(
-            points.iter().all(|p| p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite()),
-            "gloss readings computed on the device"
-        );
+    // A calibration with the gloss section: the device computes the readings
+    // (not NaN), except in a zone the calibration marks as without them.
+    for p in points {
+        if system_tests::zone_has_gloss_reading(&view, p.zone as usize) {
+            assert!(
+                p.flags & brdf_meter::protocol::flags::NON_FINITE != 0 || p.readings[0].is_finite(),
+                "gloss readings computed on the device"
+            );
+        } else {
+            assert!(p.readings.iter().chain(&p.reading_sigma).all(|x| x.is_nan()), "no reading: NaN");
+        }
     }
     let mut compared = 0;
     for (k, p) in points.iter().enumerate() {
@@ -138,6 +143,15 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     let points = c.measure(2).unwrap();
     check_bit_identical(&sf.blob, &frames, &points, 2, info.full_scale);
     assert!(points.iter().all(|p| p.sigma_scale > 0.0 && p.sigma_scale != 1.0));
+
+    // A zone that cannot read the gloss standard (marked as training marks
+    // it): NaN readings there, real ones elsewhere, the host's bits.
+    let marked = system_tests::without_gloss_reading(&trained.blob, 1);
+    c.provision(&sign_with_dev_key(&marked), |_, _| {}).unwrap();
+    c.load_scene(&frames).unwrap();
+    let points = c.measure(2).unwrap();
+    check_bit_identical(&marked, &frames, &points, 2, info.full_scale);
+    assert!(points.iter().any(|p| p.zone == 1) && points.iter().any(|p| p.zone == 0 && p.readings[0].is_finite()));
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
 

@@ -48,3 +48,35 @@ pub fn expected_meta_bits(w: &ExpectedPoint) -> MetaBits {
         w.reading_sigma.map(f32::to_bits),
     )
 }
+
+/// `blob` (unsigned, with the gloss section) with zone `zone` marked as
+/// without a gloss reading, as training marks a zone that cannot see the
+/// standard (`brdf_meter::blob`, format version 3): its reference and its
+/// blocks NaN, the CRC resealed. The section is the last before the CRC.
+pub fn without_gloss_reading(blob: &[u8], zone: usize) -> Vec<u8> {
+    let view = brdf_meter::blob::BlobView::parse(blob).unwrap();
+    assert!(view.has_gloss(), "the blob carries the gloss section");
+    let (z, k, m) = (view.dims().zones, view.clusters(), view.dims().m);
+    let crc_at = blob.len() - 4;
+    let start = crc_at - 4 * brdf_meter::blob::gloss_len(z, k, m);
+    let bl = k * brdf_meter::gloss::block_len(m);
+    let mut out = blob.to_vec();
+    let head = 2;
+    let nan = f32::NAN.to_le_bytes();
+    let mut mark = |i: usize| out[start + 4 * i..start + 4 * i + 4].copy_from_slice(&nan);
+    mark(head + zone);
+    for i in 0..bl {
+        mark(head + z + zone * bl + i);
+    }
+    let crc = brdf_meter::blob::CRC32.checksum(&out[..crc_at]);
+    out[crc_at..].copy_from_slice(&crc.to_le_bytes());
+    brdf_meter::blob::BlobView::parse(&out).expect("the marked blob parses");
+    out
+}
+
+/// Whether zone `zone` of `view` has gloss readings (the section present
+/// and the zone not marked as without one).
+pub fn zone_has_gloss_reading(view: &brdf_meter::blob::BlobView<'_>, zone: usize) -> bool {
+    let mut block = vec![0.0f32; brdf_meter::gloss::block_len(view.dims().m)];
+    view.copy_gloss(zone, 0, &mut block).is_some_and(|(_, _, s)| !s.is_nan())
+}

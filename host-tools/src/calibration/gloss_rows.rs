@@ -44,8 +44,26 @@ use nalgebra::{DMatrix, DVector};
 
 /// What `train` says when a calibration carries no gloss readings.
 pub const NO_GLOSS_NOTE: &str = "no gloss readings in this calibration (the device streams NaN): the angle grid does not \
-     cover the 8 deg specular aperture about the view, or a zone does not see the black-glass standard's mirror \
-     reflection (no LED ray within a bin of the specular direction from that zone)";
+     cover the 8 deg specular aperture about the view, or no zone sees the black-glass standard's mirror \
+     reflection (no LED ray within a bin of the specular direction from any zone)";
+
+/// What `train` says about the zones of a calibration with gloss readings
+/// that have none (empty when every zone has them).
+pub fn zones_without_reading_note(view: &brdf_meter::blob::BlobView<'_>) -> Option<String> {
+    let mut block = vec![0.0f32; block_len(view.dims().m)];
+    let none: Vec<String> = (0..view.dims().zones)
+        .filter(|z| view.copy_gloss(*z, 0, &mut block).is_some_and(|(_, _, s)| s.is_nan()))
+        .map(|z| z.to_string())
+        .collect();
+    (!none.is_empty()).then(|| {
+        format!(
+            "no gloss reading in zone(s) {} of {} (the device streams NaN for their points): they do not see the \
+             black-glass standard's mirror reflection (no LED ray within a bin of the specular direction)",
+            none.join(", "),
+            view.dims().zones
+        )
+    })
+}
 
 /// The gloss section training writes.
 #[derive(Clone, Debug, PartialEq)]
@@ -57,6 +75,20 @@ pub struct GlossSection {
 }
 
 impl GlossSection {
+    /// Appends a zone without a reading (it cannot see the standard): its
+    /// reference and its `values` block values NaN, the blob's marker
+    /// (`brdf_meter::blob`, format version 3), so the device streams NaN
+    /// readings for its points.
+    pub fn push_no_reading(&mut self, values: usize) {
+        self.reference.push(f32::NAN);
+        self.blocks.extend(std::iter::repeat_n(f32::NAN, values));
+    }
+
+    /// The section, or `None` when no zone has a reading (nothing to carry).
+    pub fn if_any_reading(self) -> Option<Self> {
+        self.reference.iter().any(|s| !s.is_nan()).then_some(self)
+    }
+
     /// The blob's view of it.
     pub fn data(&self) -> brdf_meter::blob::GlossData<'_> {
         brdf_meter::blob::GlossData {
@@ -100,7 +132,7 @@ pub fn black_glass_readings(h: &DMatrix<f64>, bins: &[f64], view_deg: f64) -> DV
 /// `block`. `None` for a reading that is not positive: the zone does not
 /// see the standard's mirror reflection (no LED ray near the specular
 /// direction from where it looks), so no gloss scale can be set and the
-/// calibration carries no gloss readings.
+/// zone has no gloss reading ([`GlossSection::push_no_reading`]).
 pub fn standard_reading(block: &[f32], x: &[f32]) -> Option<f32> {
     let (r, _) = brdf_meter::gloss::readings(block, x, 1.0, 1.0);
     let s = r[brdf_meter::gloss::SPECULAR_GU];

@@ -191,9 +191,10 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
 /// standards, `gloss_rows`' module doc; with the f32 gate's power-of-two
 /// column factors of the blob's W), `A E_g A^T` from that estimator's full
 /// error covariance under the augmented prior, and the zone's reading
-/// of the black glass through the blob's own matrices. `None` when the
-/// grid does not cover the specular aperture about the view, or a zone does
-/// not see the standard (no readings then; the device streams NaN). The
+/// of the black glass through the blob's own matrices. A zone that does
+/// not see the standard gets no reading (NaN reference and block, the
+/// device streams NaN for its points); `None` when the grid does not cover
+/// the specular aperture about the view or no zone sees the standard. The
 /// stated uncertainties are scaled per reading by
 /// `gloss_rows::uncertainty_factors` of the prior's samples held out in
 /// folds (each fold read by rows trained without it).
@@ -212,7 +213,10 @@ fn gloss_section(
                 .with_context(|| format!("zone {z}: the gloss rows' estimator on the augmented prior"))
         };
         let (mut block, s) = rows(&spec.prior.r_pp)?;
-        let Some(s) = s else { return Ok(None) };
+        let Some(s) = s else {
+            out.push_no_reading(block.len());
+            continue;
+        };
         // The uncertainty's scale factors from held-out prior samples: each
         // fold's rows trained on the other folds (equal weights).
         let mut zs = Vec::new();
@@ -244,7 +248,7 @@ fn gloss_section(
         out.reference.push(s);
         out.blocks.extend(block);
     }
-    Ok(Some(out))
+    Ok(out.if_any_reading())
 }
 
 /// One zone's gloss block from the rows' estimator trained on `r_pp`

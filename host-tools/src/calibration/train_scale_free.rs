@@ -186,8 +186,9 @@ pub fn train_scale_free(
 /// the zone's ridge and clusters on the prior augmented with the gloss
 /// standards, `gloss_rows`' module doc) and their `A E A^T` per unit scale;
 /// each zone's reading of the black glass by the device's rule (its cluster,
-/// its scale). `None` when the grid does not cover the specular aperture or
-/// a zone does not see the standard.
+/// its scale). A zone that does not see the standard gets no reading (NaN
+/// reference and blocks); `None` when the grid does not cover the specular
+/// aperture or no zone sees the standard.
 fn gloss_section(
     spec: &TrainSpec<'_>,
     zones: &[ScaleFreeZone],
@@ -199,15 +200,18 @@ fn gloss_section(
     for (z, (zo, tz)) in spec.zones.iter().zip(zones).enumerate() {
         // A zone that sees no light from a standard cannot learn from it (its
         // readings have no scale); such a zone cannot read the standard either.
+        let no_reading = tz.maps.len() * brdf_meter::gloss::block_len(zo.h.nrows());
         let seen: Vec<_> = standards.column_iter().filter(|c| (&zo.h * c).sum() > 0.0).collect();
         if seen.is_empty() {
-            return Ok(None);
+            out.push_no_reading(no_reading);
+            continue;
         }
         let seen = nalgebra::DMatrix::from_columns(&seen);
         let Some((mut blocks, s)) = scale_free_rows(spec, zo, tz, prior, &seen, &a)
             .with_context(|| format!("zone {z}: the gloss rows' maps on the augmented prior"))?
         else {
-            return Ok(None);
+            out.push_no_reading(no_reading);
+            continue;
         };
         // The uncertainty's scale factors from held-out prior samples: each
         // fold's rows trained on the other folds.
@@ -241,7 +245,7 @@ fn gloss_section(
         out.reference.push(s);
         out.blocks.extend(blocks.into_iter().flatten());
     }
-    Ok(Some(out))
+    Ok(out.if_any_reading())
 }
 
 /// The device's cluster, kernel input (the readings with the last replaced

@@ -171,6 +171,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     println!("{}", s.method);
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
+    } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {
+        println!("{note}");
     }
     match &a.sign {
         Some(key) => println!(

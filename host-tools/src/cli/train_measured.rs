@@ -93,6 +93,8 @@ pub fn run(
     let view = BlobView::parse(&blob).expect("validated");
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
+    } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {
+        println!("{note}");
     }
     println!("wrote {} ({} bytes, format {}, CRC {:#010x})", a.out.display(), blob.len(), view.version(), view.crc());
     Ok(())
