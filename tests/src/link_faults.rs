@@ -562,21 +562,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         for p in &rep.points {
             let want = &expected[p.line as usize % expected.len()][p.point as usize];
             let same = p.seq == p.line * P as u32 + p.point as u32
-                && (
-                    p.zone,
-                    p.cluster,
-                    p.flags,
-                    p.sigma_scale.to_bits(),
-                    p.readings.map(f32::to_bits),
-                    p.reading_sigma.map(f32::to_bits),
-                ) == (
-                    want.zone,
-                    want.cluster,
-                    want.flags,
-                    want.sigma_scale.to_bits(),
-                    want.readings.map(f32::to_bits),
-                    want.reading_sigma.map(f32::to_bits),
-                )
+                && crate::meta_bits(p) == crate::expected_meta_bits(want)
                 && p.values.len() == want.values.len()
                 && p.values.iter().zip(&want.values).all(|(a, b)| a.to_bits() == b.to_bits());
             let in_order = prev.is_none_or(|q| p.seq > q);
