@@ -2,6 +2,14 @@
 //! in the calibrated order, then dark subtraction, white calibration (per pixel
 //! and LED) and per-point quality flags.
 //!
+//! A frame that saturates is taken again at each of up to
+//! [`MAX_SHORT_EXPOSURES`] shorter exposures, while it still saturates (a
+//! dark frame at each exposure first): a mirror-like sample reflects an LED
+//! straight into a pixel, tens to hundreds of times brighter than a white
+//! diffuser, and one exposure long enough for a dark matt sample cannot hold
+//! it. A saturated reading is then taken from its longest unsaturated
+//! exposure, scaled by the exposures' ratio (exact: integer microseconds).
+//!
 //! [`correct_point`] is the one definition of a corrected reading: the device
 //! runs it, and the host runs it to reproduce the device's numbers bit for bit.
 use crate::protocol::flags;
@@ -12,21 +20,49 @@ use nalgebra::SVector;
 /// noise dominate.
 pub const MIN_SIGNAL_COUNTS: f32 = 8.0;
 
+/// Most shorter exposures taken of a frame that saturates.
+pub const MAX_SHORT_EXPOSURES: usize = 2;
+
 /// Raw frames of one line: the dark frame and, for each reading i, the frame
-/// taken with LED `led_order[i]` lit.
+/// taken with LED `led_order[i]` lit; and the shorter exposures' frames.
 #[derive(Clone)]
 pub struct RawLine<const M: usize, const P: usize> {
     /// Dark frame.
     pub dark: [u16; P],
     /// Frame of reading i (reading order, not LED index).
     pub lit: [[u16; P]; M],
+    /// Per shorter exposure, its dark frame (valid when any frame was taken at it).
+    pub short_dark: [[u16; P]; MAX_SHORT_EXPOSURES],
+    /// Per shorter exposure and reading, the frame (valid where `short_taken`).
+    pub short: [[[u16; P]; M]; MAX_SHORT_EXPOSURES],
+    /// Which shorter frames were taken.
+    pub short_taken: [[bool; M]; MAX_SHORT_EXPOSURES],
 }
 
 impl<const M: usize, const P: usize> RawLine<M, P> {
-    /// All zeros.
+    /// All zeros, no shorter frame taken.
     pub const fn new() -> Self {
-        Self { dark: [0; P], lit: [[0; P]; M] }
+        Self {
+            dark: [0; P],
+            lit: [[0; P]; M],
+            short_dark: [[0; P]; MAX_SHORT_EXPOSURES],
+            short: [[[0; P]; M]; MAX_SHORT_EXPOSURES],
+            short_taken: [[false; M]; MAX_SHORT_EXPOSURES],
+        }
     }
+}
+
+/// One point at a shorter exposure: the dark frame's value, the ratio of
+/// the long exposure to this one, and the point's values in reading order.
+#[derive(Clone, Copy, Debug)]
+pub struct Shorter<'a> {
+    /// The dark frame's value at this exposure.
+    pub dark: u16,
+    /// Long exposure over this one.
+    pub ratio: f32,
+    /// The lit frames' values, reading order (a reading whose frame was not
+    /// taken here is never read: its longer frame did not saturate).
+    pub lit: &'a [u16],
 }
 
 impl<const M: usize, const P: usize> Default for RawLine<M, P> {
@@ -38,34 +74,53 @@ impl<const M: usize, const P: usize> Default for RawLine<M, P> {
 /// Corrects one point: `v[i] = (lit[i] - dark) / white[i]`, in f32, and flags
 /// saturation (a raw value at full scale), under-exposure (signal below
 /// [`MIN_SIGNAL_COUNTS`]) and non-finite results. Fixed-size form of
-/// [`correct_point_into`] (same operations, same bits).
+/// [`correct_point_into`] without shorter exposures (same operations, same bits).
 #[inline]
 pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M], full_scale: u16) -> ([f32; M], u8) {
     let mut v = [0.0f32; M];
-    let f = correct_point_into(dark, lit, white, full_scale, &mut v);
+    let f = correct_point_into(dark, lit, white, full_scale, &[], &mut v);
     (v, f)
 }
 
 /// Corrects one point of `lit.len()` readings into `v`; returns its flags.
 /// The one definition of a corrected reading (the host uses it to reproduce
-/// the device's numbers).
+/// the device's numbers). A reading whose long frame saturated is taken
+/// from the first of `shorter` (longest first) whose frame did not,
+/// `(lit - dark) ratio / white`; it is flagged saturated only when the
+/// shortest saturated too (or there is none).
 ///
 /// # Panics
-/// If `lit`, `white` and `v` differ in length.
+/// If `lit`, `white`, `v` and every shorter exposure's `lit` differ in length.
 #[inline]
-pub fn correct_point_into(dark: u16, lit: &[u16], white: &[f32], full_scale: u16, v: &mut [f32]) -> u8 {
+pub fn correct_point_into(
+    dark: u16,
+    lit: &[u16],
+    white: &[f32],
+    full_scale: u16,
+    shorter: &[Shorter<'_>],
+    v: &mut [f32],
+) -> u8 {
     assert!(lit.len() == white.len() && lit.len() == v.len(), "one white value and one output per reading");
+    assert!(shorter.iter().all(|s| s.lit.len() == lit.len()), "one value per reading at every exposure");
     let mut f = 0u8;
     if dark >= full_scale {
         f |= flags::SATURATED;
     }
     for i in 0..v.len() {
-        if lit[i] >= full_scale {
-            f |= flags::SATURATED;
-        }
-        let s = lit[i] as f32 - dark as f32;
+        let mut s = lit[i] as f32 - dark as f32;
+        let mut saturated = lit[i] >= full_scale;
         if s < MIN_SIGNAL_COUNTS {
             f |= flags::UNDER_EXPOSED;
+        }
+        for e in shorter {
+            if !saturated {
+                break;
+            }
+            s = (e.lit[i] as f32 - e.dark as f32) * e.ratio;
+            saturated = e.lit[i] >= full_scale;
+        }
+        if saturated {
+            f |= flags::SATURATED;
         }
         v[i] = s / white[i];
         if !v[i].is_finite() {
@@ -75,17 +130,23 @@ pub fn correct_point_into(dark: u16, lit: &[u16], white: &[f32], full_scale: u16
     f
 }
 
-/// Corrects a whole line into `v` and `fl` (one entry per pixel).
+/// Corrects a whole line into `v` and `fl` (one entry per pixel), its
+/// shorter exposures taken at `cfg.short_exposures_us`.
 pub fn correct_line<const M: usize, const P: usize>(
     raw: &RawLine<M, P>,
     white: &[[f32; M]; P],
     full_scale: u16,
+    cfg: &AcqConfig,
     v: &mut [SVector<f32, M>; P],
     fl: &mut [u8; P],
 ) {
+    let levels = cfg.short_levels();
     for p in 0..P {
         let lit: [u16; M] = core::array::from_fn(|i| raw.lit[i][p]);
-        fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, v[p].as_mut_slice());
+        let short: [[u16; M]; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| core::array::from_fn(|i| raw.short[l][i][p]));
+        let shorter: [Shorter<'_>; MAX_SHORT_EXPOSURES] =
+            core::array::from_fn(|l| Shorter { dark: raw.short_dark[l][p], ratio: cfg.ratio(l), lit: &short[l] });
+        fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, &shorter[..levels], v[p].as_mut_slice());
     }
 }
 
@@ -99,16 +160,40 @@ pub struct AcqConfig {
     pub settle_us: u32,
     /// LED drive, 0..=u16::MAX.
     pub intensity: u16,
+    /// The shorter exposures taken of a frame that saturates, longest first
+    /// (each shorter than the one before; a 0 ends the list).
+    pub short_exposures_us: [u32; MAX_SHORT_EXPOSURES],
+}
+
+impl AcqConfig {
+    /// How many shorter exposures are configured.
+    pub fn short_levels(&self) -> usize {
+        self.short_exposures_us.iter().take_while(|e| **e > 0).count()
+    }
+
+    /// The long exposure over shorter exposure `level`.
+    pub fn ratio(&self, level: usize) -> f32 {
+        self.exposure_us as f32 / self.short_exposures_us[level] as f32
+    }
+
+    /// The exposure level of a frame integrated for `exposure_us` (0: the
+    /// long exposure, 1 + l: shorter exposure l), as a simulated sensor
+    /// tells which frame to serve.
+    pub fn level_of(&self, exposure_us: u32) -> usize {
+        self.short_exposures_us[..self.short_levels()].iter().position(|e| *e == exposure_us).map_or(0, |l| l + 1)
+    }
 }
 
 impl Default for AcqConfig {
     fn default() -> Self {
-        Self { exposure_us: 500, settle_us: 50, intensity: u16::MAX }
+        Self { exposure_us: 500, settle_us: 50, intensity: u16::MAX, short_exposures_us: [0; MAX_SHORT_EXPOSURES] }
     }
 }
 
 /// Reads one line's frames: dark, then one frame per reading with LED
-/// `order[i]` lit. The LEDs are off when this returns, error or not.
+/// `order[i]` lit; then, for each shorter exposure while a frame still
+/// saturates, a dark frame and that frame again. The LEDs are off when this
+/// returns, error or not.
 #[cfg(feature = "app")]
 pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M: usize, const P: usize>(
     leds: &mut L,
@@ -119,6 +204,8 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
 ) -> Result<(), crate::hw::SensorError> {
     use embassy_time::Timer;
     let settle = || Timer::after_micros(cfg.settle_us as u64);
+    let fs = sensor.full_scale();
+    raw.short_taken = [[false; M]; MAX_SHORT_EXPOSURES];
     leds.set(None, 0).await;
     settle().await;
     let mut r = sensor.read_frame(cfg.exposure_us, &mut raw.dark).await;
@@ -129,6 +216,35 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
         leds.set(Some(led), cfg.intensity).await;
         settle().await;
         r = sensor.read_frame(cfg.exposure_us, lit).await;
+    }
+    for level in 0..cfg.short_levels() {
+        if r.is_err() {
+            break;
+        }
+        let exposure = cfg.short_exposures_us[level];
+        let mut dark_taken = false;
+        for (i, &led) in order.iter().enumerate() {
+            let longer = if level == 0 { Some(&raw.lit[i]) } else { raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i]) };
+            if !longer.is_some_and(|f| f.iter().any(|x| *x >= fs)) {
+                continue;
+            }
+            if !dark_taken {
+                leds.set(None, 0).await;
+                settle().await;
+                r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
+                dark_taken = true;
+                if r.is_err() {
+                    break;
+                }
+            }
+            leds.set(Some(led), cfg.intensity).await;
+            settle().await;
+            r = sensor.read_frame(exposure, &mut raw.short[level][i]).await;
+            if r.is_err() {
+                break;
+            }
+            raw.short_taken[level][i] = true;
+        }
     }
     leds.set(None, 0).await;
     r
@@ -156,6 +272,26 @@ mod tests {
     }
 
     #[test]
+    fn a_saturated_reading_comes_from_its_longest_unsaturated_exposure() {
+        let white = [1000.0f32, 500.0];
+        let fs = 4095;
+        // Reading 0 saturates the long exposure and the first shorter one
+        // (ratio 16), not the second (ratio 80); reading 1 saturates nothing.
+        let s16 = Shorter { dark: 7, ratio: 16.0, lit: &[4095, 99] };
+        let s80 = Shorter { dark: 5, ratio: 80.0, lit: &[1005, 99] };
+        let mut v = [0.0f32; 2];
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16, s80], &mut v);
+        assert_eq!(f, 0);
+        assert_eq!(v, [(1005.0 - 5.0) * 80.0 / 1000.0, 500.0 / 500.0]);
+        // Only the first shorter exposure configured: still saturated.
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16], &mut v);
+        assert_eq!(f, flags::SATURATED);
+        let cfg = AcqConfig { exposure_us: 2000, short_exposures_us: [125, 25], ..AcqConfig::default() };
+        assert_eq!((cfg.short_levels(), cfg.ratio(0), cfg.ratio(1)), (2, 16.0, 80.0));
+        assert_eq!((cfg.level_of(2000), cfg.level_of(125), cfg.level_of(25)), (0, 1, 2));
+    }
+
+    #[test]
     fn line_correction_matches_point_correction() {
         let mut raw = RawLine::<2, 3>::new();
         raw.dark = [10, 20, 30];
@@ -163,7 +299,7 @@ mod tests {
         let white = [[100.0, 50.0], [200.0, 25.0], [300.0, 10.0]];
         let mut v = [SVector::<f32, 2>::zeros(); 3];
         let mut fl = [0; 3];
-        correct_line(&raw, &white, 4095, &mut v, &mut fl);
+        correct_line(&raw, &white, 4095, &AcqConfig::default(), &mut v, &mut fl);
         for p in 0..3 {
             let (vp, f) = correct_point(raw.dark[p], &[raw.lit[0][p], raw.lit[1][p]], &white[p], 4095);
             assert_eq!(v[p], SVector::from(vp));

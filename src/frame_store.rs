@@ -2,15 +2,22 @@
 //! the host simulation so both serve frames by the same rule.
 //!
 //! The host loads raw frames (dark + one per LED, P pixels of u16) for up to
-//! `L` lines with the simulation-only protocol messages. A read returns
-//! the frame of the LED that is lit (the sensor sees the LEDs, as a real one
-//! would); each dark-frame read starts the next loaded line, cycling through
-//! the loaded lines, so line k of a measurement sees loaded line k mod lines.
+//! `L` lines with the simulation-only protocol messages, at the long
+//! exposure and at each of the acquisition's shorter exposures (frame
+//! `level F + f`, level 0 the long exposure, `crate::acquire`). A read
+//! returns the frame of the LED that is lit at the exposure integrated (the
+//! sensor sees the LEDs, as a real one would); each long dark-frame read
+//! starts the next loaded line, cycling through the loaded lines, so line k
+//! of a measurement sees loaded line k mod lines.
 use crate::hw::{FrameLoadError, SensorError};
 
-/// Frames of `L` lines, `F` frames (dark + LEDs) of `P` pixels each.
+/// Exposure levels a frame store holds: the long one and the shorter ones.
+pub const LEVELS: usize = 1 + crate::acquire::MAX_SHORT_EXPOSURES;
+
+/// Frames of `L` lines, [`LEVELS`] exposures of `F` frames (dark + LEDs) of
+/// `P` pixels each.
 pub struct FrameStore<const P: usize, const F: usize, const L: usize> {
-    frames: [[[u16; P]; F]; L],
+    frames: [[[[u16; P]; F]; LEVELS]; L],
     lines: u8,
     current: usize,
     started: bool,
@@ -26,10 +33,11 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
     /// An empty store: reads fail with [`SensorError::NoData`] until
     /// [`Self::set_lines`].
     pub const fn new() -> Self {
-        Self { frames: [[[0; P]; F]; L], lines: 0, current: 0, started: false }
+        Self { frames: [[[[0; P]; F]; LEVELS]; L], lines: 0, current: 0, started: false }
     }
 
-    /// Stores pixel values of one frame part.
+    /// Stores pixel values of one frame part: frame `level F + f` of the
+    /// line (f = 0 dark, 1 + LED).
     pub fn load(
         &mut self,
         line: u8,
@@ -38,10 +46,10 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
         pixels: impl Iterator<Item = u16>,
     ) -> Result<(), FrameLoadError> {
         let (line, frame, first) = (line as usize, frame as usize, first_pixel as usize);
-        if line >= L || frame >= F || first >= P {
+        if line >= L || frame >= LEVELS * F || first >= P {
             return Err(FrameLoadError::OutOfRange);
         }
-        let dst = &mut self.frames[line][frame][first..];
+        let dst = &mut self.frames[line][frame / F][frame % F][first..];
         let mut n = 0;
         for (d, v) in dst.iter_mut().zip(pixels) {
             *d = v;
@@ -62,8 +70,9 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
         Ok(())
     }
 
-    /// The frame the sensor sees with LED `lit` on (`None`: dark).
-    pub fn read(&mut self, lit: Option<u8>, out: &mut [u16]) -> Result<(), SensorError> {
+    /// The frame the sensor sees with LED `lit` on (`None`: dark) at
+    /// exposure `level` (0: the long exposure).
+    pub fn read(&mut self, lit: Option<u8>, level: usize, out: &mut [u16]) -> Result<(), SensorError> {
         if out.len() != P {
             return Err(SensorError::BadLength);
         }
@@ -71,6 +80,7 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
             return Err(SensorError::NoData);
         }
         let frame = match lit {
+            None if level > 0 => 0,
             None => {
                 if self.started {
                     self.current = (self.current + 1) % self.lines as usize;
@@ -80,7 +90,7 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
             }
             Some(k) => k as usize + 1,
         };
-        let frame = self.frames[self.current].get(frame).ok_or(SensorError::NoData)?;
+        let frame = self.frames[self.current].get(level).and_then(|l| l.get(frame)).ok_or(SensorError::NoData)?;
         out.copy_from_slice(frame);
         Ok(())
     }

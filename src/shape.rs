@@ -74,4 +74,8 @@ pub mod qemu {
     pub const SLOT_LEN: u32 = 8 * super::FLASH_PAGE as u32;
     /// Scene lines the simulated sensor holds.
     pub const FRAME_LINES: usize = 4;
+    /// The simulated converter's full scale: the board's 12-bit ADC, so the
+    /// handheld's scenes saturate (and take their shorter exposures) as on
+    /// the board.
+    pub const FULL_SCALE: u16 = 4095;
 }

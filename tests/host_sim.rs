@@ -13,7 +13,7 @@ use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
 use host_tools::device::link::{Client, DecodeError, LinkError, PointRecord, Reply};
 use host_tools::device::reference::expected_line;
 use host_tools::forward::scene::frames::{SceneFrames, analytic_scene};
-use system_tests::sim::{FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
+use system_tests::sim::{ACQ, FULL_SCALE, M, N, P, SLOT_LEN, SimDevice};
 
 const ZONES: usize = 4;
 
@@ -53,7 +53,7 @@ fn check_points(blob: &[u8], scene: &SceneFrames, points: &[PointRecord], lines:
     assert_eq!(points.len(), lines * P);
     for (k, p) in points.iter().enumerate() {
         let line = k / P;
-        let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE)[k % P];
+        let want = &expected_line(&view, &scene[line % scene.len()], FULL_SCALE, &ACQ)[k % P];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % P));
         assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(want), "point {k}");
         let got: Vec<u32> = p.values.iter().map(|x| x.to_bits()).collect();

@@ -122,7 +122,7 @@ fn after_a_cut_the_application_boots_and_measures_with_the_surviving_calibration
         let scene = analytic_scene(&view, 1, FULL_SCALE);
         c.load_scene(&scene).unwrap();
         let pts = c.measure(1).unwrap();
-        let want = expected_line(&view, &scene[0], FULL_SCALE);
+        let want = expected_line(&view, &scene[0], FULL_SCALE, &system_tests::sim::ACQ);
         for (p, w) in pts.iter().zip(&want) {
             assert_eq!(
                 p.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),

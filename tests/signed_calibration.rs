@@ -34,7 +34,7 @@ fn measures_with(c: &mut Client<SimDevice>, blob: &[u8]) {
     c.load_scene(&scene).unwrap();
     c.format = brdf_meter::protocol::StreamFormat::LOSSLESS;
     let pts = c.measure(1).unwrap();
-    let want = expected_line(&view, &scene[0], FULL_SCALE);
+    let want = expected_line(&view, &scene[0], FULL_SCALE, &system_tests::sim::ACQ);
     assert_eq!(pts.len(), P);
     for (p, w) in pts.iter().zip(&want) {
         assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(w));

@@ -17,6 +17,10 @@ fn bench(c: &mut Criterion) {
     let h = system_matrix(&inst, &grid, false).unwrap();
     let prior = PriorSpec::patent().build(&grid, inst.view_deg, Path::new(".")).unwrap();
     let centres = inst.centre_angles_deg();
+    let models = host_tools::forward::prior_measured::PriorMix::parse("patent")
+        .unwrap()
+        .models(&grid, inst.view_deg, inst.spectral_weights)
+        .unwrap();
     let mut g = c.benchmark_group("train_patent_profile");
     for (name, kind) in [
         ("wiener", EstimatorKind::Wiener),
@@ -40,18 +44,20 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
-    // Whole pipeline: optics -> W per zone -> f32 check -> blob, 8 zones of 128 pixels.
+    // Whole pipeline: optics -> sample pairs -> W per zone -> f32 check -> gloss rows -> blob, 8 zones of 128 pixels.
     g.bench_function("blob_8_zones", |b| {
         b.iter(|| {
-            let zones = uniform_zones(&inst, &grid, 8, 128, false).unwrap();
+            let zones = uniform_zones(&inst, &grid, 8, 128, false, 0.02).unwrap();
             train(&TrainSpec {
                 bins_deg: grid.bins_deg(),
                 zones,
                 pixels: 128,
                 view_deg: inst.view_deg,
-                prior: &prior,
+                prior: &models,
                 noise_rel: 0.02,
                 estimator: EstimatorKind::Wiener,
+                criterion: host_tools::forward::pairs::Criterion::Plain,
+                false_alarm: 0.05,
                 far_field: false,
                 led_order: None,
                 white: None,

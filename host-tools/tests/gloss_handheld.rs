@@ -34,11 +34,10 @@ fn black_glass_gu(blob: &[u8]) -> Vec<f64> {
     let view = BlobView::parse(blob).unwrap();
     assert_eq!(view.version(), 3, "the handheld calibration carries the gloss section");
     let sc = scene("handheld.toml");
-    let grid = sc.instrument.grid().unwrap();
-    let optics = training_optics(&sc, ZONES).unwrap();
+    let optics = training_optics(&sc, ZONES, None).unwrap();
     (0..ZONES)
         .map(|z| {
-            let v = black_glass_readings(&optics.zones[z].h, grid.bins_deg(), sc.instrument.view_deg);
+            let v = black_glass_readings(&optics.zones[z].centre);
             let v: Vec<f32> = v.iter().map(|x| *x as f32).collect();
             f64::from(PointEstimator::new(view, z).unwrap().apply(&v).readings[SPECULAR_GU])
         })

@@ -19,7 +19,6 @@
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::gloss::{DISTINCTNESS, HAZE_HU, SPECULAR_GU};
 use host_tools::calibration::demo::{train_for_scene, train_measured_for_scene, train_scale_free_for_scene};
-use host_tools::calibration::estimators::scale_free::WeightedSamples;
 use host_tools::device::reference::PointEstimator;
 use host_tools::forward::brdf::{Brdf, NbrdfSet};
 use host_tools::forward::gloss::{true_readings, true_rho};
@@ -148,7 +147,8 @@ fn merl_held_out(kind: EstimatorKind) -> (Tally, Tally, usize) {
     let sc = scene("patent-profile.toml");
     let inst = host_tools::forward::optics::Instrument::patent_profile();
     let grid = sc.instrument.grid().unwrap();
-    let (samples, names) = PriorMix::parse("merl").unwrap().samples(&grid, 45.0, inst.spectral_weights).unwrap();
+    let models = PriorMix::parse("merl").unwrap().models(&grid, 45.0, inst.spectral_weights).unwrap();
+    let names = models.names();
     let set = NbrdfSet::merl();
     let bins = grid.bins_deg().to_vec();
     let step = bins[1] - bins[0];
@@ -156,7 +156,7 @@ fn merl_held_out(kind: EstimatorKind) -> (Tally, Tally, usize) {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     for fold in 0..FOLDS {
         let train: Vec<usize> = (0..names.len()).filter(|i| i % FOLDS != fold).collect();
-        let blob = train_measured_for_scene(&sc, 1, 0.02, kind, &WeightedSamples::subset(&samples, &train)).unwrap();
+        let blob = train_measured_for_scene(&sc, 1, 0.02, kind, &models.subset(&train)).unwrap();
         let est = PointEstimator::new(BlobView::parse(&blob).unwrap(), 0).unwrap();
         for name in names.iter().enumerate().filter(|(i, _)| i % FOLDS == fold).map(|(_, n)| n) {
             let mat = set.by_name(name.trim_start_matches("merl:"), inst.spectral_weights).unwrap();

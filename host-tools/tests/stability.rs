@@ -22,6 +22,9 @@ use host_tools::evaluation::stability::{CaseReport, Family, Production, check_ca
 use host_tools::forward::grid::AngleGrid;
 use host_tools::forward::optics::Instrument;
 use host_tools::forward::prior::{Prior, PriorSpec};
+use host_tools::forward::pairs::Criterion;
+use host_tools::forward::prior_models::{PriorModels, PriorSample, SampleModel};
+use host_tools::forward::reading_noise::ReadingNoise;
 use host_tools::forward::zone_optics::{ZoneOptics, uniform_zones};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
@@ -201,6 +204,28 @@ fn patent_prior(grid: &AngleGrid) -> Prior {
     PriorSpec::patent().build(grid, 45.0, Path::new(".")).unwrap()
 }
 
+/// The patent prior's samples as training takes them (their grid vectors:
+/// in-plane pairs `H rho` whatever H a case gives).
+fn profiles(prior: &Prior) -> &'static PriorModels {
+    let samples = prior
+        .samples
+        .column_iter()
+        .enumerate()
+        .map(|(k, c)| PriorSample {
+            name: format!("patent:{k}"),
+            family: "patent".into(),
+            weight: 1.0 / prior.samples.ncols() as f64,
+            model: SampleModel::Profile(c.into_owned()),
+        })
+        .collect();
+    Box::leak(Box::new(PriorModels { samples }))
+}
+
+/// A zone of in-plane optics `h` with relative noise `noise`.
+fn zone(h: DMatrix<f64>, centres: &[f64], noise: f64) -> ZoneOptics {
+    ZoneOptics::from_h(0, h, centres.to_vec(), 45.0, &AngleGrid::patent(), ReadingNoise::relative(noise, centres.len()))
+}
+
 fn spec<'a>(
     prior: &'a Prior,
     bins: &'a [f64],
@@ -213,9 +238,11 @@ fn spec<'a>(
         zones,
         pixels: 16,
         view_deg: 45.0,
-        prior,
+        prior: profiles(prior),
         noise_rel: noise,
         estimator: kind,
+        criterion: Criterion::Plain,
+        false_alarm: 0.05,
         far_field: false,
         led_order: None,
         white: None,
@@ -227,7 +254,7 @@ fn f32_gate_passes_the_patent_profile_unscaled() {
     let grid = AngleGrid::patent();
     let prior = patent_prior(&grid);
     let inst = Instrument::patent_profile();
-    let zones = uniform_zones(&inst, &grid, 2, 16, false).unwrap();
+    let zones = uniform_zones(&inst, &grid, 2, 16, false, 0.02).unwrap();
     let t = train(&spec(&prior, grid.bins_deg(), zones, 0.02, EstimatorKind::Wiener)).unwrap();
     assert!(t.f32_rel_error <= F32_TOLERANCE, "{}", t.f32_rel_error);
     assert!(t.f32_exponents.iter().flatten().all(|e| *e == 0));
@@ -235,7 +262,7 @@ fn f32_gate_passes_the_patent_profile_unscaled() {
     let v = BlobView::parse(&t.blob).unwrap();
     let mut w = vec![0.0; 81 * 7];
     v.copy_matrix(1, &mut w);
-    assert_eq!(w, t.zones[1].estimator.w_f32_row_major());
+    assert_eq!(w, t.zones[1].linear().unwrap().w_f32_row_major());
     assert_eq!(v.summary().f32_rel_error, t.f32_rel_error as f32);
 }
 
@@ -247,7 +274,7 @@ fn f32_gate_refuses_an_ill_conditioned_matrix_with_the_reason() {
     let prior = patent_prior(&grid);
     let centres = [55.0, 55.2, 55.4, 55.6, 55.8, 56.0, 56.2];
     let h = host_tools::evaluation::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
-    let zones = vec![ZoneOptics { first_pixel: 0, h, centres_deg: centres.to_vec() }];
+    let zones = vec![zone(h, &centres, 1e-10)];
     let e = train(&spec(&prior, grid.bins_deg(), zones, 1e-10, EstimatorKind::Wiener)).unwrap_err();
     let msg = format!("{e:#}");
     assert!(msg.contains("zone 0"), "{msg}");
@@ -257,7 +284,7 @@ fn f32_gate_refuses_an_ill_conditioned_matrix_with_the_reason() {
     // The advice is right: at the advised noise the gate passes.
     let advised: f64 = msg.split("--noise ").nth(1).unwrap().split_whitespace().next().unwrap().parse().unwrap();
     let h = host_tools::evaluation::stability::families::optics_h(&centres, 0.17, 5, &grid_spec(), 45.0);
-    let zones = vec![ZoneOptics { first_pixel: 0, h, centres_deg: centres.to_vec() }];
+    let zones = vec![zone(h, &centres, advised)];
     let t = train(&spec(&prior, grid.bins_deg(), zones, advised, EstimatorKind::Wiener)).unwrap();
     assert!(t.f32_rel_error <= F32_TOLERANCE);
 }
@@ -273,10 +300,9 @@ fn f32_gate_rescales_by_powers_of_two_when_w_leaves_the_f32_range() {
     let grid = AngleGrid::patent();
     let prior = patent_prior(&grid);
     let inst = Instrument::patent_profile();
-    let mut zones = uniform_zones(&inst, &grid, 1, 16, false).unwrap();
     let k = 2f64.powi(-128);
-    zones[0].h *= k;
-    let h = zones[0].h.clone();
+    let h = uniform_zones(&inst, &grid, 1, 16, false, 0.02).unwrap()[0].h() * k;
+    let zones = vec![zone(h.clone(), &inst.centre_angles_deg(), 0.02)];
     let w0 = wiener(&h, &prior.r_pp, NoiseModel::Relative(0.02));
     assert!(w0.amax() > f32::MAX as f64, "the case must overflow f32 unscaled");
     // The device's white reference is correspondingly large.
@@ -306,7 +332,7 @@ fn f32_gate_rescales_by_powers_of_two_when_w_leaves_the_f32_range() {
     }
     assert!(worst / scale <= F32_TOLERANCE, "device error {:.2e} of scale", worst / scale);
     // Without the rescaling the gate would have had nothing finite to offer.
-    assert!(f32_gate(&w0, &h, &prior.samples).unwrap().exponents.iter().any(|e| *e != 0));
+    assert!(f32_gate(&w0, &(&h * &prior.samples)).unwrap().exponents.iter().any(|e| *e != 0));
 }
 
 /// The scene library's hard cases (`scenes/hard/*.toml`, the scene engineer's
@@ -348,15 +374,17 @@ fn scene_library_hard_cases_stay_stable() {
         };
         let r = check_case(&case, &Production, device_kernel);
         assert!(r.failures.is_empty(), "{}: {:?}", scene.name, r.failures);
-        let optics = training_optics(&scene, 2.min(inst.pixels())).unwrap();
+        let optics = training_optics(&scene, 2.min(inst.pixels()), Some(noise)).unwrap();
         let spec = TrainSpec {
             bins_deg: grid.bins_deg(),
             zones: optics.zones,
             pixels: optics.pixels,
             view_deg: inst.view_deg,
-            prior: &prior,
+            prior: profiles(&prior),
             noise_rel: noise,
             estimator: EstimatorKind::Wiener,
+            criterion: Criterion::Plain,
+            false_alarm: 0.05,
             far_field: false,
             led_order: None,
             white: Some(optics.white),

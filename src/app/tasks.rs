@@ -107,7 +107,7 @@ where
             }
             let ok = shared.core.lock(|c| match c.borrow().cal.active() {
                 Some(a) => {
-                    correct_line(&buf.raw, &a.white, shared.full_scale, &mut buf.v, &mut buf.flags);
+                    correct_line(&buf.raw, &a.white, shared.full_scale, &shared.acq, &mut buf.v, &mut buf.flags);
                     true
                 }
                 None => false,

@@ -141,7 +141,7 @@ fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, 
     let mut v = [SVector::<f32, M>::zeros(); P];
     let mut fl = [0u8; P];
     b.at("correct", "-");
-    correct_line(raw, white, full_scale, &mut v, &mut fl);
+    correct_line(raw, white, full_scale, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
     let mut block = PointsBlock::new();
     let mut rho = SVector::<f32, N>::zeros();
     let estimate = |p: usize, rho: &mut SVector<f32, N>| {

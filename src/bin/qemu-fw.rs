@@ -31,8 +31,8 @@ const F: usize = shape::FRAMES_PER_LINE;
 const FRAME_LINES: usize = shape::qemu::FRAME_LINES;
 const RAM_ZONES: usize = shape::qemu::RAM_ZONES;
 const SLOT_LEN: usize = shape::qemu::SLOT_LEN as usize;
-/// Simulated 16-bit converter (the scene simulator's counts reach ~48k).
-const FULL_SCALE: u16 = u16::MAX;
+/// The simulated converter's full scale: the board's (`shape::qemu`).
+const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
 /// Acquisition timing: short, it is a simulation (`platform::timing`).
 const ACQ: AcqConfig = brdf_meter::platform::timing::QEMU_ACQUISITION;
 
@@ -54,7 +54,7 @@ async fn transport(shared: &'static QemuShared, rx: UsartRx, tx: UsartTx) -> ! {
 
 #[embassy_executor::task]
 async fn acquisition(shared: &'static QemuShared, lines: Sender<'static, Cs, LineBuf<M, P>>) -> ! {
-    let sensor = FrameSensor { frames: &FRAMES, full_scale: FULL_SCALE, lit: qemu::leds::lit::<M> };
+    let sensor = FrameSensor { frames: &FRAMES, full_scale: FULL_SCALE, lit: qemu::leds::lit::<M>, acq: ACQ };
     app::acquisition(shared, GpioLeds::<M>::configure(), sensor, lines).await
 }
 

@@ -7,11 +7,18 @@
 use crate::acquire::AcqConfig;
 
 /// The board firmware's acquisition settings: integration per frame, LED
-/// settling before it, full drive.
-pub const ACQUISITION: AcqConfig = AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX };
+/// settling before it, full drive; a frame that saturates is taken again at
+/// 1/16 and then 1/80 of the exposure (the handheld scene's `short-exposure`
+/// ratios: a mirror-like sample under the specular LED reads tens to
+/// hundreds of white diffusers). 25 us is just above the TSL1401's shortest
+/// integration at this readout (the 111 clocks of the flush after the 18th).
+pub const ACQUISITION: AcqConfig =
+    AcqConfig { exposure_us: 2_000, settle_us: 200, intensity: u16::MAX, short_exposures_us: [125, 25] };
 /// The QEMU firmware's acquisition settings: short, it is a simulation
-/// (its simulated sensor reads a frame at once).
-pub const QEMU_ACQUISITION: AcqConfig = AcqConfig { exposure_us: 200, settle_us: 100, intensity: u16::MAX };
+/// (its simulated sensor reads a frame at once); the same exposure ratios
+/// as the board's.
+pub const QEMU_ACQUISITION: AcqConfig =
+    AcqConfig { exposure_us: 400, settle_us: 100, intensity: u16::MAX, short_exposures_us: [25, 5] };
 /// SYSCLK (and the ADC's clock: `adcsel = SYS`, no prescaler needed at 80 MHz).
 pub const SYSCLK_HZ: u32 = 80_000_000;
 /// ADC conversions averaged per pixel.

@@ -552,7 +552,7 @@ pub fn soak(cfg: SoakConfig) -> SoakReport {
         assert_eq!(rep.device_error, None, "seed {seed}");
         if expected_for != active {
             let view = BlobView::parse(&blobs[active]).unwrap();
-            expected = scene.iter().map(|frames| expected_line(&view, frames, FULL_SCALE)).collect();
+            expected = scene.iter().map(|frames| expected_line(&view, frames, FULL_SCALE, &crate::sim::ACQ)).collect();
             expected_for = active;
         }
         // Accepted points: bit-identical to the reference, in sequence, once.

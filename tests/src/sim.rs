@@ -22,8 +22,10 @@ pub const P: usize = shape::qemu::PIXELS;
 pub const F: usize = shape::FRAMES_PER_LINE;
 /// Calibration slot length.
 pub const SLOT_LEN: u32 = shape::qemu::SLOT_LEN;
-/// Sensor full scale (16-bit, as the QEMU build).
-pub const FULL_SCALE: u16 = u16::MAX;
+/// Sensor full scale (the QEMU build's, the board's 12-bit converter).
+pub const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
+/// Acquisition settings (the QEMU build's, with its shorter exposures).
+pub const ACQ: AcqConfig = brdf_meter::platform::timing::QEMU_ACQUISITION;
 
 /// The simulated device's shared state type.
 pub type Dev = Shared<SimFlash, N, M, P>;
@@ -77,9 +79,9 @@ impl SimDevice {
         let ram: &'static mut [ZoneMatrix<N, M>] = Box::leak(vec![ZoneMatrix::zeros(); ram_zones].into_boxed_slice());
         let (host, dev_end) = pipe();
         let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
-            sim_optics(FULL_SCALE, host.frames_counter());
+            sim_optics(FULL_SCALE, ACQ, host.frames_counter());
         let shared: &'static Dev =
-            leak(Shared::new(flash.clone(), SLOT_LEN, ram, AcqConfig::default(), FULL_SCALE, true));
+            leak(Shared::new(flash.clone(), SLOT_LEN, ram, ACQ, FULL_SCALE, true));
         let pending: &'static AtomicBool = leak(AtomicBool::new(false));
         let exec: &'static Executor = leak(Executor::new(pending as *const AtomicBool as *mut ()));
         let bufs: &'static mut [LineBuf<M, P>; 2] = leak([LineBuf::new(), LineBuf::new()]);

@@ -1,44 +1,48 @@
 //! Training's part of the gloss readings (`brdf_meter::gloss`): per zone
-//! and cluster, the rows `A W` of the linear readings and their error
-//! covariance `A E A^T`, and the calibration on the gloss standard: each
-//! zone's reading `S_z` of the simulated black glass through its own
-//! estimator, by the device's own function, so a black glass reads the
-//! standard's assigned value (100 GU) on the device.
+//! and cluster, the rows of the linear readings and their error covariance,
+//! and the calibration on the gloss standard: each zone's reading `S_z` of
+//! the simulated black glass through its own rows, by the device's own
+//! function, so a black glass reads the standard's assigned value (100 GU)
+//! on the device.
 //!
-//! `A` is `crate::forward::gloss::reading_weights` (the definitions); `E`
-//! the estimator's error covariance (per unit scale for the scale-free
-//! kinds, whose `[W' | b]` takes the readings with the last replaced by
-//! their scale: the same kernel input the device uses for the rows).
+//! # Every pixel its own definition
+//! The readings are defined about each pixel's own specular direction (its
+//! view's polar angle, `crate::forward::pairs::PixelOptics::theta_o_deg`),
+//! each on the scale of the black glass seen from that pixel: the rows are
+//! fitted from sample pairs whose target is, per pair, the definitions'
+//! linear readings at the pair's pixel divided by the black glass's `L_0`
+//! there, times the assigned 100 ([`targets`]). A black glass is therefore
+//! 100 GU at every pixel by definition, and the zone's rows learn to read it
+//! so wherever in the zone the pixel is; `S_z` (read at the zone's centre)
+//! is then close to 100 and only corrects what the fit leaves.
 //!
 //! # The rows' own prior
-//! No prior of the BRDF estimators holds a mirror, so an estimator trained
-//! on one misreads the black glass (the definition's `L_0` over the
-//! estimate was 0.55 for Wiener on the Ward prior, 0.74 and 0.80 for the
-//! scale-free kinds on MERL), and calibrating on the standard then rescales
-//! every reading by that factor. The rows are therefore trained from their
-//! own estimator (W for the BRDF stays as it is): the same kind, on the
-//! same optics and noise, with the prior augmented by [`gloss_standards`]
-//! (the black glass and other smooth dielectrics, bare and over a diffuse
-//! base). Weight, on principle: the readings are defined against the
-//! standard, so the standards are a family of their own beside the prior,
-//! the two mixed at equal weight ([`STANDARDS_WEIGHT`], [`augmented_r_pp`],
-//! [`augmented_samples`]); the rows' covariance is that same augmented
-//! estimator's.
+//! No prior of the BRDF estimators holds a mirror, so rows trained on one
+//! misread the black glass and every reading inherits that through `S_z`.
+//! The rows are therefore fitted on the estimator's prior mixed at equal
+//! weight ([`STANDARDS_WEIGHT`]) with a family of gloss standards
+//! ([`standards`]): polished dielectrics (the black glass among them), bare
+//! and over diffuse bases, and rough dielectric tiles. The pairs are
+//! weighted by the error of the reading relative to its own size (with a
+//! floor, [`GLOSS_FLOOR_GU`]): a metal's 2000 GU do not decide the rows a
+//! 20 GU tile is read with.
 //!
 //! # The stated uncertainty
-//! The posterior covariance is too small for materials outside the prior and
-//! leaves out the standard's own misreading, which every gloss and haze
+//! The fit's error covariance is too small for materials outside the prior
+//! and leaves out the standard's own misreading, which every gloss and haze
 //! reading inherits through `q`. Training holds the prior's samples out in
-//! [`HELD_OUT_FOLDS`] folds, trains each fold's rows (and their reading of
+//! [`HELD_OUT_FOLDS`] folds, fits each fold's rows (and their reading of
 //! the standard) on the others, reads the held-out samples by the device's
 //! function and scales the covariance per reading so that [`COVERAGE`] of
 //! them fall within [`COVERAGE_K`] u ([`uncertainty_factors`],
 //! [`scale_block`]). Training data only: the test set never enters it.
-use crate::calibration::estimators::scale_free::WeightedSamples;
-use crate::forward::brdf::smooth_dielectric::{BLACK_GLASS_INDEX, fresnel_unpolarised};
-use crate::forward::brdf::{Lambertian, SmoothDielectric};
-use crate::forward::gloss::{ASSIGNED_GU, reading_weights, true_rho};
+use crate::forward::brdf::smooth_dielectric::BLACK_GLASS_INDEX;
+use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric};
+use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
+use crate::forward::pairs::{Pairs, PixelOptics};
+use crate::forward::prior_models::{PriorModels, SampleModel};
 use anyhow::Context;
+use std::sync::Arc;
 use brdf_meter::gloss::{LINEAR, block_len, cov_index};
 use nalgebra::{DMatrix, DVector};
 
@@ -100,14 +104,13 @@ impl GlossSection {
     }
 }
 
-/// One zone and cluster's block: rows `A W` (LINEAR x m), the packed
-/// `A E A^T` and the square roots of its first two diagonal entries.
-pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
-    let m = w.ncols();
-    let rows = a * w;
-    let cov = a * e * a.transpose();
+/// One zone and cluster's block: rows `G` (LINEAR x m), the packed
+/// covariance `cov` (LINEAR x LINEAR) and the square roots of its first two
+/// diagonal entries.
+pub fn block(g: &DMatrix<f64>, cov: &DMatrix<f64>) -> Vec<f32> {
+    let m = g.ncols();
     let mut out = Vec::with_capacity(block_len(m));
-    out.extend(rows.transpose().iter().map(|x| *x as f32));
+    out.extend(g.transpose().iter().map(|x| *x as f32));
     let mut packed = vec![0.0f32; brdf_meter::gloss::COV_LEN];
     for i in 0..LINEAR {
         for j in i..LINEAR {
@@ -120,10 +123,38 @@ pub fn block(a: &DMatrix<f64>, w: &DMatrix<f64>, e: &DMatrix<f64>) -> Vec<f32> {
     out
 }
 
-/// The black glass's corrected readings through zone optics `h`.
-pub fn black_glass_readings(h: &DMatrix<f64>, bins: &[f64], view_deg: f64) -> DVector<f64> {
-    let step = if bins.len() > 1 { bins[1] - bins[0] } else { 1.0 };
-    h * true_rho(&SmoothDielectric::black_glass(), bins, view_deg, step)
+/// The black glass's noise-free readings at a pixel.
+pub fn black_glass_readings(px: &PixelOptics) -> DVector<f64> {
+    let model = SampleModel::Brdf(Arc::new(SmoothDielectric::black_glass()));
+    px.readings(&model, &px.truth(&model))
+}
+
+/// The rows' target (LINEAR x K): per pair, the definitions' linear
+/// readings at its pixel's own view on the black glass's scale there
+/// (`crate::forward::pairs::PixelOptics::gloss_target`); `None` when the
+/// pairs were built without them or a profile's grid does not cover its
+/// specular aperture.
+pub fn targets(pairs: &Pairs) -> Option<DMatrix<f64>> {
+    pairs.gloss.clone()
+}
+
+/// The floor of the rows' relative criterion, GU: a pair's weight is divided
+/// by `(G + floor)^2`, G its gloss reading, so the rows are fitted for the
+/// reading's error relative to its size, and a matt sample (a few GU) is not
+/// read to a tenth of a GU at a glossy one's expense.
+pub const GLOSS_FLOOR_GU: f64 = 10.0;
+
+/// The pairs reweighted for the rows: each pair's weight divided by
+/// `(G + GLOSS_FLOOR_GU)^2`, `G` its target gloss (row 0 of `target`).
+pub fn reading_weighted(pairs: &Pairs, target: &DMatrix<f64>) -> Pairs {
+    let mut out = pairs.clone();
+    for (k, w) in out.weights.iter_mut().enumerate() {
+        let g = target[(0, k)].max(0.0) + GLOSS_FLOOR_GU;
+        *w /= g * g;
+    }
+    let total: f64 = out.weights.iter().sum();
+    out.weights.iter_mut().for_each(|w| *w /= total);
+    out
 }
 
 /// The zone's reading `S_z` of the standard: the device's own linear
@@ -156,23 +187,32 @@ pub const STANDARD_INDICES: [f64; 4] = [1.45, 1.5, BLACK_GLASS_INDEX, 1.7];
 /// Albedos of the diffuse base under the dielectric surface (0: bare, as
 /// the black glass; then dark to white glossy paints).
 pub const STANDARD_BASE_ALBEDOS: [f64; 4] = [0.0, 0.05, 0.3, 0.9];
+/// GGX roughnesses of the rough dielectric tiles in the rows' prior (from
+/// a near-mirror lacquer to a satin finish).
+pub const TILE_ROUGHNESS: [f64; 5] = [0.02, 0.04, 0.08, 0.15, 0.3];
+/// Diffuse albedos of those tiles.
+pub const TILE_ALBEDOS: [f64; 2] = [0.05, 0.5];
 
-/// The samples added to the rows' prior (n x K, on `bins`, view `view_deg`):
-/// for every index of [`STANDARD_INDICES`] and albedo of
-/// [`STANDARD_BASE_ALBEDOS`], the smooth dielectric's Fresnel spike plus
-/// the light it transmits, `1 - F(theta_o)`, returned by a Lambertian base.
-pub fn gloss_standards(bins: &[f64], view_deg: f64) -> DMatrix<f64> {
-    let step = if bins.len() > 1 { bins[1] - bins[0] } else { 1.0 };
-    let mut cols = Vec::new();
+/// The gloss standards added to the rows' prior, as models: every smooth
+/// dielectric of [`STANDARD_INDICES`] over every base of
+/// [`STANDARD_BASE_ALBEDOS`], and rough GGX tiles (index 1.5, every
+/// roughness of [`TILE_ROUGHNESS`] over every albedo of [`TILE_ALBEDOS`]).
+pub fn standards() -> PriorModels {
+    let mut out: Vec<(String, Arc<dyn Brdf>)> = Vec::new();
     for n in STANDARD_INDICES {
-        let spike = true_rho(&SmoothDielectric::new(n).expect("indices in range"), bins, view_deg, step);
-        let transmitted = 1.0 - fresnel_unpolarised(view_deg, n);
         for a in STANDARD_BASE_ALBEDOS {
-            let base = true_rho(&Lambertian::new(a * transmitted).expect("albedo in range"), bins, view_deg, step);
-            cols.push(&spike + base);
+            let b = SmoothDielectric::over_base(n, a).expect("standards in range");
+            out.push((format!("standard:n={n},base={a}"), Arc::new(b)));
         }
     }
-    DMatrix::from_columns(&cols)
+    let f0 = ((1.5f64 - 1.0) / (1.5 + 1.0)).powi(2);
+    for alpha in TILE_ROUGHNESS {
+        for a in TILE_ALBEDOS {
+            let b = Ggx::new(a, 1.0, alpha, f0).expect("tiles in range");
+            out.push((format!("tile:ggx,alpha={alpha},rho_d={a}"), Arc::new(b)));
+        }
+    }
+    PriorModels::from_brdfs("gloss standards", out)
 }
 
 /// The weight of the standards' family in the rows' prior: the prior and
@@ -180,26 +220,6 @@ pub fn gloss_standards(bins: &[f64], view_deg: f64) -> DMatrix<f64> {
 /// `prior_measured::PriorMix` mixes families, `a@0.5+b@0.5`), each
 /// family's samples equally weighted within it.
 pub const STANDARDS_WEIGHT: f64 = 0.5;
-
-/// `(1 - w) R_pp + w S S^T / K` with `w` [`STANDARDS_WEIGHT`]: the prior
-/// correlation mixed with the K columns of `extra`.
-pub fn augmented_r_pp(r_pp: &DMatrix<f64>, extra: &DMatrix<f64>) -> DMatrix<f64> {
-    let k = extra.ncols().max(1) as f64;
-    r_pp * (1.0 - STANDARDS_WEIGHT) + extra * extra.transpose() * (STANDARDS_WEIGHT / k)
-}
-
-/// The weighted samples with the columns of `extra` appended: the prior's
-/// weights times `1 - w`, each of the K added samples `w / K` (`w`
-/// [`STANDARDS_WEIGHT`]).
-pub fn augmented_samples(prior: &WeightedSamples, extra: &DMatrix<f64>) -> WeightedSamples {
-    let n = prior.samples.ncols();
-    let mut cols: Vec<DVector<f64>> = (0..n).map(|k| prior.samples.column(k).into_owned()).collect();
-    cols.extend((0..extra.ncols()).map(|k| extra.column(k).into_owned()));
-    let total: f64 = prior.weights.iter().sum();
-    let mut weights: Vec<f64> = prior.weights.iter().map(|w| w / total * (1.0 - STANDARDS_WEIGHT)).collect();
-    weights.extend(std::iter::repeat_n(STANDARDS_WEIGHT / extra.ncols().max(1) as f64, extra.ncols()));
-    WeightedSamples { samples: DMatrix::from_columns(&cols), weights }
-}
 
 /// Folds of the held-out check that sets the uncertainty's scale factors.
 pub const HELD_OUT_FOLDS: usize = 5;
@@ -253,34 +273,33 @@ pub fn scale_block(block: &mut [f32], m: usize, f: [f64; 3]) {
     sd[1] = (f64::from(sd[1]) * f[1]) as f32;
 }
 
-/// One noisy draw of readings `v` (relative noise `noise_rel`).
-pub fn noisy(v: &DVector<f64>, noise_rel: f64, rng: &mut rand_chacha::ChaCha8Rng) -> DVector<f64> {
-    use rand_distr::{Distribution, Normal};
-    let nd = Normal::new(0.0, 1.0).expect("unit normal");
-    v.map(|x| x * (1.0 + noise_rel * nd.sample(rng)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::forward::grid::AngleGrid;
 
     #[test]
-    fn the_standards_hold_the_black_glass_and_mix_at_the_stated_weight() {
+    fn the_standards_hold_the_black_glass_and_targets_are_on_its_scale() {
+        let s = standards();
+        assert_eq!(s.len(), STANDARD_INDICES.len() * STANDARD_BASE_ALBEDOS.len() + TILE_ROUGHNESS.len() * TILE_ALBEDOS.len());
+        assert!(s.samples.iter().any(|x| x.name == format!("standard:n={BLACK_GLASS_INDEX},base=0")));
+        // At any view, the black glass's own target is 100 GU.
         let g = AngleGrid::patent();
-        let s = gloss_standards(g.bins_deg(), 45.0);
-        assert_eq!(s.ncols(), STANDARD_INDICES.len() * STANDARD_BASE_ALBEDOS.len());
-        let bg = true_rho(&SmoothDielectric::black_glass(), g.bins_deg(), 45.0, g.step_deg());
-        assert!((0..s.ncols()).any(|k| (s.column(k) - &bg).amax() == 0.0), "the bare black glass is a sample");
-        let prior = WeightedSamples::equal(DMatrix::from_element(g.n(), 3, 0.5));
-        let aug = augmented_samples(&prior, &s);
-        assert!((aug.weights.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-        let extra: f64 = aug.weights[3..].iter().sum();
-        assert!((extra - STANDARDS_WEIGHT).abs() < 1e-12, "{extra}");
-        let r = augmented_r_pp(&(&prior.samples * prior.samples.transpose() / 3.0), &s);
-        let want = prior.samples.column(0) * prior.samples.column(0).transpose() * (1.0 - STANDARDS_WEIGHT)
-            + &s * s.transpose() * (STANDARDS_WEIGHT / s.ncols() as f64);
-        assert!((r - want).amax() < 1e-9);
+        for view in [42.0f64, 45.0, 47.5] {
+            let t = view.to_radians();
+            let px = PixelOptics::from_h(
+                0.0,
+                crate::forward::optics::system_matrix(&crate::forward::optics::Instrument::patent_profile(), &g, false).unwrap(),
+                nalgebra::Vector3::new(t.sin(), 0.0, t.cos()),
+                vec![0.0; 7],
+                crate::forward::reading_noise::ReadingNoise::relative(0.0, 7),
+                &g,
+            );
+            let bg = PriorModels::from_brdfs("bg", vec![("bg".into(), Arc::new(SmoothDielectric::black_glass()) as Arc<dyn Brdf>)]);
+            let pairs = Pairs::build_with_gloss(std::slice::from_ref(&px), &bg);
+            let t = targets(&pairs).unwrap();
+            assert!((t[(0, 0)] - 100.0).abs() < 1e-9, "view {view}: {}", t[(0, 0)]);
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! model; knows nothing of the device link or of evaluation.
 pub mod demo;
 pub mod estimators;
+pub mod f32_gate;
 pub mod gloss_rows;
 pub mod signing;
 pub mod train;
-pub mod train_scale_free;

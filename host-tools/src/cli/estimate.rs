@@ -5,7 +5,9 @@
 //! (`brdf_meter::estimate::guard_estimate`) and flags.
 //!
 //! Input: one row per point, m white-corrected readings in the blob's LED
-//! order (a header row is optional). Output: CSV (point, flags, the n bin
+//! order (a header row is optional); with `line` and `pixel` columns (the
+//! `points.csv` that `simulate` writes) each row is estimated with its
+//! pixel's zone, as the device does. Output: CSV (point, flags, the n bin
 //! values, the n per-bin standard uncertainties, the gloss readings and
 //! their standard uncertainties, `brdf_meter::gloss`) and optionally JSON
 //! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "readings": [...],
@@ -26,7 +28,9 @@ pub struct Args {
     /// The calibration blob.
     #[arg(long, value_name = "CAL")]
     pub blob: PathBuf,
-    /// Readings CSV: one row per point, m white-corrected readings in the blob's LED order.
+    /// Readings CSV: one row per point, m white-corrected readings in the
+    /// blob's LED order, after `line` and `pixel` columns when the header
+    /// names them (`simulate`'s `points.csv`).
     #[arg(long, value_name = "R.csv")]
     pub readings: PathBuf,
     /// Output CSV.
@@ -35,7 +39,8 @@ pub struct Args {
     /// Also write JSON here.
     #[arg(long, value_name = "E.json")]
     pub json: Option<PathBuf>,
-    /// Zone whose matrices to use (the readings' pixels are in it).
+    /// Zone whose matrices to use for rows without a `pixel` column (the
+    /// readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
     /// Plot and standard files (points are the readings' rows).
@@ -43,9 +48,23 @@ pub struct Args {
     pub exports: crate::cli::exports::ExportArgs,
 }
 
-/// Reads the readings CSV: every row exactly `m` numbers; a non-numeric
-/// first row is a header. Errors name file:line and the field.
-pub fn read_readings(path: &Path, m: usize) -> anyhow::Result<Vec<Vec<f32>>> {
+/// One point of a readings file: its line and pixel when the file names
+/// them, and its m readings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReadingsRow {
+    /// Line (a `line` column).
+    pub line: Option<u64>,
+    /// Pixel (a `pixel` column): the row is estimated with that pixel's calibration.
+    pub pixel: Option<usize>,
+    /// The m white-corrected readings, in the blob's LED order.
+    pub v: Vec<f32>,
+}
+
+/// Reads a readings CSV: every row `m` readings, after a `line` and a
+/// `pixel` column when a header row names them (the `points.csv` that
+/// `simulate` writes); a non-numeric first row is a header. Errors name
+/// file:line and the field.
+pub fn read_readings(path: &Path, m: usize) -> anyhow::Result<Vec<ReadingsRow>> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
@@ -54,27 +73,44 @@ pub fn read_readings(path: &Path, m: usize) -> anyhow::Result<Vec<Vec<f32>>> {
         .from_path(path)
         .with_context(|| format!("{}: cannot open the readings", path.display()))?;
     let mut rows = Vec::new();
+    let (mut line_col, mut pixel_col) = (None, None);
     for (row, rec) in rdr.records().enumerate() {
         let rec = rec.with_context(|| format!("{}: malformed CSV", path.display()))?;
         let line = rec.position().map_or(0, |p| p.line());
         if row == 0 && rec.iter().all(|f| f.parse::<f64>().is_err()) {
+            line_col = rec.iter().position(|f| f.eq_ignore_ascii_case("line"));
+            pixel_col = rec.iter().position(|f| f.eq_ignore_ascii_case("pixel"));
             continue; // the header
         }
-        if rec.len() != m {
+        let index_cols = usize::from(line_col.is_some()) + usize::from(pixel_col.is_some());
+        if rec.len() != m + index_cols {
             bail!(
-                "{}:{line}: {} column(s), but the blob is for m = {m} readings per point (one column per LED, in the blob's LED order)",
+                "{}:{line}: {} column(s), but the blob is for m = {m} readings per point (one column per LED, in the \
+                 blob's LED order{})",
                 path.display(),
-                rec.len()
+                rec.len(),
+                if index_cols > 0 { ", after the line and pixel columns" } else { "" }
             );
         }
+        let int = |c: Option<usize>, what: &str| -> anyhow::Result<Option<u64>> {
+            c.map(|c| {
+                rec[c].parse::<u64>().map_err(|_| {
+                    anyhow::anyhow!("{}:{line}: column `{what}`: {:?} is not a whole number", path.display(), &rec[c])
+                })
+            })
+            .transpose()
+        };
         let mut v = Vec::with_capacity(m);
         for (i, f) in rec.iter().enumerate() {
+            if Some(i) == line_col || Some(i) == pixel_col {
+                continue;
+            }
             let x: f32 = f
                 .parse()
                 .map_err(|_| anyhow::anyhow!("{}:{line}: column {}: {f:?} is not a number", path.display(), i + 1))?;
             v.push(x);
         }
-        rows.push(v);
+        rows.push(ReadingsRow { line: int(line_col, "line")?, pixel: int(pixel_col, "pixel")?.map(|p| p as usize), v });
     }
     ensure!(!rows.is_empty(), "{}: no readings (one row of {m} numbers per point)", path.display());
     Ok(rows)
@@ -91,24 +127,52 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     a.exports.check()?;
     let bytes = std::fs::read(&a.blob).with_context(|| format!("{}: cannot read the blob", a.blob.display()))?;
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
+    let d = view.dims();
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
     let rows = read_readings(&a.readings, app.m())?;
-    let points: Vec<PointEstimate> = rows.iter().map(|v| app.apply(v)).collect();
-    let d = view.dims();
+    // A row with a pixel is estimated with that pixel's zone, as the device does.
+    let zones: Vec<PointEstimator<'_>> =
+        (0..d.zones).map(|z| PointEstimator::new(view, z)).collect::<anyhow::Result<_>>()?;
+    let mut points = Vec::with_capacity(rows.len());
+    for r in &rows {
+        let est = match r.pixel {
+            Some(p) => {
+                ensure!(
+                    p < d.pixels,
+                    "{}: pixel {p} is not one of the calibration's {} pixels",
+                    a.readings.display(),
+                    d.pixels
+                );
+                &zones[view.zone_of_pixel(p)]
+            }
+            None => &app,
+        };
+        points.push(est.apply(&r.v));
+    }
     let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
     let profiles = profiles(&bins, &points);
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
     }
     let mut w = csv::Writer::from_writer(Vec::new());
-    let mut header = vec!["point".to_string(), "flags".to_string()];
+    let indexed = rows.iter().any(|r| r.pixel.is_some() || r.line.is_some());
+    let mut header = vec!["point".to_string()];
+    if indexed {
+        header.extend(["line".to_string(), "pixel".to_string()]);
+    }
+    header.push("flags".to_string());
     header.extend(bins.iter().map(|b| format!("rho_{b}")));
     header.extend(bins.iter().map(|b| format!("sigma_{b}")));
     header.extend(gloss::NAMES.iter().map(|r| r.to_string()));
     header.extend(gloss::NAMES.iter().map(|r| format!("u_{r}")));
     w.write_record(&header)?;
-    for (i, p) in points.iter().enumerate() {
-        let mut rec = vec![i.to_string(), p.flags.join("|")];
+    for (i, (p, r)) in points.iter().zip(&rows).enumerate() {
+        let mut rec = vec![i.to_string()];
+        if indexed {
+            let opt = |x: Option<u64>| x.map_or(String::new(), |x| x.to_string());
+            rec.extend([opt(r.line), opt(r.pixel.map(|p| p as u64))]);
+        }
+        rec.push(p.flags.join("|"));
         rec.extend(p.rho.iter().map(|x| x.to_string()));
         rec.extend(p.sigma.iter().map(|x| x.to_string()));
         rec.extend(p.readings.iter().chain(&p.reading_sigma).map(|x| x.to_string()));
@@ -180,7 +244,7 @@ mod tests {
     use crate::cli::train::{Estimator, run as train_run};
 
     fn blob(dir: &Path, est: Estimator, prior: &str) -> PathBuf {
-        let a = crate::cli::train_measured::tests::args(dir, est, prior);
+        let a = crate::cli::train::tests::args_with(dir, est, prior);
         let out = a.out.clone();
         train_run(a).unwrap();
         out

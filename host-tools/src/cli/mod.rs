@@ -4,12 +4,14 @@
 //! variant, one match arm).
 use clap::{Parser, Subcommand};
 
+pub mod design;
 pub mod estimate;
 pub mod exports;
 pub mod info;
 pub mod keygen;
 pub mod materials;
 pub mod measure;
+pub mod pixel_map;
 pub mod provision;
 pub mod provision_swd;
 pub mod qemu;
@@ -20,7 +22,6 @@ pub mod simulate;
 pub mod stability;
 pub mod tradeoff;
 pub mod train;
-pub mod train_measured;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
@@ -38,6 +39,8 @@ pub enum Command {
     Reproduce(reproduce::Args),
     /// Simulate a scene's readings (CSV, JSON and a plot), truth beside them.
     Simulate(simulate::Args),
+    /// Score candidate LED layouts: held-out error per pixel, specular coverage, saturation, time per line.
+    Design(design::Args),
     /// Train the estimator matrices (one per zone) and write the calibration blob.
     Train(train::Args),
     /// Generate a key pair for signing calibrations (secret + .pub).
@@ -62,6 +65,8 @@ pub enum Command {
     Rate(rate::Args),
     /// Leave-one-material-out over measured materials: errors, flags, worst-case plot.
     Materials(materials::Args),
+    /// Per-pixel accuracy map of a calibration kind on a scene: held-out error, black glass, tiles, flags.
+    PixelMap(pixel_map::Args),
     /// Run the hard-case numerical stability checks over many generated cases.
     Stability(stability::Args),
 }
@@ -71,6 +76,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Reproduce(a) => reproduce::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Design(a) => design::run(a),
         Command::Train(a) => train::run(a),
         Command::Keygen(a) => keygen::run(a),
         Command::Sign(a) => sign::run(a),
@@ -83,6 +89,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Tradeoff(a) => tradeoff::run(a),
         Command::Rate(a) => rate::run(a),
         Command::Materials(a) => materials::run(a),
+        Command::PixelMap(a) => pixel_map::run(a),
         Command::Stability(a) => stability::run(a),
     }
 }

@@ -45,9 +45,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let origin = a.scene.as_ref().map_or("the built-in patent profile".to_string(), |p| p.display().to_string());
     let (out, rows) = simulate_lines(&scene, a.line, a.lines).with_context(|| format!("simulating {origin}"))?;
     let csv = crate::output::io::csv_bytes(&rows)?;
+    let points = crate::forward::scene::readings::points_csv(&out)?;
     let (svg, png) = crate::output::plot::simulate::plots(&out).context("drawing the plot")?;
     let dir = &a.out;
-    let files = [("readings.csv", csv), ("plot.svg", svg.into_bytes()), ("plot.png", png)];
+    let files = [("readings.csv", csv), ("points.csv", points), ("plot.svg", svg.into_bytes()), ("plot.png", png)];
     for (name, bytes) in &files {
         crate::output::io::write_atomic(&dir.join(name), bytes)
             .with_context(|| format!("writing {}", dir.join(name).display()))?;
@@ -61,7 +62,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         out.lines.len(),
         if out.stages.is_empty() { "none (far field, ideal sensor)".to_string() } else { out.stages.join(", ") }
     );
-    println!("wrote {}/{{readings.csv, readings.json, plot.svg, plot.png}}", dir.display());
+    println!("wrote {}/{{readings.csv, points.csv, readings.json, plot.svg, plot.png}}", dir.display());
     Ok(())
 }
 

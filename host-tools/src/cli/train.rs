@@ -2,11 +2,12 @@
 use crate::calibration::estimators::kind_name;
 use crate::calibration::train::{TrainSpec, train};
 use crate::forward::optics::Instrument;
-use crate::forward::prior::PriorSpec;
+use crate::forward::pairs::Criterion;
+use crate::forward::prior_measured::PriorMix;
 use crate::forward::zone_optics::uniform_zones;
-use anyhow::Context;
+use anyhow::{Context, ensure};
 use brdf_meter::blob::{BlobView, EstimatorKind};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Estimators on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -72,6 +73,11 @@ pub struct Args {
     /// `merl@0.8+patent@0.2`.
     #[arg(long, value_name = "patent|merl|PATH|MIX", default_value = "patent")]
     pub prior: String,
+    /// The error training minimises: relative to each sample's peak (what
+    /// a user judges an estimate by), the patent's plain mean squared error,
+    /// or relative to the readings' scale.
+    #[arg(long, value_enum, default_value_t = CriterionArg::PeakRelative)]
+    pub criterion: CriterionArg,
     /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.
     #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
     pub false_alarm: f64,
@@ -82,10 +88,10 @@ pub struct Args {
     #[arg(long)]
     pub far_field: bool,
     /// Scene file (TOML): the instrument, its optics (exactly the geometric
-    /// effects the scene lists) and its sensor. H is computed per zone at
-    /// each zone's centre pixel and the blob gets the scene's white
-    /// reference; the scene's P replaces --pixels. Never uses the scene's
-    /// surface or noise draw.
+    /// effects the scene lists) and its sensor. Each zone is trained on
+    /// sample pairs at up to 5 of its pixels, each pixel's own rays, view
+    /// and noise; the blob gets the scene's white reference; the scene's P
+    /// replaces --pixels. Never uses the scene's surface or noise draw.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["instrument", "far_field"])]
     pub scene: Option<PathBuf>,
     /// Sign the calibration with this secret key (`host-tools keygen`): the
@@ -95,20 +101,41 @@ pub struct Args {
     pub sign: Option<PathBuf>,
 }
 
-/// Runs the command. Nothing is written unless training succeeds.
+/// The error training minimises, on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CriterionArg {
+    /// Relative to each sample's peak: what a user judges an estimate by.
+    PeakRelative,
+    /// The prior's plain mean squared error (the patent's).
+    Plain,
+    /// Relative to each sample's readings' scale.
+    ScaleRelative,
+}
+
+impl From<CriterionArg> for Criterion {
+    fn from(c: CriterionArg) -> Self {
+        match c {
+            CriterionArg::PeakRelative => Criterion::PeakRelative,
+            CriterionArg::Plain => Criterion::Plain,
+            CriterionArg::ScaleRelative => Criterion::ScaleRelative,
+        }
+    }
+}
+
+/// Runs the command: parses the arguments into a training specification,
+/// trains (`crate::calibration::train`), signs and writes. Nothing is
+/// written unless training succeeds.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let scene = match &a.scene {
         Some(p) => Some(crate::forward::scene::Scene::load(p)?),
         None => None,
     };
-    let noise = match (a.noise, &scene) {
-        (Some(x), _) => x,
-        (None, Some(s)) => crate::forward::scene::noise_level::relative_noise_level(s)?,
-        (None, None) => 0.02,
-    };
-    if !noise.is_finite() || !(0.0..1.0).contains(&noise) {
-        anyhow::bail!("--noise {noise}: must be a relative level in [0, 1) (0.02 is 2 %)");
+    if let Some(x) = a.noise
+        && (!x.is_finite() || !(0.0..1.0).contains(&x))
+    {
+        anyhow::bail!("--noise {x}: must be a relative level in [0, 1) (0.02 is 2 %)");
     }
+    ensure!(a.false_alarm > 0.0 && a.false_alarm < 1.0, "--false-alarm {}: must be in (0, 1)", a.false_alarm);
     let inst: Instrument = match (&scene, &a.instrument) {
         (Some(s), _) => s.instrument.clone(),
         (None, Some(p)) => crate::output::config::load_toml(p)?,
@@ -116,17 +143,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let grid = inst.grid().context("the instrument's angle grid")?;
     let kind: EstimatorKind = a.estimator.into();
-    let legacy_prior = a.prior == "patent"
-        || (!a.prior.contains(['+', ',', '@'])
-            && Path::new(&a.prior)
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("toml")));
-    if !legacy_prior || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
-        return crate::cli::train_measured::run(a, scene, noise, inst, grid);
-    }
-    let (spec, base) = PriorSpec::from_arg(&a.prior)?;
-    let prior = spec.build(&grid, inst.view_deg, &base).context("building the prior")?;
-    let (zones, pixels, white, far_field) = zone_optics(&a, scene.as_ref(), &inst, &grid)?;
+    let mix = PriorMix::parse(&a.prior)?;
+    let prior = mix.models(&grid, inst.view_deg, inst.spectral_weights).context("building the prior")?;
+    let (zones, pixels, white, far_field, noise) = zone_optics(&a, scene.as_ref(), &inst, &grid)?;
     let trained = train(&TrainSpec {
         bins_deg: grid.bins_deg(),
         zones,
@@ -134,7 +153,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view_deg: inst.view_deg,
         prior: &prior,
         noise_rel: noise,
-        estimator: a.estimator.into(),
+        estimator: kind,
+        criterion: a.criterion.into(),
+        false_alarm: a.false_alarm,
         far_field,
         led_order: None,
         white,
@@ -152,52 +173,71 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::output::io::write_json(p, j).with_context(|| format!("writing {}", p.display()))?;
     }
     let view = BlobView::parse(&trained.blob).expect("validated");
-    let (worst, s) = trained.worst_zone();
+    let families: Vec<String> = mix.families.iter().map(|(l, _, w)| format!("{l} (weight {w})")).collect();
     println!(
-        "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, prior {} samples (rank {}), noise {}",
-        kind_name(a.estimator.into()),
+        "trained {} for {} zone(s) x {} pixels: n = {}, m = {}, K = {}, prior {} samples from {}, noise {noise}",
+        kind_name(kind),
         trained.dims.zones,
         trained.dims.pixels,
         trained.dims.n,
         trained.dims.m,
-        s.prior_samples,
-        s.prior_rank,
-        noise
+        trained.clusters,
+        prior.len(),
+        families.join(" + "),
     );
-    println!(
-        "worst-conditioned zone {worst}: cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}; f32 vs f64 over all zones {:.1e}",
-        s.condition_h, s.condition_system, s.effective_rank, s.regularisation, s.predicted_rmse, trained.f32_rel_error
-    );
-    println!("{}", s.method);
+    match trained.worst_zone() {
+        Some((worst, s)) => {
+            println!(
+                "worst-conditioned zone {worst}: cond(H) {:.3e}, cond(system) {:.3e}, effective rank {:.2}, regularisation {:.1e}, predicted RMSE {:.4}; f32 vs f64 over all zones {:.1e}",
+                s.condition_h,
+                s.condition_system,
+                s.effective_rank,
+                s.regularisation,
+                s.predicted_rmse,
+                trained.f32_rel_error
+            );
+            println!("{}", s.method);
+        }
+        None => {
+            let z0 = trained.zones[0].scale_free().expect("a scale-free calibration");
+            println!(
+                "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior threshold {:.2} at {:.0} % false alarms on held-out samples; f32 vs f64 {:.1e}",
+                z0.ridge,
+                z0.cv_error,
+                trained.out_of_prior_threshold.unwrap_or(f32::INFINITY),
+                100.0 * a.false_alarm,
+                trained.f32_rel_error
+            );
+        }
+    }
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
     } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {
         println!("{note}");
     }
-    match &a.sign {
-        Some(key) => println!(
-            "wrote {} ({} bytes, CRC {:#010x}, signed with {})",
-            a.out.display(),
-            out.len(),
-            view.crc(),
-            key.display()
-        ),
-        None => println!(
-            "wrote {} ({} bytes, CRC {:#010x}, unsigned: sign it with `host-tools sign` before provisioning)",
-            a.out.display(),
-            out.len(),
-            view.crc()
-        ),
-    }
+    let signed = match &a.sign {
+        Some(key) => format!("signed with {}", key.display()),
+        None => "unsigned: sign it with `host-tools sign` before provisioning".into(),
+    };
+    println!(
+        "wrote {} ({} bytes, format {}, CRC {:#010x}, {signed})",
+        a.out.display(),
+        out.len(),
+        view.version(),
+        view.crc()
+    );
     if let Some(p) = &a.json {
         println!("wrote {}", p.display());
     }
     Ok(())
 }
 
-/// The zones' optics `train` trains on: from the scene (`--scene`: its optics,
-/// white reference and field model) or the instrument's uniform zones.
-pub(crate) type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool);
+/// The zones' optics `train` trains on: from the scene (`--scene`: its
+/// optics, white reference, field model and noise, `--noise` overriding
+/// it) or the instrument's uniform zones (relative noise `--noise`, 0.02
+/// by default): the zones, P, the white reference, the far-field flag and
+/// the noise level the blob records.
+pub(crate) type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool, f64);
 
 /// See [`TrainingZones`].
 pub(crate) fn zone_optics(
@@ -208,20 +248,24 @@ pub(crate) fn zone_optics(
 ) -> anyhow::Result<TrainingZones> {
     Ok(match scene {
         Some(s) => {
-            let t = crate::forward::scene::training_optics(s, a.zones).context("--zones with --scene")?;
-            (t.zones, t.pixels, Some(t.white), !s.has("near-field"))
+            let t = crate::forward::scene::training_optics(s, a.zones, a.noise).context("--zones with --scene")?;
+            (t.zones, t.pixels, Some(t.white), !s.has("near-field"), t.noise_level)
         }
-        None => (
-            uniform_zones(inst, grid, a.zones, a.pixels, a.far_field).context("--zones/--pixels")?,
-            a.pixels,
-            None,
-            a.far_field,
-        ),
+        None => {
+            let noise = a.noise.unwrap_or(0.02);
+            (
+                uniform_zones(inst, grid, a.zones, a.pixels, a.far_field, noise).context("--zones/--pixels")?,
+                a.pixels,
+                None,
+                a.far_field,
+                noise,
+            )
+        }
     })
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::path::Path;
 
@@ -237,8 +281,22 @@ mod tests {
             instrument: None,
             far_field: false,
             scene: None,
+            criterion: CriterionArg::PeakRelative,
             false_alarm: 0.05,
             sign: None,
+        }
+    }
+
+    /// One-zone, 8-pixel arguments for `estimator` on `prior`, writing into `dir`.
+    pub(crate) fn args_with(dir: &Path, estimator: Estimator, prior: &str) -> Args {
+        Args {
+            out: dir.join("cal.blob"),
+            json: Some(dir.join("cal.json")),
+            zones: 1,
+            pixels: 8,
+            estimator,
+            prior: prior.into(),
+            ..args(dir)
         }
     }
 
@@ -330,5 +388,44 @@ mod tests {
         // --scene replaces --instrument and --far-field.
         let clash = crate::cli::Cli::try_parse_from(["host-tools", "train", "--scene", "a.toml", "--far-field"]);
         assert!(clash.is_err());
+    }
+
+    #[test]
+    fn measured_and_mixed_priors_train_every_kind_into_the_right_format() {
+        let dir = tempfile::tempdir().unwrap();
+        for (est, prior, kind, version) in [
+            // Format 3: every kind carries the gloss section on the patent profile.
+            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 3),
+            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 3),
+            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 3),
+        ] {
+            run(args_with(dir.path(), est, prior)).unwrap();
+            let blob = std::fs::read(dir.path().join("cal.blob")).unwrap();
+            let v = BlobView::parse(&blob).unwrap();
+            assert_eq!((v.estimator(), v.version()), (kind, version), "{prior}");
+            assert!(v.has_gloss());
+            assert_eq!(v.out_of_prior_threshold().is_some(), kind != EstimatorKind::Wiener);
+            assert!(dir.path().join("cal.json").exists());
+        }
+    }
+
+    #[test]
+    fn bad_priors_are_refused_and_nothing_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        for (prior, why) in
+            [("merl+patent", "needs its weight"), ("merl@0.5+patent@0.4", "sum to"), ("nope.xyz", "not `patent`")]
+        {
+            let e = format!("{:#}", run(args_with(dir.path(), Estimator::ScaleFree, prior)).unwrap_err());
+            assert!(e.contains(why), "{prior}: {e}");
+        }
+        // Fewer samples than the cross-validation needs.
+        std::fs::write(dir.path().join("a.csv"), "20,1.0\n70,2.0\n").unwrap();
+        let e = format!(
+            "{:#}",
+            run(args_with(dir.path(), Estimator::ScaleFree, &dir.path().join("a.csv").display().to_string()))
+                .unwrap_err()
+        );
+        assert!(e.contains("at least"), "{e}");
+        assert!(!dir.path().join("cal.blob").exists());
     }
 }

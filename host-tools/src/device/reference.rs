@@ -11,7 +11,7 @@
 //! the last reading replaced by the scale), the same cluster selection, the
 //! same out-of-prior statistic and flag rule, the same guard.
 use anyhow::ensure;
-use brdf_meter::acquire::correct_point_into;
+use brdf_meter::acquire::{AcqConfig, Shorter, correct_point_into};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
 use brdf_meter::kernel::scale_free::{
@@ -213,21 +213,31 @@ pub struct ExpectedPoint {
 
 /// What the device must send for one scene line, point by point, computed
 /// with the library's own correction and the device's rule (so equality is
-/// bit for bit).
+/// bit for bit). `frames` is the line as the simulated sensor serves it:
+/// the dark frame and one per LED (physical order), then the same at each
+/// shorter exposure of `acq` the scene has (`forward::scene::raw_frames`).
 ///
 /// # Panics
 /// If the blob is one the device refuses to run (see [`PointEstimator::new`]).
-pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<ExpectedPoint> {
+pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, acq: &AcqConfig) -> Vec<ExpectedPoint> {
     let d = blob.dims();
     let order = blob.led_order();
     let zones: Vec<PointEstimator<'_>> =
         (0..d.zones).map(|z| PointEstimator::new(*blob, z).expect("a calibration the device runs")).collect();
+    let levels = (frames.len() / (d.m + 1)).saturating_sub(1).min(acq.short_levels());
     (0..d.pixels)
         .map(|p| {
-            let lit: Vec<u16> = order.iter().map(|&led| frames[led as usize + 1][p]).collect();
+            let lit_at = |level: usize| -> Vec<u16> {
+                order.iter().map(|&led| frames[level * (d.m + 1) + led as usize + 1][p]).collect()
+            };
+            let lit = lit_at(0);
+            let short: Vec<Vec<u16>> = (1..=levels).map(lit_at).collect();
+            let shorter: Vec<Shorter<'_>> = (0..levels)
+                .map(|l| Shorter { dark: frames[(l + 1) * (d.m + 1)][p], ratio: acq.ratio(l), lit: &short[l] })
+                .collect();
             let white: Vec<f32> = (0..d.m).map(|i| blob.white(p, i)).collect();
             let mut v = vec![0.0f32; d.m];
-            let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &mut v);
+            let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &shorter, &mut v);
             let z = blob.zone_of_pixel(p);
             let e = zones[z].apply(&v);
             ExpectedPoint {

@@ -28,7 +28,7 @@ use crate::forward::brdf::{Brdf, NbrdfSet};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::{Instrument, simulate_readings, system_matrix};
 use crate::forward::prior::PriorSpec;
-use crate::forward::prior_measured::{Family, family_samples, weighted_prior};
+use crate::forward::prior_measured::{Family, family_models, weighted_prior};
 use anyhow::Context;
 use brdf_meter::blob::EstimatorKind;
 use nalgebra::{DMatrix, DVector};
@@ -206,7 +206,13 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         })
         .collect();
     let extra = match &cfg.mix_with {
-        Some((fam, w)) => Some((family_samples(fam, &grid, inst.view_deg, spectral)?.0, *w)),
+        Some((fam, w)) => Some((
+            family_models(fam, &grid, inst.view_deg, spectral)?
+                .iter()
+                .map(|(_, m)| m.on_grid(&grid, inst.view_deg))
+                .collect::<Vec<_>>(),
+            *w,
+        )),
         None => None,
     };
     // The default calibration does not depend on the held-out material.
@@ -226,7 +232,7 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
     };
     let w_t5 = wiener(&t5.r_pp, 16)?;
     let sf_opts =
-        ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, false_alarm: cfg.false_alarm, seed: cfg.seed };
+        ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, clusters: None, false_alarm: cfg.false_alarm, seed: cfg.seed };
     let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts)
         .context("scale-free with the Table 5 prior")?;
     let fit_model = ForwardModel::near_field(&inst);

@@ -2,9 +2,12 @@
 //! (the patent's baseline), the patent's Table 6 (`reproduce`), accuracy
 //! against time (`tradeoff`), hard-case stability (`stability`), all timed
 //! by one harness (`timing`).
+pub mod design;
 pub mod device_cost;
 pub mod fitting;
 pub mod held_out;
+pub mod pixel_error;
+pub mod pixel_map;
 pub mod rate;
 pub mod reproduce;
 pub mod stability;

@@ -30,10 +30,27 @@
 //!   taken at 0.5..1.5 deg).
 //!
 //! A mirror reads `D = 100`, a flat `R` reads `D = 0`.
+//!
+//! # The definitions in three dimensions
+//! A gloss meter's receptor has an extent across the plane of incidence
+//! too (10.0 deg for the 45 deg geometry): what it receives is a flux,
+//! `L = int f_r cos(theta_i) d omega_i` over the window (by reciprocity,
+//! over the light's directions for the fixed view), and the black glass's
+//! `L_0` is all of its Fresnel reflection, `F(theta_o)`. That is the
+//! definition [`model_readings`] computes from a reflection model, every
+//! window `u` (in-plane offset from the specular direction, as above) x `w`
+//! (across it, +-5 deg), numerically. The in-plane definition above is the
+//! same for a BRDF that does not change across the window (a diffuser reads
+//! 8.27 GU either way); for a lobe narrower than the window it is not (an
+//! isotropic lobe is as narrow across as in-plane, so its in-plane integral
+//! over-counts its flux by the window's width over the lobe's). The
+//! calibration's gloss rows are fitted to the three-dimensional readings of
+//! every sample a model is known for (`calibration::gloss_rows`); a profile
+//! known only in-plane takes the in-plane definition.
 use crate::forward::brdf::smooth_dielectric::fresnel_unpolarised;
 use crate::forward::brdf::{Brdf, binned_reflectance, mirror_area_deg};
 use brdf_meter::gloss::LINEAR;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 
 /// The receptor's in-plane aperture of the 45 deg gloss geometry, degrees.
 pub const SPECULAR_APERTURE_DEG: f64 = 8.0;
@@ -106,6 +123,101 @@ pub fn readings_of(l: &[f64], reference: f64) -> [f64; 3] {
     let q = ASSIGNED_GU / reference;
     let d = if l[2] > 0.0 { 100.0 * (l[2] - l[3]) / l[2] } else { f64::NAN };
     [q * l[0], q * l[1], d]
+}
+
+/// Offsets from the specular direction in the plane of incidence at which
+/// [`model_linear_readings`] evaluates the BRDF, degrees (every window's
+/// edge is one of them).
+const U_STEP_DEG: f64 = 0.25;
+/// Offsets across the plane of incidence, degrees (finer near the plane,
+/// where a sharp lobe is).
+const W_NODES_DEG: [f64; 15] = [-5.0, -3.0, -2.0, -1.5, -1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0];
+
+/// The four linear readings of the definitions in three dimensions (module
+/// docs): `int f_r cos(theta_i) d omega_i` over each window about the
+/// specular direction of the view `wo` (surface frame, unit), trapezoid
+/// rules over [`U_STEP_DEG`] in-plane and [`W_NODES_DEG`] across, plus a
+/// mirror spike's Fresnel reflectance in the windows that hold the
+/// specular direction.
+pub fn model_linear_readings(brdf: &dyn Brdf, wo: &Vector3<f64>) -> [f64; LINEAR] {
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos();
+    // The plane of incidence holds the normal and the view; the light is on
+    // the other side: in-plane unit `e` (towards the view, along the
+    // surface) and across unit `a`.
+    let horiz = Vector3::new(wo.x, wo.y, 0.0);
+    let e = if horiz.norm() > 1e-12 { horiz.normalize() } else { Vector3::x() };
+    let a = Vector3::z().cross(&e);
+    let half = SPECULAR_APERTURE_DEG / 2.0;
+    let nu = (2.0 * half / U_STEP_DEG).round() as usize;
+    let (h0, h1) = HAZE_OFFSETS_DEG;
+    let (s0, s1) = SHOULDER_OFFSETS_DEG;
+    // Trapezoid weight of node u (degrees) in a window [lo, hi] whose edges are nodes.
+    let in_window = |u: f64, lo: f64, hi: f64| -> f64 {
+        let eps = 1e-9;
+        if u < lo - eps || u > hi + eps {
+            0.0
+        } else if (u - lo).abs() < eps || (u - hi).abs() < eps {
+            0.5
+        } else {
+            1.0
+        }
+    };
+    let mut l = [0.0; LINEAR];
+    for i in 0..=nu {
+        let u = -half + i as f64 * U_STEP_DEG;
+        let w_u = [
+            in_window(u, -half, half),
+            in_window(u, -h1, -h0) + in_window(u, h0, h1),
+            in_window(u, -PEAK_HALF_WIDTH_DEG, PEAK_HALF_WIDTH_DEG),
+            0.5 * (in_window(u, -s1, -s0) + in_window(u, s0, s1)),
+        ];
+        if w_u.iter().all(|x| *x == 0.0) {
+            continue;
+        }
+        let ti = theta_o + u.to_radians();
+        let mut f = 0.0;
+        for (j, w) in W_NODES_DEG.iter().enumerate() {
+            let dw_lo = if j > 0 { w - W_NODES_DEG[j - 1] } else { 0.0 };
+            let dw_hi = if j + 1 < W_NODES_DEG.len() { W_NODES_DEG[j + 1] - w } else { 0.0 };
+            let weight = 0.5 * (dw_lo + dw_hi) * std::f64::consts::PI / 180.0;
+            let wr = w.to_radians();
+            // Light on the side opposite the view: -e in-plane.
+            let wi = (-e * ti.sin() + Vector3::z() * ti.cos()) * wr.cos() + a * wr.sin();
+            if wi.z <= 0.0 {
+                continue;
+            }
+            f += brdf.f_r(&wi, wo) * wi.z * wr.cos() * weight;
+        }
+        for (r, x) in l.iter_mut().enumerate() {
+            *x += w_u[r] * f * U_STEP_DEG.to_radians();
+        }
+    }
+    let mirror = brdf.mirror_reflectance(theta_o.to_degrees());
+    l[0] += mirror;
+    l[2] += mirror;
+    l
+}
+
+/// The black glass's `L_0` in three dimensions: all its Fresnel reflection.
+pub fn black_glass_flux(theta_o_deg: f64) -> f64 {
+    fresnel_unpolarised(theta_o_deg, crate::forward::brdf::smooth_dielectric::BLACK_GLASS_INDEX)
+}
+
+/// The readings (gloss GU, haze HU, distinctness %) of a reflection model
+/// seen along `wo`, by the definitions in three dimensions.
+pub fn model_readings(brdf: &dyn Brdf, wo: &Vector3<f64>) -> [f64; 3] {
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
+    readings_of(&model_linear_readings(brdf, wo), black_glass_flux(theta_o))
+}
+
+/// A profile's linear readings on the black glass's three-dimensional
+/// scale (`L / L_0,bg x 100`, the rows' target) by the in-plane definition
+/// (the profile is all that is known); `None` when the grid does not cover
+/// the specular aperture.
+pub fn profile_scaled_readings(rho: &DVector<f64>, bins: &[f64], theta_o_deg: f64) -> Option<[f64; LINEAR]> {
+    let a = reading_weights(bins, theta_o_deg)?;
+    let l = (&a * rho) * (ASSIGNED_GU / black_glass_specular(theta_o_deg));
+    Some(core::array::from_fn(|r| l[r]))
 }
 
 /// The true binned BRDF of `brdf` on `bins` (view `theta_o_deg`, grid step
@@ -182,5 +294,31 @@ mod tests {
         let mirror = fresnel_unpolarised(45.0, 1.567);
         let want = 100.0 * flux / mirror;
         assert!((gu - want).abs() < 0.01 * want, "definition {gu}, 3-D integration {want}");
+        // The three-dimensional definition of a model agrees with both.
+        let wo = crate::forward::brdf::view_dir(45.0);
+        let g3 = model_readings(&Lambertian::perfect(), &wo)[0];
+        assert!((g3 - want).abs() < 0.005 * want, "model {g3}, 3-D integration {want}");
+    }
+
+    #[test]
+    fn the_black_glass_is_100_gu_and_a_narrow_lobe_is_read_by_its_flux() {
+        for view in [41.5f64, 45.0, 48.1] {
+            let wo = crate::forward::brdf::view_dir(view);
+            let r = model_readings(&SmoothDielectric::black_glass(), &wo);
+            assert!((r[0] - 100.0).abs() < 1e-9 && r[1] == 0.0 && (r[2] - 100.0).abs() < 1e-12, "{view}: {r:?}");
+        }
+        // An isotropic lobe much narrower than the window: its flux is its
+        // albedo (times Fresnel-free Ward's rho_s), whatever its width,
+        // while the in-plane integral grows as it narrows.
+        let wo = crate::forward::brdf::view_dir(45.0);
+        let f = |alpha: f64| model_readings(&crate::forward::brdf::Ward::new(0.0, 0.05, alpha).unwrap(), &wo)[0];
+        let (a, b) = (f(0.01), f(0.02));
+        assert!((a - b).abs() < 0.05 * b, "{a} {b}");
+        let g = AngleGrid::patent();
+        let inplane = |alpha: f64| {
+            let rho = true_rho(&crate::forward::brdf::Ward::new(0.0, 0.05, alpha).unwrap(), g.bins_deg(), 45.0, g.step_deg());
+            true_readings(&rho, g.bins_deg(), 45.0).unwrap()[0]
+        };
+        assert!(inplane(0.01) > 1.5 * inplane(0.02));
     }
 }

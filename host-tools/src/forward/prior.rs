@@ -189,18 +189,23 @@ impl PriorSpec {
         }
     }
 
-    /// Samples every listed BRDF on the grid at `view_deg` and builds the prior.
-    /// CSV paths are resolved against `base`.
-    pub fn build(&self, grid: &AngleGrid, view_deg: f64, base: &Path) -> anyhow::Result<Prior> {
-        let mut cols: Vec<DVector<f64>> = Vec::new();
+    /// The listed samples as models: the Ward grids and explicit models as
+    /// reflection models, each CSV file as its profile on the grid (paths
+    /// resolved against `base`), with a label each.
+    pub fn models(
+        &self,
+        grid: &AngleGrid,
+        base: &Path,
+    ) -> anyhow::Result<Vec<(String, crate::forward::prior_models::SampleModel)>> {
+        use crate::forward::prior_models::SampleModel;
+        use std::sync::Arc;
+        let mut out = Vec::new();
         for g in &self.ward_grid {
             let set = SampleSet::ward_grid(&g.rho_d, &g.alpha);
-            let m = set.on_grid(grid, view_deg);
-            cols.extend(m.column_iter().map(|c| c.into_owned()));
+            out.extend(set.names.into_iter().zip(set.brdfs).map(|(n, b)| (n, SampleModel::Brdf(Arc::from(b)))));
         }
         for s in &self.samples {
-            let b = s.build()?;
-            cols.push(DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg))));
+            out.push((format!("{s:?}"), SampleModel::Brdf(Arc::from(s.build()?))));
         }
         for p in &self.csv {
             let path = base.join(p);
@@ -214,8 +219,16 @@ impl PriorSpec {
                     )
                 })?;
             }
-            cols.push(col);
+            out.push((path.display().to_string(), SampleModel::Profile(col)));
         }
+        Ok(out)
+    }
+
+    /// Samples every listed BRDF on the grid at `view_deg` and builds the prior.
+    /// CSV paths are resolved against `base`.
+    pub fn build(&self, grid: &AngleGrid, view_deg: f64, base: &Path) -> anyhow::Result<Prior> {
+        let cols: Vec<DVector<f64>> =
+            self.models(grid, base)?.iter().map(|(_, m)| m.on_grid(grid, view_deg)).collect();
         Prior::from_samples(DMatrix::from_columns(&cols))
     }
 }

@@ -20,12 +20,14 @@
 //! weights.
 use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::merl_binary::MerlTable;
-use crate::forward::brdf::{AstmTable, Brdf, NbrdfSet};
+use crate::forward::brdf::{AstmTable, NbrdfSet};
 use crate::forward::grid::AngleGrid;
 use crate::forward::prior::{Prior, PriorSpec, read_measured_csv};
+use crate::forward::prior_models::{PriorModels, PriorSample, SampleModel};
 use anyhow::{Context, bail, ensure};
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// One family of samples.
 #[derive(Clone, Debug, PartialEq)]
@@ -134,6 +136,25 @@ impl PriorMix {
         Ok(Self { families: out })
     }
 
+    /// The samples as models (RGB data seen through `spectral`), each
+    /// family's weight shared equally by its samples. Profiles (CSV, ASTM)
+    /// are taken at `view_deg` on `grid`.
+    pub fn models(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<PriorModels> {
+        let mut out = PriorModels::default();
+        for (label, fam, w) in &self.families {
+            let c = family_models(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
+            ensure!(!c.is_empty(), "prior family {label:?} has no samples");
+            let each = w / c.len() as f64;
+            out.samples.extend(c.into_iter().map(|(name, model)| PriorSample {
+                name,
+                family: label.clone(),
+                weight: each,
+                model,
+            }));
+        }
+        Ok(out)
+    }
+
     /// The samples on the grid (reflectance factors at `view_deg`, RGB data
     /// weighted by `spectral`) with their weights, and the names.
     pub fn samples(
@@ -142,28 +163,9 @@ impl PriorMix {
         view_deg: f64,
         spectral: [f64; 3],
     ) -> anyhow::Result<(WeightedSamples, Vec<String>)> {
-        let mut cols: Vec<DVector<f64>> = Vec::new();
-        let mut weights = Vec::new();
-        let mut names = Vec::new();
-        for (label, fam, w) in &self.families {
-            let (c, nm) =
-                family_samples(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
-            ensure!(!c.is_empty(), "prior family {label:?} has no samples");
-            let each = w / c.len() as f64;
-            weights.extend(std::iter::repeat_n(each, c.len()));
-            cols.extend(c);
-            names.extend(nm);
-        }
-        let samples = DMatrix::from_columns(&cols);
-        if let Some((idx, x)) = samples.iter().enumerate().find(|(_, x)| !x.is_finite() || **x < 0.0) {
-            bail!(
-                "prior sample {} ({}), bin {}: value {x} is not a finite, non-negative reflectance factor",
-                idx / grid.n(),
-                names[idx / grid.n()],
-                idx % grid.n()
-            );
-        }
-        Ok((WeightedSamples { samples, weights }, names))
+        let models = self.models(grid, view_deg, spectral)?;
+        let ws = checked_on_grid(&models, grid, view_deg)?;
+        Ok((ws, models.names()))
     }
 
     /// The Wiener prior of the mixture: `R_pp = sum_k w_k rho_k rho_k^T`.
@@ -178,6 +180,21 @@ impl PriorMix {
     }
 }
 
+/// The models' samples on the grid, refusing a value that is not a finite,
+/// non-negative reflectance factor (naming the sample and the bin).
+pub fn checked_on_grid(models: &PriorModels, grid: &AngleGrid, view_deg: f64) -> anyhow::Result<WeightedSamples> {
+    let ws = models.on_grid(grid, view_deg);
+    if let Some((idx, x)) = ws.samples.iter().enumerate().find(|(_, x)| !x.is_finite() || **x < 0.0) {
+        bail!(
+            "prior sample {} ({}), bin {}: value {x} is not a finite, non-negative reflectance factor",
+            idx / grid.n(),
+            models.samples[idx / grid.n()].name,
+            idx % grid.n()
+        );
+    }
+    Ok(ws)
+}
+
 /// `Prior` (R_pp and samples) of weighted samples.
 pub fn weighted_prior(ws: &WeightedSamples) -> Prior {
     let scaled =
@@ -185,82 +202,64 @@ pub fn weighted_prior(ws: &WeightedSamples) -> Prior {
     Prior { samples: ws.samples.clone(), r_pp: &scaled * scaled.transpose() }
 }
 
-fn on_grid(b: &dyn Brdf, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
-    DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg)))
+/// A profile measured over incidence angles, resampled onto the grid.
+fn profile_on_grid(t: &crate::forward::brdf::Tabulated, grid: &AngleGrid, f: &Path) -> anyhow::Result<SampleModel> {
+    let mut col = DVector::zeros(grid.n());
+    for (j, th) in grid.bins_deg().iter().enumerate() {
+        col[j] = t.at(*th).with_context(|| {
+            format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", f.display())
+        })?;
+    }
+    Ok(SampleModel::Profile(col))
 }
 
-/// A family's samples on the grid and their names.
-pub fn family_samples(
+/// A family's samples as (name, model).
+pub fn family_models(
     fam: &Family,
     grid: &AngleGrid,
     view_deg: f64,
     spectral: [f64; 3],
-) -> anyhow::Result<(Vec<DVector<f64>>, Vec<String>)> {
-    let mut cols = Vec::new();
-    let mut names = Vec::new();
-    let add_set = |set: &NbrdfSet, origin: &str, cols: &mut Vec<DVector<f64>>, names: &mut Vec<String>| {
+) -> anyhow::Result<Vec<(String, SampleModel)>> {
+    let mut out = Vec::new();
+    let add_set = |set: &NbrdfSet, origin: &str, out: &mut Vec<(String, SampleModel)>| {
         for i in 0..set.len() {
             let mat = set.material(i, spectral);
-            cols.push(on_grid(&mat, grid, view_deg));
-            names.push(format!("{origin}:{}", mat.name()));
+            out.push((format!("{origin}:{}", mat.name()), SampleModel::Brdf(Arc::new(mat))));
         }
     };
     match fam {
         Family::Patent => {
-            let p = PriorSpec::patent().build(grid, view_deg, Path::new("."))?;
-            for c in 0..p.samples.ncols() {
-                cols.push(p.sample(c));
-                names.push(format!("patent:{c}"));
+            for (c, (_, model)) in PriorSpec::patent().models(grid, Path::new("."))?.into_iter().enumerate() {
+                out.push((format!("patent:{c}"), model));
             }
         }
-        Family::Merl => add_set(&NbrdfSet::merl(), "merl", &mut cols, &mut names),
+        Family::Merl => add_set(&NbrdfSet::merl(), "merl", &mut out),
         Family::Toml(p) => {
             let (spec, base) = PriorSpec::load(p).with_context(|| format!("reading the prior {}", p.display()))?;
-            let pr = spec.build(grid, view_deg, &base)?;
-            for c in 0..pr.samples.ncols() {
-                cols.push(pr.sample(c));
-                names.push(format!("{}:{c}", p.display()));
+            for (c, (_, model)) in spec.models(grid, &base)?.into_iter().enumerate() {
+                out.push((format!("{}:{c}", p.display()), model));
             }
         }
         Family::Files(files) => {
             for f in files {
                 match ext_of(f).as_str() {
-                    "csv" => {
-                        let t = read_measured_csv(f)?;
-                        let mut col = DVector::zeros(grid.n());
-                        for (j, th) in grid.bins_deg().iter().enumerate() {
-                            col[j] = t.at(*th).with_context(|| {
-                                format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", f.display())
-                            })?;
-                        }
-                        cols.push(col);
-                        names.push(f.display().to_string());
-                    }
+                    "csv" => out.push((f.display().to_string(), profile_on_grid(&read_measured_csv(f)?, grid, f)?)),
                     "binary" => {
                         let mut t = MerlTable::load(f)?;
                         t.channel_weights = spectral;
-                        cols.push(on_grid(&t, grid, view_deg));
-                        names.push(f.display().to_string());
+                        out.push((f.display().to_string(), SampleModel::Brdf(Arc::new(t))));
                     }
-                    "json" => add_set(&NbrdfSet::load(f)?, &f.display().to_string(), &mut cols, &mut names),
+                    "json" => add_set(&NbrdfSet::load(f)?, &f.display().to_string(), &mut out),
                     "astm" => {
                         let table = AstmTable::load(f)?;
-                        let t = table.at_view(view_deg)?;
-                        let mut col = DVector::zeros(grid.n());
-                        for (j, th) in grid.bins_deg().iter().enumerate() {
-                            col[j] = t.at(*th).with_context(|| {
-                                format!("{}: cannot resample onto the grid; measure over the grid's span or narrow the grid", f.display())
-                            })?;
-                        }
-                        cols.push(col);
-                        names.push(f.display().to_string());
+                        out.push((f.display().to_string(), profile_on_grid(table.at_view(view_deg)?, grid, f)?));
                     }
                     _ => bail!("{}: not a measured file (.csv, .binary, .json, .astm)", f.display()),
                 }
             }
         }
     }
-    Ok((cols, names))
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -294,7 +293,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let grid = AngleGrid::patent();
         let ward = crate::forward::brdf::Ward::new(0.3, 0.7, 0.08).unwrap();
-        let truth = on_grid(&ward, &grid, 45.0);
+        let truth = SampleModel::Brdf(Arc::new(ward)).on_grid(&grid, 45.0);
         let p = Profile {
             line: 0,
             point: 3,

@@ -1,6 +1,7 @@
 //! Simulated LEDs and line sensor for the host simulation. The sensor serves
 //! frames from a [`FrameStore`] (the same one the QEMU firmware uses) and sees
 //! which LED is lit through the shared state, as a real sensor sees light.
+use crate::acquire::AcqConfig;
 use crate::frame_store::FrameStore;
 use crate::hw::{FrameInput, FrameLoadError, Leds, LineSensor, SensorError};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -23,10 +24,11 @@ struct State<const P: usize, const F: usize> {
 /// counts the frames the device has sent ([`super::Pipe::frames_counter`]).
 pub fn sim_optics<const P: usize, const F: usize>(
     full_scale: u16,
+    acq: AcqConfig,
     frames_out: Arc<AtomicUsize>,
 ) -> (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) {
     let st = Arc::new(Mutex::new(State { scene: FrameStore::new(), lit: None, switches: Vec::new(), frames_out }));
-    (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale }, SimFrames { st })
+    (SimLeds { st: st.clone() }, SimSensor { st: st.clone(), full_scale, acq }, SimFrames { st })
 }
 
 /// Simulated LEDs (F - 1 of them).
@@ -38,6 +40,8 @@ pub struct SimLeds<const P: usize, const F: usize> {
 pub struct SimSensor<const P: usize, const F: usize> {
     st: Arc<Mutex<State<P, F>>>,
     full_scale: u16,
+    /// The acquisition's exposures: which level a frame's exposure is.
+    acq: AcqConfig,
 }
 
 /// The simulation's scene input (and a test's view of the optics).
@@ -82,7 +86,7 @@ impl<const P: usize, const F: usize> LineSensor for SimSensor<P, F> {
         embassy_time::Timer::after_micros(exposure_us as u64).await;
         let mut st = self.st.lock().unwrap();
         let lit = st.lit;
-        st.scene.read(lit, out)
+        st.scene.read(lit, self.acq.level_of(exposure_us), out)
     }
 }
 

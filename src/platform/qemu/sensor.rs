@@ -31,6 +31,8 @@ pub struct FrameSensor<const P: usize, const F: usize, const L: usize> {
     pub full_scale: u16,
     /// Which LED is lit (read from the pins).
     pub lit: fn() -> Option<u8>,
+    /// The acquisition's exposures: which level a frame's exposure is.
+    pub acq: crate::acquire::AcqConfig,
 }
 
 impl<const P: usize, const F: usize, const L: usize> LineSensor for FrameSensor<P, F, L> {
@@ -43,7 +45,8 @@ impl<const P: usize, const F: usize, const L: usize> LineSensor for FrameSensor<
     async fn read_frame(&mut self, exposure_us: u32, out: &mut [u16]) -> Result<(), SensorError> {
         embassy_time::Timer::after_micros(exposure_us as u64).await;
         let lit = (self.lit)();
-        self.frames.0.lock(|s| s.borrow_mut().read(lit, out))
+        let level = self.acq.level_of(exposure_us);
+        self.frames.0.lock(|s| s.borrow_mut().read(lit, level, out))
     }
 }
 

@@ -56,6 +56,7 @@ pub mod fixed_point;
 pub mod interpolation;
 pub mod inverse;
 pub mod log_wiener;
+pub mod pairs_wiener;
 pub mod pseudo_inverse;
 pub mod scale_free;
 pub mod wiener;

@@ -24,6 +24,8 @@
 //!   cross-validation inside the prior, on the error normalised by each
 //!   sample's peak: never on a material the evaluation holds out.
 use crate::calibration::estimators::clustered::kmeans;
+use crate::forward::pairs::{Criterion, Pairs};
+use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
 use brdf_meter::kernel::scale_free::{estimate_scale_free, out_of_prior_stat, scale, whitening_len};
 use nalgebra::{DMatrix, DVector};
@@ -35,6 +37,7 @@ use rand_distr::{Distribution, Normal};
 pub const RIDGES: [f64; 7] = [1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1];
 /// Cluster counts tried for the piecewise form.
 pub const CLUSTER_COUNTS: [usize; 3] = [2, 3, 4];
+
 /// Default false-alarm rate of the out-of-prior flag on held-out prior samples.
 pub const DEFAULT_FALSE_ALARM: f64 = 0.05;
 /// Folds of the cross-validation.
@@ -142,31 +145,37 @@ impl ScaleFreeZone {
     }
 }
 
-/// Per-sample quantities.
+/// Per-pair quantities: normalised readings `u = v / s`, the target over
+/// the scale, the noise's standard deviations over the scale, the weight
+/// of the pair in the fit (the criterion's weight times `s^2`, since an
+/// error of `y` is `s` times smaller than the same error of the target).
 struct Normalised {
     u: Vec<DVector<f64>>,
     y: Vec<DVector<f64>>,
+    sn: Vec<DVector<f64>>,
+    w: Vec<f64>,
 }
 
-fn normalise(h: &DMatrix<f64>, ws: &WeightedSamples) -> anyhow::Result<Normalised> {
-    let mut u = Vec::new();
-    let mut y = Vec::new();
-    for k in 0..ws.samples.ncols() {
-        let rho = ws.samples.column(k);
-        let v = h * rho;
+fn normalise(pairs: &Pairs, target: &DMatrix<f64>) -> anyhow::Result<Normalised> {
+    let mut out = Normalised { u: Vec::new(), y: Vec::new(), sn: Vec::new(), w: Vec::new() };
+    for k in 0..pairs.len() {
+        let v = pairs.readings.column(k);
         let s: f64 = v.iter().sum();
         ensure!(
             s > 0.0 && s.is_finite(),
-            "prior sample {k}: its readings sum to {s}; a sample must reflect some light"
+            "prior sample {}: its readings sum to {s}; a sample must reflect some light",
+            pairs.sample[k]
         );
-        u.push(v / s);
-        y.push(rho / s);
+        out.u.push(v / s);
+        out.y.push(target.column(k) / s);
+        out.sn.push(pairs.noise_var.column(k).map(|x| x.max(0.0).sqrt() / s));
+        out.w.push(pairs.weights[k] * s * s);
     }
-    Ok(Normalised { u, y })
+    Ok(out)
 }
 
 /// Mean, centred factor (columns scaled by sqrt(w)) and noise covariance of
-/// `u'`, plus the shape's mean and factor.
+/// `u'`, plus the target's mean and factor.
 struct Moments {
     mu_u: DVector<f64>,
     mu_y: DVector<f64>,
@@ -175,14 +184,19 @@ struct Moments {
     r_noise: DMatrix<f64>,
 }
 
-fn moments(nz: &Normalised, weights: &[f64], idx: &[usize], noise_rel: f64) -> Moments {
+fn moments(nz: &Normalised, idx: &[usize]) -> Moments {
+    moments_scaled(nz, idx, &vec![1.0; idx.len()])
+}
+
+fn moments_scaled(nz: &Normalised, idx: &[usize], mult: &[f64]) -> Moments {
     let m1 = nz.u[0].len() - 1;
     let n = nz.y[0].len();
-    let total: f64 = idx.iter().map(|&k| weights[k]).sum();
+    let wk = |c: usize| nz.w[idx[c]] * mult[c];
+    let total: f64 = (0..idx.len()).map(wk).sum();
     let mut mu_u = DVector::zeros(m1);
     let mut mu_y = DVector::zeros(n);
-    for &k in idx {
-        let w = weights[k] / total;
+    for (c, &k) in idx.iter().enumerate() {
+        let w = wk(c) / total;
         mu_u += nz.u[k].rows(0, m1) * w;
         mu_y += &nz.y[k] * w;
     }
@@ -190,15 +204,15 @@ fn moments(nz: &Normalised, weights: &[f64], idx: &[usize], noise_rel: f64) -> M
     let mut sy = DMatrix::zeros(n, idx.len());
     let mut r_noise = DMatrix::zeros(m1, m1);
     for (c, &k) in idx.iter().enumerate() {
-        let w = weights[k] / total;
+        let w = wk(c) / total;
         let sw = w.sqrt();
         su.set_column(c, &((nz.u[k].rows(0, m1) - &mu_u) * sw));
         sy.set_column(c, &((&nz.y[k] - &mu_y) * sw));
-        // (I - u 1^T) diag(u): row i, col j = delta_ij u_j - u_i u_j; keep rows < m-1.
-        let u = &nz.u[k];
+        // du = (I - u 1^T) diag(sigma / s) e, e ~ N(0, I); keep rows < m-1.
+        let (u, sn) = (&nz.u[k], &nz.sn[k]);
         let mm = u.len();
-        let a = DMatrix::from_fn(m1, mm, |i, j| if i == j { u[j] } else { 0.0 } - u[i] * u[j]);
-        r_noise += (&a * a.transpose()) * (w * noise_rel * noise_rel);
+        let a = DMatrix::from_fn(m1, mm, |i, j| (if i == j { 1.0 } else { 0.0 } - u[i]) * sn[j]);
+        r_noise += (&a * a.transpose()) * w;
     }
     Moments { mu_u, mu_y, su, sy, r_noise }
 }
@@ -239,21 +253,28 @@ fn whitening(mo: &Moments) -> anyhow::Result<Vec<f32>> {
     Ok(packed)
 }
 
-/// Fold of each sample: a fixed shuffle, then round robin.
-fn folds(k: usize, seed: u64) -> Vec<usize> {
+/// Fold of each prior sample: a fixed shuffle, then round robin. Pairs of
+/// one sample (at several pixels) share its fold, so a held-out sample is
+/// held out at every pixel.
+fn folds(pairs: &Pairs, seed: u64) -> Vec<usize> {
     use rand::seq::SliceRandom;
-    let mut order: Vec<usize> = (0..k).collect();
+    let samples = pairs.sample.iter().copied().max().map_or(0, |x| x + 1);
+    let mut order: Vec<usize> = (0..samples).collect();
     order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
-    let mut f = vec![0; k];
+    let mut of_sample = vec![0; samples];
+    let nf = FOLDS.min(samples.max(1));
     for (pos, &s) in order.iter().enumerate() {
-        f[s] = pos % FOLDS.min(k);
+        of_sample[s] = pos % nf;
     }
-    f
+    pairs.sample.iter().map(|&s| of_sample[s]).collect()
 }
 
-fn noisy(v: &DVector<f64>, noise_rel: f64, rng: &mut ChaCha8Rng) -> DVector<f64> {
+/// One noisy draw of noise-free readings `v` with variances `var` (a
+/// reading cannot go below 0 on a real sensor's dark-corrected signal for
+/// long: clamped, as the device's readings of a dark pixel are).
+fn noisy(v: &DVector<f64>, var: &DVector<f64>, rng: &mut ChaCha8Rng) -> DVector<f64> {
     let nd = Normal::new(0.0, 1.0).unwrap();
-    v.map(|x| (x * (1.0 + noise_rel * nd.sample(rng))).max(0.0))
+    DVector::from_fn(v.len(), |i, _| (v[i] + var[i].max(0.0).sqrt() * nd.sample(rng)).max(0.0))
 }
 
 /// Peak-normalised RMS error.
@@ -262,13 +283,18 @@ pub fn peak_error(est: &DVector<f64>, truth: &DVector<f64>) -> f64 {
     ((est - truth).norm_squared() / truth.len() as f64).sqrt() / peak
 }
 
-/// Settings of [`train_zone`].
+/// Settings of [`train_pairs`].
 #[derive(Clone, Debug)]
 pub struct ScaleFreeOptions {
-    /// Relative noise.
+    /// Relative noise, for [`train_zone`]'s in-plane pairs only (pairs
+    /// carry their own noise model).
     pub noise_rel: f64,
-    /// Piecewise (cluster count chosen by cross-validation) or not.
+    /// Piecewise (cluster count chosen by cross-validation unless
+    /// `clusters` fixes it) or not.
     pub piecewise: bool,
+    /// Piecewise: the cluster count, fixed (every zone of a calibration
+    /// must have the same); `None` chooses it by cross-validation.
+    pub clusters: Option<usize>,
     /// False-alarm rate of the flag on held-out prior samples.
     pub false_alarm: f64,
     /// Seed of folds and noise draws.
@@ -277,11 +303,11 @@ pub struct ScaleFreeOptions {
 
 impl Default for ScaleFreeOptions {
     fn default() -> Self {
-        Self { noise_rel: 0.02, piecewise: false, false_alarm: DEFAULT_FALSE_ALARM, seed: 7 }
+        Self { noise_rel: 0.02, piecewise: false, clusters: None, false_alarm: DEFAULT_FALSE_ALARM, seed: 7 }
     }
 }
 
-/// Trained maps for a subset of samples (piecewise: K clusters).
+/// Trained maps for a subset of pairs (piecewise: K clusters).
 struct Fitted {
     maps: Vec<ScaleFreeMap>,
     centroids: Vec<f32>,
@@ -299,49 +325,27 @@ impl Fitted {
     }
 }
 
-fn fit(
-    h: &DMatrix<f64>,
-    nz: &Normalised,
-    weights: &[f64],
-    idx: &[usize],
-    opts: &ScaleFreeOptions,
-    ridge: f64,
-    clusters: usize,
-) -> anyhow::Result<Fitted> {
-    let (noise_rel, seed) = (opts.noise_rel, opts.seed);
-    let m = h.nrows();
+fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize) -> anyhow::Result<Fitted> {
+    let m = nz.u[0].len();
     if clusters <= 1 {
-        return Ok(Fitted {
-            maps: vec![fit_map(&moments(nz, weights, idx, noise_rel), ridge)?],
-            centroids: Vec::new(),
-        });
+        return Ok(Fitted { maps: vec![fit_map(&moments(nz, idx), ridge)?], centroids: Vec::new() });
     }
     // Clusters in the selection rule's space (v / sum|v|; the readings are
     // non-negative, so it is u).
     let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let (cents, _) = kmeans(&feats, clusters, seed);
     let c32: Vec<f32> = cents.iter().flatten().map(|x| *x as f32).collect();
-    let maps = cluster_maps(nz, weights, idx, noise_rel, ridge, &c32, m)?;
+    let maps = cluster_maps(nz, idx, ridge, &c32, m)?;
     Ok(Fitted { maps, centroids: c32 })
 }
 
 /// One map per centroid of `c32` (K x m, the device's selection rule): each
-/// trained on the samples of `idx` the rule sends to it and, so that every
-/// cluster has enough samples for a stable covariance, the nearest others.
-fn cluster_maps(
-    nz: &Normalised,
-    weights: &[f64],
-    idx: &[usize],
-    noise_rel: f64,
-    ridge: f64,
-    c32: &[f32],
-    m: usize,
-) -> anyhow::Result<Vec<ScaleFreeMap>> {
+/// trained on the pairs of `idx` the rule sends to it and, so that every
+/// cluster has enough pairs for a stable covariance, the nearest others.
+fn cluster_maps(nz: &Normalised, idx: &[usize], ridge: f64, c32: &[f32], m: usize) -> anyhow::Result<Vec<ScaleFreeMap>> {
     let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let cents: Vec<Vec<f64>> = c32.chunks(m).map(|c| c.iter().map(|x| f64::from(*x)).collect()).collect();
     let k_eff = cents.len();
-    // Each cluster trains on its members and, so that every cluster has
-    // enough samples for a stable covariance, the nearest others.
     let min_members = (3 * m).max(idx.len() / k_eff).min(idx.len());
     let mut maps = Vec::with_capacity(k_eff);
     for (c, cent) in cents.iter().enumerate() {
@@ -368,88 +372,144 @@ fn cluster_maps(
                 members.push(*k);
             }
         }
-        maps.push(fit_map(&moments(nz, weights, &members, noise_rel), ridge)?);
+        maps.push(fit_map(&moments(nz, &members), ridge)?);
     }
     Ok(maps)
 }
 
-/// Maps for another use of the same zone (the gloss readings' rows, trained
-/// on an augmented prior): the zone's ridge and clusters (its centroids, so
-/// the device's cluster choice is unchanged), fitted on every sample of `prior`.
-pub fn maps_for_zone(
-    h: &DMatrix<f64>,
-    prior: &WeightedSamples,
-    zone: &ScaleFreeZone,
-    noise_rel: f64,
-) -> anyhow::Result<Vec<ScaleFreeMap>> {
-    let nz = normalise(h, prior)?;
-    let all: Vec<usize> = (0..prior.samples.ncols()).collect();
+/// Maps of another target for the same zone (the gloss readings' linear
+/// readings, `r x K`, one column per pair of `pairs`): the zone's ridge and
+/// clusters (its centroids, so the device's cluster choice is unchanged),
+/// fitted on every pair.
+pub fn fit_target(pairs: &Pairs, target: &DMatrix<f64>, zone: &ScaleFreeZone) -> anyhow::Result<Vec<ScaleFreeMap>> {
+    let nz = normalise(pairs, target)?;
+    let all: Vec<usize> = (0..pairs.len()).collect();
     if zone.centroids.is_empty() {
-        return Ok(vec![fit_map(&moments(&nz, &prior.weights, &all, noise_rel), zone.ridge)?]);
+        return Ok(vec![fit_map(&moments(&nz, &all), zone.ridge)?]);
     }
-    cluster_maps(&nz, &prior.weights, &all, noise_rel, zone.ridge, &zone.centroids, h.nrows())
+    cluster_maps(&nz, &all, zone.ridge, &zone.centroids, pairs.m())
 }
 
-/// Trains one zone: chooses the ridge (and K) by cross-validation, fits on
-/// every sample, sets the out-of-prior threshold from held-out samples.
-pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOptions) -> anyhow::Result<ScaleFreeZone> {
-    let (m, n) = h.shape();
-    ensure!(m >= 2, "scale-free estimation needs at least 2 readings, got {m}");
-    ensure!(prior.samples.nrows() == n, "the prior has {} bins, H {n}", prior.samples.nrows());
-    let k = prior.samples.ncols();
-    ensure!(k >= 2 * FOLDS, "scale-free training needs at least {} prior samples, got {k}", 2 * FOLDS);
-    let nz = normalise(h, prior)?;
-    let fold = folds(k, opts.seed);
-    let draws = 2;
-    // Noisy held-out readings, fixed for every candidate setting.
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
-    let readings: Vec<Vec<DVector<f64>>> = (0..k)
-        .map(|s| (0..draws).map(|_| noisy(&(h * prior.samples.column(s)), opts.noise_rel, &mut rng)).collect())
-        .collect();
-    let clusters: Vec<usize> = if opts.piecewise { CLUSTER_COUNTS.to_vec() } else { vec![1] };
-    let mut best = (f64::INFINITY, RIDGES[0], clusters[0]);
-    for &kc in &clusters {
-        for &ridge in &RIDGES {
-            let mut err = 0.0;
-            let mut ok = true;
-            for f in 0..FOLDS.min(k) {
-                let train_idx: Vec<usize> = (0..k).filter(|s| fold[*s] != f).collect();
-                let Ok(fitted) = fit(h, &nz, &prior.weights, &train_idx, opts, ridge, kc) else {
-                    ok = false;
-                    break;
-                };
-                for s in (0..k).filter(|s| fold[*s] == f) {
-                    let truth = prior.samples.column(s).into_owned();
-                    for v in &readings[s] {
-                        err += prior.weights[s] * peak_error(&fitted.estimate(v), &truth) / draws as f64;
-                    }
+/// The noisy held-out readings of every pair (fixed for every candidate
+/// setting) and each pair's fold.
+struct CrossValidation {
+    readings: Vec<Vec<DVector<f64>>>,
+    fold: Vec<usize>,
+}
+
+const DRAWS: usize = 2;
+
+impl CrossValidation {
+    fn new(pairs: &Pairs, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+        let readings = (0..pairs.len())
+            .map(|k| {
+                let v = pairs.readings.column(k).into_owned();
+                let var = pairs.noise_var.column(k).into_owned();
+                (0..DRAWS).map(|_| noisy(&v, &var, &mut rng)).collect()
+            })
+            .collect();
+        Self { readings, fold: folds(pairs, seed) }
+    }
+
+    /// Mean peak-normalised error over the prior's own weights of every
+    /// pair read by a fit without its fold; `None` when a fit fails.
+    fn error(&self, pairs: &Pairs, nz: &Normalised, seed: u64, ridge: f64, clusters: usize) -> Option<f64> {
+        let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
+        let mut err = 0.0;
+        for f in 0..nf {
+            let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| self.fold[*k] != f).collect();
+            let fitted = fit(nz, &train_idx, seed, ridge, clusters).ok()?;
+            for k in (0..pairs.len()).filter(|k| self.fold[*k] == f) {
+                let truth = pairs.truth.column(k).into_owned();
+                for v in &self.readings[k] {
+                    err += pairs.base[k] * peak_error(&fitted.estimate(v), &truth) / DRAWS as f64;
                 }
             }
-            if ok && err < best.0 {
-                best = (err, ridge, kc);
-            }
+        }
+        Some(err)
+    }
+}
+
+/// Cross-validated error of each candidate ridge with `clusters` clusters:
+/// the best `(ridge, error)`.
+pub fn cross_validate(pairs: &Pairs, opts: &ScaleFreeOptions, clusters: usize) -> anyhow::Result<(f64, f64)> {
+    check_pairs(pairs)?;
+    let nz = normalise(pairs, &pairs.truth)?;
+    let cv = CrossValidation::new(pairs, opts.seed);
+    let mut best = (RIDGES[0], f64::INFINITY);
+    for &ridge in &RIDGES {
+        if let Some(e) = cv.error(pairs, &nz, opts.seed, ridge, clusters)
+            && e < best.1
+        {
+            best = (ridge, e);
+        }
+    }
+    ensure!(best.1.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
+    Ok(best)
+}
+
+fn check_pairs(pairs: &Pairs) -> anyhow::Result<()> {
+    let m = pairs.m();
+    ensure!(m >= 2, "scale-free estimation needs at least 2 readings, got {m}");
+    let samples = pairs.sample.iter().collect::<std::collections::BTreeSet<_>>().len();
+    ensure!(samples >= 2 * FOLDS, "scale-free training needs at least {} prior samples, got {samples}", 2 * FOLDS);
+    Ok(())
+}
+
+/// Trains one zone from its pairs (weighted for the training criterion):
+/// chooses the ridge (and K, unless fixed) by cross-validation over the
+/// prior's samples, fits on every pair, sets the out-of-prior threshold
+/// from held-out samples.
+pub fn train_pairs(pairs: &Pairs, opts: &ScaleFreeOptions) -> anyhow::Result<ScaleFreeZone> {
+    check_pairs(pairs)?;
+    let clusters: Vec<usize> = match (opts.piecewise, opts.clusters) {
+        (false, _) => vec![1],
+        (true, Some(k)) => vec![k],
+        (true, None) => CLUSTER_COUNTS.to_vec(),
+    };
+    let mut best = (f64::INFINITY, RIDGES[0], clusters[0]);
+    for &kc in &clusters {
+        let (ridge, e) = cross_validate(pairs, opts, kc)?;
+        if e < best.0 {
+            best = (e, ridge, kc);
         }
     }
     let (cv_error, ridge, kc) = best;
-    ensure!(cv_error.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
-    let all: Vec<usize> = (0..k).collect();
-    let fitted = fit(h, &nz, &prior.weights, &all, opts, ridge, kc)?;
+    train_with(pairs, opts, ridge, kc, cv_error)
+}
+
+/// Trains one zone with a given ridge and cluster count (chosen by
+/// [`cross_validate`]); `cv_error` is recorded.
+pub fn train_with(
+    pairs: &Pairs,
+    opts: &ScaleFreeOptions,
+    ridge: f64,
+    clusters: usize,
+    cv_error: f64,
+) -> anyhow::Result<ScaleFreeZone> {
+    check_pairs(pairs)?;
+    let nz = normalise(pairs, &pairs.truth)?;
+    let all: Vec<usize> = (0..pairs.len()).collect();
+    let fitted = fit(&nz, &all, opts.seed, ridge, clusters)?;
     // Out-of-prior: held-out statistics -> threshold.
-    let mut stats: Vec<(f32, f64)> = Vec::with_capacity(k * draws);
-    for f in 0..FOLDS.min(k) {
-        let train_idx: Vec<usize> = (0..k).filter(|s| fold[*s] != f).collect();
-        let mo = moments(&nz, &prior.weights, &train_idx, opts.noise_rel);
+    let cv = CrossValidation::new(pairs, opts.seed);
+    let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
+    let mut stats: Vec<(f32, f64)> = Vec::with_capacity(pairs.len() * DRAWS);
+    for f in 0..nf {
+        let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
+        let mo = moments(&nz, &train_idx);
         let g = whitening(&mo)?;
         let mean: Vec<f32> = mo.mu_u.iter().map(|x| *x as f32).collect();
-        for s in (0..k).filter(|s| fold[*s] == f) {
-            for v in &readings[s] {
+        for k in (0..pairs.len()).filter(|k| cv.fold[*k] == f) {
+            for v in &cv.readings[k] {
                 let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-                stats.push((out_of_prior_stat(&g, &mean, &v32, scale(&v32)), prior.weights[s] / draws as f64));
+                stats.push((out_of_prior_stat(&g, &mean, &v32, scale(&v32)), pairs.base[k] / DRAWS as f64));
             }
         }
     }
     let threshold = weighted_quantile(&mut stats, 1.0 - opts.false_alarm);
-    let mo = moments(&nz, &prior.weights, &all, opts.noise_rel);
+    let mo = moments(&nz, &all);
     let out_of_prior = OutOfPrior {
         mean: mo.mu_u.iter().map(|x| *x as f32).collect(),
         g: whitening(&mo)?,
@@ -457,6 +517,17 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
         false_alarm: opts.false_alarm,
     };
     Ok(ScaleFreeZone { maps: fitted.maps, centroids: fitted.centroids, out_of_prior, ridge, cv_error })
+}
+
+/// Trains one zone of in-plane optics `h` on samples on the grid (the
+/// readings `H rho`, relative noise `opts.noise_rel`, each sample's error
+/// relative to its readings' scale): the scale-free estimator as the
+/// evaluation of measured materials runs it.
+pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOptions) -> anyhow::Result<ScaleFreeZone> {
+    ensure!(prior.samples.nrows() == h.ncols(), "the prior has {} bins, H {}", prior.samples.nrows(), h.ncols());
+    let noise = ReadingNoise::relative(opts.noise_rel, h.nrows());
+    let pairs = Pairs::in_plane(h, &prior.samples, &prior.weights, &noise).weighted(Criterion::ScaleRelative);
+    train_pairs(&pairs, opts)
 }
 
 fn weighted_quantile(xs: &mut [(f32, f64)], q: f64) -> f32 {
@@ -530,7 +601,8 @@ mod tests {
         let (mut flagged, mut total) = (0, 0);
         for k in 0..prior.samples.ncols() {
             for _ in 0..5 {
-                let v = noisy(&(&h * prior.samples.column(k)), 0.02, &mut rng);
+                let v0 = &h * prior.samples.column(k);
+                let v = noisy(&v0, &v0.map(|x| (0.02 * x).powi(2)), &mut rng);
                 let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
                 flagged += usize::from(z.out_of_prior.stat(&v32) > z.out_of_prior.threshold);
                 total += 1;

@@ -24,9 +24,12 @@ struct DevicePoint {
     sigma: Vec<f32>,
 }
 
+/// The line's points; its frames are one exposure's (the line bench
+/// corrects the long exposure only: a saturated point's shorter exposures
+/// cost their frames' acquisition, and no estimation beyond the merge).
 fn device_points(view: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<DevicePoint> {
     let n = view.dims().n;
-    expected_line(view, frames, full_scale)
+    expected_line(view, frames, full_scale, &brdf_meter::acquire::AcqConfig::default())
         .into_iter()
         .map(|e| DevicePoint {
             meta: PointMetaWire {

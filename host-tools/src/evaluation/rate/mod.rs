@@ -77,7 +77,7 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
         pixels: handheld.instrument.sensor.pixels,
         zones: board_zones,
         blob: train_for_scene(&handheld, board_zones, 0.02)?.blob,
-        frames: scene_frames(&handheld, 1)?.remove(0),
+        frames: long_exposure(scene_frames(&handheld, 1)?.remove(0)),
         full_scale: handheld.instrument.sensor.full_scale as u16,
         acquisition: acquisition::board(
             &brdf_meter::platform::timing::ACQUISITION,
@@ -94,12 +94,19 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
         pixels: brdf_meter::shape::qemu::PIXELS,
         zones: qemu_zones,
         blob: train_for_scene(&qemu_scene, qemu_zones, 0.02)?.blob,
-        frames: scene_frames(&qemu_scene, 1)?.remove(0),
-        full_scale: u16::MAX,
+        frames: long_exposure(scene_frames(&qemu_scene, 1)?.remove(0)),
+        full_scale: brdf_meter::shape::qemu::FULL_SCALE,
         acquisition: acquisition::qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, frames_per_line),
         scene: "patent profile (the QEMU demo's)".into(),
     };
     Ok(vec![board, qemu])
+}
+
+/// A line's long-exposure frames (dark and one per LED), without the
+/// shorter exposures the scene may add.
+fn long_exposure(mut frames: Vec<Vec<u16>>) -> Vec<Vec<u16>> {
+    frames.truncate(brdf_meter::shape::FRAMES_PER_LINE);
+    frames
 }
 
 /// Writes the line bench's input file (layout: `src/bin/line-bench.rs`):

@@ -428,7 +428,7 @@ fn f32_invariant(case: &Case, w: &DMatrix<f64>, noisy: &[DVector<f64>], kernel: 
     // Training's gate: accepted => within tolerance on every test reading
     // (clean and noisy, through the gate's own scaling); refused => the
     // unscaled device path really misses the tolerance on the prior.
-    match f32_gate(w, &case.h, &case.samples) {
+    match f32_gate(w, &(&case.h * &case.samples)) {
         Ok(plan) => {
             rep.f32_accepted = true;
             let (mut worst, mut sc) = (0.0f64, 0.0f64);

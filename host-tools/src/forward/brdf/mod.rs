@@ -95,6 +95,15 @@ pub fn binned_reflectance(brdf: &dyn Brdf, theta_deg: f64, theta_o_deg: f64, ste
     brdf.reflectance(theta_deg, theta_o_deg) + spike(brdf, theta_deg, theta_o_deg, step_deg)
 }
 
+/// [`binned_reflectance`] for a view `wo` anywhere (surface frame, unit):
+/// light in the plane of incidence at bin centre `theta_deg`, the mirror
+/// spike about the view's own polar angle. The truth at a pixel whose view
+/// is not the instrument's nominal one.
+pub fn binned_reflectance_at(brdf: &dyn Brdf, theta_deg: f64, wo: &Vector3<f64>, step_deg: f64) -> f64 {
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
+    std::f64::consts::PI * brdf.f_r(&light_dir(theta_deg), wo) + spike(brdf, theta_deg, theta_o, step_deg)
+}
+
 /// Unit direction towards an in-plane light at incidence `theta_deg` (-x side).
 pub fn light_dir(theta_deg: f64) -> Vector3<f64> {
     let t = theta_deg.to_radians();
@@ -144,6 +153,22 @@ pub enum BrdfSpec {
         /// Material name, e.g. `"blue-acrylic"` (host-tools/data/merl-nbrdf.json).
         material: String,
     },
+    /// A measured material in an NBRDF file (the layout of
+    /// `host-tools/data/merl-nbrdf.json`: networks fitted to measured
+    /// data), seen through the instrument's spectral weights.
+    Nbrdf {
+        /// The file, relative to the current directory.
+        file: std::path::PathBuf,
+        /// The material's name in it.
+        material: String,
+    },
+    /// A measured material in the MERL binary format (`.binary`: the
+    /// half-angle table of Matusik et al. 2003), seen through the
+    /// instrument's spectral weights.
+    MerlBinary {
+        /// The file, relative to the current directory.
+        file: std::path::PathBuf,
+    },
     /// A measured table in ASTM E1392 form (`.astm`; in-plane values, by
     /// reciprocity too), its path relative to the current directory.
     AstmE1392 {
@@ -156,6 +181,9 @@ pub enum BrdfSpec {
         /// Refractive index (default 1.567, black glass at the sodium D line).
         #[serde(default = "black_glass_index")]
         n: f64,
+        /// Albedo of a diffuse base under the surface (default 0: black behind it).
+        #[serde(default)]
+        base_albedo: f64,
     },
 }
 
@@ -211,6 +239,33 @@ impl BrdfSpec {
                 }
             });
         }
+        let file_error = |model: &'static str, e: anyhow::Error| BrdfParamError {
+            model,
+            field: "file",
+            value: f64::NAN,
+            why: format!("{e:#}"),
+        };
+        match self {
+            BrdfSpec::Nbrdf { file, material } => {
+                let set = NbrdfSet::load(file).map_err(|e| file_error("nbrdf", e))?;
+                return set.by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| BrdfParamError {
+                    model: "nbrdf",
+                    field: "material",
+                    value: f64::NAN,
+                    why: format!(
+                        "no material {material:?} in {}; it has: {}",
+                        file.display(),
+                        set.names().collect::<Vec<_>>().join(", ")
+                    ),
+                });
+            }
+            BrdfSpec::MerlBinary { file } => {
+                let mut t = merl_binary::MerlTable::load(file).map_err(|e| file_error("merl-binary", e))?;
+                t.channel_weights = spectral;
+                return Ok(Box::new(t));
+            }
+            _ => {}
+        }
         Ok(match *self {
             BrdfSpec::Ward { rho_d, rho_s, alpha } => Box::new(Ward::new(rho_d, rho_s.unwrap_or(1.0 - rho_d), alpha)?),
             BrdfSpec::Lambertian { rho } => Box::new(Lambertian::new(rho)?),
@@ -221,8 +276,10 @@ impl BrdfSpec {
                 value: f64::NAN,
                 why: format!("{e:#}"),
             })?),
-            BrdfSpec::SmoothDielectric { n } => Box::new(SmoothDielectric::new(n)?),
-            BrdfSpec::Merl { .. } => unreachable!("built above"),
+            BrdfSpec::SmoothDielectric { n, base_albedo } => Box::new(SmoothDielectric::over_base(n, base_albedo)?),
+            BrdfSpec::Merl { .. } | BrdfSpec::Nbrdf { .. } | BrdfSpec::MerlBinary { .. } => {
+                unreachable!("built above")
+            }
         })
     }
 }

@@ -1,6 +1,8 @@
 //! A polished dielectric with a black back (the black-glass gloss
 //! standard): Fresnel reflection at the surface only, everything that
-//! enters is absorbed. Its reflection is a spike in the mirror direction,
+//! enters is absorbed; or over a diffuse base (a glossy paint or tile),
+//! which returns the light that enters as a Lambertian layer would,
+//! `base (1 - F(theta_i)) (1 - F(theta_o)) / pi`. Its reflection is a spike in the mirror direction,
 //! which `f_r` (a density) cannot hold: the model reports it through
 //! [`super::Brdf::mirror_reflectance`] and the forward model spreads it
 //! over the angle grid's bin kernel ([`super::ray_reflectance`]).
@@ -11,6 +13,7 @@ use nalgebra::Vector3;
 #[derive(Clone, Debug, PartialEq)]
 pub struct SmoothDielectric {
     n: f64,
+    base: f64,
 }
 
 /// Refractive index of the black-glass gloss standard at the sodium D line
@@ -21,12 +24,18 @@ impl SmoothDielectric {
     /// A smooth dielectric of index `n` (1 < n <= 4).
     pub fn new(n: f64) -> Result<Self, BrdfParamError> {
         check("smooth-dielectric", "n", n, 1.0 + 1e-9, 4.0, "a refractive index above 1 (glass 1.4..1.9)")?;
-        Ok(Self { n })
+        Ok(Self { n, base: 0.0 })
+    }
+
+    /// The same surface over a diffuse base of albedo `base` (0..=1).
+    pub fn over_base(n: f64, base: f64) -> Result<Self, BrdfParamError> {
+        check("smooth-dielectric", "base_albedo", base, 0.0, 1.0, "must be in [0, 1]")?;
+        Ok(Self { base, ..Self::new(n)? })
     }
 
     /// The black-glass gloss standard.
     pub fn black_glass() -> Self {
-        Self { n: BLACK_GLASS_INDEX }
+        Self { n: BLACK_GLASS_INDEX, base: 0.0 }
     }
 
     /// Refractive index.
@@ -49,8 +58,12 @@ pub fn fresnel_unpolarised(theta_deg: f64, n: f64) -> f64 {
 }
 
 impl Brdf for SmoothDielectric {
-    fn f_r(&self, _wi: &Vector3<f64>, _wo: &Vector3<f64>) -> f64 {
-        0.0
+    fn f_r(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> f64 {
+        if self.base == 0.0 || wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        let t = |z: f64| 1.0 - fresnel_unpolarised(z.clamp(-1.0, 1.0).acos().to_degrees(), self.n);
+        self.base * t(wi.z) * t(wo.z) / std::f64::consts::PI
     }
 
     fn mirror_reflectance(&self, theta_deg: f64) -> f64 {

@@ -171,10 +171,18 @@ pub enum LineAxis {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorSpec {
-    /// Pixels P; pixel k sees the surface point
-    /// `(k - (P - 1) / 2) * pitch / magnification` from the centre point.
+    /// Pixels P read out; pixel k sees the surface point
+    /// `(first_pixel + k - (line_pixels - 1) / 2) * pitch / magnification`
+    /// from the centre point.
     #[serde(default = "one_usize")]
     pub pixels: usize,
+    /// First pixel read out of the sensor's line (a window of it, as a
+    /// simulated device with fewer pixels reads a cut of the line).
+    #[serde(default)]
+    pub first_pixel: usize,
+    /// Pixels of the whole line (default: `pixels`).
+    #[serde(default)]
+    pub line_pixels: Option<usize>,
     /// Pixel pitch on the sensor, micrometres.
     #[serde(default = "default_pitch")]
     pub pitch_um: f64,
@@ -211,6 +219,8 @@ impl Default for SensorSpec {
     fn default() -> Self {
         Self {
             pixels: 1,
+            first_pixel: 0,
+            line_pixels: None,
             pitch_um: default_pitch(),
             magnification: 1.0,
             line_axis: LineAxis::X,
@@ -224,7 +234,14 @@ impl SensorSpec {
     /// Offset along the line of (possibly fractional) pixel `p` from the
     /// centre point, cm.
     pub fn offset_cm(&self, p: f64) -> f64 {
-        (p - (self.pixels as f64 - 1.0) / 2.0) * self.pitch_um * 1e-4 / self.magnification
+        let line = self.line_pixels.unwrap_or(self.pixels) as f64;
+        (self.first_pixel as f64 + p - (line - 1.0) / 2.0) * self.pitch_um * 1e-4 / self.magnification
+    }
+
+    /// A window of `pixels` pixels from `first` of this sensor's line.
+    pub fn window(&self, first: usize, pixels: usize) -> Self {
+        let line = self.line_pixels.unwrap_or(self.pixels);
+        Self { pixels, first_pixel: self.first_pixel + first, line_pixels: Some(line), ..self.clone() }
     }
 }
 
@@ -446,6 +463,17 @@ impl Validate for Instrument {
                 "pixels",
                 format!("{} is impossible; allowed 1..={}", s.pixels, brdf_meter::blob::MAX_PIXELS),
             )));
+        }
+        if let Some(l) = s.line_pixels
+            && s.first_pixel + s.pixels > l
+        {
+            return Err(at_s(FieldError::new(
+                "first_pixel",
+                format!("pixels {}..{} are outside the line of {l} (line_pixels)", s.first_pixel, s.first_pixel + s.pixels),
+            )));
+        }
+        if s.line_pixels.is_none() && s.first_pixel > 0 {
+            return Err(at_s(FieldError::new("line_pixels", "a window (first_pixel > 0) needs the whole line's line_pixels")));
         }
         check_positive("pitch_um", s.pitch_um, "um").map_err(at_s)?;
         check_positive("magnification", s.magnification, "").map_err(at_s)?;

@@ -14,15 +14,19 @@
 //! | 10 | `noise` | `model` = `additive` (`sigma_counts`) / `proportional` (`sigma`) / `shot-read` (`electrons_per_count`, `read_sigma_counts`), `seed` = 1 | Gaussian noise drawn per (seed, line, frame) | no random number generator exists |
 //! | 11 | `saturation` | - | clips to 0..=`instrument.sensor.full_scale` | unbounded counts |
 //! | 12 | `quantisation` | `step_counts` = 1 | rounds to a multiple of the step (the ADC's LSB) | continuous counts |
+//! | 13 | `short-exposure` | `ratios` (ascending, each > 1) | a frame that saturates is taken again with the exposure 1 / `ratios[0]`, and again at the next ratio while it still saturates (with a dark frame at each), and each saturated pixel's reading comes from its longest unsaturated exposure times that ratio, as the device does | a saturated reading stays saturated |
 //!
 //! Stages 1-5 shape the rays (the optics); 6 acts on the light; 7-12 are the
-//! sensor. The pipeline runs them in this order whatever order the file lists
+//! sensor; 13 is the acquisition. The pipeline runs them in this order whatever order the file lists
 //! them in; listing one twice is an error.
 use crate::output::config::{FieldError, check_positive, check_range};
 use serde::{Deserialize, Serialize};
 
+/// Most shorter exposures the `short-exposure` effect (and the device) takes.
+pub const MAX_SHORT_EXPOSURES: usize = brdf_meter::acquire::MAX_SHORT_EXPOSURES;
+
 /// The stage order; also every effect name there is.
-pub const STAGE_ORDER: [&str; 12] = [
+pub const STAGE_ORDER: [&str; 13] = [
     "near-field",
     "3d-geometry",
     "per-pixel-geometry",
@@ -35,6 +39,7 @@ pub const STAGE_ORDER: [&str; 12] = [
     "noise",
     "saturation",
     "quantisation",
+    "short-exposure",
 ];
 
 /// How sensor noise is drawn.
@@ -113,6 +118,11 @@ pub enum EffectSpec {
         /// Size of one step, counts.
         step_counts: f64,
     },
+    /// Shorter exposures of a frame that saturates.
+    ShortExposure {
+        /// The long exposure over each shorter one, ascending.
+        ratios: Vec<f64>,
+    },
 }
 
 /// The names an effect's `kind` may take.
@@ -132,6 +142,7 @@ enum EffectKind {
     Noise,
     Saturation,
     Quantisation,
+    ShortExposure,
 }
 
 /// An effect table as written: the kind and every parameter any effect takes.
@@ -161,6 +172,8 @@ pub(crate) struct EffectEntry {
     step_counts: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     seed: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    ratios: Option<Vec<f64>>,
 }
 
 impl EffectEntry {
@@ -183,6 +196,7 @@ impl EffectEntry {
         add("read_sigma_counts", self.read_sigma_counts.is_some());
         add("step_counts", self.step_counts.is_some());
         add("seed", self.seed.is_some());
+        add("ratios", self.ratios.is_some());
         g
     }
 }
@@ -235,6 +249,9 @@ impl EffectSpec {
             ),
             EffectKind::Quantisation => {
                 (&["step_counts"], EffectSpec::Quantisation { step_counts: e.step_counts.unwrap_or(1.0) })
+            }
+            EffectKind::ShortExposure => {
+                (&["ratios"], EffectSpec::ShortExposure { ratios: need("short-exposure", "ratios", e.ratios.clone())? })
             }
             EffectKind::Noise => {
                 let model = need("noise", "model", e.model)?;
@@ -315,6 +332,10 @@ impl From<EffectSpec> for EffectEntry {
                 e.step_counts = Some(step_counts);
                 EffectKind::Quantisation
             }
+            EffectSpec::ShortExposure { ratios } => {
+                e.ratios = Some(ratios);
+                EffectKind::ShortExposure
+            }
             EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, seed } => {
                 e.model = Some(model);
                 e.sigma = sigma;
@@ -345,6 +366,7 @@ impl EffectSpec {
             EffectSpec::Noise { .. } => STAGE_ORDER[9],
             EffectSpec::Saturation {} => STAGE_ORDER[10],
             EffectSpec::Quantisation { .. } => STAGE_ORDER[11],
+            EffectSpec::ShortExposure { .. } => STAGE_ORDER[12],
         }
     }
 
@@ -415,6 +437,23 @@ impl EffectSpec {
             }
             EffectSpec::Quantisation { step_counts } => {
                 check_range("step_counts", *step_counts, 1e-9, 65535.0, "counts")
+            }
+            EffectSpec::ShortExposure { ratios } => {
+                if ratios.is_empty() || ratios.len() > MAX_SHORT_EXPOSURES {
+                    return Err(FieldError::new(
+                        "ratios",
+                        format!("give 1..={MAX_SHORT_EXPOSURES} ratios of the long exposure over a shorter one"),
+                    ));
+                }
+                let mut last = 1.0;
+                for (i, r) in ratios.iter().enumerate() {
+                    check_range(&format!("ratios[{i}]"), *r, 1.0 + 1e-9, 1e6, "(the long exposure over a shorter one, > 1)")?;
+                    if *r <= last {
+                        return Err(FieldError::new(format!("ratios[{i}]"), "ratios must ascend: each exposure shorter than the one before"));
+                    }
+                    last = *r;
+                }
+                Ok(())
             }
             EffectSpec::NearField {}
             | EffectSpec::ThreeDGeometry {}

@@ -43,8 +43,16 @@ pub fn analytic_scene(blob: &BlobView<'_>, lines: usize, full_scale: u16) -> Sce
 pub fn patent_scene(pixels: usize) -> super::Scene {
     let mut s = super::Scene::patent_profile();
     s.instrument.sensor.pixels = pixels;
+    // The simulated device has the board's 12-bit converter: a gain that
+    // keeps the patent surface's brightest reading (~48 white levels at
+    // gain 1) inside it.
+    s.instrument.sensor.gain = PATENT_SCENE_GAIN;
     s
 }
+
+/// The patent scene's gain on the simulated device: its brightest reading
+/// about 3,800 of the 4,095 counts.
+pub const PATENT_SCENE_GAIN: f64 = 80.0;
 
 /// Raw frames of `lines` lines of `scene` from host-tools' scene simulator.
 pub fn scene_frames(scene: &super::Scene, lines: usize) -> anyhow::Result<SceneFrames> {

@@ -342,30 +342,73 @@ pub fn zone_system_matrices(scene: &Scene, zones: usize) -> anyhow::Result<Vec<Z
 }
 
 /// What training takes from a scene: the optics per zone, the sensor's
-/// pixel count and the white reference for the blob.
+/// pixel count, the white reference for the blob and the noise level it records.
 #[derive(Clone, Debug)]
 pub struct TrainingOptics {
-    /// One entry per zone: first pixel, H at the zone's centre, and each
-    /// LED's centre-ray incidence there.
+    /// One entry per zone: first pixel, the optics at its centre and at the
+    /// pixels its sample pairs are taken at.
     pub zones: Vec<crate::forward::zone_optics::ZoneOptics>,
     /// Pixels P.
     pub pixels: usize,
     /// White reference, `p * m + i` (see [`white_reference`]).
     pub white: Vec<f32>,
+    /// The relative noise of a perfect diffuser's readings
+    /// ([`noise_level::relative_noise_level`]).
+    pub noise_level: f64,
 }
 
 /// The optics of `zones` zones of the scene, for `train` (no noise draw, no
-/// surface, no truth).
-pub fn training_optics(scene: &Scene, zones: usize) -> anyhow::Result<TrainingOptics> {
-    let zs = zone_system_matrices(scene, zones)?
-        .into_iter()
-        .map(|z| crate::forward::zone_optics::ZoneOptics {
-            first_pixel: z.first_pixel,
-            centres_deg: (0..scene.instrument.m()).map(|k| scene.led_incidence_deg(k, z.centre_pixel)).collect(),
-            h: z.h,
-        })
-        .collect();
-    Ok(TrainingOptics { zones: zs, pixels: scene.instrument.pixels(), white: white_reference(scene)? })
+/// surface, no truth): each zone's centre and training pixels with their
+/// own rays, view and readings' noise (the scene's sensor effects, or
+/// relative noise `noise_override` when given).
+pub fn training_optics(scene: &Scene, zones: usize, noise_override: Option<f64>) -> anyhow::Result<TrainingOptics> {
+    use crate::forward::pairs::PixelOptics;
+    use crate::forward::reading_noise::ReadingNoise;
+    let p = scene.instrument.sensor.pixels;
+    anyhow::ensure!(zones >= 1 && zones <= p, "{zones} zones are impossible for a sensor of {p} pixels; use 1..={p}");
+    let m = scene.instrument.m();
+    let sim = Simulator::new(scene)?;
+    let noise = noise_level::reading_noise(scene, &sim);
+    let noise_of = |px: f64| match noise_override {
+        Some(s) => ReadingNoise::relative(s, m),
+        None => noise[(px.round() as usize).min(p - 1)].clone(),
+    };
+    let optics = Optics::new(&scene.instrument, scene.ray_model());
+    let grid = scene.instrument.grid().context("instrument.grid")?;
+    let pixel = |px: f64| {
+        PixelOptics::new(
+            &optics,
+            &grid,
+            px,
+            &scene.pixel_point(px),
+            pipeline::pixel_view_at(scene, px),
+            (0..m).map(|k| scene.led_incidence_deg(k, px)).collect(),
+            noise_of(px),
+        )
+    };
+    let starts = zone_starts(p, zones);
+    let mut out = Vec::with_capacity(zones);
+    for (z, &first) in starts.iter().enumerate() {
+        let last = starts.get(z + 1).map_or(p - 1, |s| s - 1);
+        let at = || format!("scene `{}`, zone {z} (pixels {first}..={last})", scene.name);
+        let centre = pixel((first + last) as f64 / 2.0).with_context(at)?;
+        let pixels = crate::forward::zone_optics::training_pixels(first, last)
+            .into_iter()
+            .map(|px| pixel(px as f64))
+            .collect::<Result<Vec<_>, _>>()
+            .with_context(at)?;
+        out.push(crate::forward::zone_optics::ZoneOptics { first_pixel: first, centre, pixels });
+    }
+    let noise_level = match noise_override {
+        Some(s) => s,
+        None => noise_level::relative_noise_level(scene)?,
+    };
+    Ok(TrainingOptics {
+        zones: out,
+        pixels: p,
+        white: sim.white().iter().map(|w| *w as f32).collect(),
+        noise_level,
+    })
 }
 
 /// The blob's white reference: for every pixel p and LED i (physical order),

@@ -30,12 +30,22 @@ pub struct FrameCtx {
     pub frame: usize,
     /// LEDs per line.
     pub m: usize,
+    /// The frame's exposure relative to the long one (1; `1 / ratio` for
+    /// the `short-exposure` effect's frames).
+    pub exposure: f64,
 }
 
 impl FrameCtx {
     /// Frames elapsed since calibration (dark frame of line 0 = 0).
     pub fn time(&self) -> u64 {
         self.line * (self.m as u64 + 1) + self.frame as u64
+    }
+
+    /// The noise stream of this frame: the long frames 0..=m, each shorter
+    /// exposure's after them (its level from the exposure).
+    fn stream(&self) -> u64 {
+        let level = if self.exposure < 1.0 { (1.0 / self.exposure).round() as u64 } else { 0 };
+        self.frame as u64 + level * (self.m as u64 + 1)
     }
 }
 
@@ -89,8 +99,9 @@ impl Stage for Ambient {
     fn name(&self) -> &'static str {
         "ambient-light"
     }
-    fn apply(&self, frame: &mut [f64], _: &FrameCtx) {
-        frame.iter_mut().for_each(|x| *x += self.counts);
+    fn apply(&self, frame: &mut [f64], ctx: &FrameCtx) {
+        // Ambient light integrates over the exposure like the LEDs' light.
+        frame.iter_mut().for_each(|x| *x += self.counts * ctx.exposure);
     }
 }
 
@@ -144,7 +155,7 @@ impl Stage for Noise {
     fn apply(&self, frame: &mut [f64], ctx: &FrameCtx) {
         // One stream per (seed, line, frame): a frame's draw does not depend
         // on which other frames were simulated.
-        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, ctx.line, ctx.frame as u64));
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, ctx.line, ctx.stream()));
         for x in frame.iter_mut() {
             let sd = match self.model {
                 NoiseModel::Additive => self.a,
@@ -201,6 +212,10 @@ pub struct Pipeline {
     per_pixel: bool,
     geometry: Vec<&'static str>,
     stages: Vec<Box<dyn Stage>>,
+    /// The `short-exposure` effect's ratios (empty when not listed).
+    short_ratios: Vec<f64>,
+    /// Counts at which a pixel saturates.
+    full_scale: f64,
 }
 
 impl Pipeline {
@@ -211,6 +226,7 @@ impl Pipeline {
         let s = &scene.instrument.sensor;
         let mut geometry = Vec::new();
         let mut stages: Vec<Box<dyn Stage>> = Vec::new();
+        let mut short_ratios = Vec::new();
         for e in effects {
             match e {
                 EffectSpec::NearField {}
@@ -247,14 +263,28 @@ impl Pipeline {
                 }
                 EffectSpec::Saturation {} => stages.push(Box::new(Saturation { full_scale: s.full_scale })),
                 EffectSpec::Quantisation { step_counts } => stages.push(Box::new(Quantisation { step: *step_counts })),
+                EffectSpec::ShortExposure { ratios } => short_ratios = ratios.clone(),
             }
         }
-        Self { model: scene.ray_model(), per_pixel: scene.has("per-pixel-geometry"), geometry, stages }
+        Self {
+            model: scene.ray_model(),
+            per_pixel: scene.has("per-pixel-geometry"),
+            geometry,
+            stages,
+            short_ratios,
+            full_scale: s.full_scale,
+        }
     }
 
     /// Names of the stages, in the order they run.
     pub fn names(&self) -> Vec<&'static str> {
-        self.geometry.iter().copied().chain(self.stages.iter().map(|s| s.name())).collect()
+        let acquisition = (!self.short_ratios.is_empty()).then_some("short-exposure");
+        self.geometry.iter().copied().chain(self.stages.iter().map(|s| s.name())).chain(acquisition).collect()
+    }
+
+    /// The `short-exposure` effect's ratios (empty when the scene does not list it).
+    pub fn short_ratios(&self) -> &[f64] {
+        &self.short_ratios
     }
 
     /// The ray model of the geometric stages.
@@ -292,17 +322,34 @@ pub struct Simulator {
     signal: Vec<f64>,
     /// White reference, `p * m + k`.
     white: Vec<f64>,
+    /// The dark frame's noise-free counts (P).
+    dark: Vec<f64>,
 }
 
 impl Simulator {
     /// Prepares `scene` (validated). Fails, naming the pixel and the LED,
     /// when a pixel gets no light from an LED (a white reference of 0).
     pub fn new(scene: &Scene) -> anyhow::Result<Self> {
+        let (brdfs, of_pixel) = scene.surface_brdfs()?;
+        let brdfs: Vec<std::sync::Arc<dyn Brdf>> = brdfs.into_iter().map(std::sync::Arc::from).collect();
+        Self::with_models(scene, &brdfs, &of_pixel)
+    }
+
+    /// Prepares `scene` with `brdf` as its surface at every pixel (a
+    /// reflection model no scene file names: a prior's sample, a test tile).
+    pub fn with_surface(scene: &Scene, brdf: std::sync::Arc<dyn Brdf>) -> anyhow::Result<Self> {
+        Self::with_models(scene, &[brdf], &vec![0; scene.instrument.pixels()])
+    }
+
+    fn with_models(
+        scene: &Scene,
+        brdfs: &[std::sync::Arc<dyn Brdf>],
+        of_pixel: &[usize],
+    ) -> anyhow::Result<Self> {
         let pipeline = Pipeline::new(scene);
         let inst = &scene.instrument;
         let (m, p) = (inst.m(), inst.pixels());
         let optics = Optics::new(inst, pipeline.model);
-        let (brdfs, of_pixel) = scene.surface_brdfs()?;
         let gain = inst.sensor.gain;
         let step = inst.grid().context("the scene's angle grid")?.step_deg();
         // Light per (point, model): computed once per distinct pair. Without
@@ -333,7 +380,7 @@ impl Simulator {
             signal[px * m..(px + 1) * m].copy_from_slice(memo[key].as_deref().unwrap());
             white_signal[px * m..(px + 1) * m].copy_from_slice(white_memo[pt].as_deref().unwrap());
         }
-        let white = reference(&pipeline, &white_signal, m, p);
+        let (white, dark) = reference(&pipeline, &white_signal, m, p);
         for px in 0..p {
             for k in 0..m {
                 let w = white[px * m + k];
@@ -346,7 +393,7 @@ impl Simulator {
                 }
             }
         }
-        Ok(Self { pipeline, m, p, signal, white })
+        Ok(Self { pipeline, m, p, signal, white, dark })
     }
 
     /// The pipeline.
@@ -375,34 +422,71 @@ impl Simulator {
         &self.white
     }
 
+    /// The dark frame's noise-free, drift-free counts per pixel (what the
+    /// dark-offset and ambient-light effects add; 0 without them).
+    pub fn dark(&self) -> &[f64] {
+        &self.dark
+    }
+
     /// The raw frames of `line` in `mode`: dark, then one per LED.
     pub fn frames(&self, line: u64, mode: Mode) -> Vec<Vec<f64>> {
+        self.frames_at(line, mode, 1.0)
+    }
+
+    /// The same frames at exposure `exposure` (relative to the long one).
+    fn frames_at(&self, line: u64, mode: Mode, exposure: f64) -> Vec<Vec<f64>> {
         (0..=self.m)
             .map(|f| {
                 let mut frame = if f == 0 {
                     vec![0.0; self.p]
                 } else {
-                    (0..self.p).map(|px| self.signal[px * self.m + f - 1]).collect()
+                    (0..self.p).map(|px| self.signal[px * self.m + f - 1] * exposure).collect()
                 };
-                self.pipeline.run(&mut frame, &FrameCtx { line, frame: f, m: self.m }, mode);
+                self.pipeline.run(&mut frame, &FrameCtx { line, frame: f, m: self.m, exposure }, mode);
                 frame
             })
             .collect()
     }
 
+    /// The `short-exposure` effect's frames of `line`: per ratio, the dark
+    /// frame and one per LED at the exposure 1 / ratio (none when the scene
+    /// does not list the effect).
+    pub fn short_frames(&self, line: u64, mode: Mode) -> Vec<Vec<Vec<f64>>> {
+        self.pipeline.short_ratios.iter().map(|r| self.frames_at(line, mode, 1.0 / r)).collect()
+    }
+
     /// Simulates line `line`: raw frames and white-calibrated readings.
     pub fn simulate_line(&self, line: u64, mode: Mode) -> LineReadings {
-        let raw = self.frames(line, mode);
+        let mut raw = self.frames(line, mode);
+        raw.extend(self.short_frames(line, mode).into_iter().flatten());
         let corrected = self.correct(&raw);
+        raw.truncate(self.m + 1);
         LineReadings { line, raw, corrected }
     }
 
-    /// `(raw - dark) / white` for frames laid out as [`Self::frames`] gives.
+    /// `(raw - dark) / white` for frames laid out as [`Self::frames`] gives;
+    /// with the short frames after them ([`Self::short_frames`], each level's
+    /// dark frame and LED frames), a pixel whose long frame saturated is read
+    /// from its longest unsaturated exposure, `(short - its dark) ratio /
+    /// white` (the shortest's when every one saturates): the device's rule
+    /// (`brdf_meter::acquire::correct_point_into`).
     pub fn correct(&self, raw: &[Vec<f64>]) -> Vec<f64> {
-        let mut out = vec![0.0; self.p * self.m];
+        let (m, fs) = (self.m, self.pipeline.full_scale);
+        let levels = (raw.len() / (m + 1)).saturating_sub(1).min(self.pipeline.short_ratios.len());
+        let mut out = vec![0.0; self.p * m];
         for px in 0..self.p {
-            for k in 0..self.m {
-                out[px * self.m + k] = (raw[1 + k][px] - raw[0][px]) / self.white[px * self.m + k];
+            for k in 0..m {
+                let mut s = raw[1 + k][px] - raw[0][px];
+                if raw[1 + k][px] >= fs {
+                    for (l, r) in self.pipeline.short_ratios[..levels].iter().enumerate() {
+                        let base = (l + 1) * (m + 1);
+                        s = (raw[base + 1 + k][px] - raw[base][px]) * r;
+                        if raw[base + 1 + k][px] < fs {
+                            break;
+                        }
+                    }
+                }
+                out[px * m + k] = s / self.white[px * m + k];
             }
         }
         out
@@ -413,15 +497,20 @@ impl Simulator {
     /// A count above 65535 cannot cross the link: that is an error naming
     /// the pixel and LED (lower `instrument.sensor.gain` or list `saturation`).
     pub fn raw_frames(&self, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
-        let frames = self.frames(line, Mode::Full);
+        let mut frames = self.frames(line, Mode::Full);
+        frames.extend(self.short_frames(line, Mode::Full).into_iter().flatten());
         let mut out = Vec::with_capacity(frames.len());
         for (f, frame) in frames.into_iter().enumerate() {
             let mut px_out = Vec::with_capacity(frame.len());
             for (px, x) in frame.into_iter().enumerate() {
                 let r = x.round();
                 if r.is_nan() || r > 65535.0 {
-                    let what =
-                        if f == 0 { "the dark frame".to_string() } else { format!("instrument.leds[{}]", f - 1) };
+                    let (g, short) = if f > self.m { (f % (self.m + 1), "short-exposure ") } else { (f, "") };
+                    let what = if g == 0 {
+                        format!("the {short}dark frame")
+                    } else {
+                        format!("the {short}frame of instrument.leds[{}]", g - 1)
+                    };
                     bail!(
                         "line {line}, pixel {px}, {what}: {x} counts do not fit the u16 link; lower instrument.sensor.gain or list the `saturation` effect"
                     );
@@ -460,29 +549,37 @@ fn light(
         .unzip()
 }
 
-/// Dark-corrected reference readings of the white signal (`p * m + k`).
-fn reference(pipeline: &Pipeline, white_signal: &[f64], m: usize, p: usize) -> Vec<f64> {
+/// Dark-corrected reference readings of the white signal (`p * m + k`) and
+/// the reference dark frame (P).
+fn reference(pipeline: &Pipeline, white_signal: &[f64], m: usize, p: usize) -> (Vec<f64>, Vec<f64>) {
     let mut dark = vec![0.0; p];
-    pipeline.run(&mut dark, &FrameCtx { line: 0, frame: 0, m }, Mode::Reference);
+    pipeline.run(&mut dark, &FrameCtx { line: 0, frame: 0, m, exposure: 1.0 }, Mode::Reference);
     let mut out = vec![0.0; p * m];
     for k in 0..m {
         let mut f: Vec<f64> = (0..p).map(|px| white_signal[px * m + k]).collect();
-        pipeline.run(&mut f, &FrameCtx { line: 0, frame: 1 + k, m }, Mode::Reference);
+        pipeline.run(&mut f, &FrameCtx { line: 0, frame: 1 + k, m, exposure: 1.0 }, Mode::Reference);
         for px in 0..p {
             out[px * m + k] = f[px] - dark[px];
         }
     }
-    out
+    (out, dark)
 }
 
 /// The view direction (surface frame) of pixel `px` under the scene's geometry.
 pub fn pixel_view(scene: &Scene, px: usize) -> Vector3<f64> {
+    pixel_view_at(scene, px as f64)
+}
+
+/// The view direction (surface frame) of (fractional) pixel `p`: towards
+/// the lens (`instrument.view_distance_cm`) from the pixel's own point with
+/// `per-pixel-geometry`, else along the nominal view.
+pub fn pixel_view_at(scene: &Scene, p: f64) -> Vector3<f64> {
     let optics_frame = crate::forward::optics::surface_frame(&scene.instrument.normal());
     let inst = &scene.instrument;
     match (scene.has("per-pixel-geometry"), inst.view_distance_cm) {
         (true, Some(d)) => {
             let c = Vector3::from(inst.point.position_cm) + inst.view_dir() * d;
-            optics_frame * (c - scene.pixel_point(px as f64)).normalize()
+            optics_frame * (c - scene.pixel_point(p)).normalize()
         }
         _ => optics_frame * inst.view_dir(),
     }

@@ -90,8 +90,34 @@ pub struct Truth {
     /// pixel's view), per pixel (m each).
     pub at_led_centre: Vec<Vec<f64>>,
     /// The BRDF vector on the grid (in-plane light at each bin, the pixel's
-    /// view), per pixel (n each).
+    /// view; a mirror spike projected onto its bins), per pixel (n each).
     pub rho: Vec<Vec<f64>>,
+    /// Each pixel's view: its polar angle, degrees (the specular incidence
+    /// its gloss readings are defined about).
+    pub view_deg: Vec<f64>,
+    /// Each pixel's gloss readings by their definitions at its own view
+    /// (`forward::gloss`, in three dimensions): specular gloss GU, haze HU,
+    /// distinctness % (null: the distinctness of a pixel that reflects
+    /// nothing at its specular peak).
+    pub readings: Vec<[Option<f64>; 3]>,
+}
+
+/// One point in `points.csv`: what the device would correct a pixel's frames
+/// to, in the form `host-tools estimate` reads (line, pixel, then the m
+/// corrected readings in LED order).
+pub fn points_csv(out: &Output) -> anyhow::Result<Vec<u8>> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut header = vec!["line".to_string(), "pixel".to_string()];
+    header.extend(out.leds.iter().cloned());
+    w.write_record(&header)?;
+    for l in &out.lines {
+        for (px, v) in l.corrected.iter().enumerate() {
+            let mut rec = vec![l.line.to_string(), px.to_string()];
+            rec.extend(v.iter().map(|x| format!("{}", *x as f32)));
+            w.write_record(&rec)?;
+        }
+    }
+    Ok(w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))?)
 }
 
 /// Simulates lines `first..first + lines` of `scene`: the JSON document and
@@ -108,14 +134,22 @@ pub fn simulate_lines(scene: &Scene, first: u64, lines: u64) -> anyhow::Result<(
     let pi = std::f64::consts::PI;
     let mut at_centre = Vec::with_capacity(p);
     let mut rho = Vec::with_capacity(p);
+    let mut view_deg = Vec::with_capacity(p);
+    let mut readings = Vec::with_capacity(p);
     for px in 0..p {
         let wo = pixel_view(scene, px);
         let b = brdfs[of_pixel[px]].as_ref();
         at_centre
             .push(centres.iter().map(|c| pi * b.f_r(&crate::forward::brdf::light_dir(*c), &wo)).collect::<Vec<_>>());
-        rho.push(
-            grid.bins_deg().iter().map(|t| pi * b.f_r(&crate::forward::brdf::light_dir(*t), &wo)).collect::<Vec<_>>(),
-        );
+        let r: Vec<f64> = grid
+            .bins_deg()
+            .iter()
+            .map(|t| crate::forward::brdf::binned_reflectance_at(b, *t, &wo, grid.step_deg()))
+            .collect();
+        let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
+        readings.push(crate::forward::gloss::model_readings(b, &wo).map(|x| x.is_finite().then_some(x)));
+        view_deg.push(theta_o);
+        rho.push(r);
     }
     let incidence: Vec<Vec<f64>> =
         (0..p).map(|px| (0..m).map(|k| scene.led_incidence_deg(k, px as f64)).collect()).collect();
@@ -165,7 +199,7 @@ pub fn simulate_lines(scene: &Scene, first: u64, lines: u64) -> anyhow::Result<(
         bins_deg: grid.bins_deg().to_vec(),
         white: white.chunks(m).map(<[f64]>::to_vec).collect(),
         lines: outs,
-        truth: Truth { at_led_centre: at_centre, rho },
+        truth: Truth { at_led_centre: at_centre, rho, view_deg, readings },
     };
     Ok((out, rows))
 }

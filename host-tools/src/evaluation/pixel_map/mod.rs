@@ -1,0 +1,374 @@
+//! The per-pixel accuracy map of a calibration kind on a scene: how true
+//! every pixel of the line reads, as a user of the instrument sees it.
+//!
+//! - **BRDF error on held-out materials.** The prior's samples are split into
+//!   folds (`--folds` = its size: leave one material out); for each fold a
+//!   calibration is trained by the production path (`calibration::train`)
+//!   on the other folds, and every material of the fold is simulated as the
+//!   scene's surface with every effect the scene lists (noise, saturation and
+//!   the shorter exposures included) for `lines` lines, read by the device's
+//!   own arithmetic (`device::reference::expected_line`, bit for bit the
+//!   firmware's) and compared with its truth at each pixel's own view. The
+//!   error of a point is the RMS over the bins relative to the truth's peak;
+//!   a (material, pixel) scores its mean over the lines. Linear
+//!   interpolation between the LEDs' centre angles at the pixel reads the
+//!   same corrected readings beside it.
+//! - **Gloss.** A calibration trained on the whole prior reads the
+//!   black-glass standard (mean, spread over lines, the line mean's spread,
+//!   "no reading", saturation) and a set of gloss tiles, dielectrics with
+//!   Ward or GGX roughness from a few to ~95 GU ([`gloss_tiles`], none of
+//!   them in any prior), against their readings by the definition at each
+//!   pixel's own view.
+//! - **Flags and saturation** per pixel over the held-out materials.
+pub mod report;
+
+use crate::calibration::estimators::interpolation;
+use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
+use crate::device::reference::expected_line;
+use crate::evaluation::pixel_error::quantiles;
+use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
+use crate::forward::gloss::model_readings;
+use crate::forward::pairs::Criterion;
+use crate::forward::prior_models::{PriorModels, SampleModel};
+use crate::forward::scene::pipeline::{Simulator, pixel_view};
+use crate::forward::scene::{Scene, training_optics};
+use anyhow::Context;
+use brdf_meter::acquire::AcqConfig;
+use brdf_meter::blob::{BlobView, EstimatorKind};
+use brdf_meter::protocol::flags;
+use nalgebra::DVector;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::Arc;
+
+/// What the map is asked.
+#[derive(Clone, Debug)]
+pub struct MapSpec {
+    /// The instrument (and its effects) the materials are simulated with.
+    pub scene: Scene,
+    /// Zones of the calibrations.
+    pub zones: usize,
+    /// Estimator kind.
+    pub kind: EstimatorKind,
+    /// Training criterion.
+    pub criterion: Criterion,
+    /// The prior (its reflection models are the held-out materials).
+    pub prior: PriorModels,
+    /// Folds over the prior's samples.
+    pub folds: usize,
+    /// Lines simulated per held-out material.
+    pub lines: u64,
+    /// Lines of the black glass and of each tile.
+    pub gloss_lines: u64,
+    /// The acquisition's shorter exposures (the device's settings).
+    pub acq: AcqConfig,
+    /// Seed of the fold split.
+    pub seed: u64,
+}
+
+/// One pixel's row of the map.
+#[derive(Clone, Debug, Serialize)]
+pub struct PixelRow {
+    /// Pixel.
+    pub pixel: usize,
+    /// Its view's polar angle, degrees.
+    pub view_deg: f64,
+    /// Its zone.
+    pub zone: usize,
+    /// Held-out BRDF error over the materials: median, 90th percentile, worst.
+    pub error: [f64; 3],
+    /// Linear interpolation's.
+    pub interpolation: [f64; 3],
+    /// Share of the held-out points flagged out of prior.
+    pub out_of_prior: f64,
+    /// Share of the held-out points flagged saturated.
+    pub saturated: f64,
+    /// The black glass's mean gloss reading over its lines, GU (NaN: no reading).
+    pub black_glass_gu: f64,
+    /// Its standard deviation over the lines, GU.
+    pub black_glass_sd_gu: f64,
+    /// Whether the black glass saturated the pixel on any line.
+    pub black_glass_saturated: bool,
+    /// The tiles' mean |reading - definition| at this pixel, GU (each tile's mean over lines).
+    pub tiles_mean_abs_gu: f64,
+    /// The tiles' worst.
+    pub tiles_max_abs_gu: f64,
+}
+
+/// One material's errors (its mean over the lines at every pixel).
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialRow {
+    /// Name.
+    pub name: String,
+    /// Per pixel, the estimator's error.
+    pub error: Vec<f64>,
+    /// Per pixel, interpolation's.
+    pub interpolation: Vec<f64>,
+}
+
+/// The whole map.
+#[derive(Clone, Debug, Serialize)]
+pub struct PixelMap {
+    /// Scene name.
+    pub scene: String,
+    /// Estimator kind.
+    pub kind: String,
+    /// Zones.
+    pub zones: usize,
+    /// Folds.
+    pub folds: usize,
+    /// Lines per material.
+    pub lines: u64,
+    /// Per pixel.
+    pub pixels: Vec<PixelRow>,
+    /// Per held-out material.
+    pub materials: Vec<MaterialRow>,
+    /// Over every (material, pixel): median, 90th, worst.
+    pub error: [f64; 3],
+    /// Interpolation's.
+    pub interpolation: [f64; 3],
+    /// The black glass: mean GU range over the pixels [min, max], the
+    /// largest per-pixel spread, the line mean's spread, pixels without a
+    /// reading, pixels saturated.
+    pub black_glass: BlackGlassSummary,
+    /// The tiles: mean and worst |delta GU| over every (tile, pixel).
+    pub tiles: [f64; 2],
+    /// The tiles' truths at the line's centre pixel, GU.
+    pub tile_gu: Vec<(String, f64)>,
+}
+
+/// The black glass over the line.
+#[derive(Clone, Debug, Serialize)]
+pub struct BlackGlassSummary {
+    /// Lowest and highest per-pixel mean reading, GU.
+    pub mean_range_gu: [f64; 2],
+    /// Largest per-pixel standard deviation over lines, GU.
+    pub max_pixel_sd_gu: f64,
+    /// Standard deviation of the line's mean over lines, GU.
+    pub line_mean_sd_gu: f64,
+    /// Pixels without a reading.
+    pub no_reading: usize,
+    /// Pixels saturated on some line.
+    pub saturated: usize,
+}
+
+/// The gloss tiles the map reads: polished dielectrics roughened by Ward
+/// and by GGX, over dark and mid bases (none of them in the rows' prior,
+/// whose GGX tiles have index 1.5 and other roughnesses).
+pub fn gloss_tiles() -> Vec<(String, Arc<dyn Brdf>)> {
+    let mut out: Vec<(String, Arc<dyn Brdf>)> = Vec::new();
+    for alpha in [0.035, 0.05, 0.08, 0.12, 0.2] {
+        out.push((format!("ward rho_s 0.05 alpha {alpha}"), Arc::new(Ward::new(0.1, 0.05, alpha).expect("tile"))));
+    }
+    let f0 = ((1.55f64 - 1.0) / (1.55 + 1.0)).powi(2);
+    for alpha in [0.045, 0.065, 0.1, 0.15, 0.25] {
+        out.push((format!("ggx f0 {f0:.3} alpha {alpha}"), Arc::new(Ggx::new(0.2, 1.0, alpha, f0).expect("tile"))));
+    }
+    out
+}
+
+/// One surface simulated with the scene's every effect for `lines` lines,
+/// read as the device reads it; per line and pixel the estimate and the
+/// corrected readings.
+struct Read {
+    /// `[line][pixel]`.
+    points: Vec<Vec<crate::device::reference::ExpectedPoint>>,
+}
+
+fn read_surface(spec: &MapSpec, brdf: Arc<dyn Brdf>, blob: &BlobView<'_>, lines: u64, seed: u64) -> anyhow::Result<Read> {
+    // Lines 0.. of the scene (its LEDs drift with the frames since
+    // calibration), each surface with its own noise draw.
+    let mut scene = spec.scene.clone();
+    if scene.noise().is_some() {
+        crate::forward::scene::readings::set_noise_seed(&mut scene, seed)?;
+    }
+    let sim = Simulator::with_surface(&scene, brdf)?;
+    let fs = scene.instrument.sensor.full_scale as u16;
+    let points = (0..lines)
+        .map(|l| {
+            let frames = sim.raw_frames(l)?;
+            Ok(expected_line(blob, &frames, fs, &spec.acq))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(Read { points })
+}
+
+/// The map.
+pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
+    let scene = &spec.scene;
+    let inst = &scene.instrument;
+    let grid = inst.grid().context("the scene's angle grid")?;
+    let p = inst.pixels();
+    let optics = training_optics(scene, spec.zones, None)?;
+    let train_spec = TrainSpec {
+        bins_deg: grid.bins_deg(),
+        zones: optics.zones.clone(),
+        pixels: optics.pixels,
+        view_deg: inst.view_deg,
+        prior: &spec.prior,
+        noise_rel: optics.noise_level.max(1e-6),
+        estimator: spec.kind,
+        criterion: spec.criterion,
+        false_alarm: 0.05,
+        far_field: !scene.has("near-field"),
+        led_order: None,
+        white: Some(optics.white.clone()),
+    };
+    progress("sample pairs of every zone");
+    let all_pairs = ZonePairs::build(&train_spec);
+    let materials: Vec<usize> =
+        (0..spec.prior.len()).filter(|&k| matches!(spec.prior.samples[k].model, SampleModel::Brdf(_))).collect();
+    let mut order = materials.clone();
+    order.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed));
+    let folds = spec.folds.clamp(1, order.len().max(1));
+    let views: Vec<nalgebra::Vector3<f64>> = (0..p).map(|px| pixel_view(scene, px)).collect();
+    let interp: Vec<nalgebra::DMatrix<f64>> = (0..p)
+        .map(|px| {
+            let c: Vec<f64> = (0..inst.m()).map(|k| scene.led_incidence_deg(k, px as f64)).collect();
+            interpolation::weights(grid.bins_deg(), &c).map_err(|e| anyhow::anyhow!("{e}"))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut rows: Vec<MaterialRow> = Vec::new();
+    let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
+    for f in 0..folds {
+        let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
+        progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
+        let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
+        let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let results: Vec<(MaterialRow, Vec<(usize, usize, usize)>)> = held
+            .par_iter()
+            .map(|&k| {
+                let s = &spec.prior.samples[k];
+                let SampleModel::Brdf(b) = &s.model else { unreachable!("only models are held out") };
+                let read = read_surface(spec, b.clone(), &blob, spec.lines, k as u64)?;
+                let mut err = vec![0.0; p];
+                let mut ierr = vec![0.0; p];
+                let mut fl = vec![(0, 0, 0); p];
+                for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
+                    let truth = DVector::from_iterator(
+                        grid.n(),
+                        grid.bins_deg().iter().map(|t| binned_reflectance_at(b.as_ref(), *t, &views[px], grid.step_deg())),
+                    );
+                    let peak = truth.amax().max(f64::MIN_POSITIVE);
+                    let rms = |x: &DVector<f64>| ((x - &truth).norm_squared() / grid.n() as f64).sqrt() / peak;
+                    for line in &read.points {
+                        let pt = &line[px];
+                        let est = DVector::from_iterator(grid.n(), pt.values.iter().map(|x| f64::from(*x)));
+                        let v = DVector::from_iterator(inst.m(), pt.corrected.iter().map(|x| f64::from(*x)));
+                        *e += rms(&est) / spec.lines as f64;
+                        *ie += rms(&(&interp[px] * v)) / spec.lines as f64;
+                        c.0 += usize::from(pt.flags & flags::OUT_OF_PRIOR != 0);
+                        c.1 += usize::from(pt.flags & flags::SATURATED != 0);
+                        c.2 += 1;
+                    }
+                }
+                Ok((MaterialRow { name: s.name.clone(), error: err, interpolation: ierr }, fl))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        for (row, fl) in results {
+            for (acc, x) in flag_counts.iter_mut().zip(fl) {
+                acc.0 += x.0;
+                acc.1 += x.1;
+                acc.2 += x.2;
+            }
+            rows.push(row);
+        }
+    }
+    rows.sort_by(|a, b| a.name.cmp(&b.name));
+    // Gloss: a calibration on the whole prior.
+    progress("gloss: training on the whole prior, reading the black glass and the tiles");
+    let full = train_on(&train_spec, &all_pairs)?;
+    let blob = BlobView::parse(&full.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let bg = read_surface(spec, Arc::new(SmoothDielectric::black_glass()), &blob, spec.gloss_lines, 1_000_003)?;
+    let tiles = gloss_tiles();
+    let tile_reads: Vec<(Read, Vec<Option<f64>>)> = tiles
+        .par_iter()
+        .enumerate()
+        .map(|(i, (_, b))| {
+            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.min(8).max(1), 2_000_003 + i as u64)?;
+            let truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
+            Ok((read, truth))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mean_sd = |xs: &[f64]| {
+        let n = xs.len() as f64;
+        let m = xs.iter().sum::<f64>() / n;
+        (m, (xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt())
+    };
+    let gu = |pt: &crate::device::reference::ExpectedPoint| f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]);
+    let mut pixels = Vec::with_capacity(p);
+    for px in 0..p {
+        let e: Vec<f64> = rows.iter().map(|r| r.error[px]).collect();
+        let i: Vec<f64> = rows.iter().map(|r| r.interpolation[px]).collect();
+        let bgv: Vec<f64> = bg.points.iter().map(|l| gu(&l[px])).collect();
+        let (bm, bsd) = mean_sd(&bgv);
+        let mut dev = Vec::new();
+        for (read, truth) in &tile_reads {
+            let r: Vec<f64> = read.points.iter().map(|l| gu(&l[px])).collect();
+            if let Some(t) = truth[px] {
+                dev.push((mean_sd(&r).0 - t).abs());
+            }
+        }
+        let (oop, sat, total) = flag_counts[px];
+        pixels.push(PixelRow {
+            pixel: px,
+            view_deg: views[px].z.acos().to_degrees(),
+            zone: blob.zone_of_pixel(px),
+            error: quantiles(&e),
+            interpolation: quantiles(&i),
+            out_of_prior: oop as f64 / total.max(1) as f64,
+            saturated: sat as f64 / total.max(1) as f64,
+            black_glass_gu: bm,
+            black_glass_sd_gu: bsd,
+            black_glass_saturated: bg.points.iter().any(|l| l[px].flags & flags::SATURATED != 0),
+            tiles_mean_abs_gu: if dev.is_empty() { f64::NAN } else { dev.iter().sum::<f64>() / dev.len() as f64 },
+            tiles_max_abs_gu: dev.iter().copied().fold(f64::NAN, f64::max),
+        });
+    }
+    let all_e: Vec<f64> = rows.iter().flat_map(|r| r.error.iter().copied()).collect();
+    let all_i: Vec<f64> = rows.iter().flat_map(|r| r.interpolation.iter().copied()).collect();
+    let line_means: Vec<f64> = bg
+        .points
+        .iter()
+        .map(|l| {
+            let v: Vec<f64> = l.iter().map(gu).filter(|x| x.is_finite()).collect();
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        })
+        .collect();
+    let finite_bg: Vec<f64> = pixels.iter().map(|r| r.black_glass_gu).filter(|x| x.is_finite()).collect();
+    let black_glass = BlackGlassSummary {
+        mean_range_gu: [
+            finite_bg.iter().copied().fold(f64::INFINITY, f64::min),
+            finite_bg.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ],
+        max_pixel_sd_gu: pixels.iter().map(|r| r.black_glass_sd_gu).fold(0.0, f64::max),
+        line_mean_sd_gu: mean_sd(&line_means).1,
+        no_reading: pixels.iter().filter(|r| !r.black_glass_gu.is_finite()).count(),
+        saturated: pixels.iter().filter(|r| r.black_glass_saturated).count(),
+    };
+    let devs: Vec<f64> = pixels.iter().map(|r| r.tiles_mean_abs_gu).filter(|x| x.is_finite()).collect();
+    let tile_gu = tiles
+        .iter()
+        .zip(&tile_reads)
+        .map(|((n, _), (_, t))| (n.clone(), t[p / 2].unwrap_or(f64::NAN)))
+        .collect();
+    Ok(PixelMap {
+        scene: scene.name.clone(),
+        kind: crate::calibration::estimators::kind_name(spec.kind).into(),
+        zones: spec.zones,
+        folds,
+        lines: spec.lines,
+        error: quantiles(&all_e),
+        interpolation: quantiles(&all_i),
+        black_glass,
+        tiles: [
+            devs.iter().sum::<f64>() / devs.len().max(1) as f64,
+            pixels.iter().map(|r| r.tiles_max_abs_gu).filter(|x| x.is_finite()).fold(0.0, f64::max),
+        ],
+        tile_gu,
+        pixels,
+        materials: rows,
+    })
+}

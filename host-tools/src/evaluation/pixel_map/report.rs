@@ -1,0 +1,239 @@
+//! The per-pixel map's outputs: a markdown summary and table, CSV (one row
+//! per pixel), JSON (everything, each material's errors too) and a plot
+//! against pixel (held-out error beside interpolation's, the black glass's
+//! reading, the tiles' gloss error).
+use super::PixelMap;
+use crate::output::plot::{Figure, render};
+use anyhow::anyhow;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// The summary and the per-pixel table (every `stride`-th pixel and the last).
+pub fn markdown(map: &PixelMap, stride: usize) -> String {
+    let mut s = String::new();
+    let q = |x: [f64; 3]| format!("{:.3} / {:.3} / {:.3}", x[0], x[1], x[2]);
+    let bg = &map.black_glass;
+    let _ = writeln!(
+        s,
+        "{} on `{}`, {} zones; {} held-out folds, {} lines per material\n",
+        map.kind, map.scene, map.zones, map.folds, map.lines
+    );
+    let _ = writeln!(s, "| figure | value |\n|---|---|");
+    let _ = writeln!(s, "| BRDF error / peak, held out (median / 90th / worst over material x pixel) | {} |", q(map.error));
+    let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(map.interpolation));
+    let _ = writeln!(
+        s,
+        "| black glass: per-pixel mean GU (lowest .. highest) | {:.2} .. {:.2} |",
+        bg.mean_range_gu[0], bg.mean_range_gu[1]
+    );
+    let _ = writeln!(s, "| black glass: largest per-pixel 1 sigma over lines, GU | {:.2} |", bg.max_pixel_sd_gu);
+    let _ = writeln!(s, "| black glass: 1 sigma of the line's mean, GU | {:.3} |", bg.line_mean_sd_gu);
+    let _ = writeln!(s, "| black glass: pixels without a reading / saturated | {} / {} |", bg.no_reading, bg.saturated);
+    let _ = writeln!(s, "| gloss tiles: mean / worst abs(delta GU) over tile x pixel | {:.2} / {:.2} |", map.tiles[0], map.tiles[1]);
+    let tiles: Vec<String> = map.tile_gu.iter().map(|(_, g)| format!("{g:.1}")).collect();
+    let _ = writeln!(s, "| gloss tiles' GU at the centre pixel | {} |", tiles.join(", "));
+    let _ = writeln!(s);
+    let _ = writeln!(
+        s,
+        "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let last = map.pixels.len().saturating_sub(1);
+    for r in map.pixels.iter().filter(|r| r.pixel % stride.max(1) == 0 || r.pixel == last) {
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {} | {} | {} | {:.0} % | {:.0} % | {:.2} ({:.2}) | {:.2} / {:.2} |",
+            r.pixel,
+            r.view_deg,
+            r.zone,
+            q(r.error),
+            q(r.interpolation),
+            100.0 * r.out_of_prior,
+            100.0 * r.saturated,
+            r.black_glass_gu,
+            r.black_glass_sd_gu,
+            r.tiles_mean_abs_gu,
+            r.tiles_max_abs_gu
+        );
+    }
+    s
+}
+
+/// One row per pixel.
+pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record([
+        "pixel",
+        "view_deg",
+        "zone",
+        "error_median",
+        "error_p90",
+        "error_worst",
+        "interpolation_median",
+        "interpolation_p90",
+        "interpolation_worst",
+        "out_of_prior",
+        "saturated",
+        "black_glass_gu",
+        "black_glass_sd_gu",
+        "black_glass_saturated",
+        "tiles_mean_abs_gu",
+        "tiles_max_abs_gu",
+    ])?;
+    for r in &map.pixels {
+        let f = |x: f64| format!("{x:.6}");
+        w.write_record([
+            r.pixel.to_string(),
+            f(r.view_deg),
+            r.zone.to_string(),
+            f(r.error[0]),
+            f(r.error[1]),
+            f(r.error[2]),
+            f(r.interpolation[0]),
+            f(r.interpolation[1]),
+            f(r.interpolation[2]),
+            f(r.out_of_prior),
+            f(r.saturated),
+            f(r.black_glass_gu),
+            f(r.black_glass_sd_gu),
+            r.black_glass_saturated.to_string(),
+            f(r.tiles_mean_abs_gu),
+            f(r.tiles_max_abs_gu),
+        ])?;
+    }
+    Ok(w.into_inner()?)
+}
+
+struct MapPlot<'a>(&'a PixelMap);
+
+impl Figure for MapPlot<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let map = self.0;
+        let e = |x: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{x}");
+        root.fill(&WHITE).map_err(e)?;
+        let panels = root.split_evenly((3, 1));
+        let p = map.pixels.len().max(1) as f64;
+        let blue = RGBColor(31, 119, 180);
+        let red = RGBColor(214, 39, 40);
+        let green = RGBColor(44, 160, 44);
+        // Error.
+        let ymax = map.pixels.iter().map(|r| r.error[1].max(r.interpolation[1])).fold(0.05, f64::max) * 1.2;
+        let mut c = ChartBuilder::on(&panels[0])
+            .caption(format!("{} on {}, {} zones: held-out error per pixel", map.kind, map.scene, map.zones), ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(25)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..p, 0.0..ymax)
+            .map_err(e)?;
+        c.configure_mesh().y_desc("error / peak").label_style(("sans-serif", 12)).draw().map_err(e)?;
+        for (label, col, q, interp) in [
+            ("median", blue.to_rgba(), 0, false),
+            ("90th", blue.mix(0.5), 1, false),
+            ("interpolation median", red.to_rgba(), 0, true),
+        ] {
+            let pts: Vec<(f64, f64)> = map
+                .pixels
+                .iter()
+                .map(|r| (r.pixel as f64, if interp { r.interpolation[q] } else { r.error[q] }))
+                .collect();
+            let style = ShapeStyle { color: col, filled: true, stroke_width: 2 };
+            c.draw_series(LineSeries::new(pts, style))
+                .map_err(e)?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.3))
+            .label_font(("sans-serif", 12))
+            .draw()
+            .map_err(e)?;
+        // Black glass.
+        let finite: Vec<f64> = map.pixels.iter().map(|r| r.black_glass_gu).filter(|x| x.is_finite()).collect();
+        let (lo, hi) = finite.iter().fold((99.0f64, 101.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
+        let mut c = ChartBuilder::on(&panels[1])
+            .margin(10)
+            .x_label_area_size(25)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..p, (lo - 0.5)..(hi + 0.5))
+            .map_err(e)?;
+        c.configure_mesh().y_desc("black glass GU").label_style(("sans-serif", 12)).draw().map_err(e)?;
+        c.draw_series(map.pixels.iter().filter(|r| r.black_glass_gu.is_finite()).map(|r| {
+            PathElement::new(
+                vec![
+                    (r.pixel as f64, r.black_glass_gu - r.black_glass_sd_gu),
+                    (r.pixel as f64, r.black_glass_gu + r.black_glass_sd_gu),
+                ],
+                green.mix(0.5),
+            )
+        }))
+        .map_err(e)?;
+        c.draw_series(
+            map.pixels
+                .iter()
+                .filter(|r| r.black_glass_gu.is_finite())
+                .map(|r| Circle::new((r.pixel as f64, r.black_glass_gu), 2, green.filled())),
+        )
+        .map_err(e)?;
+        c.draw_series(LineSeries::new([(0.0, 100.0), (p, 100.0)], BLACK.mix(0.4))).map_err(e)?;
+        // Tiles.
+        let tmax = map.pixels.iter().map(|r| r.tiles_max_abs_gu).filter(|x| x.is_finite()).fold(1.0, f64::max) * 1.2;
+        let mut c = ChartBuilder::on(&panels[2])
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..p, 0.0..tmax)
+            .map_err(e)?;
+        c.configure_mesh()
+            .x_desc("pixel")
+            .y_desc("tiles |dGU|")
+            .label_style(("sans-serif", 12))
+            .draw()
+            .map_err(e)?;
+        for (label, q, col) in [("mean", 0, blue), ("worst", 1, red)] {
+            let pts: Vec<(f64, f64)> = map
+                .pixels
+                .iter()
+                .map(|r| (r.pixel as f64, if q == 0 { r.tiles_mean_abs_gu } else { r.tiles_max_abs_gu }))
+                .filter(|x| x.1.is_finite())
+                .collect();
+            let style = ShapeStyle { color: col.to_rgba(), filled: true, stroke_width: 2 };
+            c.draw_series(LineSeries::new(pts, style))
+                .map_err(e)?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .label_font(("sans-serif", 12))
+            .draw()
+            .map_err(e)?;
+        Ok(())
+    }
+}
+
+/// Writes `pixel-map.md`, `.csv`, `.json`, `.svg`, `.png` into `dir`, atomically.
+pub fn write(dir: &Path, map: &PixelMap, stride: usize) -> anyhow::Result<Vec<PathBuf>> {
+    use crate::output::io::write_atomic;
+    let mut out = Vec::new();
+    let mut put = |name: &str, bytes: &[u8]| -> anyhow::Result<()> {
+        let p = dir.join(name);
+        write_atomic(&p, bytes)?;
+        out.push(p);
+        Ok(())
+    };
+    put("pixel-map.md", markdown(map, stride).as_bytes())?;
+    put("pixel-map.csv", &csv(map)?)?;
+    put("pixel-map.json", &serde_json::to_vec_pretty(map)?)?;
+    let (svg, png) = render(&MapPlot(map), (1000, 1000))?;
+    put("pixel-map.svg", svg.as_bytes())?;
+    put("pixel-map.png", &png)?;
+    Ok(out)
+}

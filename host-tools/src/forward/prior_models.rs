@@ -1,0 +1,152 @@
+//! A prior as the models of its samples, not only their values on the grid.
+//!
+//! Training from sample pairs (`crate::forward::pairs`) needs, for every
+//! prior sample, what the instrument would read of it through optics that
+//! are not in-plane (extended LEDs, each pixel's own view) and its truth at
+//! each pixel's own view. A sample known as a reflection model (Ward, GGX,
+//! a measured MERL or NBRDF material, a smooth dielectric) can be evaluated
+//! for any pair of directions: [`SampleModel::Brdf`]. A sample known only as
+//! an in-plane profile at the instrument's nominal view (a goniometric CSV,
+//! an ASTM E1392 table's profile) cannot: [`SampleModel::Profile`], whose
+//! readings are the in-plane model's `H rho` and whose truth stays the
+//! profile at every pixel.
+use crate::calibration::estimators::scale_free::WeightedSamples;
+use crate::forward::brdf::Brdf;
+use crate::forward::grid::AngleGrid;
+use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
+
+/// What is known of one prior sample.
+#[derive(Clone, Debug)]
+pub enum SampleModel {
+    /// A reflection model, evaluable for any pair of directions.
+    Brdf(Arc<dyn Brdf>),
+    /// Reflectance factors on the grid's bins at the instrument's nominal
+    /// view only (in-plane).
+    Profile(DVector<f64>),
+}
+
+impl SampleModel {
+    /// The sample on `grid` at `view_deg` (reflectance factors; a model's
+    /// mirror spike is not included, as in the priors' grid vectors).
+    pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
+        match self {
+            Self::Brdf(b) => DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg))),
+            Self::Profile(p) => p.clone(),
+        }
+    }
+}
+
+/// One prior sample: its name, family, weight and model.
+#[derive(Clone, Debug)]
+pub struct PriorSample {
+    /// Name for reports, e.g. `merl:blue-acrylic`.
+    pub name: String,
+    /// The family it came from (the prior argument's label).
+    pub family: String,
+    /// Weight in the prior (the weights of a prior sum to 1).
+    pub weight: f64,
+    /// What is known of it.
+    pub model: SampleModel,
+}
+
+/// The samples of a prior, as models.
+#[derive(Clone, Debug, Default)]
+pub struct PriorModels {
+    /// The samples, weights summing to 1.
+    pub samples: Vec<PriorSample>,
+}
+
+impl PriorModels {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// Equal-weight samples of one family from reflection models.
+    pub fn from_brdfs(family: &str, brdfs: Vec<(String, Arc<dyn Brdf>)>) -> Self {
+        let w = 1.0 / brdfs.len().max(1) as f64;
+        Self {
+            samples: brdfs
+                .into_iter()
+                .map(|(name, b)| PriorSample { name, family: family.into(), weight: w, model: SampleModel::Brdf(b) })
+                .collect(),
+        }
+    }
+
+    /// The samples on the grid at `view_deg` with their weights.
+    pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> WeightedSamples {
+        let cols: Vec<DVector<f64>> = self.samples.iter().map(|s| s.model.on_grid(grid, view_deg)).collect();
+        WeightedSamples { samples: DMatrix::from_columns(&cols), weights: self.samples.iter().map(|s| s.weight).collect() }
+    }
+
+    /// The names, in order.
+    pub fn names(&self) -> Vec<String> {
+        self.samples.iter().map(|s| s.name.clone()).collect()
+    }
+
+    /// The subset `idx`, weights renormalised to sum to 1.
+    pub fn subset(&self, idx: &[usize]) -> Self {
+        let total: f64 = idx.iter().map(|&k| self.samples[k].weight).sum();
+        Self {
+            samples: idx
+                .iter()
+                .map(|&k| {
+                    let mut s = self.samples[k].clone();
+                    s.weight /= total;
+                    s
+                })
+                .collect(),
+        }
+    }
+
+    /// Two priors mixed as families: this one's weights times `1 - w`, the
+    /// other's times `w`.
+    pub fn mixed_with(&self, other: &PriorModels, w: f64) -> Self {
+        fn scaled(p: &PriorModels, f: f64) -> impl Iterator<Item = PriorSample> + '_ {
+            let total: f64 = p.samples.iter().map(|s| s.weight).sum();
+            p.samples.iter().map(move |s| PriorSample { weight: s.weight / total * f, ..s.clone() })
+        }
+        Self { samples: scaled(self, 1.0 - w).chain(scaled(other, w)).collect() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forward::brdf::{Lambertian, Ward};
+
+    #[test]
+    fn models_sample_the_grid_and_mix_with_the_stated_weights() {
+        let grid = AngleGrid::patent();
+        let a = PriorModels::from_brdfs(
+            "a",
+            vec![
+                ("w".into(), Arc::new(Ward::patent(0.3, 0.1)) as Arc<dyn Brdf>),
+                ("l".into(), Arc::new(Lambertian::perfect()) as Arc<dyn Brdf>),
+            ],
+        );
+        let ws = a.on_grid(&grid, 45.0);
+        assert_eq!(ws.samples.shape(), (81, 2));
+        assert!((ws.samples[(40, 1)] - 1.0).abs() < 1e-12);
+        assert_eq!(ws.weights, vec![0.5, 0.5]);
+        let p = PriorModels {
+            samples: vec![PriorSample {
+                name: "p".into(),
+                family: "b".into(),
+                weight: 1.0,
+                model: SampleModel::Profile(DVector::from_element(81, 0.2)),
+            }],
+        };
+        let m = a.mixed_with(&p, 0.25);
+        assert_eq!(m.samples.iter().map(|s| s.weight).collect::<Vec<_>>(), vec![0.375, 0.375, 0.25]);
+        assert_eq!(m.on_grid(&grid, 45.0).samples[(3, 2)], 0.2);
+        let s = m.subset(&[0, 2]);
+        assert!((s.samples.iter().map(|s| s.weight).sum::<f64>() - 1.0).abs() < 1e-15);
+    }
+}
