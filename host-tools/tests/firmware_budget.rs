@@ -34,7 +34,7 @@ fn board_firmware_fits_its_budget_with_the_z128_calibration() {
     let root = root();
     let elf = build_board_fw(&root);
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
-    let budget = host_tools::device::budget::check_file(&elf, &script).expect("reading the firmware image");
+    let budget = host_tools::device::budget::check_file(&elf, host_tools::device::budget::ImageKind::Application, &script).expect("reading the firmware image");
     println!("{}", budget.table());
     assert!(budget.ok(), "board-fw is over budget:\n{}", budget.table());
     // The image really is the board firmware and really has the sections the

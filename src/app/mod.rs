@@ -18,6 +18,7 @@
 //! `#[embassy_executor::task]` wrappers around [`acquisition`], [`estimation`]
 //! and [`transport`] with its concrete types (see `src/bin/qemu-fw.rs`).
 mod handler;
+mod self_test;
 mod tasks;
 
 pub use tasks::{acquisition, estimation, transport};
@@ -107,6 +108,9 @@ impl<const M: usize, const P: usize> Default for LineBuf<M, P> {
     }
 }
 
+/// The platform's firmware updater, as the application holds it.
+pub type FirmwarePort = &'static mut (dyn crate::firmware::update::FirmwareSlot + Send);
+
 /// State the request handler and the tasks share.
 pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     /// Calibration store.
@@ -115,6 +119,10 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub cal: Calibration<N, M, P>,
     /// Counters and flags.
     pub status: DeviceStatus,
+    /// The firmware updater, on a platform with an update partition.
+    pub firmware: Option<FirmwarePort>,
+    /// The self-test that confirms a trial image (see `self_test`).
+    pub self_test: crate::protocol::SelfTest,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -134,6 +142,11 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     pub full_scale: u16,
     /// Whether the sensor is simulated (reported by `Info`).
     pub simulated: bool,
+    /// Transport -> platform: reset the device (a `Reboot` request was
+    /// answered; the platform resets once the reply has left).
+    pub reboot: Signal<Cs, ()>,
+    /// The machine this build is for (firmware images must match it).
+    pub target: crate::firmware::image::Target,
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -157,15 +170,28 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             let _ = cal.load(&view, info);
         }
         let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
+        // The store was opened and both slots read: the self-test's first part.
+        let self_test = crate::protocol::SelfTest { store: true, ..Default::default() };
+        let core = Core { store, cal, status, firmware: None, self_test };
         Self {
-            core: BlockingMutex::new(RefCell::new(Core { store, cal, status })),
+            core: BlockingMutex::new(RefCell::new(core)),
             start: Signal::new(),
             stop: AtomicBool::new(false),
             out: Channel::new(),
             acq,
             full_scale,
             simulated,
+            reboot: Signal::new(),
+            target: if simulated { crate::firmware::image::Target::Qemu } else { crate::firmware::image::Target::Board },
         }
+    }
+
+    /// Hands the application the platform's firmware updater: it then
+    /// takes updates over the link and confirms a trial boot after its
+    /// self-test.
+    pub fn with_firmware(self, port: FirmwarePort) -> Self {
+        self.core.lock(|c| c.borrow_mut().firmware = Some(port));
+        self
     }
 
     /// A copy of the status.
