@@ -1,0 +1,65 @@
+//! `host-tools update-firmware`: a signed firmware image onto a device over
+//! its link, then a reset into it (on trial until its self-test passes).
+use crate::device::link::{Client, Endpoint, LinkError};
+use anyhow::{Context, bail};
+use brdf_meter::firmware::image;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Send a signed firmware image (`host-tools sign-firmware`) to a device:
+/// the device checks it whole (CRC, target, signature) before it marks it
+/// for the bootloader, then resets into it on trial. A refused or
+/// interrupted update leaves the running firmware as it is; run the
+/// command again to resume an interrupted transfer.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The device.
+    #[command(flatten)]
+    pub device: Endpoint,
+    /// The signed firmware image.
+    #[arg(long, value_name = "IMAGE")]
+    pub image: PathBuf,
+    /// Commit without resetting (the update starts at the next reset).
+    #[arg(long)]
+    pub no_reboot: bool,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let name = a.image.display().to_string();
+    let bytes = std::fs::read(&a.image).with_context(|| format!("reading {name}"))?;
+    let mut trailer = [0u8; image::FW_TRAILER_LEN];
+    if bytes.len() < trailer.len() {
+        bail!("{name} is not a signed firmware image (sign it with `host-tools sign-firmware`)");
+    }
+    trailer.copy_from_slice(&bytes[bytes.len() - image::FW_TRAILER_LEN..]);
+    let (manifest, _) = image::decode_trailer(&trailer, bytes.len() as u32).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let mut c = Client::new(a.device.open()?)?;
+    let fw = c.firmware_info().context("asking the device for its firmware")?;
+    if fw.target != manifest.target {
+        bail!("{name} is built for {:?}, the device is {:?}: nothing was sent", manifest.target, fw.target);
+    }
+    let t0 = Instant::now();
+    let version = c
+        .update_firmware(&bytes, |done, total| eprint!("\rsent {done} of {total} bytes"))
+        .map_err(|e| match e {
+            LinkError::Device(d) => anyhow::anyhow!("{d}"),
+            e => anyhow::anyhow!("{e} (run the command again to resume; the running firmware is untouched)"),
+        })?;
+    eprintln!();
+    println!(
+        "{name}: firmware {}.{}.{} verified and marked by the device in {:.1} s ({} bytes)",
+        version[0],
+        version[1],
+        version[2],
+        t0.elapsed().as_secs_f64(),
+        bytes.len()
+    );
+    if a.no_reboot {
+        println!("not reset: the update starts at the device's next reset");
+    } else {
+        c.reboot().context("asking the device to reset")?;
+        println!("the device resets into it; it confirms itself after its self-test, else the next reset reverts it");
+    }
+    Ok(())
+}
