@@ -99,7 +99,8 @@ pub mod board {
 
     const _: () = assert!(SLOT_B + SLOT_LEN == FLASH_BASE + FLASH_SIZE, "the map fills the chip's flash");
     const _: () = assert!(SLOT_LEN >= 320 * KIB, "calibration slots stay at least 320 KiB");
-    const _: () = assert!(DFU_LEN >= ACTIVE_LEN + PAGE, "embassy-boot's swap needs one page more than the active image");
+    const _: () =
+        assert!(DFU_LEN >= ACTIVE_LEN + PAGE, "embassy-boot's swap needs one page more than the active image");
     const _: () = assert!(
         (2 + 4 * (ACTIVE_LEN / PAGE)) * super::FLASH_WRITE as u32 <= BOOT_STATE_LEN,
         "the boot state holds the progress of a swap and a revert"

@@ -311,7 +311,8 @@ fn an_update_never_touches_anything_but_the_update_and_state_partitions() {
     with_updater(&f, |u| send(u, &b)).unwrap();
     for op in &f.log()[before..] {
         let at = match op {
-            brdf_meter::platform::host_sim::FlashOp::Erase(at) | brdf_meter::platform::host_sim::FlashOp::Write(at, _) => *at,
+            brdf_meter::platform::host_sim::FlashOp::Erase(at)
+            | brdf_meter::platform::host_sim::FlashOp::Write(at, _) => *at,
         };
         assert!(at < STATE_LEN || at >= DFU_AT, "the transfer touched the active image at {at:#x}");
     }

@@ -2,9 +2,9 @@
 //! writes go straight to the flash's inactive slot; a measurement is handed to
 //! the acquisition task.
 use super::{Core, Job, Shared};
+use crate::estimate::Calibration;
 use crate::firmware::image::Target;
 use crate::firmware::update::FirmwareSlot;
-use crate::estimate::Calibration;
 use crate::hw::{FrameInput, FrameLoadError, MappedFlash};
 use crate::protocol::{
     BootState, DeviceError, DeviceInfo, FirmwareInfo, MAX_CHUNK, MAX_KEY_IDS, PROTOCOL_VERSION, Request, Response,
@@ -87,12 +87,12 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 Request::SimLines { lines } => scene.set_lines(lines).map(|_| Response::SimLoaded).map_err(sim_err),
                 Request::FirmwareInfo => Ok(Response::Firmware(firmware_info(c, self.target))),
                 Request::UpdateBegin { .. } | Request::UpdateCommit if measuring => Err(DeviceError::Busy),
-                Request::UpdateBegin { len, crc } => updater(c).and_then(|fw| fw.begin(len, crc)).map(|next_offset| {
-                    Response::UpdateReady { next_offset, max_chunk: MAX_CHUNK as u16 }
-                }),
-                Request::UpdateChunk { offset, data } => {
-                    updater(c).and_then(|fw| fw.write(offset, data)).map(|next_offset| Response::ChunkAck { next_offset })
-                }
+                Request::UpdateBegin { len, crc } => updater(c)
+                    .and_then(|fw| fw.begin(len, crc))
+                    .map(|next_offset| Response::UpdateReady { next_offset, max_chunk: MAX_CHUNK as u16 }),
+                Request::UpdateChunk { offset, data } => updater(c)
+                    .and_then(|fw| fw.write(offset, data))
+                    .map(|next_offset| Response::ChunkAck { next_offset }),
                 Request::UpdateCommit => {
                     updater(c).and_then(|fw| fw.commit()).map(|version| Response::UpdateCommitted { version })
                 }
@@ -130,7 +130,10 @@ fn updater<F, const N: usize, const M: usize, const P: usize>(
 }
 
 /// What `FirmwareInfo` reports.
-fn firmware_info<F, const N: usize, const M: usize, const P: usize>(c: &Core<F, N, M, P>, target: Target) -> FirmwareInfo {
+fn firmware_info<F, const N: usize, const M: usize, const P: usize>(
+    c: &Core<F, N, M, P>,
+    target: Target,
+) -> FirmwareInfo {
     let keys = crate::signed::TRUSTED_KEYS;
     let mut trusted = [[0u8; 8]; MAX_KEY_IDS];
     for (id, pk) in trusted.iter_mut().zip(keys) {

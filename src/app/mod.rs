@@ -182,7 +182,11 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             full_scale,
             simulated,
             reboot: Signal::new(),
-            target: if simulated { crate::firmware::image::Target::Qemu } else { crate::firmware::image::Target::Board },
+            target: if simulated {
+                crate::firmware::image::Target::Qemu
+            } else {
+                crate::firmware::image::Target::Board
+            },
         }
     }
 

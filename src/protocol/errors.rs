@@ -2,8 +2,8 @@
 //! and the typed error replies ([`DeviceError`], [`BlobFault`]).
 use super::BlobSection;
 use crate::blob::BlobError;
-use crate::hw::SensorError;
 use crate::firmware::image::ImageFault;
+use crate::hw::SensorError;
 use crate::signed::SignatureFault;
 use serde::{Deserialize, Serialize};
 
@@ -264,7 +264,9 @@ impl core::fmt::Display for DeviceError {
             Self::BadBins { bins } => {
                 write!(f, "the bin range is empty or beyond the device's {bins} bins: nothing was measured")
             }
-            Self::FirmwareRejected(e) => write!(f, "the device refused the firmware image: {e}; the running firmware keeps running"),
+            Self::FirmwareRejected(e) => {
+                write!(f, "the device refused the firmware image: {e}; the running firmware keeps running")
+            }
             Self::Update(UpdateFault::Unsupported) => {
                 write!(f, "this device takes no firmware updates over the link (no update partition)")
             }
@@ -277,7 +279,10 @@ impl core::fmt::Display for DeviceError {
                 "the running firmware is on trial and has not passed its self-test yet: it takes no update until it confirms"
             ),
             Self::Update(UpdateFault::Pending) => {
-                write!(f, "an update is already committed: reboot the device (host-tools update-firmware --reboot-only)")
+                write!(
+                    f,
+                    "an update is already committed: reboot the device (host-tools update-firmware --reboot-only)"
+                )
             }
             Self::CalibrationUnsupported { format, oldest, newest } => write!(
                 f,

@@ -107,7 +107,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         version[1],
         version[2],
         a.key.display(),
-        if trusted { "" } else { "; note: firmware built from this tree with its default keys does not trust this key" }
+        if trusted {
+            ""
+        } else {
+            "; note: firmware built from this tree with its default keys does not trust this key"
+        }
     );
     Ok(())
 }

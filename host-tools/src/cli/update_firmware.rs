@@ -33,16 +33,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("{name} is not a signed firmware image (sign it with `host-tools sign-firmware`)");
     }
     trailer.copy_from_slice(&bytes[bytes.len() - image::FW_TRAILER_LEN..]);
-    let (manifest, _) = image::decode_trailer(&trailer, bytes.len() as u32).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let (manifest, _) =
+        image::decode_trailer(&trailer, bytes.len() as u32).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let mut c = Client::new(a.device.open()?)?;
     let fw = c.firmware_info().context("asking the device for its firmware")?;
     if fw.target != manifest.target {
         bail!("{name} is built for {:?}, the device is {:?}: nothing was sent", manifest.target, fw.target);
     }
     let t0 = Instant::now();
-    let version = c
-        .update_firmware(&bytes, |done, total| eprint!("\rsent {done} of {total} bytes"))
-        .map_err(|e| match e {
+    let version =
+        c.update_firmware(&bytes, |done, total| eprint!("\rsent {done} of {total} bytes")).map_err(|e| match e {
             LinkError::Device(d) => anyhow::anyhow!("{d}"),
             e => anyhow::anyhow!("{e} (run the command again to resume; the running firmware is untouched)"),
         })?;

@@ -121,7 +121,7 @@ pub struct MemoryMap {
     pub bootloader: Region,
     /// embassy-boot's state partition.
     pub boot_state: Region,
-    /// The active firmware image region (memory.x's FLASH).
+    /// The active firmware image region (memory.x's ACTIVE).
     pub flash: Region,
     /// The update image (DFU) partition.
     pub dfu: Region,
@@ -143,7 +143,7 @@ impl MemoryMap {
         Ok(Self {
             bootloader: region(script, "BOOTLOADER")?,
             boot_state: region(script, "BOOT_STATE")?,
-            flash: region(script, "FLASH")?,
+            flash: region(script, "ACTIVE")?,
             dfu: region(script, "DFU")?,
             recipe_a: region(script, "RECIPE_SLOT_A")?,
             recipe_b: region(script, "RECIPE_SLOT_B")?,
@@ -158,7 +158,7 @@ impl MemoryMap {
         [
             ("BOOTLOADER", self.bootloader),
             ("BOOT_STATE", self.boot_state),
-            ("FLASH", self.flash),
+            ("ACTIVE", self.flash),
             ("DFU", self.dfu),
             ("RECIPE_SLOT_A", self.recipe_a),
             ("RECIPE_SLOT_B", self.recipe_b),

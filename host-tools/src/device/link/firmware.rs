@@ -1,7 +1,7 @@
 //! The client's side of firmware updates: the running firmware's state, a
 //! signed image sent in chunks (resumed where the device says), reboot.
-use super::client::{Client, LinkError};
 use super::Transport;
+use super::client::{Client, LinkError};
 use brdf_meter::protocol::{FirmwareInfo, Request, Response};
 
 impl<T: Transport> Client<T> {
