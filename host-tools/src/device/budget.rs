@@ -305,7 +305,7 @@ mod tests {
         let slot = board_map().slot_a.length as usize;
         assert!(signed(MAX_DIMS.zones) <= slot, "MAX_ZONES does not fit a calibration slot");
         assert!(signed(MAX_DIMS.zones + 1) > slot, "one zone more would still fit: raise MAX_ZONES");
-        // 64 + 4*81 + 8 + 256 + 4*128*7 + 4*128*81 + 4*124*81*7 + 4
+        // Z = 124 zones (Dims::blob_len): 1,928 B short of a slot with header and trailer.
         assert_eq!(MAX_DIMS.blob_len(), 325_640);
         // and its matrices could never be copied to RAM:
         let d = MAX_DIMS;
