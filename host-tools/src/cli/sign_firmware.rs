@@ -97,7 +97,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let seed = signing::read_secret(&a.key)?;
     let signed = sign_elf(&a.elf, target, version, &seed)?;
     crate::output::io::write_atomic(&a.out, &signed).with_context(|| format!("writing {}", a.out.display()))?;
-    let trusted = brdf_meter::signed::TRUSTED_KEYS.contains(&brdf_meter::signed::public_key(&seed));
     println!(
         "wrote {} ({} bytes, {:?} firmware {}.{}.{}, signed with {}{})",
         a.out.display(),
@@ -107,11 +106,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         version[1],
         version[2],
         a.key.display(),
-        if trusted {
-            ""
-        } else {
-            "; note: firmware built from this tree with its default keys does not trust this key"
-        }
+        signing::untrusted_note(&seed)
     );
     Ok(())
 }
