@@ -314,6 +314,6 @@ fn an_update_never_touches_anything_but_the_update_and_state_partitions() {
             brdf_meter::platform::host_sim::FlashOp::Erase(at)
             | brdf_meter::platform::host_sim::FlashOp::Write(at, _) => *at,
         };
-        assert!(at < STATE_LEN || at >= DFU_AT, "the transfer touched the active image at {at:#x}");
+        assert!(!(STATE_LEN..DFU_AT).contains(&at), "the transfer touched the active image at {at:#x}");
     }
 }

@@ -354,8 +354,8 @@ mod tests {
     #[test]
     fn a_memory_map_where_the_image_could_reach_the_next_region_fails() {
         let script = MEMORY_X.replace(
-            "FLASH         : ORIGIN = 0x08007000, LENGTH = 160K",
-            "FLASH : ORIGIN = 0x08007000, LENGTH = 170K",
+            "ACTIVE        : ORIGIN = 0x08007000, LENGTH = 160K",
+            "ACTIVE        : ORIGIN = 0x08007000, LENGTH = 170K",
         );
         assert_ne!(script, MEMORY_X, "the test must change memory.x");
         let map = MemoryMap::from_script(&script).unwrap();
