@@ -127,4 +127,9 @@ pub mod qemu {
     pub const SLOT_LEN: u32 = 8 * super::FLASH_PAGE as u32;
     /// Scene lines the simulated sensor holds.
     pub const FRAME_LINES: usize = 4;
+    /// The QEMU build's update partition: RAM (QEMU's flash is read-only),
+    /// the whole 32 KiB SRAM2 bank (memory.x's `.sram2`), which is all the
+    /// RAM the QEMU firmware's statics leave. Updates up to this size run
+    /// there through transfer, verification and marking; the swap cannot.
+    pub const DFU_LEN: u32 = 32 * 1024;
 }

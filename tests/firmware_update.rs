@@ -18,6 +18,7 @@ use core::cell::RefCell;
 use embassy_embedded_hal::flash::partition::BlockingPartition;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use system_tests::fw_sim::{app_image, which_image};
 
 const STATE_LEN: u32 = 2 * FLASH_PAGE as u32;
 const ACTIVE_LEN: u32 = 4 * FLASH_PAGE as u32;
@@ -27,16 +28,6 @@ const DFU_AT: u32 = ACTIVE_AT + ACTIVE_LEN;
 const FLASH_LEN: usize = (DFU_AT + DFU_LEN) as usize;
 
 type Part<'a> = BlockingPartition<'a, NoopRawMutex, SimFlash>;
-
-/// A plausible application image of `len` bytes (vector table for the
-/// active region, then bytes that tell `seed`'s image from another's),
-/// signed for the simulated (QEMU) target.
-fn app_image(len: usize, seed: u8, version: [u8; 3]) -> Vec<u8> {
-    let mut raw: Vec<u8> = (0..len).map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed)).collect();
-    raw[0..4].copy_from_slice(&0x2001_8000u32.to_le_bytes());
-    raw[4..8].copy_from_slice(&(brdf_meter::shape::board::ACTIVE + 0x401).to_le_bytes());
-    image::sign(&raw, Target::Qemu, version, &DEV_SECRET)
-}
 
 /// A flash whose active region holds `active` (state erased: Boot).
 fn factory(active: &[u8]) -> SimFlash {
@@ -85,14 +76,7 @@ fn active(flash: &SimFlash) -> Vec<u8> {
 
 /// Which image the active region holds, whole: 'A', 'B', or a panic.
 fn which(flash: &SimFlash, a: &[u8], b: &[u8], context: &str) -> char {
-    let act = active(flash);
-    if act[..a.len()] == *a {
-        'A'
-    } else if act[..b.len()] == *b {
-        'B'
-    } else {
-        panic!("{context}: the active region holds neither image whole")
-    }
+    which_image(&active(flash), a, b, context)
 }
 
 #[test]

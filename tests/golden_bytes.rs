@@ -262,6 +262,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             trusted_count: 1,
             trusted: [[1, 2, 3, 4, 5, 6, 7, 8], [0; 8], [0; 8], [0; 8]],
             trusts_development_key: true,
+            refused: Some(DeviceError::FirmwareRejected(brdf_meter::firmware::image::ImageFault::WrongTarget)),
         }),
         Response::UpdateReady { next_offset: 2048, max_chunk: 512 },
         Response::UpdateCommitted { version: [0, 2, 0] },

@@ -4,11 +4,9 @@
 use super::{Core, Job, Shared};
 use crate::estimate::Calibration;
 use crate::firmware::image::Target;
-use crate::firmware::update::FirmwareSlot;
 use crate::hw::{FrameInput, FrameLoadError, MappedFlash};
 use crate::protocol::{
     BootState, DeviceError, DeviceInfo, FirmwareInfo, MAX_CHUNK, MAX_KEY_IDS, PROTOCOL_VERSION, Request, Response,
-    UpdateFault,
 };
 use core::sync::atomic::Ordering;
 
@@ -22,7 +20,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             let r: Result<Response<'static>, DeviceError> = match *req {
                 Request::Info => Ok(Response::Info(DeviceInfo {
                     protocol: PROTOCOL_VERSION,
-                    firmware: super::FIRMWARE_VERSION,
+                    firmware: self.version,
                     bins: N as u16,
                     leds: M as u16,
                     pixels: P as u16,
@@ -85,18 +83,18 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     }
                 }
                 Request::SimLines { lines } => scene.set_lines(lines).map(|_| Response::SimLoaded).map_err(sim_err),
-                Request::FirmwareInfo => Ok(Response::Firmware(firmware_info(c, self.target))),
+                Request::FirmwareInfo => Ok(Response::Firmware(firmware_info(c, self.target, self.version))),
                 Request::UpdateBegin { .. } | Request::UpdateCommit if measuring => Err(DeviceError::Busy),
-                Request::UpdateBegin { len, crc } => updater(c)
-                    .and_then(|fw| fw.begin(len, crc))
+                Request::UpdateBegin { len, crc } => c
+                    .update(|fw| fw.begin(len, crc))
                     .map(|next_offset| Response::UpdateReady { next_offset, max_chunk: MAX_CHUNK as u16 }),
-                Request::UpdateChunk { offset, data } => updater(c)
-                    .and_then(|fw| fw.write(offset, data))
-                    .map(|next_offset| Response::ChunkAck { next_offset }),
-                Request::UpdateCommit => {
-                    updater(c).and_then(|fw| fw.commit()).map(|version| Response::UpdateCommitted { version })
+                Request::UpdateChunk { offset, data } => {
+                    c.update(|fw| fw.write(offset, data)).map(|next_offset| Response::ChunkAck { next_offset })
                 }
-                Request::UpdateAbort => updater(c).and_then(|fw| fw.abort()).map(|_| Response::Aborted),
+                Request::UpdateCommit => {
+                    c.update(|fw| fw.commit()).map(|version| Response::UpdateCommitted { version })
+                }
+                Request::UpdateAbort => c.update(|fw| fw.abort()).map(|_| Response::Aborted),
                 Request::Reboot => {
                     self.reboot.signal(());
                     Ok(Response::Rebooting)
@@ -110,6 +108,11 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         r.unwrap_or_else(Response::Error)
     }
 
+    /// What `FirmwareInfo` answers: version, boot state, self-test, keys.
+    pub fn firmware_info(&self) -> FirmwareInfo {
+        self.core.lock(|c| firmware_info(&c.borrow(), self.target, self.version))
+    }
+
     /// Counts a frame that could not be read.
     pub fn count_bad_frame(&self) {
         self.core.lock(|c| {
@@ -119,20 +122,11 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     }
 }
 
-/// The updater, or why there is none.
-fn updater<F, const N: usize, const M: usize, const P: usize>(
-    c: &mut Core<F, N, M, P>,
-) -> Result<&mut (dyn FirmwareSlot + Send), DeviceError> {
-    match c.firmware.as_mut() {
-        Some(fw) => Ok(&mut **fw),
-        None => Err(DeviceError::Update(UpdateFault::Unsupported)),
-    }
-}
-
 /// What `FirmwareInfo` reports.
 fn firmware_info<F, const N: usize, const M: usize, const P: usize>(
     c: &Core<F, N, M, P>,
     target: Target,
+    version: [u8; 3],
 ) -> FirmwareInfo {
     let keys = crate::signed::TRUSTED_KEYS;
     let mut trusted = [[0u8; 8]; MAX_KEY_IDS];
@@ -141,7 +135,7 @@ fn firmware_info<F, const N: usize, const M: usize, const P: usize>(
     }
     let fw = c.firmware.as_deref();
     FirmwareInfo {
-        version: super::FIRMWARE_VERSION,
+        version,
         target,
         boot: fw.map_or(BootState::Unknown, |f| f.boot_state()),
         self_test: c.self_test,
@@ -153,6 +147,7 @@ fn firmware_info<F, const N: usize, const M: usize, const P: usize>(
         trusted_count: keys.len().min(u8::MAX as usize) as u8,
         trusted,
         trusts_development_key: crate::signed::TRUSTS_DEVELOPMENT_KEY,
+        refused: c.update_refused,
     }
 }
 

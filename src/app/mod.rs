@@ -20,8 +20,11 @@
 mod handler;
 mod self_test;
 mod tasks;
+mod update;
+#[cfg(feature = "usb-dfu")]
+pub mod usb_dfu;
 
-pub use tasks::{acquisition, estimation, transport};
+pub use tasks::{acquisition, estimation, reboot, transport};
 
 use crate::acquire::{AcqConfig, RawLine};
 use crate::estimate::{Calibration, ZoneMatrix};
@@ -123,6 +126,10 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub firmware: Option<FirmwarePort>,
     /// The self-test that confirms a trial image (see `self_test`).
     pub self_test: crate::protocol::SelfTest,
+    /// Why the last firmware update request (link or USB DFU) was refused,
+    /// until an update is committed: USB DFU can only say "verify failed",
+    /// `FirmwareInfo` says what.
+    pub update_refused: Option<crate::protocol::DeviceError>,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -147,6 +154,8 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     pub reboot: Signal<Cs, ()>,
     /// The machine this build is for (firmware images must match it).
     pub target: crate::firmware::image::Target,
+    /// The running firmware's version (`Info`, `FirmwareInfo`).
+    pub version: [u8; 3],
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -172,7 +181,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
         // The store was opened and both slots read: the self-test's first part.
         let self_test = crate::protocol::SelfTest { store: true, ..Default::default() };
-        let core = Core { store, cal, status, firmware: None, self_test };
+        let core = Core { store, cal, status, firmware: None, self_test, update_refused: None };
         Self {
             core: BlockingMutex::new(RefCell::new(core)),
             start: Signal::new(),
@@ -182,6 +191,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             full_scale,
             simulated,
             reboot: Signal::new(),
+            version: FIRMWARE_VERSION,
             target: if simulated {
                 crate::firmware::image::Target::Qemu
             } else {
@@ -195,6 +205,14 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     /// self-test.
     pub fn with_firmware(self, port: FirmwarePort) -> Self {
         self.core.lock(|c| c.borrow_mut().firmware = Some(port));
+        self
+    }
+
+    /// The version this firmware reports, when it is not this build's
+    /// [`FIRMWARE_VERSION`]: the host simulation runs one build as image A
+    /// and image B of an update.
+    pub fn with_version(mut self, version: [u8; 3]) -> Self {
+        self.version = version;
         self
     }
 

@@ -270,3 +270,19 @@ async fn send_alone<F, const N: usize, const M: usize, const P: usize>(
     let _ = push(block);
     shared.out.send(frame(job_seq, &Response::Points(block.frame()))).await;
 }
+
+/// How long a reset waits after it was asked for: time for the reply (or
+/// USB DFU's last status) to leave before the link goes down.
+pub const REBOOT_DELAY_MS: u64 = 100;
+
+/// The reboot task: waits for a `Reboot` request (or the end of a USB DFU
+/// download), lets the reply leave, then resets the chip with `reset` (the
+/// bootloader then swaps in a committed update).
+pub async fn reboot<F: MappedFlash, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    reset: fn() -> !,
+) -> ! {
+    shared.reboot.wait().await;
+    embassy_time::Timer::after_millis(REBOOT_DELAY_MS).await;
+    reset()
+}

@@ -16,6 +16,12 @@
 //! Resuming: a `begin` with the length and CRC of the session in progress
 //! continues it where it stopped (a link that dropped); a device reset
 //! forgets the session and the host starts again from 0.
+//!
+//! USB DFU (`dfu-util -D`) sends no length or CRC first: its session is
+//! opened with [`FirmwareSlot::begin_download`], takes blocks until the host
+//! says it is done, and its commit checks the bytes received so far the same
+//! way (trailer, target, vector table, signature; the USB transfer's own CRC
+//! stands in for the CRC the link declares).
 use super::image::{self, FW_TRAILER_LEN, ImageFault, ImageHasher, Target};
 use crate::blob::CRC32;
 use crate::protocol::{BootState, DeviceError, MAX_CHUNK, UpdateFault};
@@ -37,6 +43,10 @@ pub trait FirmwareSlot {
     /// Starts (or resumes) an update of `len` bytes with CRC-32 `crc`;
     /// returns the offset of the next chunk to send.
     fn begin(&mut self, len: u32, crc: u32) -> Result<u32, DeviceError>;
+    /// Starts an update whose length is known only at its end (USB DFU);
+    /// blocks follow in order from offset 0, and [`Self::commit`] takes the
+    /// bytes received as the image.
+    fn begin_download(&mut self) -> Result<(), DeviceError>;
     /// Writes the chunk at `offset`; returns the next offset.
     fn write(&mut self, offset: u32, data: &[u8]) -> Result<u32, DeviceError>;
     /// Checks the whole image and marks it for the bootloader; returns its
@@ -51,8 +61,11 @@ pub trait FirmwareSlot {
 
 #[derive(Clone, Copy, Debug)]
 struct Session {
+    /// The declared length, or for a download of unknown length the most
+    /// it may grow to.
     len: u32,
-    crc: u32,
+    /// The declared CRC; `None` for a download (USB DFU) of unknown length.
+    crc: Option<u32>,
     received: u32,
 }
 
@@ -104,6 +117,18 @@ impl<'d, DFU: NorFlash, STATE: NorFlash> Updater<'d, DFU, STATE> {
         Self { inner, max_image, target, trusted, boot, session: None, pending: None }
     }
 
+    /// Whether a new session may start: not while an update waits for its
+    /// reset, nor while this image is itself on trial.
+    fn may_begin(&self) -> Result<(), DeviceError> {
+        if self.pending.is_some() {
+            return Err(DeviceError::Update(UpdateFault::Pending));
+        }
+        if self.boot == BootState::Trial {
+            return Err(DeviceError::Update(UpdateFault::TrialNotConfirmed));
+        }
+        Ok(())
+    }
+
     fn read(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), DeviceError> {
         self.inner.read_dfu(offset, buf).map_err(flash_err)
     }
@@ -120,8 +145,8 @@ impl<'d, DFU: NorFlash, STATE: NorFlash> Updater<'d, DFU, STATE> {
             offset += n as u32;
         }
         let computed = crc.finalize();
-        if computed != s.crc {
-            return Err(DeviceError::CrcMismatch { declared: s.crc, computed });
+        if let Some(declared) = s.crc.filter(|d| *d != computed) {
+            return Err(DeviceError::CrcMismatch { declared, computed });
         }
         let reject = |e: ImageFault| DeviceError::FirmwareRejected(e);
         let mut trailer = [0u8; FW_TRAILER_LEN];
@@ -165,13 +190,8 @@ impl<DFU: NorFlash, STATE: NorFlash> FirmwareSlot for Updater<'_, DFU, STATE> {
     }
 
     fn begin(&mut self, len: u32, crc: u32) -> Result<u32, DeviceError> {
-        if self.pending.is_some() {
-            return Err(DeviceError::Update(UpdateFault::Pending));
-        }
-        if self.boot == BootState::Trial {
-            return Err(DeviceError::Update(UpdateFault::TrialNotConfirmed));
-        }
-        if let Some(s) = self.session.filter(|s| s.len == len && s.crc == crc) {
+        self.may_begin()?;
+        if let Some(s) = self.session.filter(|s| s.len == len && s.crc == Some(crc)) {
             return Ok(s.received);
         }
         if len > self.max_image {
@@ -180,8 +200,14 @@ impl<DFU: NorFlash, STATE: NorFlash> FirmwareSlot for Updater<'_, DFU, STATE> {
         if len <= FW_TRAILER_LEN as u32 || !(len as usize).is_multiple_of(DFU::WRITE_SIZE) {
             return Err(DeviceError::FirmwareRejected(ImageFault::BadTrailer));
         }
-        self.session = Some(Session { len, crc, received: 0 });
+        self.session = Some(Session { len, crc: Some(crc), received: 0 });
         Ok(0)
+    }
+
+    fn begin_download(&mut self) -> Result<(), DeviceError> {
+        self.may_begin()?;
+        self.session = Some(Session { len: self.max_image, crc: None, received: 0 });
+        Ok(())
     }
 
     fn write(&mut self, offset: u32, data: &[u8]) -> Result<u32, DeviceError> {
@@ -189,8 +215,12 @@ impl<DFU: NorFlash, STATE: NorFlash> FirmwareSlot for Updater<'_, DFU, STATE> {
         if offset != s.received {
             return Err(DeviceError::OutOfOrder { expected: s.received, got: offset });
         }
-        let end = offset.checked_add(data.len() as u32).filter(|e| *e <= s.len);
-        if data.len() > MAX_CHUNK || end.is_none() || !data.len().is_multiple_of(DFU::WRITE_SIZE) {
+        let end = offset.checked_add(data.len() as u32);
+        if s.crc.is_none() && end.is_none_or(|e| e > s.len) {
+            // A download (no declared length) grew past the partition.
+            return Err(DeviceError::Update(UpdateFault::TooLarge { len: end.unwrap_or(u32::MAX), max: s.len }));
+        }
+        if data.len() > MAX_CHUNK || end.is_none_or(|e| e > s.len) || !data.len().is_multiple_of(DFU::WRITE_SIZE) {
             return Err(DeviceError::ChunkTooLarge { max: MAX_CHUNK as u32 });
         }
         self.inner.write_firmware(offset as usize, data).map_err(flash_err)?;
@@ -200,7 +230,15 @@ impl<DFU: NorFlash, STATE: NorFlash> FirmwareSlot for Updater<'_, DFU, STATE> {
     }
 
     fn commit(&mut self) -> Result<[u8; 3], DeviceError> {
-        let s = self.session.ok_or(DeviceError::Update(UpdateFault::NotUpdating))?;
+        let mut s = self.session.ok_or(DeviceError::Update(UpdateFault::NotUpdating))?;
+        if s.crc.is_none() {
+            // A download ends where the host stopped sending.
+            s.len = s.received;
+            if s.len <= FW_TRAILER_LEN as u32 {
+                self.session = None;
+                return Err(DeviceError::FirmwareRejected(ImageFault::BadTrailer));
+            }
+        }
         if s.received != s.len {
             return Err(DeviceError::Incomplete { received: s.received, len: s.len });
         }

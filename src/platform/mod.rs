@@ -17,6 +17,8 @@
 pub mod board;
 #[cfg(all(feature = "bootloader", target_os = "none"))]
 pub mod bootloader;
+#[cfg(feature = "app")]
+pub mod flash_window;
 #[cfg(any(test, feature = "sim"))]
 pub mod host_sim;
 #[cfg(any(test, feature = "sim", all(feature = "qemu", target_os = "none")))]

@@ -271,9 +271,10 @@ impl core::fmt::Display for DeviceError {
                 write!(f, "this device takes no firmware updates over the link (no update partition)")
             }
             Self::Update(UpdateFault::NotUpdating) => write!(f, "no firmware update in progress (begin first)"),
-            Self::Update(UpdateFault::TooLarge { len, max }) => {
-                write!(f, "a firmware image of {len} bytes does not fit the active image region ({max} bytes)")
-            }
+            Self::Update(UpdateFault::TooLarge { len, max }) => write!(
+                f,
+                "a firmware image of {len} bytes does not fit the device's update partition ({max} bytes); the running firmware keeps running"
+            ),
             Self::Update(UpdateFault::TrialNotConfirmed) => write!(
                 f,
                 "the running firmware is on trial and has not passed its self-test yet: it takes no update until it confirms"
@@ -281,7 +282,7 @@ impl core::fmt::Display for DeviceError {
             Self::Update(UpdateFault::Pending) => {
                 write!(
                     f,
-                    "an update is already committed: reboot the device (host-tools update-firmware --reboot-only)"
+                    "an update is already committed: reset the device to start it (host-tools update-firmware --reboot-only)"
                 )
             }
             Self::CalibrationUnsupported { format, oldest, newest } => write!(

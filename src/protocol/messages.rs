@@ -368,6 +368,10 @@ pub struct FirmwareInfo {
     pub trusted: [crate::signed::KeyId; MAX_KEY_IDS],
     /// Whether this build trusts the DEVELOPMENT key (NOT FOR PRODUCTION).
     pub trusts_development_key: bool,
+    /// Why the last update request (over the link or USB DFU) was refused,
+    /// until an update is committed; USB DFU's own status can only say
+    /// that the file failed verification.
+    pub refused: Option<DeviceError>,
 }
 
 /// Most trusted key ids a [`FirmwareInfo`] lists.

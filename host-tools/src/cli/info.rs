@@ -65,9 +65,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             f.receiving.map(|b| format!(", update in progress ({b} bytes received)")).unwrap_or_default(),
         );
         if f.updates {
-            println!("updates: over the link, images up to {} bytes", f.max_image);
+            println!("updates: over the link and USB DFU (board), images up to {} bytes", f.max_image);
         } else {
             println!("updates: not over the link on this build (no update partition)");
+        }
+        if let Some(e) = f.refused {
+            println!("last update refused: {e}");
         }
         println!("calibration formats read: {} to {}", f.blob_formats[0], f.blob_formats[1]);
         let ids: Vec<String> = f.trusted[..(f.trusted_count as usize).min(f.trusted.len())]
@@ -96,6 +99,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "version": f.version, "target": format!("{:?}", f.target), "boot": format!("{:?}", f.boot),
                 "self_test": { "store": f.self_test.store, "sensor": f.self_test.sensor, "link": f.self_test.link },
                 "updates": f.updates, "max_image": f.max_image, "pending": f.pending,
+                "refused": f.refused.map(|e| e.to_string()),
                 "trusted_key_ids": f.trusted[..(f.trusted_count as usize).min(f.trusted.len())]
                     .iter().map(|id| id.iter().map(|b| format!("{b:02x}")).collect::<String>()).collect::<Vec<_>>(),
                 "trusts_development_key": f.trusts_development_key })),

@@ -17,17 +17,27 @@ pub struct Args {
     #[command(flatten)]
     pub device: Endpoint,
     /// The signed firmware image.
-    #[arg(long, value_name = "IMAGE")]
-    pub image: PathBuf,
+    #[arg(long, value_name = "IMAGE", required_unless_present = "reboot_only")]
+    pub image: Option<PathBuf>,
     /// Commit without resetting (the update starts at the next reset).
     #[arg(long)]
     pub no_reboot: bool,
+    /// Send nothing, only reset the device (into an update committed
+    /// earlier with --no-reboot or by dfu-util).
+    #[arg(long, conflicts_with_all = ["image", "no_reboot"])]
+    pub reboot_only: bool,
 }
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let name = a.image.display().to_string();
-    let bytes = std::fs::read(&a.image).with_context(|| format!("reading {name}"))?;
+    let Some(path) = &a.image else {
+        let mut c = Client::new(a.device.open()?)?;
+        c.reboot().context("asking the device to reset")?;
+        println!("the device resets (into a committed update, if one is waiting)");
+        return Ok(());
+    };
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("reading {name}"))?;
     let mut trailer = [0u8; image::FW_TRAILER_LEN];
     if bytes.len() < trailer.len() {
         bail!("{name} is not a signed firmware image (sign it with `host-tools sign-firmware`)");
@@ -47,13 +57,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             e => anyhow::anyhow!("{e} (run the command again to resume; the running firmware is untouched)"),
         })?;
     eprintln!();
+    let secs = t0.elapsed().as_secs_f64();
     println!(
-        "{name}: firmware {}.{}.{} verified and marked by the device in {:.1} s ({} bytes)",
+        "{name}: firmware {}.{}.{} sent, verified and marked by the device in {secs:.2} s ({} bytes, {:.1} KiB/s)",
         version[0],
         version[1],
         version[2],
-        t0.elapsed().as_secs_f64(),
-        bytes.len()
+        bytes.len(),
+        bytes.len() as f64 / 1024.0 / secs.max(1e-9)
     );
     if a.no_reboot {
         println!("not reset: the update starts at the device's next reset");
