@@ -301,3 +301,75 @@ fn an_update_never_touches_anything_but_the_update_and_state_partitions() {
         assert!(!(STATE_LEN..DFU_AT).contains(&at), "the transfer touched the active image at {at:#x}");
     }
 }
+
+/// Erases and double words programmed by the operations logged after `from`.
+fn flash_work(flash: &SimFlash, from: usize) -> (usize, usize) {
+    use brdf_meter::platform::host_sim::FlashOp;
+    flash.log()[from..].iter().fold((0, 0), |(e, w), op| match *op {
+        FlashOp::Erase(_) => (e + 1, w),
+        FlashOp::Write(_, len) => (e, w + len as usize / brdf_meter::shape::FLASH_WRITE),
+    })
+}
+
+/// The flash work of an update on the board's own partition sizes (80-page
+/// active image, 82-page update partition, 2-page state), counted on the
+/// NOR fake, priced with the STM32L475's datasheet times (page erase 22.02 ms,
+/// double word 81.69 us, typical): the figures the README's estimate of the
+/// board's update time uses. embassy-boot swaps the whole active partition,
+/// whatever the image's size.
+#[test]
+fn a_board_sized_update_s_flash_work() {
+    use brdf_meter::shape::board::{ACTIVE_LEN, BOOT_STATE_LEN, DFU_LEN};
+    let (active_at, dfu_at) = (BOOT_STATE_LEN, BOOT_STATE_LEN + ACTIVE_LEN);
+    let flash_len = (dfu_at + DFU_LEN) as usize;
+    let parts = |m| {
+        (
+            BlockingPartition::new(m, active_at, ACTIVE_LEN),
+            BlockingPartition::new(m, dfu_at, DFU_LEN),
+            BlockingPartition::new(m, 0, BOOT_STATE_LEN),
+        )
+    };
+    // About today's board image (see the README's budget table).
+    let (a, b) = (app_image(120 * 1024, 1, [1, 0, 0]), app_image(128 * 1024, 2, [2, 0, 0]));
+    let mut mem = vec![0xFFu8; flash_len];
+    mem[active_at as usize..active_at as usize + a.len()].copy_from_slice(&a);
+    let f = SimFlash::with_contents(mem);
+    let m: Mutex<NoopRawMutex, RefCell<SimFlash>> = Mutex::new(RefCell::new(f.clone()));
+    let price = |(e, w): (usize, usize)| e as f64 * 22.02e-3 + w as f64 * 81.69e-6;
+
+    let t0 = f.log().len();
+    let (_, dfu, state) = parts(&m);
+    let mut aligned = [0u8; 8];
+    let mut u = Updater::new(dfu, state, &mut aligned, ACTIVE_LEN, Target::Qemu, dev_trusted());
+    assert_eq!(send(&mut u, &b), Ok([2, 0, 0]));
+    let transfer = flash_work(&f, t0);
+    let t1 = f.log().len();
+    let (active, dfu, state) = parts(&m);
+    boot::prepare(active, dfu, state, &mut [0u8; boot::SWAP_BUFFER]).unwrap();
+    let swap = flash_work(&f, t1);
+    let act = f.contents()[active_at as usize..(active_at + ACTIVE_LEN) as usize].to_vec();
+    assert_eq!(which_image(&act, &a, &b, "after the swap"), 'B');
+    let t2 = f.log().len();
+    let (active, dfu, state) = parts(&m);
+    boot::prepare(active, dfu, state, &mut [0u8; boot::SWAP_BUFFER]).unwrap();
+    let revert = flash_work(&f, t2);
+    let act = f.contents()[active_at as usize..(active_at + ACTIVE_LEN) as usize].to_vec();
+    assert_eq!(which_image(&act, &a, &b, "after the revert"), 'A');
+
+    let pages = (ACTIVE_LEN / FLASH_PAGE as u32) as usize;
+    let image_pages = b.len().div_ceil(FLASH_PAGE);
+    // The transfer erases each page of the image once and programs it once.
+    let state_pages = (BOOT_STATE_LEN / FLASH_PAGE as u32) as usize;
+    assert_eq!(transfer.0, image_pages + state_pages, "the image's pages and the state the mark erases");
+    assert!(transfer.1 >= b.len() / 8 && transfer.1 < b.len() / 8 + 8, "{transfer:?}");
+    // The swap moves every page of the active partition both ways.
+    assert!(swap.0 >= 2 * pages && swap.1 >= 2 * pages * FLASH_PAGE / 8, "{swap:?}");
+    for (what, work) in [("transfer + commit", transfer), ("swap at the reset", swap), ("revert", revert)] {
+        println!(
+            "board-sized update, {what}: {} page erases, {} double words: {:.1} s of flash time (datasheet, typical)",
+            work.0,
+            work.1,
+            price(work)
+        );
+    }
+}

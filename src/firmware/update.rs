@@ -133,17 +133,24 @@ impl<'d, DFU: NorFlash, STATE: NorFlash> Updater<'d, DFU, STATE> {
         self.inner.read_dfu(offset, buf).map_err(flash_err)
     }
 
-    /// The CRC and the checks of the image now in the update partition.
-    fn check_image(&mut self, s: Session) -> Result<[u8; 3], DeviceError> {
+    /// Feeds the update partition's first `len` bytes to `f`, a small
+    /// buffer at a time (the image is never whole in RAM).
+    fn scan(&mut self, len: u32, mut f: impl FnMut(&[u8])) -> Result<(), DeviceError> {
         let mut buf = [0u8; 256];
-        let mut crc = CRC32.digest();
         let mut offset = 0;
-        while offset < s.len {
-            let n = (s.len - offset).min(buf.len() as u32) as usize;
+        while offset < len {
+            let n = (len - offset).min(buf.len() as u32) as usize;
             self.read(offset, &mut buf[..n])?;
-            crc.update(&buf[..n]);
+            f(&buf[..n]);
             offset += n as u32;
         }
+        Ok(())
+    }
+
+    /// The CRC and the checks of the image now in the update partition.
+    fn check_image(&mut self, s: Session) -> Result<[u8; 3], DeviceError> {
+        let mut crc = CRC32.digest();
+        self.scan(s.len, |b| crc.update(b))?;
         let computed = crc.finalize();
         if let Some(declared) = s.crc.filter(|d| *d != computed) {
             return Err(DeviceError::CrcMismatch { declared, computed });
@@ -153,13 +160,7 @@ impl<'d, DFU: NorFlash, STATE: NorFlash> Updater<'d, DFU, STATE> {
         self.read(s.len - FW_TRAILER_LEN as u32, &mut trailer)?;
         let (manifest, signature) = image::decode_trailer(&trailer, s.len).map_err(reject)?;
         let mut hasher = ImageHasher::default();
-        let mut offset = 0;
-        while offset < manifest.image_len {
-            let n = (manifest.image_len - offset).min(buf.len() as u32) as usize;
-            self.read(offset, &mut buf[..n])?;
-            hasher.update(&buf[..n]);
-            offset += n as u32;
-        }
+        self.scan(manifest.image_len, |b| hasher.update(b))?;
         let mut first = [0u8; 8];
         self.read(0, &mut first)?;
         let words = [

@@ -51,20 +51,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("{name} is built for {:?}, the device is {:?}: nothing was sent", manifest.target, fw.target);
     }
     let t0 = Instant::now();
-    let version =
-        c.update_firmware(&bytes, |done, total| eprint!("\rsent {done} of {total} bytes")).map_err(|e| match e {
+    // When the last chunk was acknowledged: the rest is the device's check.
+    let mut sent = t0;
+    let version = c
+        .update_firmware(&bytes, |done, total| {
+            eprint!("\rsent {done} of {total} bytes");
+            sent = Instant::now();
+        })
+        .map_err(|e| match e {
             LinkError::Device(d) => anyhow::anyhow!("{d}"),
             e => anyhow::anyhow!("{e} (run the command again to resume; the running firmware is untouched)"),
         })?;
     eprintln!();
-    let secs = t0.elapsed().as_secs_f64();
+    let (transfer, total) = ((sent - t0).as_secs_f64(), t0.elapsed().as_secs_f64());
     println!(
-        "{name}: firmware {}.{}.{} sent, verified and marked by the device in {secs:.2} s ({} bytes, {:.1} KiB/s)",
+        "{name}: firmware {}.{}.{} ({} bytes) sent in {transfer:.2} s ({:.1} KiB/s), verified and marked by the device in {:.2} s more: {total:.2} s in all",
         version[0],
         version[1],
         version[2],
         bytes.len(),
-        bytes.len() as f64 / 1024.0 / secs.max(1e-9)
+        bytes.len() as f64 / 1024.0 / transfer.max(1e-9),
+        total - transfer
     );
     if a.no_reboot {
         println!("not reset: the update starts at the device's next reset");
