@@ -28,13 +28,18 @@ fn qemu_takes_a_signed_update_over_its_link_and_refuses_what_it_must() {
 
     // Today's QEMU firmware, signed: larger than the RAM partition, refused
     // at once with the sizes.
-    let today = host_tools::cli::sign_firmware::sign_elf(
-        &system_tests::qemu::firmware(),
-        Target::Qemu,
-        [0, 2, 0],
-        &brdf_meter::test_blobs::DEV_SECRET,
-    )
-    .unwrap();
+    // Signed with the version the firmware reports (its ELF symbol), and
+    // never with another.
+    let elf = system_tests::qemu::firmware();
+    let sign = |v| host_tools::cli::sign_firmware::sign_elf(&elf, Target::Qemu, v, &brdf_meter::test_blobs::DEV_SECRET);
+    let today = sign(None).unwrap();
+    let own = brdf_meter::app::FIRMWARE_VERSION;
+    let trailer = today[today.len() - 96..].try_into().unwrap();
+    assert_eq!(brdf_meter::firmware::image::decode_trailer(trailer, today.len() as u32).unwrap().0.version, own);
+    assert_eq!(fw.version, own, "the device reports the version its image is signed with");
+    let other = [own[0], own[1].wrapping_add(1), own[2]];
+    let e = sign(Some(other)).unwrap_err().to_string();
+    assert!(e.contains("a device would show another version"), "{e}");
     assert!(today.len() as u32 > partition);
     match c.update_firmware(&today, |_, _| {}) {
         Err(LinkError::Device(DeviceError::Update(UpdateFault::TooLarge { len, max }))) => {

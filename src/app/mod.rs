@@ -42,8 +42,24 @@ use nalgebra::SVector;
 /// An encoded frame on its way to the host.
 pub type OutFrame = heapless::Vec<u8, MAX_FRAME>;
 
-/// Firmware version reported by `Info`.
+/// Firmware version reported by `Info` and `FirmwareInfo`: bump it for
+/// every firmware that ships.
 pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// The same version as a named symbol of the firmware's ELF, so that
+/// `host-tools sign-firmware` signs an image with the version the image
+/// itself reports (it reads this symbol's bytes from the ELF); the firmware
+/// reads its version from here, which also keeps the symbol in the image.
+#[unsafe(no_mangle)]
+pub static BRDF_FIRMWARE_VERSION: [u8; 3] = FIRMWARE_VERSION;
+
+/// The version this build reports: [`BRDF_FIRMWARE_VERSION`], read so the
+/// linker keeps it.
+fn built_version() -> [u8; 3] {
+    // SAFETY: a valid, immutable static; volatile only so the read (and so
+    // the symbol) is not optimised away.
+    unsafe { core::ptr::read_volatile(&raw const BRDF_FIRMWARE_VERSION) }
+}
 
 /// A measurement to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -191,7 +207,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             full_scale,
             simulated,
             reboot: Signal::new(),
-            version: FIRMWARE_VERSION,
+            version: built_version(),
             target: if simulated {
                 crate::firmware::image::Target::Qemu
             } else {

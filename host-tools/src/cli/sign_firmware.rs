@@ -20,9 +20,11 @@ pub struct Args {
     /// The machine it is built for: board or qemu.
     #[arg(long, value_parser = ["board", "qemu"])]
     pub target: String,
-    /// Its version, MAJOR.MINOR.PATCH (each 0..=255).
+    /// Its version, MAJOR.MINOR.PATCH (each 0..=255): by default the one the
+    /// firmware reports (its `BRDF_FIRMWARE_VERSION` symbol); given, it must
+    /// be that one.
     #[arg(long = "fw-version", value_name = "X.Y.Z")]
-    pub version: String,
+    pub version: Option<String>,
     /// Where to write the signed image.
     #[arg(long, value_name = "OUT")]
     pub out: PathBuf,
@@ -69,11 +71,42 @@ pub fn flash_image(elf: &[u8], name: &str) -> anyhow::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// Signs the ELF at `elf` (see [`Args`]).
-pub fn sign_elf(elf: &Path, target: Target, version: [u8; 3], seed: &[u8; 32]) -> anyhow::Result<Vec<u8>> {
+/// The version a firmware ELF reports: the 3 bytes of its
+/// `BRDF_FIRMWARE_VERSION` symbol, read from its flash image. `None` for an
+/// ELF without the symbol.
+pub fn elf_version(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Option<[u8; 3]>> {
+    use object::{Object as _, ObjectSymbol as _};
+    let file = object::File::parse(elf).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let Some(sym) = file.symbols().find(|s| s.name() == Ok("BRDF_FIRMWARE_VERSION")) else {
+        return Ok(None);
+    };
+    let at = (sym.address() as u32).wrapping_sub(ACTIVE) as usize;
+    let v = flash.get(at..at + 3).with_context(|| {
+        format!("{name}: BRDF_FIRMWARE_VERSION at {:#010x} is not in the image's flash bytes", sym.address())
+    })?;
+    Ok(Some([v[0], v[1], v[2]]))
+}
+
+/// Signs the ELF at `elf` (see [`Args`]) with `version`, or the version the
+/// firmware reports when `None`.
+pub fn sign_elf(elf: &Path, target: Target, version: Option<[u8; 3]>, seed: &[u8; 32]) -> anyhow::Result<Vec<u8>> {
     let name = elf.display().to_string();
     let bytes = std::fs::read(elf).with_context(|| format!("reading {name}"))?;
     let flash = flash_image(&bytes, &name)?;
+    let version = match (version, elf_version(&bytes, &flash, &name)?) {
+        (Some(given), Some(own)) if given != own => bail!(
+            "{name} reports firmware {}.{}.{}, not {}.{}.{}: a device would show another version than the one signed (bump FIRMWARE_VERSION in src/app/mod.rs and rebuild, or leave out --fw-version)",
+            own[0],
+            own[1],
+            own[2],
+            given[0],
+            given[1],
+            given[2]
+        ),
+        (_, Some(own)) => own,
+        (Some(given), None) => given,
+        (None, None) => bail!("{name} has no BRDF_FIRMWARE_VERSION symbol: give its version with --fw-version X.Y.Z"),
+    };
     let words = [0, 4].map(|o| u32::from_le_bytes([flash[o], flash[o + 1], flash[o + 2], flash[o + 3]]));
     ensure!(
         image::vector_table_fits(words, flash.len() as u32),
@@ -93,9 +126,15 @@ pub fn sign_elf(elf: &Path, target: Target, version: [u8; 3], seed: &[u8; 32]) -
 /// Runs the command. Nothing is written unless the ELF and the key read.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let target = if a.target == "board" { Target::Board } else { Target::Qemu };
-    let version = parse_version(&a.version)?;
+    let given = a.version.as_deref().map(parse_version).transpose()?;
     let seed = signing::read_secret(&a.key)?;
-    let signed = sign_elf(&a.elf, target, version, &seed)?;
+    let signed = sign_elf(&a.elf, target, given, &seed)?;
+    let (manifest, _) = image::decode_trailer(
+        signed[signed.len() - image::FW_TRAILER_LEN..].try_into().expect("a signed image ends with its trailer"),
+        signed.len() as u32,
+    )
+    .map_err(|e| anyhow::anyhow!("the image just signed does not read back: {e}"))?;
+    let version = manifest.version;
     crate::output::io::write_atomic(&a.out, &signed).with_context(|| format!("writing {}", a.out.display()))?;
     println!(
         "wrote {} ({} bytes, {:?} firmware {}.{}.{}, signed with {}{})",
@@ -128,7 +167,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.elf");
         std::fs::write(&p, b"not an elf").unwrap();
-        let e = sign_elf(&p, Target::Qemu, [1, 0, 0], &[1; 32]).unwrap_err().to_string();
+        let e = sign_elf(&p, Target::Qemu, Some([1, 0, 0]), &[1; 32]).unwrap_err().to_string();
         assert!(e.contains("not a 32-bit"), "{e}");
     }
 }
