@@ -19,7 +19,9 @@ target_dir=${CARGO_TARGET_DIR:-target}
 # bin:profile (where its ELF lands); each is built with `cargo BIN` and
 # checked with `cargo BIN-clippy`, the aliases in .cargo/config.toml (the one
 # place the firmware command lines live). qemu-fw only if the package has it.
-firmwares=("board-fw:release")
+# The bootloaders (board and QEMU: one binary, two features) are
+# alias:profile:bin, their alias not being their binary's name.
+firmwares=("board-fw:release" "bootloader:bootloader:bootloader" "qemu-bootloader:qemu-bootloader:bootloader")
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
   firmwares+=("qemu-fw:firmware")
 fi
@@ -29,7 +31,7 @@ trap 'rm -f "$log"' EXIT
 
 elfs=()
 for fw in "${firmwares[@]}"; do
-  IFS=: read -r bin profile <<<"$fw"
+  IFS=: read -r bin profile elf_name <<<"$fw"
   echo "[firmware] build $bin (cargo $bin: profile $profile, $TARGET)"
   if ! cargo "$bin" >"$log" 2>&1; then
     cat "$log"
@@ -49,7 +51,7 @@ for fw in "${firmwares[@]}"; do
     echo "[firmware] FAILED: clippy is not clean for $bin" >&2
     exit 1
   fi
-  elfs+=("$target_dir/$TARGET/$profile/$bin")
+  elfs+=("$target_dir/$TARGET/$profile/${elf_name:-$bin}")
 done
 
 # The board image must carry its logger (RTT control block) and find the

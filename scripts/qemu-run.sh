@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs the QEMU firmware (an ELF built with `cargo qemu-fw`) on QEMU's
+# Runs the QEMU firmware (an ELF built with `cargo qemu-fw`) behind its
+# bootloader (`cargo qemu-bootloader`, built here if missing) on QEMU's
 # b-l475e-iot01a machine, with USART1 (the instrument's link) as a TCP serial
 # server on 127.0.0.1 and semihosting on (firmware panics print and exit).
 #
@@ -14,6 +15,8 @@ cd "$(dirname "$0")/.."
 elf=${1:-target/thumbv7em-none-eabihf/firmware/qemu-fw}
 port=${QEMU_PORT:-4555}
 [ -f "$elf" ] || { echo "qemu-run: no firmware at $elf: build it with 'cargo qemu-fw'" >&2; exit 2; }
+boot=$(dirname "$(dirname "$elf")")/qemu-bootloader/bootloader
+[ -f "$boot" ] || cargo qemu-bootloader >&2
 command -v qemu-system-arm >/dev/null || { echo "qemu-run: qemu-system-arm not found: run scripts/install-test-deps.sh" >&2; exit 2; }
 echo "qemu-run: instrument serial on tcp 127.0.0.1:$port (e.g. host-tools info --tcp 127.0.0.1:$port)" >&2
 # shellcheck disable=SC2086
@@ -21,4 +24,4 @@ exec timeout --foreground "${QEMU_TIMEOUT:-3600}" qemu-system-arm \
   -machine b-l475e-iot01a -display none -monitor none \
   -serial "tcp:127.0.0.1:$port,server=on,wait=off" \
   -semihosting-config enable=on,target=native \
-  -kernel "$elf" ${QEMU_EXTRA:-}
+  -kernel "$boot" -device "loader,file=$elf" ${QEMU_EXTRA:-}

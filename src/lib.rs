@@ -12,6 +12,8 @@
 //! - [`blob`]: the calibration blob format (writer and in-place reader).
 //! - [`signed`]: signed calibrations (the signature trailer, the trusted keys).
 //! - [`store`]: the two-slot calibration store on any NOR flash.
+//! - [`firmware`]: firmware updates: the signed image format and (feature
+//!   `app`) the updater on embassy-boot.
 //! - [`kernel`]: the estimator kernels (f32, Q15, cluster selection).
 //! - [`estimate`]: the active calibration and one point's estimate.
 //! - [`gloss`]: the gloss readings (specular gloss, haze, distinctness) and
@@ -37,6 +39,7 @@ pub mod acquire;
 pub mod app;
 pub mod blob;
 pub mod estimate;
+pub mod firmware;
 pub mod frame_store;
 pub mod gloss;
 pub mod hw;

@@ -131,14 +131,21 @@ pub fn split(image: &[u8]) -> Result<(&[u8], Trailer), SignatureFault> {
 /// blob's bytes (without the trailer) when the signature holds.
 pub fn verify<'a>(image: &'a [u8], trusted: &[PublicKeyBytes]) -> Result<&'a [u8], SignatureFault> {
     let (blob, t) = split(image)?;
+    verify_message(blob, &t, trusted)?;
+    Ok(blob)
+}
+
+/// Verifies that `t` signs `message` by one of the `trusted` keys (the key
+/// its id names): the one verifier of calibrations and firmware images.
+pub fn verify_message(message: &[u8], t: &Trailer, trusted: &[PublicKeyBytes]) -> Result<(), SignatureFault> {
     let mut known = false;
     for pk in trusted.iter().filter(|pk| key_id(pk) == t.key_id) {
         known = true;
         // A trusted key that is not a curve point verifies nothing.
         if let Ok(key) = salty::PublicKey::try_from(pk)
-            && key.verify(blob, &salty::Signature::from(&t.signature)).is_ok()
+            && key.verify(message, &salty::Signature::from(&t.signature)).is_ok()
         {
-            return Ok(blob);
+            return Ok(());
         }
     }
     Err(if known { SignatureFault::BadSignature } else { SignatureFault::UnknownKey })
@@ -152,9 +159,13 @@ pub fn public_key(seed: &[u8; 32]) -> PublicKeyBytes {
 /// The trailer that signs `blob` with the secret seed `seed` (the host's
 /// side; the device only verifies).
 pub fn sign(blob: &[u8], seed: &[u8; 32]) -> [u8; TRAILER_LEN] {
+    encode_trailer(&sign_message(blob, seed))
+}
+
+/// The key id and signature of `message` by the secret seed `seed`.
+pub fn sign_message(message: &[u8], seed: &[u8; 32]) -> Trailer {
     let kp = salty::Keypair::from(seed);
-    let signature = kp.sign(blob).to_bytes();
-    encode_trailer(&Trailer { key_id: key_id(&kp.public.to_bytes()), signature })
+    Trailer { key_id: key_id(&kp.public.to_bytes()), signature: kp.sign(message).to_bytes() }
 }
 
 #[cfg(test)]

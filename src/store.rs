@@ -168,6 +168,8 @@ pub struct Store<F> {
     trusted: &'static [PublicKeyBytes],
     active: Option<SlotInfo>,
     session: Option<Session>,
+    /// See [`Store::unreadable`].
+    unreadable: Option<DeviceError>,
 }
 
 /// Whether sequence `a` is newer than `b` (wrapping).
@@ -198,22 +200,43 @@ impl<F: MappedFlash> Store<F> {
         assert!((slot_len as usize).is_multiple_of(F::ERASE_SIZE), "slot length must be whole erase pages");
         assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN.is_multiple_of(F::WRITE_SIZE));
         assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
-        let mut s = Self { flash, slot_len, trusted, active: None, session: None };
+        let mut s = Self { flash, slot_len, trusted, active: None, session: None, unreadable: None };
         let (a, b) = (s.scan(0), s.scan(1));
         let newest_first = match (a, b) {
             (Some(x), Some(y)) if newer(y.sequence, x.sequence) => [b, a],
             _ => [a, b],
         };
         for info in newest_first.into_iter().flatten() {
-            if s.signed_by_trusted(info)
-                && let Some(view) = s.view(info)
-                && accept(&view)
-            {
-                s.active = Some(info);
-                break;
+            if !s.signed_by_trusted(info) {
+                continue;
+            }
+            let bytes = s.flash.mapped(s.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+            match BlobView::parse(bytes) {
+                Ok(view) if accept(&view) => {
+                    s.active = Some(info);
+                    break;
+                }
+                Ok(_) => {}
+                // Whole, signed, but a format this build cannot read (written
+                // by another firmware): said so, never misread.
+                Err(BlobError::UnsupportedVersion(format)) if s.unreadable.is_none() => {
+                    s.unreadable = Some(DeviceError::CalibrationUnsupported {
+                        format,
+                        oldest: crate::blob::FORMAT_VERSION_1,
+                        newest: crate::blob::FORMAT_VERSION,
+                    });
+                }
+                Err(_) => {}
             }
         }
         s
+    }
+
+    /// Why the newest whole, signed calibration was passed over at boot,
+    /// when it is one this firmware cannot read (a blob format newer or
+    /// older than it reads); `None` when every such slot was readable.
+    pub fn unreadable(&self) -> Option<DeviceError> {
+        self.unreadable
     }
 
     /// The active slot.
@@ -386,6 +409,7 @@ impl<F: MappedFlash> Store<F> {
         // Trust only what reads back.
         let info = self.scan(s.slot).ok_or(StoreError::ReadBack)?;
         self.active = Some(info);
+        self.unreadable = None;
         Ok(info)
     }
 

@@ -59,6 +59,12 @@ fn request_name(r: &Request<'_>) -> &'static str {
         Request::Stop => "Stop",
         Request::SimFrame { .. } => "SimFrame",
         Request::SimLines { .. } => "SimLines",
+        Request::FirmwareInfo => "FirmwareInfo",
+        Request::UpdateBegin { .. } => "UpdateBegin",
+        Request::UpdateChunk { .. } => "UpdateChunk",
+        Request::UpdateCommit => "UpdateCommit",
+        Request::UpdateAbort => "UpdateAbort",
+        Request::Reboot => "Reboot",
     }
 }
 
@@ -82,6 +88,10 @@ fn response_name(r: &Response<'_>) -> &'static str {
             Encoding::Corrected => "Points.Corrected",
         },
         Response::Error(e) => error_name(e),
+        Response::Firmware(_) => "Firmware",
+        Response::UpdateReady { .. } => "UpdateReady",
+        Response::UpdateCommitted { .. } => "UpdateCommitted",
+        Response::Rebooting => "Rebooting",
     }
 }
 
@@ -104,6 +114,9 @@ fn error_name(e: &DeviceError) -> &'static str {
         DeviceError::Simulation => "Error.Simulation",
         DeviceError::SignatureRejected(_) => "Error.SignatureRejected",
         DeviceError::BadBins { .. } => "Error.BadBins",
+        DeviceError::FirmwareRejected(_) => "Error.FirmwareRejected",
+        DeviceError::Update(_) => "Error.Update",
+        DeviceError::CalibrationUnsupported { .. } => "Error.CalibrationUnsupported",
     }
 }
 
@@ -175,6 +188,12 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         Request::Stop,
         Request::SimFrame { line: 1, frame: 2, first_pixel: 16, pixels: LeBytes(&px) },
         Request::SimLines { lines: 4 },
+        Request::FirmwareInfo,
+        Request::UpdateBegin { len: 72_888, crc: 0x0BAD_CAFE },
+        Request::UpdateChunk { offset: 1024, data: &[0, 1, 2, 3, 4, 5, 6, 7] },
+        Request::UpdateCommit,
+        Request::UpdateAbort,
+        Request::Reboot,
     ];
     for r in &requests {
         out.push((format!("request.{}", request_name(r)), request_frame(42, r)));
@@ -230,6 +249,24 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             reading_sigma: [0.75, 0.125, f32::NAN],
             values: LeBytes(&vals),
         }),
+        Response::Firmware(brdf_meter::protocol::FirmwareInfo {
+            version: [0, 2, 0],
+            target: brdf_meter::firmware::image::Target::Board,
+            boot: brdf_meter::protocol::BootState::Trial,
+            self_test: brdf_meter::protocol::SelfTest { store: true, sensor: false, link: true },
+            updates: true,
+            max_image: 163_840,
+            receiving: Some(4096),
+            pending: None,
+            blob_formats: [1, 3],
+            trusted_count: 1,
+            trusted: [[1, 2, 3, 4, 5, 6, 7, 8], [0; 8], [0; 8], [0; 8]],
+            trusts_development_key: true,
+            refused: Some(DeviceError::FirmwareRejected(brdf_meter::firmware::image::ImageFault::WrongTarget)),
+        }),
+        Response::UpdateReady { next_offset: 2048, max_chunk: 512 },
+        Response::UpdateCommitted { version: [0, 2, 0] },
+        Response::Rebooting,
     ];
     for e in [
         DeviceError::Frame(FrameError::Truncated { declared: 30, got: 12 }),
@@ -248,6 +285,11 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         DeviceError::Simulation,
         DeviceError::SignatureRejected(brdf_meter::signed::SignatureFault::UnknownKey),
         DeviceError::BadBins { bins: 81 },
+        DeviceError::FirmwareRejected(brdf_meter::firmware::image::ImageFault::Signature(
+            brdf_meter::signed::SignatureFault::BadSignature,
+        )),
+        DeviceError::Update(brdf_meter::protocol::UpdateFault::TooLarge { len: 200_000, max: 163_840 }),
+        DeviceError::CalibrationUnsupported { format: 4, oldest: 1, newest: 3 },
     ] {
         responses.push(Response::Error(e));
     }

@@ -29,12 +29,43 @@ fn build_board_fw(root: &Path) -> PathBuf {
     target_dir.join("thumbv7em-none-eabihf/release/board-fw")
 }
 
+/// Builds the board bootloader (`cargo bootloader`) and returns its ELF.
+fn build_bootloader(root: &Path) -> PathBuf {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(root)
+        .arg("bootloader")
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .expect("running cargo to build the bootloader");
+    assert!(status.success(), "the bootloader does not build ({status})");
+    let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
+    target_dir.join("thumbv7em-none-eabihf/bootloader/bootloader")
+}
+
 #[test]
-fn board_firmware_fits_its_budget_with_the_z128_calibration() {
+fn the_bootloader_fits_its_24_kib() {
+    use host_tools::device::budget::{ImageKind, check_file};
+    let root = root();
+    let elf = build_bootloader(&root);
+    let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
+    let budget = check_file(&elf, ImageKind::Bootloader, &script).expect("reading the bootloader image");
+    println!("{}", budget.table());
+    assert!(budget.ok(), "the bootloader is over budget:\n{}", budget.table());
+    assert_eq!(budget.lines[0].limit, 24 * 1024);
+    assert!(budget.lines[0].used > 1024, "an implausibly small bootloader: {}", budget.lines[0].used);
+}
+
+#[test]
+fn board_firmware_fits_its_budget_with_the_largest_calibration() {
     let root = root();
     let elf = build_board_fw(&root);
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
-    let budget = host_tools::device::budget::check_file(&elf, &script).expect("reading the firmware image");
+    let budget =
+        host_tools::device::budget::check_file(&elf, host_tools::device::budget::ImageKind::Application, &script)
+            .expect("reading the firmware image");
     println!("{}", budget.table());
     assert!(budget.ok(), "board-fw is over budget:\n{}", budget.table());
     // The image really is the board firmware and really has the sections the

@@ -1,10 +1,13 @@
 //! Request handling: one request in, one reply out, synchronous. Provisioning
 //! writes go straight to the flash's inactive slot; a measurement is handed to
 //! the acquisition task.
-use super::{Job, Shared};
+use super::{Core, Job, Shared};
 use crate::estimate::Calibration;
+use crate::firmware::image::Target;
 use crate::hw::{FrameInput, FrameLoadError, MappedFlash};
-use crate::protocol::{DeviceError, DeviceInfo, MAX_CHUNK, PROTOCOL_VERSION, Request, Response};
+use crate::protocol::{
+    BootState, DeviceError, DeviceInfo, FirmwareInfo, MAX_CHUNK, MAX_KEY_IDS, PROTOCOL_VERSION, Request, Response,
+};
 use core::sync::atomic::Ordering;
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -17,7 +20,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             let r: Result<Response<'static>, DeviceError> = match *req {
                 Request::Info => Ok(Response::Info(DeviceInfo {
                     protocol: PROTOCOL_VERSION,
-                    firmware: super::FIRMWARE_VERSION,
+                    firmware: self.version,
                     bins: N as u16,
                     leds: M as u16,
                     pixels: P as u16,
@@ -53,7 +56,9 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 }
                 Request::ProvisionAbort => c.store.abort().map(|_| Response::Aborted).map_err(DeviceError::from),
                 Request::Measure { .. } if measuring => Err(DeviceError::Busy),
-                Request::Measure { .. } if c.cal.active().is_none() => Err(DeviceError::NoCalibration),
+                Request::Measure { .. } if c.cal.active().is_none() => {
+                    Err(c.store.unreadable().unwrap_or(DeviceError::NoCalibration))
+                }
                 Request::Measure { format, .. } if !format.bin_range(N).fits(N) => {
                     Err(DeviceError::BadBins { bins: N as u16 })
                 }
@@ -78,6 +83,22 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     }
                 }
                 Request::SimLines { lines } => scene.set_lines(lines).map(|_| Response::SimLoaded).map_err(sim_err),
+                Request::FirmwareInfo => Ok(Response::Firmware(firmware_info(c, self.target, self.version))),
+                Request::UpdateBegin { .. } | Request::UpdateCommit if measuring => Err(DeviceError::Busy),
+                Request::UpdateBegin { len, crc } => c
+                    .update(|fw| fw.begin(len, crc))
+                    .map(|next_offset| Response::UpdateReady { next_offset, max_chunk: MAX_CHUNK as u16 }),
+                Request::UpdateChunk { offset, data } => {
+                    c.update(|fw| fw.write(offset, data)).map(|next_offset| Response::ChunkAck { next_offset })
+                }
+                Request::UpdateCommit => {
+                    c.update(|fw| fw.commit()).map(|version| Response::UpdateCommitted { version })
+                }
+                Request::UpdateAbort => c.update(|fw| fw.abort()).map(|_| Response::Aborted),
+                Request::Reboot => {
+                    self.reboot.signal(());
+                    Ok(Response::Rebooting)
+                }
             };
             if r.is_err() {
                 c.status.refused = c.status.refused.wrapping_add(1);
@@ -87,12 +108,46 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         r.unwrap_or_else(Response::Error)
     }
 
+    /// What `FirmwareInfo` answers: version, boot state, self-test, keys.
+    pub fn firmware_info(&self) -> FirmwareInfo {
+        self.core.lock(|c| firmware_info(&c.borrow(), self.target, self.version))
+    }
+
     /// Counts a frame that could not be read.
     pub fn count_bad_frame(&self) {
         self.core.lock(|c| {
             let mut c = c.borrow_mut();
             c.status.bad_frames = c.status.bad_frames.wrapping_add(1);
         });
+    }
+}
+
+/// What `FirmwareInfo` reports.
+fn firmware_info<F, const N: usize, const M: usize, const P: usize>(
+    c: &Core<F, N, M, P>,
+    target: Target,
+    version: [u8; 3],
+) -> FirmwareInfo {
+    let keys = crate::signed::TRUSTED_KEYS;
+    let mut trusted = [[0u8; 8]; MAX_KEY_IDS];
+    for (id, pk) in trusted.iter_mut().zip(keys) {
+        *id = crate::signed::key_id(pk);
+    }
+    let fw = c.firmware.as_deref();
+    FirmwareInfo {
+        version,
+        target,
+        boot: fw.map_or(BootState::Unknown, |f| f.boot_state()),
+        self_test: c.self_test,
+        updates: fw.is_some(),
+        max_image: fw.map_or(0, |f| f.max_image()),
+        receiving: fw.and_then(|f| f.receiving()),
+        pending: fw.and_then(|f| f.pending()),
+        blob_formats: [crate::blob::FORMAT_VERSION_1, crate::blob::FORMAT_VERSION],
+        trusted_count: keys.len().min(u8::MAX as usize) as u8,
+        trusted,
+        trusts_development_key: crate::signed::TRUSTS_DEVELOPMENT_KEY,
+        refused: c.update_refused,
     }
 }
 

@@ -18,9 +18,13 @@
 //! `#[embassy_executor::task]` wrappers around [`acquisition`], [`estimation`]
 //! and [`transport`] with its concrete types (see `src/bin/qemu-fw.rs`).
 mod handler;
+mod self_test;
 mod tasks;
+mod update;
+#[cfg(feature = "usb-dfu")]
+pub mod usb_dfu;
 
-pub use tasks::{acquisition, estimation, transport};
+pub use tasks::{acquisition, estimation, reboot, transport};
 
 use crate::acquire::{AcqConfig, RawLine};
 use crate::estimate::{Calibration, ZoneMatrix};
@@ -38,8 +42,24 @@ use nalgebra::SVector;
 /// An encoded frame on its way to the host.
 pub type OutFrame = heapless::Vec<u8, MAX_FRAME>;
 
-/// Firmware version reported by `Info`.
+/// Firmware version reported by `Info` and `FirmwareInfo`: bump it for
+/// every firmware that ships.
 pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// The same version as a named symbol of the firmware's ELF, so that
+/// `host-tools sign-firmware` signs an image with the version the image
+/// itself reports (it reads this symbol's bytes from the ELF); the firmware
+/// reads its version from here, which also keeps the symbol in the image.
+#[unsafe(no_mangle)]
+pub static BRDF_FIRMWARE_VERSION: [u8; 3] = FIRMWARE_VERSION;
+
+/// The version this build reports: [`BRDF_FIRMWARE_VERSION`], read so the
+/// linker keeps it.
+fn built_version() -> [u8; 3] {
+    // SAFETY: a valid, immutable static; volatile only so the read (and so
+    // the symbol) is not optimised away.
+    unsafe { core::ptr::read_volatile(&raw const BRDF_FIRMWARE_VERSION) }
+}
 
 /// A measurement to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,6 +127,9 @@ impl<const M: usize, const P: usize> Default for LineBuf<M, P> {
     }
 }
 
+/// The platform's firmware updater, as the application holds it.
+pub type FirmwarePort = &'static mut (dyn crate::firmware::update::FirmwareSlot + Send);
+
 /// State the request handler and the tasks share.
 pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     /// Calibration store.
@@ -115,6 +138,14 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub cal: Calibration<N, M, P>,
     /// Counters and flags.
     pub status: DeviceStatus,
+    /// The firmware updater, on a platform with an update partition.
+    pub firmware: Option<FirmwarePort>,
+    /// The self-test that confirms a trial image (see `self_test`).
+    pub self_test: crate::protocol::SelfTest,
+    /// Why the last firmware update request (link or USB DFU) was refused,
+    /// until an update is committed: USB DFU can only say "verify failed",
+    /// `FirmwareInfo` says what.
+    pub update_refused: Option<crate::protocol::DeviceError>,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -134,6 +165,13 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     pub full_scale: u16,
     /// Whether the sensor is simulated (reported by `Info`).
     pub simulated: bool,
+    /// Transport -> platform: reset the device (a `Reboot` request was
+    /// answered; the platform resets once the reply has left).
+    pub reboot: Signal<Cs, ()>,
+    /// The machine this build is for (firmware images must match it).
+    pub target: crate::firmware::image::Target,
+    /// The running firmware's version (`Info`, `FirmwareInfo`).
+    pub version: [u8; 3],
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -157,15 +195,41 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             let _ = cal.load(&view, info);
         }
         let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
+        // The store was opened and both slots read: the self-test's first part.
+        let self_test = crate::protocol::SelfTest { store: true, ..Default::default() };
+        let core = Core { store, cal, status, firmware: None, self_test, update_refused: None };
         Self {
-            core: BlockingMutex::new(RefCell::new(Core { store, cal, status })),
+            core: BlockingMutex::new(RefCell::new(core)),
             start: Signal::new(),
             stop: AtomicBool::new(false),
             out: Channel::new(),
             acq,
             full_scale,
             simulated,
+            reboot: Signal::new(),
+            version: built_version(),
+            target: if simulated {
+                crate::firmware::image::Target::Qemu
+            } else {
+                crate::firmware::image::Target::Board
+            },
         }
+    }
+
+    /// Hands the application the platform's firmware updater: it then
+    /// takes updates over the link and confirms a trial boot after its
+    /// self-test.
+    pub fn with_firmware(self, port: FirmwarePort) -> Self {
+        self.core.lock(|c| c.borrow_mut().firmware = Some(port));
+        self
+    }
+
+    /// The version this firmware reports, when it is not this build's
+    /// [`FIRMWARE_VERSION`]: the host simulation runs one build as image A
+    /// and image B of an update.
+    pub fn with_version(mut self, version: [u8; 3]) -> Self {
+        self.version = version;
+        self
     }
 
     /// A copy of the status.

@@ -1,5 +1,6 @@
 //! The bodies of the three tasks. Each platform wraps them in
 //! `#[embassy_executor::task]` functions with its concrete types.
+use super::self_test::Check;
 use super::{Job, LineBuf, LineState, OutFrame, Shared};
 use crate::acquire::{acquire_line, correct_line};
 use crate::hw::{FrameInput, Leds, LineSensor, MappedFlash};
@@ -54,7 +55,10 @@ where
                         frame(0, &Response::Error(DeviceError::Frame(protocol::FrameError::Oversized)))
                     }
                     Pushed::Frame(f) => match protocol::decode::<Request<'_>>(f) {
-                        Ok((seq, req)) => frame(seq, &shared.handle(seq, &req, &mut scene)),
+                        Ok((seq, req)) => {
+                            shared.passed(Check::Link);
+                            frame(seq, &shared.handle(seq, &req, &mut scene))
+                        }
                         Err(e) => {
                             shared.count_bad_frame();
                             frame(0, &Response::Error(DeviceError::Frame(e)))
@@ -89,6 +93,15 @@ where
     L: Leds,
     S: LineSensor,
 {
+    if shared.on_trial() {
+        // The self-test's sensor part: one dark frame now, so a trial image
+        // can confirm without waiting for a measurement.
+        leds.set(None, 0).await;
+        let mut frame = [0u16; P];
+        if sensor.read_frame(shared.acq.exposure_us, &mut frame).await.is_ok() {
+            shared.passed(Check::Sensor);
+        }
+    }
     loop {
         let job = shared.start.wait().await;
         let mut line = 0u32;
@@ -118,6 +131,9 @@ where
             }
             buf.state = LineState::Line { job, line };
             lines_out.send_done();
+            if line == 0 {
+                shared.passed(Check::Sensor);
+            }
             line += 1;
         }
         let buf = lines_out.send().await;
@@ -253,4 +269,20 @@ async fn send_alone<F, const N: usize, const M: usize, const P: usize>(
     // An f32 point always fits an empty block.
     let _ = push(block);
     shared.out.send(frame(job_seq, &Response::Points(block.frame()))).await;
+}
+
+/// How long a reset waits after it was asked for: time for the reply (or
+/// USB DFU's last status) to leave before the link goes down.
+pub const REBOOT_DELAY_MS: u64 = 100;
+
+/// The reboot task: waits for a `Reboot` request (or the end of a USB DFU
+/// download), lets the reply leave, then resets the chip with `reset` (the
+/// bootloader then swaps in a committed update).
+pub async fn reboot<F: MappedFlash, const N: usize, const M: usize, const P: usize>(
+    shared: &Shared<F, N, M, P>,
+    reset: fn() -> !,
+) -> ! {
+    shared.reboot.wait().await;
+    embassy_time::Timer::after_millis(REBOOT_DELAY_MS).await;
+    reset()
 }

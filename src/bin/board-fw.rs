@@ -10,6 +10,7 @@
 
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
+use brdf_meter::firmware::image::Target;
 use brdf_meter::hw::NoFrameInput;
 use brdf_meter::platform::board;
 use brdf_meter::platform::watchdog_health::Health;
@@ -19,11 +20,12 @@ use embassy_executor::Spawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
 use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
 use embassy_time::{Instant, Timer};
+use embedded_storage::nor_flash::ReadNorFlash as _;
 use nalgebra::SMatrix;
 use panic_probe as _;
 use static_cell::StaticCell;
 
-use board::flash::CalFlash;
+use board::flash::{CalFlash, Part};
 use board::leds::PwmLeds;
 use board::sensor::Tsl1401;
 use board::usb::{UsbRx, UsbTx};
@@ -39,6 +41,8 @@ const RAM_ZONES: usize = shape::board::RAM_ZONES;
 const ACQ: AcqConfig = brdf_meter::platform::timing::ACQUISITION;
 
 type BoardShared = Shared<CalFlash, N, M, P>;
+type Updater = brdf_meter::firmware::update::Updater<'static, Part, Part>;
+type Dfu = embassy_usb::class::dfu::dfu_mode::DfuState<app::usb_dfu::UsbDfu<'static, CalFlash, N, M, P>>;
 
 static SHARED: StaticCell<BoardShared> = StaticCell::new();
 
@@ -55,6 +59,13 @@ async fn acquisition(
     lines: Sender<'static, Cs, LineBuf<M, P>>,
 ) -> ! {
     app::acquisition(shared, leds, sensor, lines).await
+}
+
+/// Resets the chip when asked (a `Reboot` request, the end of a USB DFU
+/// download): the bootloader then swaps in a committed update.
+#[embassy_executor::task]
+async fn reboot(shared: &'static BoardShared) -> ! {
+    app::reboot(shared, || cortex_m::peripheral::SCB::sys_reset()).await
 }
 
 #[embassy_executor::task]
@@ -90,9 +101,25 @@ async fn main(spawner: Spawner) {
 
     static RAM: StaticCell<[SMatrix<f32, M, N>; RAM_ZONES]> = StaticCell::new();
     let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
-    let slot_len = b.cal_flash.slot_len();
+    // One flash, two users: the calibration store and embassy-boot's
+    // updater, each in its own window of it.
+    let cal = board::flash::calibration(b.flash);
+    let slot_len = cal.capacity() as u32 / 2;
+    let (dfu, state) = board::flash::update_partitions(b.flash);
+    static ALIGNED: StaticCell<embassy_boot::AlignedBuffer<{ shape::FLASH_WRITE }>> = StaticCell::new();
+    static UPDATER: StaticCell<Updater> = StaticCell::new();
+    let updater = UPDATER.init(Updater::new(
+        dfu,
+        state,
+        &mut ALIGNED.init(embassy_boot::AlignedBuffer([0; shape::FLASH_WRITE])).0,
+        shape::board::ACTIVE_LEN,
+        Target::Board,
+        brdf_meter::signed::TRUSTED_KEYS,
+    ));
     let shared: &'static BoardShared =
-        SHARED.init(Shared::new(b.cal_flash, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false));
+        SHARED.init(Shared::new(cal, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false).with_firmware(updater));
+    let fw = shared.firmware_info();
+    defmt::info!("firmware {}: boot state {}", fw.version, fw.boot);
     match shared.status().calibration {
         Some(c) => defmt::info!(
             "calibration: slot {}, sequence {}, {} zones, matrices in {}",
@@ -109,8 +136,14 @@ async fn main(spawner: Spawner) {
     let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
     let (lines_tx, lines_rx) = channel.split();
 
-    spawner.spawn(board::usb::run(b.usb.device).expect("spawned once"));
-    spawner.spawn(transport(shared, b.usb.rx, b.usb.tx).expect("spawned once"));
+    // The USB device, now that the application that serves its DFU
+    // interface exists.
+    static DFU: StaticCell<Dfu> = StaticCell::new();
+    let usb = board::usb::Usb::new(b.usb, DFU.init(app::usb_dfu::state(shared)));
+
+    spawner.spawn(board::usb::run(usb.device).expect("spawned once"));
+    spawner.spawn(transport(shared, usb.rx, usb.tx).expect("spawned once"));
+    spawner.spawn(reboot(shared).expect("spawned once"));
     spawner.spawn(acquisition(shared, b.leds, b.sensor, lines_tx).expect("spawned once"));
     spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
     spawner.spawn(supervisor(shared, b.status_led).expect("spawned once"));

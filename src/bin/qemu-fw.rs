@@ -36,10 +36,23 @@ const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
 /// Acquisition timing: short, it is a simulation (`platform::timing`).
 const ACQ: AcqConfig = brdf_meter::platform::timing::QEMU_ACQUISITION;
 
+/// The RAM update partition and the boot state beside it (see below).
+const DFU_LEN: usize = shape::qemu::DFU_LEN as usize;
+const STATE_LEN: usize = shape::board::BOOT_STATE_LEN as usize;
+
 type Flash = RamFlash<{ 2 * SLOT_LEN }>;
 type QemuShared = Shared<Flash, N, M, P>;
+type Updater = brdf_meter::firmware::update::Updater<'static, RamFlash<DFU_LEN>, RamFlash<STATE_LEN>>;
 
 static FLASH_MEM: Memory<{ 2 * SLOT_LEN }> = Memory::new();
+/// The update partition, in SRAM2 (the RAM the rest leaves): updates are
+/// received, verified and marked as on the board, but the bootloader reads
+/// its state from the read-only flash, so no swap follows.
+#[unsafe(link_section = ".sram2")]
+static DFU_MEM: Memory<DFU_LEN> = Memory::new();
+static STATE_MEM: Memory<STATE_LEN> = Memory::new();
+static UPDATER: StaticCell<Updater> = StaticCell::new();
+static ALIGNED: StaticCell<embassy_boot::AlignedBuffer<{ shape::FLASH_WRITE }>> = StaticCell::new();
 static FRAMES: Frames<P, F, FRAME_LINES> = Frames::new();
 static SHARED: StaticCell<QemuShared> = StaticCell::new();
 static RAM: StaticCell<[SMatrix<f32, M, N>; RAM_ZONES]> = StaticCell::new();
@@ -63,6 +76,12 @@ async fn estimation(shared: &'static QemuShared, lines: Receiver<'static, Cs, Li
     app::estimation(shared, lines).await
 }
 
+/// Resets the machine on a `Reboot` request (through the bootloader again).
+#[embassy_executor::task]
+async fn reboot(shared: &'static QemuShared) -> ! {
+    app::reboot(shared, || cortex_m::peripheral::SCB::sys_reset()).await
+}
+
 #[cortex_m_rt::entry]
 fn main() -> ! {
     let cp = cortex_m::Peripherals::take().expect("taken once");
@@ -70,7 +89,16 @@ fn main() -> ! {
     qemu::time_driver::init(cp.SYST);
     let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
     let flash = qemu::flash::take(&FLASH_MEM);
-    let shared: &'static QemuShared = SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true));
+    let updater = UPDATER.init(Updater::new(
+        qemu::flash::take(&DFU_MEM),
+        qemu::flash::take(&STATE_MEM),
+        &mut ALIGNED.init(embassy_boot::AlignedBuffer([0; shape::FLASH_WRITE])).0,
+        DFU_LEN as u32,
+        brdf_meter::firmware::image::Target::Qemu,
+        brdf_meter::signed::TRUSTED_KEYS,
+    ));
+    let shared: &'static QemuShared =
+        SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true).with_firmware(updater));
     let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
     let (lines_tx, lines_rx) = channel.split();
     let (rx, tx) = qemu::usart::init();
@@ -78,6 +106,7 @@ fn main() -> ! {
         spawner.spawn(transport(shared, rx, tx).expect("spawned once"));
         spawner.spawn(acquisition(shared, lines_tx).expect("spawned once"));
         spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
+        spawner.spawn(reboot(shared).expect("spawned once"));
     })
 }
 

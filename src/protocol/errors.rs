@@ -2,6 +2,7 @@
 //! and the typed error replies ([`DeviceError`], [`BlobFault`]).
 use super::BlobSection;
 use crate::blob::BlobError;
+use crate::firmware::image::ImageFault;
 use crate::hw::SensorError;
 use crate::signed::SignatureFault;
 use serde::{Deserialize, Serialize};
@@ -160,6 +161,44 @@ pub enum DeviceError {
         /// The device's bins n.
         bins: u16,
     },
+    /// The firmware image was refused (unsigned, malformed, for another
+    /// machine, not bootable, or its signature); the running firmware keeps
+    /// running and nothing was marked for the bootloader.
+    FirmwareRejected(ImageFault),
+    /// An update request that cannot be served now (see [`UpdateFault`]).
+    Update(UpdateFault),
+    /// The calibration in flash is a blob format this firmware cannot read:
+    /// it is kept, and nothing is measured with it.
+    CalibrationUnsupported {
+        /// The blob's format version.
+        format: u16,
+        /// The oldest format this firmware reads.
+        oldest: u16,
+        /// The newest format this firmware reads.
+        newest: u16,
+    },
+}
+
+/// Why an update request cannot be served.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum UpdateFault {
+    /// This build takes no updates over the link (no update partition).
+    Unsupported,
+    /// A chunk or commit with no update in progress (begin first).
+    NotUpdating,
+    /// The image does not fit the active image region.
+    TooLarge {
+        /// Declared length.
+        len: u32,
+        /// Largest image.
+        max: u32,
+    },
+    /// The running image is itself on trial: it must pass its self-test and
+    /// confirm before it takes another update.
+    TrialNotConfirmed,
+    /// An update is already committed: reset the device to start it.
+    Pending,
 }
 
 impl From<SignatureFault> for DeviceError {
@@ -225,6 +264,31 @@ impl core::fmt::Display for DeviceError {
             Self::BadBins { bins } => {
                 write!(f, "the bin range is empty or beyond the device's {bins} bins: nothing was measured")
             }
+            Self::FirmwareRejected(e) => {
+                write!(f, "the device refused the firmware image: {e}; the running firmware keeps running")
+            }
+            Self::Update(UpdateFault::Unsupported) => {
+                write!(f, "this device takes no firmware updates over the link (no update partition)")
+            }
+            Self::Update(UpdateFault::NotUpdating) => write!(f, "no firmware update in progress (begin first)"),
+            Self::Update(UpdateFault::TooLarge { len, max }) => write!(
+                f,
+                "a firmware image of {len} bytes does not fit the device's update partition ({max} bytes); the running firmware keeps running"
+            ),
+            Self::Update(UpdateFault::TrialNotConfirmed) => write!(
+                f,
+                "the running firmware is on trial and has not passed its self-test yet: it takes no update until it confirms"
+            ),
+            Self::Update(UpdateFault::Pending) => {
+                write!(
+                    f,
+                    "an update is already committed: reset the device to start it (host-tools update-firmware --reboot-only)"
+                )
+            }
+            Self::CalibrationUnsupported { format, oldest, newest } => write!(
+                f,
+                "the calibration in flash is blob format {format}, which this firmware cannot read (it reads formats {oldest} to {newest}): provision a calibration trained for this firmware, or go back to the firmware that wrote it; nothing is measured with it"
+            ),
         }
     }
 }

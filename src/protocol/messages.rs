@@ -107,6 +107,35 @@ pub enum Request<'a> {
         /// Number of loaded lines (1..=capacity).
         lines: u8,
     },
+    /// The running firmware's version, boot state, self-test and trusted
+    /// keys (protocol 4).
+    FirmwareInfo,
+    /// Starts, or resumes, a firmware update: a signed image of `len` bytes
+    /// whose CRC-32 over all its bytes is `crc` (`host-tools sign-firmware`).
+    /// A `begin` with the length and CRC of the update in progress resumes
+    /// it. Touches nothing the running firmware uses.
+    UpdateBegin {
+        /// Signed image length in bytes.
+        len: u32,
+        /// CRC-32 (ISO-HDLC) of the whole signed image.
+        crc: u32,
+    },
+    /// The image bytes at `offset`, in order, a multiple of 8 bytes.
+    UpdateChunk {
+        /// Byte offset of `data` in the image.
+        offset: u32,
+        /// At most [`MAX_CHUNK`] bytes.
+        #[serde(borrow)]
+        data: &'a [u8],
+    },
+    /// Checks the whole image (CRC, trailer, target, signature) and marks it
+    /// for the bootloader: the next reset swaps it in, on trial.
+    UpdateCommit,
+    /// Abandons an update; nothing the running firmware uses was touched.
+    UpdateAbort,
+    /// Resets the device (after [`Request::UpdateCommit`]: into the new
+    /// firmware), once the reply is sent.
+    Reboot,
 }
 
 /// What the device answers or streams.
@@ -156,6 +185,23 @@ pub enum Response<'a> {
     Error(DeviceError),
     /// Consecutive points of one line (protocol 3's stream).
     Points(#[serde(borrow)] super::PointsFrame<'a>),
+    /// Reply to [`Request::FirmwareInfo`].
+    Firmware(FirmwareInfo),
+    /// An update is under way; send the chunk at `next_offset` (0 for a new
+    /// update, further on for one resumed).
+    UpdateReady {
+        /// Offset of the next chunk.
+        next_offset: u32,
+        /// Largest chunk the device accepts.
+        max_chunk: u16,
+    },
+    /// The image was verified and marked: the next reset starts it, on trial.
+    UpdateCommitted {
+        /// Its version.
+        version: [u8; 3],
+    },
+    /// The device resets once this reply is sent.
+    Rebooting,
 }
 
 impl<'a> Response<'a> {
@@ -176,6 +222,10 @@ impl<'a> Response<'a> {
             Self::MeasureDone { lines_done } => Response::MeasureDone { lines_done },
             Self::SimLoaded => Response::SimLoaded,
             Self::Error(e) => Response::Error(e),
+            Self::Firmware(x) => Response::Firmware(x),
+            Self::UpdateReady { next_offset, max_chunk } => Response::UpdateReady { next_offset, max_chunk },
+            Self::UpdateCommitted { version } => Response::UpdateCommitted { version },
+            Self::Rebooting => Response::Rebooting,
         })
     }
 }
@@ -250,6 +300,82 @@ pub struct DeviceStatus {
     /// Active calibration.
     pub calibration: Option<CalInfo>,
 }
+
+/// Where the running firmware stands with the bootloader.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BootState {
+    /// Confirmed: the bootloader starts this image on every reset.
+    Confirmed,
+    /// A new image on trial: the next reset swaps the previous one back
+    /// unless this one passes its self-test first and confirms itself.
+    Trial,
+    /// The last update failed its trial and was swapped back out: this is
+    /// the previous image.
+    Reverted,
+    /// The bootloader was asked to wait for a USB DFU download.
+    DfuRequested,
+    /// No bootloader state to read (a build without an updater).
+    Unknown,
+}
+
+/// The running firmware's self-test: it confirms a trial image only when all
+/// three pass.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SelfTest {
+    /// The calibration store was read at boot (both slots' headers).
+    pub store: bool,
+    /// The sensor delivered a frame.
+    pub sensor: bool,
+    /// A valid request arrived over the link.
+    pub link: bool,
+}
+
+impl SelfTest {
+    /// Whether every part passed.
+    pub fn passed(&self) -> bool {
+        self.store && self.sensor && self.link
+    }
+}
+
+/// Reply to [`Request::FirmwareInfo`].
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FirmwareInfo {
+    /// Firmware version, major/minor/patch.
+    pub version: [u8; 3],
+    /// The machine this build is for.
+    pub target: crate::firmware::image::Target,
+    /// Boot state.
+    pub boot: BootState,
+    /// Self-test so far.
+    pub self_test: SelfTest,
+    /// Whether this build takes updates over the link.
+    pub updates: bool,
+    /// Largest signed image an update may be.
+    pub max_image: u32,
+    /// An update in progress: bytes received.
+    pub receiving: Option<u32>,
+    /// An update committed, waiting for a reset: its version.
+    pub pending: Option<[u8; 3]>,
+    /// The calibration blob format versions this firmware reads (oldest, newest).
+    pub blob_formats: [u16; 2],
+    /// Number of trusted keys (the first [`MAX_KEY_IDS`] are listed).
+    pub trusted_count: u8,
+    /// Ids of the trusted keys (first 8 bytes of each public key); only the
+    /// first `trusted_count` are meaningful.
+    pub trusted: [crate::signed::KeyId; MAX_KEY_IDS],
+    /// Whether this build trusts the DEVELOPMENT key (NOT FOR PRODUCTION).
+    pub trusts_development_key: bool,
+    /// Why the last update request (over the link or USB DFU) was refused,
+    /// until an update is committed; USB DFU's own status can only say
+    /// that the file failed verification.
+    pub refused: Option<DeviceError>,
+}
+
+/// Most trusted key ids a [`FirmwareInfo`] lists.
+pub const MAX_KEY_IDS: usize = 4;
 
 /// Per-point quality flags.
 pub mod flags {

@@ -46,7 +46,7 @@ pub use messages::*;
 pub use points::*;
 
 /// The protocol version this library speaks.
-pub const PROTOCOL_VERSION: u16 = 3;
+pub const PROTOCOL_VERSION: u16 = 4;
 /// Largest decoded payload (header + body + CRC) either side sends or accepts.
 /// (1024: a line frame carries 5 points of 81 Sigma16 values, or 27 points'
 /// readings; the device holds 4 outgoing frames and one incoming.)

@@ -168,8 +168,9 @@ mod tests {
         let sysclk = embassy_stm32::rcc::clocks(&p.RCC).sys.to_hertz().map(|h| h.0);
         assert_eq!(sysclk, Some(board::SYSCLK_HZ), "SYSCLK");
 
+        let chip = board::flash::share(p.FLASH);
         let flash =
-            CalFlash::region(p.FLASH, shape::board::TEST_REGION as usize, 2 * shape::board::TEST_SLOT_LEN as usize);
+            board::flash::region(chip, shape::board::TEST_REGION as usize, 2 * shape::board::TEST_SLOT_LEN as usize);
         let store = Store::open(flash, shape::board::TEST_SLOT_LEN, TRUSTED_KEYS, |_| true);
         let sensor = Tsl1401::new(p.ADC1, p.PC5, p.DMA1_CH1, p.PD14, p.PA3);
         static RAM: StaticCell<[ZoneMatrix<N, M>; 2]> = StaticCell::new();

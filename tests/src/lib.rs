@@ -14,6 +14,7 @@
 //! - [`meta_bits`] / [`expected_meta_bits`]: what a streamed point and the
 //!   host's reproduction of it must share bit for bit besides the values.
 pub mod fuzz_bodies;
+pub mod fw_sim;
 pub mod link_faults;
 pub mod qemu;
 pub mod sim;

@@ -2,6 +2,7 @@
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
 use brdf_meter::estimate::ZoneMatrix;
+use brdf_meter::hw::MappedFlash;
 use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimFrames, SimLeds, SimSensor, pipe, sim_optics};
 use brdf_meter::shape;
 use embassy_executor::raw::{Executor, TaskStorage};
@@ -27,8 +28,9 @@ pub const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
 /// Acquisition settings (the QEMU build's, with its shorter exposures).
 pub const ACQ: AcqConfig = brdf_meter::platform::timing::QEMU_ACQUISITION;
 
-/// The simulated device's shared state type.
-pub type Dev = Shared<SimFlash, N, M, P>;
+/// The simulated device's shared state type, on calibration flash `F` (the
+/// NOR fake itself, or a window of a simulated chip shared with an updater).
+pub type Dev<F = SimFlash> = Shared<F, N, M, P>;
 
 /// The pender of every simulated executor: its context is the executor's
 /// own "work pending" flag.
@@ -42,8 +44,8 @@ fn pender(context: *mut ()) {
 /// Mock time is process-wide: one simulation runs at a time.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
-/// A simulated instrument.
-pub struct SimDevice {
+/// A simulated instrument (its calibration store on flash `Fl`).
+pub struct SimDevice<Fl: 'static = SimFlash> {
     exec: &'static Executor,
     pending: &'static AtomicBool,
     host: Pipe,
@@ -51,8 +53,9 @@ pub struct SimDevice {
     /// Scene input and LED log.
     pub scene: SimFrames<P, F>,
     /// The application's shared state.
-    pub shared: &'static Dev,
-    /// The flash (shares memory with the device's).
+    pub shared: &'static Dev<Fl>,
+    /// The flash (shares memory with the device's: the whole simulated chip
+    /// when the store has a window of it).
     pub flash: SimFlash,
     /// Simulated time a `recv` waits before reporting nothing, in 100 us
     /// steps ([`RECV_STEPS`] unless a test shortens it).
@@ -74,14 +77,23 @@ impl SimDevice {
     /// Boots a device on `flash` with room for `ram_zones` matrices in RAM
     /// (more zones are read in place from flash).
     pub fn boot(flash: SimFlash, ram_zones: usize) -> Self {
+        SimDevice::boot_on(flash.clone(), flash, ram_zones, |dev| dev)
+    }
+}
+
+impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
+    /// Boots a device whose calibration store is on `store` (a part of the
+    /// simulated `chip`), with room for `ram_zones` matrices in RAM;
+    /// `setup` completes the application before its tasks start (hands it
+    /// an updater, sets the version the running image reports).
+    pub fn boot_on(store: Fl, chip: SimFlash, ram_zones: usize, setup: impl FnOnce(Dev<Fl>) -> Dev<Fl>) -> Self {
         let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         MockDriver::get().reset();
         let ram: &'static mut [ZoneMatrix<N, M>] = Box::leak(vec![ZoneMatrix::zeros(); ram_zones].into_boxed_slice());
         let (host, dev_end) = pipe();
         let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, ACQ, host.frames_counter());
-        let shared: &'static Dev =
-            leak(Shared::new(flash.clone(), SLOT_LEN, ram, ACQ, FULL_SCALE, true));
+        let shared: &'static Dev<Fl> = leak(setup(Shared::new(store, SLOT_LEN, ram, ACQ, FULL_SCALE, true)));
         let pending: &'static AtomicBool = leak(AtomicBool::new(false));
         let exec: &'static Executor = leak(Executor::new(pending as *const AtomicBool as *mut ()));
         let bufs: &'static mut [LineBuf<M, P>; 2] = leak([LineBuf::new(), LineBuf::new()]);
@@ -98,7 +110,7 @@ impl SimDevice {
             inbox: VecDeque::new(),
             scene,
             shared,
-            flash,
+            flash: chip,
             recv_steps: RECV_STEPS,
             _lock: lock,
         };
@@ -126,7 +138,7 @@ impl SimDevice {
 /// Simulated time a `recv` waits before reporting nothing, in 100 us steps.
 pub const RECV_STEPS: usize = 200_000;
 
-impl host_tools::device::link::Transport for SimDevice {
+impl<Fl: MappedFlash + 'static> host_tools::device::link::Transport for SimDevice<Fl> {
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
         self.host.send(bytes);
         self.run_until_idle();

@@ -58,6 +58,16 @@ fn parse_keys(text: &str, name: &str) -> anyhow::Result<Vec<[u8; 32]>> {
     Ok(keys)
 }
 
+/// What `sign` and `sign-firmware` add to their report when firmware built
+/// from this tree (its default keys) would not trust the secret `seed`.
+pub fn untrusted_note(seed: &[u8; 32]) -> &'static str {
+    if signed::TRUSTED_KEYS.contains(&signed::public_key(seed)) {
+        ""
+    } else {
+        "; note: firmware built from this tree with its default keys does not trust this key"
+    }
+}
+
 /// Reads a secret key file (exactly one key).
 pub fn read_secret(path: &Path) -> anyhow::Result<[u8; 32]> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading the signing key {}", path.display()))?;

@@ -46,6 +46,44 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         status.refused,
         status.provisioning.map(|b| format!(", provisioning ({b} bytes received)")).unwrap_or_default()
     );
+    // A device of protocol 4 or later reports its firmware; an error reply
+    // (an older device) is not a failure of `info`.
+    let firmware = c.firmware_info().ok();
+    if let Some(f) = &firmware {
+        let v = f.version;
+        println!(
+            "firmware: {}.{}.{} for {:?}, boot state {:?}, self-test store {} sensor {} link {}{}{}",
+            v[0],
+            v[1],
+            v[2],
+            f.target,
+            f.boot,
+            f.self_test.store,
+            f.self_test.sensor,
+            f.self_test.link,
+            f.pending.map(|p| format!(", update {}.{}.{} waiting for a reset", p[0], p[1], p[2])).unwrap_or_default(),
+            f.receiving.map(|b| format!(", update in progress ({b} bytes received)")).unwrap_or_default(),
+        );
+        if f.updates {
+            println!("updates: over the link and USB DFU (board), images up to {} bytes", f.max_image);
+        } else {
+            println!("updates: not over the link on this build (no update partition)");
+        }
+        if let Some(e) = f.refused {
+            println!("last update refused: {e}");
+        }
+        println!("calibration formats read: {} to {}", f.blob_formats[0], f.blob_formats[1]);
+        let ids: Vec<String> = f.trusted[..(f.trusted_count as usize).min(f.trusted.len())]
+            .iter()
+            .map(|id| id.iter().map(|b| format!("{b:02x}")).collect())
+            .collect();
+        println!(
+            "trusted keys ({}): {}{}",
+            f.trusted_count,
+            ids.join(", "),
+            if f.trusts_development_key { " (includes the DEVELOPMENT key, NOT FOR PRODUCTION)" } else { "" }
+        );
+    }
     if let Some(p) = &a.json {
         let j = serde_json::json!({
             "protocol": info.protocol,
@@ -57,6 +95,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "sequence": c.sequence, "in_ram": c.in_ram })),
             "status": { "measuring": status.measuring, "lines_total": status.lines_total,
                         "bad_frames": status.bad_frames, "refused": status.refused },
+            "firmware_info": firmware.map(|f| serde_json::json!({
+                "version": f.version, "target": format!("{:?}", f.target), "boot": format!("{:?}", f.boot),
+                "self_test": { "store": f.self_test.store, "sensor": f.self_test.sensor, "link": f.self_test.link },
+                "updates": f.updates, "max_image": f.max_image, "pending": f.pending,
+                "refused": f.refused.map(|e| e.to_string()),
+                "trusted_key_ids": f.trusted[..(f.trusted_count as usize).min(f.trusted.len())]
+                    .iter().map(|id| id.iter().map(|b| format!("{b:02x}")).collect::<String>()).collect::<Vec<_>>(),
+                "trusts_development_key": f.trusts_development_key })),
         });
         crate::output::io::write_json(p, &j)?;
     }

@@ -18,10 +18,12 @@ pub mod qemu;
 pub mod rate;
 pub mod reproduce;
 pub mod sign;
+pub mod sign_firmware;
 pub mod simulate;
 pub mod stability;
 pub mod tradeoff;
 pub mod train;
+pub mod update_firmware;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
@@ -47,6 +49,8 @@ pub enum Command {
     Keygen(keygen::Args),
     /// Sign a calibration blob with a secret key, for provisioning.
     Sign(sign::Args),
+    /// Sign a firmware ELF with a secret key, for updates over the link.
+    SignFirmware(sign_firmware::Args),
     /// Start the QEMU instrument (serial on 127.0.0.1) to play with.
     Qemu(qemu::Args),
     /// Show a device's identity, sizes, calibration and status.
@@ -55,6 +59,8 @@ pub enum Command {
     Provision(provision::Args),
     /// Write a calibration blob into the board's flash over SWD (probe-rs).
     ProvisionSwd(provision_swd::Args),
+    /// Update a device's firmware over its link with a signed image.
+    UpdateFirmware(update_firmware::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
     /// Apply a calibration blob to logged readings offline, exactly as the device does.
@@ -80,6 +86,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Train(a) => train::run(a),
         Command::Keygen(a) => keygen::run(a),
         Command::Sign(a) => sign::run(a),
+        Command::SignFirmware(a) => sign_firmware::run(a),
+        Command::UpdateFirmware(a) => update_firmware::run(a),
         Command::Qemu(a) => qemu::run(a),
         Command::Info(a) => info::run(a),
         Command::Provision(a) => provision::run(a),

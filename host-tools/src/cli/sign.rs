@@ -36,17 +36,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let seed = signing::read_secret(&a.key)?;
     let image = signing::sign_blob(&blob, &seed);
     crate::output::io::write_atomic(&a.out, &image).with_context(|| format!("writing {}", a.out.display()))?;
-    let trusted = brdf_meter::signed::TRUSTED_KEYS.contains(&brdf_meter::signed::public_key(&seed));
     println!(
         "wrote {} ({} bytes, signed with {}{})",
         a.out.display(),
         image.len(),
         a.key.display(),
-        if trusted {
-            ""
-        } else {
-            "; note: firmware built from this tree with its default keys does not trust this key"
-        }
+        signing::untrusted_note(&seed)
     );
     Ok(())
 }

@@ -6,13 +6,16 @@
 //! blob size from `brdf_meter::blob::Dims::blob_len` and the slot header from
 //! `brdf_meter::store::SLOT_HEADER_LEN`.
 //!
-//! The calibration for the largest configuration (Z = 128 zones of 81 x 7
-//! matrices, P = 128 pixels: about 328 KiB) cannot live in the 96 KiB of RAM;
+//! The calibration for the largest configuration (`shape::board::MAX_ZONES`
+//! zones of n x m matrices, P = 128 pixels: about 320 KiB) cannot live in the
+//! 96 KiB of RAM;
 //! the firmware reads its matrices in place from the memory-mapped slot
 //! (`BlobView::matrix_in_place`), which needs the blob 4-byte aligned in
 //! flash. So the budget is:
 //! - image (vector table, code, read-only data, .data's initial values) <=
-//!   the FLASH region, which memory.x keeps below the calibration slots;
+//!   its own region: an application's the active image region (FLASH), the
+//!   bootloader's BOOTLOADER (24 KiB); the map's regions follow each other
+//!   without overlap inside the chip, in whole erase pages;
 //! - slot header + blob + signature trailer <= one calibration slot;
 //! - static RAM (.data, .bss, .uninit; the executor's task futures and every
 //!   buffer are statics) + the stack reserve <= RAM.
@@ -28,8 +31,9 @@ use crate::device::memory_map::{MemoryMap, Region};
 /// Total flash of the STM32L475VG.
 pub const CHIP_FLASH: Region = Region { origin: shape::FLASH_BASE, length: shape::FLASH_SIZE };
 
-/// The largest calibration the product must run: Z = 128 zones of 81 x 7
-/// matrices for a 128-pixel sensor.
+/// The largest calibration the product must run: `shape::board::MAX_ZONES`
+/// zones of n x m matrices for a 128-pixel sensor (the one constant the
+/// estimation side sizes its calibrations by).
 pub const MAX_DIMS: Dims =
     Dims { n: shape::BINS, m: shape::LEDS, zones: shape::board::MAX_ZONES, pixels: shape::board::PIXELS };
 
@@ -143,60 +147,93 @@ fn inside(r: &Region, addr: u32) -> bool {
     (r.origin as u64..r.end()).contains(&(addr as u64))
 }
 
-/// Checks one firmware image's sections against the memory map.
-pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stack_reserve: u64) -> Budget {
+/// Which region of the map an image links into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageKind {
+    /// An application (board-fw, qemu-fw): the active image region, ACTIVE.
+    Application,
+    /// The bootloader: BOOTLOADER, at the reset vector.
+    Bootloader,
+}
+
+impl ImageKind {
+    /// The region and its memory.x name.
+    pub fn region(self, map: &MemoryMap) -> (&'static str, Region) {
+        match self {
+            Self::Application => ("ACTIVE", map.flash),
+            Self::Bootloader => ("BOOTLOADER", map.bootloader),
+        }
+    }
+}
+
+/// The map's own soundness: regions inside the chip, in address order
+/// without overlap, whole erase pages; blobs 4-byte aligned in their slots.
+fn layout_problems(map: &MemoryMap) -> Vec<String> {
     let mut problems = Vec::new();
-    // The layout memory.x promises: image, then the slots, all in the chip.
-    if map.flash.end() > map.slot_a.origin as u64 {
-        problems.push(format!(
-            "FLASH (image) ends at {:#x}, past CAL_SLOT_A at {:#x}",
-            map.flash.end(),
-            map.slot_a.origin
-        ));
-    }
-    if map.slot_a.end() > map.slot_b.origin as u64 {
-        problems.push("CAL_SLOT_A overlaps CAL_SLOT_B".into());
-    }
-    for (n, r) in [("FLASH", map.flash), ("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
+    let regions = map.flash_regions();
+    for (n, r) in regions {
         if r.origin < CHIP_FLASH.origin || r.end() > CHIP_FLASH.end() {
             problems.push(format!("{n} is outside the chip's flash"));
         }
-    }
-    for (n, r) in [("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
         if r.origin % shape::FLASH_PAGE as u32 != 0 || r.length % shape::FLASH_PAGE as u32 != 0 {
             problems.push(format!("{n} is not whole 2 KiB erase pages"));
         }
+    }
+    for w in regions.windows(2) {
+        let ((a, ra), (b, rb)) = (w[0], w[1]);
+        if ra.end() > rb.origin as u64 {
+            problems.push(format!("{a} ends at {:#x}, past {b} at {:#x}", ra.end(), rb.origin));
+        }
+    }
+    if (map.dfu.length as u64) < map.flash.length as u64 + shape::FLASH_PAGE as u64 {
+        problems.push("DFU is not one page larger than the active image (embassy-boot's swap needs it)".into());
+    }
+    for (n, r) in [("CAL_SLOT_A", map.slot_a), ("CAL_SLOT_B", map.slot_b)] {
         if !(r.origin as usize + SLOT_HEADER_LEN).is_multiple_of(4) {
             problems.push(format!("the blob in {n} would not be 4-byte aligned: matrices cannot be read in place"));
         }
     }
+    problems
+}
+
+/// Checks one firmware image's sections against the memory map.
+pub fn check(
+    name: &str,
+    kind: ImageKind,
+    sections: &[Section],
+    map: &MemoryMap,
+    dims: Dims,
+    stack_reserve: u64,
+) -> Budget {
+    let mut problems = layout_problems(map);
+    let (region_name, region) = kind.region(map);
     let mut image = 0u64;
     let mut statics = 0u64;
     for s in sections {
-        let in_flash = inside(&map.flash, s.addr);
+        let in_image = inside(&region, s.addr);
         let in_ram = inside(&map.ram, s.addr);
-        if inside(&map.slot_a, s.addr) || inside(&map.slot_b, s.addr) {
-            problems.push(format!("section {} at {:#x} lies in a calibration slot", s.name, s.addr));
+        if let Some((other, _)) = map.flash_regions().into_iter().find(|(n, r)| *n != region_name && inside(r, s.addr))
+        {
+            problems.push(format!(
+                "section {} at {:#x} lies in {other}, outside the image's {region_name}",
+                s.name, s.addr
+            ));
         }
         if in_ram {
             statics += s.size as u64;
         }
         // Loaded bytes live in flash: code and constants at their address,
         // .data's initial values right after them.
-        if s.has_bytes && (in_flash || in_ram) {
+        if s.has_bytes && (in_image || in_ram) {
             image += s.size as u64;
         }
-        if !in_flash && !in_ram {
-            problems.push(format!("section {} at {:#x} is in neither FLASH nor RAM", s.name, s.addr));
+        if !in_image && !in_ram {
+            problems.push(format!("section {} at {:#x} is in neither {region_name} nor RAM", s.name, s.addr));
         }
     }
     let blob = dims.blob_len() as u64;
     let lines = vec![
-        Line {
-            what: "flash: firmware image (outside calibration)".into(),
-            used: image,
-            limit: map.flash.length as u64,
-        },
+        Line { what: format!("flash: image in {region_name}"), used: image, limit: region.length as u64 },
         Line {
             what: format!("flash: slot header + blob ({} B) + signature per slot", blob),
             used: SLOT_HEADER_LEN as u64 + blob + brdf_meter::signed::TRAILER_LEN as u64,
@@ -218,7 +255,7 @@ pub fn check(name: &str, sections: &[Section], map: &MemoryMap, dims: Dims, stac
 }
 
 /// Reads an ELF file and checks it against `memory.x`.
-pub fn check_file(path: &std::path::Path, script: &str) -> Result<Budget> {
+pub fn check_file(path: &std::path::Path, kind: ImageKind, script: &str) -> Result<Budget> {
     let elf = std::fs::read(path).with_context(|| format!("cannot read firmware {}", path.display()))?;
     let sections = elf_sections(&elf).with_context(|| format!("{}", path.display()))?;
     if sections.is_empty() {
@@ -226,7 +263,7 @@ pub fn check_file(path: &std::path::Path, script: &str) -> Result<Budget> {
     }
     let map = MemoryMap::from_script(script)?;
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    Ok(check(&name, &sections, &map, MAX_DIMS, STACK_RESERVE))
+    Ok(check(&name, kind, &sections, &map, MAX_DIMS, STACK_RESERVE))
 }
 
 #[cfg(test)]
@@ -244,9 +281,9 @@ mod tests {
 
     fn typical() -> Vec<Section> {
         vec![
-            sec(".vector_table", 0x0800_0000, 0x188, true),
-            sec(".text", 0x0800_0188, 60_000, true),
-            sec(".rodata", 0x0801_0000, 8_000, true),
+            sec(".vector_table", 0x0800_7000, 0x188, true),
+            sec(".text", 0x0800_7188, 60_000, true),
+            sec(".rodata", 0x0801_7000, 8_000, true),
             sec(".data", 0x2000_0000, 100, true),
             sec(".bss", 0x2000_0064, 30_000, false),
             sec(".uninit", 0x2000_8000, 1_024, false),
@@ -255,7 +292,7 @@ mod tests {
 
     #[test]
     fn a_typical_image_fits_and_the_numbers_add_up() {
-        let b = check("fw", &typical(), &board_map(), MAX_DIMS, STACK_RESERVE);
+        let b = check("fw", ImageKind::Application, &typical(), &board_map(), MAX_DIMS, STACK_RESERVE);
         assert!(b.ok(), "{}", b.table());
         assert_eq!(b.lines[0].used, 0x188 + 60_000 + 8_000 + 100);
         assert_eq!(b.lines[1].used, (SLOT_HEADER_LEN + MAX_DIMS.blob_len() + brdf_meter::signed::TRAILER_LEN) as u64);
@@ -263,20 +300,37 @@ mod tests {
     }
 
     #[test]
-    fn the_z128_blob_is_what_the_slots_are_sized_for() {
-        // 64 + 4*81 + 8 + 256 + 4*128*7 + 4*128*81 + 4*128*81*7 + 4
-        assert_eq!(MAX_DIMS.blob_len(), 336_016);
-        assert!(MAX_DIMS.blob_len() + SLOT_HEADER_LEN <= 384 * 1024);
+    fn max_zones_is_the_largest_calibration_a_slot_holds() {
+        let signed = |zones| SLOT_HEADER_LEN + Dims { zones, ..MAX_DIMS }.blob_len() + brdf_meter::signed::TRAILER_LEN;
+        let slot = board_map().slot_a.length as usize;
+        assert!(signed(MAX_DIMS.zones) <= slot, "MAX_ZONES does not fit a calibration slot");
+        assert!(signed(MAX_DIMS.zones + 1) > slot, "one zone more would still fit: raise MAX_ZONES");
+        // Z = 124 zones (Dims::blob_len): 1,928 B short of a slot with header and trailer.
+        assert_eq!(MAX_DIMS.blob_len(), 325_640);
         // and its matrices could never be copied to RAM:
         let d = MAX_DIMS;
         assert!(4 * d.zones * d.n * d.m > board_map().ram.length as usize);
     }
 
     #[test]
+    fn a_bootloader_is_checked_against_its_own_region() {
+        let boot = vec![sec(".vector_table", 0x0800_0000, 0x188, true), sec(".text", 0x0800_0188, 20_000, true)];
+        let b = check("boot", ImageKind::Bootloader, &boot, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(b.ok(), "{}", b.table());
+        assert_eq!(b.lines[0].limit, 24 * 1024);
+        let mut big = boot.clone();
+        big[1].size = 25_000;
+        assert!(!check("boot", ImageKind::Bootloader, &big, &board_map(), MAX_DIMS, STACK_RESERVE).ok());
+        // An application linked at the reset vector lies in the bootloader's region.
+        let b = check("fw", ImageKind::Application, &boot, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(b.problems.iter().any(|p| p.contains("lies in BOOTLOADER")), "{:?}", b.problems);
+    }
+
+    #[test]
     fn an_image_past_the_flash_region_fails() {
         let mut s = typical();
-        s[1].size = 256 * 1024;
-        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        s[1].size = 160 * 1024;
+        let b = check("fw", ImageKind::Application, &s, &board_map(), MAX_DIMS, STACK_RESERVE);
         assert!(!b.ok());
         assert!(!b.lines[0].ok());
         assert!(b.table().contains("OVER BUDGET"));
@@ -286,30 +340,32 @@ mod tests {
     fn statics_that_leave_no_stack_fail() {
         let mut s = typical();
         s[4].size = 90 * 1024;
-        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        let b = check("fw", ImageKind::Application, &s, &board_map(), MAX_DIMS, STACK_RESERVE);
         assert!(!b.lines[2].ok() && !b.ok());
     }
 
     #[test]
     fn a_blob_larger_than_a_slot_fails() {
         let dims = Dims { n: 200, m: 7, zones: 128, pixels: 128 };
-        let b = check("fw", &typical(), &board_map(), dims, STACK_RESERVE);
+        let b = check("fw", ImageKind::Application, &typical(), &board_map(), dims, STACK_RESERVE);
         assert!(!b.lines[1].ok() && !b.ok());
     }
 
     #[test]
-    fn a_memory_map_where_the_image_could_reach_the_calibration_fails() {
-        let script = MEMORY_X
-            .replace("FLASH      : ORIGIN = 0x08000000, LENGTH = 256K", "FLASH : ORIGIN = 0x08000000, LENGTH = 300K");
+    fn a_memory_map_where_the_image_could_reach_the_next_region_fails() {
+        let script = MEMORY_X.replace(
+            "ACTIVE        : ORIGIN = 0x08007000, LENGTH = 160K",
+            "ACTIVE        : ORIGIN = 0x08007000, LENGTH = 170K",
+        );
         assert_ne!(script, MEMORY_X, "the test must change memory.x");
         let map = MemoryMap::from_script(&script).unwrap();
-        let b = check("fw", &typical(), &map, MAX_DIMS, STACK_RESERVE);
+        let b = check("fw", ImageKind::Application, &typical(), &map, MAX_DIMS, STACK_RESERVE);
         assert!(!b.ok());
-        assert!(b.problems.iter().any(|p| p.contains("past CAL_SLOT_A")), "{:?}", b.problems);
+        assert!(b.problems.iter().any(|p| p.contains("past DFU")), "{:?}", b.problems);
         let mut s = typical();
-        s.push(sec(".cal", 0x0804_0000, 4, true));
-        let b = check("fw", &s, &board_map(), MAX_DIMS, STACK_RESERVE);
-        assert!(b.problems.iter().any(|p| p.contains("calibration slot")));
+        s.push(sec(".cal", 0x0806_0000, 4, true));
+        let b = check("fw", ImageKind::Application, &s, &board_map(), MAX_DIMS, STACK_RESERVE);
+        assert!(b.problems.iter().any(|p| p.contains("lies in CAL_SLOT_A")), "{:?}", b.problems);
     }
 
     /// A minimal ELF32 LE with sections: null, .text (PROGBITS, alloc),

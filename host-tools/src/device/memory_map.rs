@@ -114,11 +114,21 @@ impl SlotMap {
     }
 }
 
-/// The board's memory map: the firmware's regions and the calibration slots.
+/// The board's memory map: every region of `memory.x`.
 #[derive(Clone, Copy, Debug)]
 pub struct MemoryMap {
-    /// Firmware image region.
+    /// The bootloader's image region.
+    pub bootloader: Region,
+    /// embassy-boot's state partition.
+    pub boot_state: Region,
+    /// The active firmware image region (memory.x's ACTIVE).
     pub flash: Region,
+    /// The update image (DFU) partition.
+    pub dfu: Region,
+    /// Inspection recipe slot A.
+    pub recipe_a: Region,
+    /// Inspection recipe slot B.
+    pub recipe_b: Region,
     /// Calibration slot A.
     pub slot_a: Region,
     /// Calibration slot B.
@@ -131,39 +141,52 @@ impl MemoryMap {
     /// Reads the regions of a linker script.
     pub fn from_script(script: &str) -> Result<Self> {
         Ok(Self {
-            flash: region(script, "FLASH")?,
+            bootloader: region(script, "BOOTLOADER")?,
+            boot_state: region(script, "BOOT_STATE")?,
+            flash: region(script, "ACTIVE")?,
+            dfu: region(script, "DFU")?,
+            recipe_a: region(script, "RECIPE_SLOT_A")?,
+            recipe_b: region(script, "RECIPE_SLOT_B")?,
             slot_a: region(script, "CAL_SLOT_A")?,
             slot_b: region(script, "CAL_SLOT_B")?,
             ram: region(script, "RAM")?,
         })
     }
 
+    /// The flash regions in address order, with memory.x's names.
+    pub fn flash_regions(&self) -> [(&'static str, Region); 8] {
+        [
+            ("BOOTLOADER", self.bootloader),
+            ("BOOT_STATE", self.boot_state),
+            ("ACTIVE", self.flash),
+            ("DFU", self.dfu),
+            ("RECIPE_SLOT_A", self.recipe_a),
+            ("RECIPE_SLOT_B", self.recipe_b),
+            ("CAL_SLOT_A", self.slot_a),
+            ("CAL_SLOT_B", self.slot_b),
+        ]
+    }
+
     /// The board's map (this repository's memory.x), checked against the
     /// library's `shape::board`, which the firmware and the store use.
     pub fn board() -> Self {
-        use brdf_meter::shape::{self, board};
-        let m = Self::from_script(MEMORY_X).expect("memory.x defines FLASH, CAL_SLOT_A, CAL_SLOT_B and RAM");
-        assert_eq!(
-            (
-                m.flash.origin,
-                m.flash.length,
-                m.slot_a.origin,
-                m.slot_b.origin,
-                m.slot_a.length,
-                m.ram.origin,
-                m.ram.length
-            ),
-            (
-                shape::FLASH_BASE,
-                board::IMAGE_LEN,
-                board::SLOT_A,
-                board::SLOT_B,
-                board::SLOT_LEN,
-                board::RAM_ORIGIN,
-                board::RAM_LEN
-            ),
-            "memory.x disagrees with brdf_meter::shape::board"
-        );
+        use brdf_meter::shape::board as b;
+        let m = Self::from_script(MEMORY_X).expect("memory.x defines every region of the board's map");
+        let r = |origin, length| Region { origin, length };
+        let want = [
+            r(b::BOOTLOADER, b::BOOTLOADER_LEN),
+            r(b::BOOT_STATE, b::BOOT_STATE_LEN),
+            r(b::ACTIVE, b::ACTIVE_LEN),
+            r(b::DFU, b::DFU_LEN),
+            r(b::RECIPE_SLOT_A, b::RECIPE_SLOT_LEN),
+            r(b::RECIPE_SLOT_B, b::RECIPE_SLOT_LEN),
+            r(b::SLOT_A, b::SLOT_LEN),
+            r(b::SLOT_B, b::SLOT_LEN),
+        ];
+        for ((name, got), want) in m.flash_regions().into_iter().zip(want) {
+            assert_eq!(got, want, "memory.x's {name} disagrees with brdf_meter::shape::board");
+        }
+        assert_eq!(m.ram, r(b::RAM_ORIGIN, b::RAM_LEN), "memory.x's RAM disagrees with brdf_meter::shape::board");
         m
     }
 }
@@ -183,7 +206,7 @@ mod tests {
         assert_eq!(parse_number("1M").unwrap(), 1 << 20);
         assert!(parse_number("zz").is_err());
         assert!(region(MEMORY_X, "NOPE").is_err());
-        let swapped = MEMORY_X.replace("CAL_SLOT_B : ORIGIN = 0x080A0000", "CAL_SLOT_B : ORIGIN = 0x080B0000");
+        let swapped = MEMORY_X.replace("CAL_SLOT_B    : ORIGIN = 0x080B0000", "CAL_SLOT_B    : ORIGIN = 0x080B8000");
         assert_ne!(swapped, MEMORY_X);
         assert!(SlotMap::from_script(&swapped).is_err(), "B not right after A must be refused");
     }
@@ -191,9 +214,26 @@ mod tests {
     #[test]
     fn memory_x_gives_the_documented_map() {
         let m = MemoryMap::board();
-        assert_eq!((m.flash.origin, m.flash.length), (0x0800_0000, 256 * 1024));
-        assert_eq!((m.slot_a.origin, m.slot_a.length), (0x0804_0000, 384 * 1024));
-        assert_eq!((m.slot_b.origin, m.slot_b.length), (0x080A_0000, 384 * 1024));
+        let kib = |o: u32, k: u32| Region { origin: o, length: k * 1024 };
+        assert_eq!(
+            m.flash_regions().map(|(_, r)| r),
+            [
+                kib(0x0800_0000, 24),
+                kib(0x0800_6000, 4),
+                kib(0x0800_7000, 160),
+                kib(0x0802_F000, 164),
+                kib(0x0805_8000, 16),
+                kib(0x0805_C000, 16),
+                kib(0x0806_0000, 320),
+                kib(0x080B_0000, 320),
+            ]
+        );
         assert_eq!((m.ram.origin, m.ram.length), (0x2000_0000, 96 * 1024));
+        // Back to back, filling the chip's 1 MiB.
+        let regions = m.flash_regions();
+        for w in regions.windows(2) {
+            assert_eq!(w[0].1.end(), w[1].1.origin as u64, "{} is not followed by {}", w[0].0, w[1].0);
+        }
+        assert_eq!(regions[7].1.end(), 0x0810_0000);
     }
 }

@@ -24,7 +24,8 @@
 //! | status LED | PB14 | LED2 (on board) | GPIO |
 //!
 //! Other peripherals: TIM5 is embassy-time's driver; IWDG is the watchdog;
-//! FLASH holds the calibration slots that memory.x reserves.
+//! FLASH holds the calibration slots and the update partitions that memory.x
+//! reserves, one driver shared by both (`flash`).
 //!
 //! # Clocks
 //! MSI at 48 MHz, trimmed by the 32.768 kHz LSE crystal (MSIPLLEN), clocks USB
@@ -86,10 +87,12 @@ pub struct Board {
     pub leds: leds::PwmLeds,
     /// The TSL1401-class line sensor.
     pub sensor: sensor::Tsl1401,
-    /// The calibration region of the chip's flash (both slots).
-    pub cal_flash: flash::CalFlash,
-    /// USB CDC-ACM: the device (to be run by a task) and the serial port.
-    pub usb: usb::Usb,
+    /// The chip's flash, shared by the calibration store and the updater
+    /// (`flash::calibration`, `flash::update_partitions`).
+    pub flash: &'static flash::Chip,
+    /// The USB port's peripherals: `usb::Usb::new` builds the device once
+    /// the application (which serves its DFU interface) exists.
+    pub usb: usb::UsbPins,
     /// On-board LED2, lit while the application runs healthily.
     pub status_led: Output<'static>,
 }
@@ -109,9 +112,9 @@ impl Board {
 
         let leds = leds::PwmLeds::new(p.TIM3, p.TIM4, p.TIM2, p.PB4, p.PA7, p.PB0, p.PB1, p.PB8, p.PB9, p.PA15);
         let sensor = sensor::Tsl1401::new(p.ADC1, p.PC5, p.DMA1_CH1, p.PD14, p.PA3);
-        let cal_flash = flash::CalFlash::new(p.FLASH);
-        let usb = usb::Usb::new(p.USB_OTG_FS, p.PA12, p.PA11);
+        let flash = flash::share(p.FLASH);
+        let usb = usb::UsbPins { otg: p.USB_OTG_FS, dp: p.PA12, dm: p.PA11 };
         let status_led = Output::new(p.PB14, Level::Low, Speed::Low);
-        (Self { leds, sensor, cal_flash, usb, status_led }, p.IWDG)
+        (Self { leds, sensor, flash, usb, status_led }, p.IWDG)
     }
 }

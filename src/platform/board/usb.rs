@@ -1,5 +1,8 @@
 //! USB CDC-ACM on the OTG FS port (connector CN7): the same wire protocol the
-//! QEMU build carries on USART1, as `embedded_io_async` `Read`/`Write`.
+//! QEMU build carries on USART1, as `embedded_io_async` `Read`/`Write`; and
+//! beside it, on the same device, a USB DFU 1.1 interface
+//! (`crate::app::usb_dfu`) so that standard `dfu-util -D` can write a signed
+//! image into the update partition.
 //!
 //! The USB VID/PID below are PLACEHOLDERS (0x1209 is pid.codes' open-source
 //! vendor ID, 0x0001 its test PID, which must not ship); a product needs its
@@ -22,6 +25,7 @@ use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::usb::Driver;
 use embassy_time::{Duration, with_timeout};
 use embassy_usb::class::cdc_acm::{BufferedReceiver, CdcAcmClass, Sender, State};
+use embassy_usb::class::dfu::dfu_mode::{self, DfuState};
 use embassy_usb::driver::EndpointError;
 use embassy_usb::{Builder, UsbDevice};
 use static_cell::StaticCell;
@@ -34,6 +38,8 @@ pub const USB_VID: u16 = 0x1209;
 pub const USB_PID: u16 = 0x0001;
 /// Full-speed bulk packet size.
 const MAX_PACKET: u16 = 64;
+/// The DFU interface's block (`wTransferSize`).
+const DFU_BLOCK: usize = crate::app::usb_dfu::BLOCK;
 /// How long one packet may wait for the host before the write fails.
 pub const WRITE_TIMEOUT: Duration = Duration::from_millis(500);
 /// How long a packet may wait while the host is known not to be reading.
@@ -41,6 +47,16 @@ pub const STALLED_TIMEOUT: Duration = Duration::from_millis(2);
 
 /// The board's USB driver type.
 pub type UsbDriver = Driver<'static, USB_OTG_FS>;
+
+/// The USB port's peripherals, until the device is built.
+pub struct UsbPins {
+    /// The OTG FS controller.
+    pub otg: Peri<'static, USB_OTG_FS>,
+    /// D+.
+    pub dp: Peri<'static, PA12>,
+    /// D-.
+    pub dm: Peri<'static, PA11>,
+}
 
 /// The USB device and its serial port.
 pub struct Usb {
@@ -53,12 +69,15 @@ pub struct Usb {
 }
 
 impl Usb {
-    /// Sets up USB OTG FS (PA12 D+, PA11 D-, VBUS sensed on PA9).
-    pub fn new(otg: Peri<'static, USB_OTG_FS>, dp: Peri<'static, PA12>, dm: Peri<'static, PA11>) -> Self {
+    /// Sets up USB OTG FS (PA12 D+, PA11 D-, VBUS sensed on PA9): the
+    /// CDC-ACM port and, beside it, the DFU interface served by `dfu`.
+    pub fn new<H: dfu_mode::Handler>(pins: UsbPins, dfu: &'static mut DfuState<H>) -> Self {
         static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
         static CONFIG_DESC: StaticCell<[u8; 256]> = StaticCell::new();
         static BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
-        static CONTROL: StaticCell<[u8; 64]> = StaticCell::new();
+        // A DFU block arrives in one control transfer: room for one.
+        static CONTROL: StaticCell<[u8; DFU_BLOCK]> = StaticCell::new();
+        let UsbPins { otg, dp, dm } = pins;
         static STATE: StaticCell<State<'static>> = StaticCell::new();
         static RX: StaticCell<[u8; MAX_PACKET as usize]> = StaticCell::new();
 
@@ -85,9 +104,10 @@ impl Usb {
             CONFIG_DESC.init([0; 256]),
             BOS_DESC.init([0; 256]),
             &mut [],
-            CONTROL.init([0; 64]),
+            CONTROL.init([0; DFU_BLOCK]),
         );
         let class = CdcAcmClass::new(&mut builder, STATE.init(State::new()), MAX_PACKET);
+        dfu_mode::usb_dfu(&mut builder, dfu, DFU_BLOCK, |_| {});
         let device = builder.build();
         let (tx, rx) = class.split();
         let rx = rx.into_buffered(RX.init([0; MAX_PACKET as usize]));

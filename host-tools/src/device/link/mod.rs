@@ -3,6 +3,7 @@
 //! as the host simulation's in-memory pipe) and the [`Client`] that speaks the
 //! wire protocol defined once in `brdf_meter::protocol`.
 mod client;
+mod firmware;
 pub mod qemu;
 mod serial;
 mod stream;

@@ -1,5 +1,7 @@
-//! The QEMU instrument: building the QEMU firmware and running it under QEMU
-//! (machine b-l475e-iot01a) with its serial on a 127.0.0.1 TCP port.
+//! The QEMU instrument: building the QEMU firmware and its bootloader and
+//! running them under QEMU (machine b-l475e-iot01a) with the serial on a
+//! 127.0.0.1 TCP port. The bootloader sits at the reset vector, as on the
+//! board, and starts the application from the active image region.
 //!
 //! QEMU always runs under `timeout`, and [`QemuInstrument`] stops it when
 //! dropped, so a failing test or an interrupted command never leaves it behind.
@@ -20,26 +22,37 @@ pub fn firmware_path(root: &Path) -> PathBuf {
     target.join("thumbv7em-none-eabihf/firmware/qemu-fw")
 }
 
-/// Builds the QEMU firmware (`cargo qemu-fw`, the firmware profile) and
-/// returns its ELF.
+/// The QEMU bootloader's ELF (`cargo qemu-bootloader`) for the application
+/// `elf`: beside it, in the qemu-bootloader profile's folder.
+pub fn bootloader_path(elf: &Path) -> PathBuf {
+    let profile_dir = elf.parent().and_then(Path::parent).unwrap_or(Path::new("."));
+    profile_dir.join("qemu-bootloader/bootloader")
+}
+
+/// Builds the QEMU firmware and its bootloader (`cargo qemu-fw`, `cargo
+/// qemu-bootloader`) and returns the firmware's ELF.
 pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(root)
-        // The `qemu-fw` alias (.cargo/config.toml) is the one firmware build command.
-        .arg("qemu-fw")
-        // Host-side variables of an enclosing `cargo test` must not leak into the firmware build.
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .status()
-        .context("running cargo to build the QEMU firmware")?;
-    if !status.success() {
-        bail!("building the QEMU firmware failed ({status}); is the target installed? (scripts/install-test-deps.sh)");
+    // The aliases (.cargo/config.toml) are the one firmware build command.
+    for alias in ["qemu-fw", "qemu-bootloader"] {
+        let status = Command::new(&cargo)
+            .current_dir(root)
+            .arg(alias)
+            // Host-side variables of an enclosing `cargo test` must not leak into the firmware build.
+            .env_remove("RUSTFLAGS")
+            .env_remove("CARGO_ENCODED_RUSTFLAGS")
+            .env_remove("CARGO_BUILD_TARGET")
+            .status()
+            .with_context(|| format!("running cargo {alias}"))?;
+        if !status.success() {
+            bail!("cargo {alias} failed ({status}); is the target installed? (scripts/install-test-deps.sh)");
+        }
     }
     let elf = firmware_path(root);
-    if !elf.is_file() {
-        bail!("cargo built the firmware but {} is missing", elf.display());
+    for built in [elf.clone(), bootloader_path(&elf)] {
+        if !built.is_file() {
+            bail!("cargo built the firmware but {} is missing", built.display());
+        }
     }
     Ok(elf)
 }
@@ -119,7 +132,10 @@ impl QemuInstrument {
             .arg("-serial")
             .arg(serial)
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
-            .arg(elf)
+            // The bootloader at the reset vector, the application in ACTIVE.
+            .arg(bootloader_path(elf))
+            .arg("-device")
+            .arg(format!("loader,file={}", elf.display()))
             .args(extra)
             .stdin(Stdio::null())
             // QEMU reports its pty on stdout, firmware panics on stderr: one log.

@@ -409,16 +409,18 @@ esac
         let p3 = fake.probe(false).provision(&b3, None).unwrap();
         assert_eq!((p3.slot, p3.sequence), (0, 3));
         assert_eq!(device_boot(cal_region(&fake.flash()), slot_len), Some((0, 3, unsigned(&b3))));
-        // The firmware image region was never touched.
-        assert!(fake.flash()[..256 * 1024].iter().all(|&b| b == 0xFF));
+        // Everything below the calibration slots (bootloader, images,
+        // recipes) was never touched.
+        let below = (brdf_meter::shape::board::SLOT_A - brdf_meter::shape::FLASH_BASE) as usize;
+        assert!(fake.flash()[..below].iter().all(|&b| b == 0xFF));
         let log = fake.log();
         assert!(
             log.contains(
-                "download --chip STM32L475VGTx --non-interactive --binary-format bin --base-address 0x08040000"
+                "download --chip STM32L475VGTx --non-interactive --binary-format bin --base-address 0x08060000"
             ),
             "{log}"
         );
-        assert!(log.contains("read --chip STM32L475VGTx --non-interactive b8 0x080a0000 32 --output"), "{log}");
+        assert!(log.contains("read --chip STM32L475VGTx --non-interactive b8 0x080b0000 32 --output"), "{log}");
     }
 
     #[test]
