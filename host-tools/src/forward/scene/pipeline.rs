@@ -341,11 +341,7 @@ impl Simulator {
         Self::with_models(scene, &[brdf], &vec![0; scene.instrument.pixels()])
     }
 
-    fn with_models(
-        scene: &Scene,
-        brdfs: &[std::sync::Arc<dyn Brdf>],
-        of_pixel: &[usize],
-    ) -> anyhow::Result<Self> {
+    fn with_models(scene: &Scene, brdfs: &[std::sync::Arc<dyn Brdf>], of_pixel: &[usize]) -> anyhow::Result<Self> {
         let pipeline = Pipeline::new(scene);
         let inst = &scene.instrument;
         let (m, p) = (inst.m(), inst.pixels());
