@@ -44,17 +44,28 @@ mkfifo "$work/trace"
 # counts the same, exactly.
 # The whole path: every traced instruction in estimate_pixel or a function it
 # calls (by symbol), a new call at estimate_pixel's first address.
-awk -v sym="$sym" -v st="${start#"${start%%[!0]*}"}" -v psym="$path_sym" -v pst="${path_start#"${path_start%%[!0]*}"}" -v calls="$work/calls" -v paths="$work/paths" '
+# QEMU names a traced instruction's function only for the ELF it was given
+# with -kernel (the bootloader, now): the counts go by address ranges from
+# the application's own symbol table instead, as 8-digit hex strings (the
+# trace's form), which compare in address order.
+hex_range() { printf "%08x:%08x" "$((16#$1))" "$((16#$1 + 16#$2))"; }
+kernel_range=$(hex_range "$start" "$size")
+path_ranges=""
+while read -r a sz _ name; do
+  path_ranges+="$(hex_range "$a" "$sz") "
+done < <(arm-none-eabi-nm -S "$elf" | awk '$4 ~ /estimate_pixel|point_kernel|matrix_of|select_cluster|scale_free|gloss/ && NF == 4')
+awk -v kr="$kernel_range" -v pr="$path_ranges" -v st="$(printf %08x "$((16#$start))")" -v pst="$(printf %08x "$((16#$path_start))")" -v calls="$work/calls" -v paths="$work/paths" '
+  BEGIN { split(kr, k, ":"); nr = split(pr, r, " "); for (i = 1; i <= nr; i++) { split(r[i], b, ":"); lo[i] = b[1]; hi[i] = b[2] } }
   /^Trace / {
-    split($0, f, "/"); pc = f[2]; sub(/^0+/, "", pc)
+    split($0, f, "/"); pc = tolower(substr(f[2], length(f[2]) - 7))
     if (pc == last) next
     last = pc
-    if (index($0, sym)) {
+    if (pc >= k[1] && pc < k[2]) {
       if (pc == st) { if (n) print n > calls; n = 0 }
       n++
     }
     if (pc == pst) { if (p) print p > paths; p = 0; inpath = 1 }
-    if (inpath && (index($0, psym) || index($0, sym) || index($0, "matrix_of") || index($0, "select_cluster") || index($0, "scale_free") || index($0, "gloss"))) p++
+    if (inpath) { for (i = 1; i <= nr; i++) if (pc >= lo[i] && pc < hi[i]) { p++; break } }
   }
   END { if (n) print n > calls; if (p) print p > paths }' "$work/trace" &
 counter=$!

@@ -60,9 +60,12 @@ pub struct Shorter<'a> {
     pub dark: u16,
     /// Long exposure over this one.
     pub ratio: f32,
-    /// The lit frames' values, reading order (a reading whose frame was not
-    /// taken here is never read: its longer frame did not saturate).
+    /// The lit frames' values, reading order.
     pub lit: &'a [u16],
+    /// Which readings' frames were taken at this exposure (a saturated
+    /// reading whose frame was not taken, because the sensor had none to
+    /// give, stays saturated).
+    pub taken: &'a [bool],
 }
 
 impl<const M: usize, const P: usize> Default for RawLine<M, P> {
@@ -101,7 +104,10 @@ pub fn correct_point_into(
     v: &mut [f32],
 ) -> u8 {
     assert!(lit.len() == white.len() && lit.len() == v.len(), "one white value and one output per reading");
-    assert!(shorter.iter().all(|s| s.lit.len() == lit.len()), "one value per reading at every exposure");
+    assert!(
+        shorter.iter().all(|s| s.lit.len() == lit.len() && s.taken.len() == lit.len()),
+        "one value per reading at every exposure"
+    );
     let mut f = 0u8;
     if dark >= full_scale {
         f |= flags::SATURATED;
@@ -113,7 +119,7 @@ pub fn correct_point_into(
             f |= flags::UNDER_EXPOSED;
         }
         for e in shorter {
-            if !saturated {
+            if !saturated || !e.taken[i] {
                 break;
             }
             s = (e.lit[i] as f32 - e.dark as f32) * e.ratio;
@@ -145,8 +151,12 @@ pub fn correct_line<const M: usize, const P: usize>(
         let lit: [u16; M] = core::array::from_fn(|i| raw.lit[i][p]);
         let short: [[u16; M]; MAX_SHORT_EXPOSURES] =
             core::array::from_fn(|l| core::array::from_fn(|i| raw.short[l][i][p]));
-        let shorter: [Shorter<'_>; MAX_SHORT_EXPOSURES] =
-            core::array::from_fn(|l| Shorter { dark: raw.short_dark[l][p], ratio: cfg.ratio(l), lit: &short[l] });
+        let shorter: [Shorter<'_>; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| Shorter {
+            dark: raw.short_dark[l][p],
+            ratio: cfg.ratio(l),
+            lit: &short[l],
+            taken: &raw.short_taken[l],
+        });
         fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, &shorter[..levels], v[p].as_mut_slice());
     }
 }
@@ -218,7 +228,7 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
         settle().await;
         r = sensor.read_frame(cfg.exposure_us, lit).await;
     }
-    for level in 0..cfg.short_levels() {
+    'ladder: for level in 0..cfg.short_levels() {
         if r.is_err() {
             break;
         }
@@ -238,6 +248,12 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
                 settle().await;
                 r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
                 dark_taken = true;
+                if r == Err(crate::hw::SensorError::NoData) {
+                    // A simulated sensor without frames at this exposure:
+                    // the line goes on with what it has (saturated stays so).
+                    r = Ok(());
+                    break 'ladder;
+                }
                 if r.is_err() {
                     break;
                 }
@@ -245,6 +261,10 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
             leds.set(Some(led), cfg.intensity).await;
             settle().await;
             r = sensor.read_frame(exposure, &mut raw.short[level][i]).await;
+            if r == Err(crate::hw::SensorError::NoData) {
+                r = Ok(());
+                break 'ladder;
+            }
             if r.is_err() {
                 break;
             }
@@ -282,8 +302,8 @@ mod tests {
         let fs = 4095;
         // Reading 0 saturates the long exposure and the first shorter one
         // (ratio 16), not the second (ratio 80); reading 1 saturates nothing.
-        let s16 = Shorter { dark: 7, ratio: 16.0, lit: &[4095, 99] };
-        let s80 = Shorter { dark: 5, ratio: 80.0, lit: &[1005, 99] };
+        let s16 = Shorter { dark: 7, ratio: 16.0, lit: &[4095, 99], taken: &[true, false] };
+        let s80 = Shorter { dark: 5, ratio: 80.0, lit: &[1005, 99], taken: &[true, false] };
         let mut v = [0.0f32; 2];
         let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16, s80], &mut v);
         assert_eq!(f, 0);
@@ -291,6 +311,10 @@ mod tests {
         // Only the first shorter exposure configured: still saturated.
         let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16], &mut v);
         assert_eq!(f, flags::SATURATED);
+        // A shorter frame the sensor could not give: saturated stays so.
+        let none = Shorter { taken: &[false, false], ..s16 };
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[none, s80], &mut v);
+        assert_eq!((f, v[0]), (flags::SATURATED, 3995.0 / 1000.0));
         let cfg = AcqConfig { exposure_us: 2000, short_exposures_us: [125, 25], ..AcqConfig::default() };
         assert_eq!((cfg.short_levels(), cfg.ratio(0), cfg.ratio(1)), (2, 16.0, 80.0));
         assert_eq!((cfg.level_of(2000), cfg.level_of(125), cfg.level_of(25)), (0, 1, 2));

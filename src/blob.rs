@@ -85,6 +85,28 @@
 //! that zone's points by the same arithmetic as the others' (`q` and the
 //! rows are NaN), so a zone's "no reading" costs nothing per point.
 //!
+//! # Format version 4
+//! Version 3 with one gloss reference per **pixel** instead of per zone:
+//! the section's `4Z` references become `4P`, pixel `p` reading the
+//! standard's `S_p` through its zone's rows (everything else, the blocks
+//! included, is version 3's). Training writes it: a zone's matrices serve
+//! all its pixels (they are fitted on sample pairs from up to five of them,
+//! each with its own rays, view and noise), but the black glass's mirror
+//! reflection moves across the LED dies from pixel to pixel, so a zone's one
+//! reference would read the standard 70 to 120 GU along the line; with each
+//! pixel's own it reads 100 at every pixel by construction. A zone without
+//! a reading has NaN references at every one of its pixels.
+//!
+//! This is the form the product's calibration takes ("every pixel its own
+//! geometry"): per-zone matrices, trained for the zone's pixels, plus
+//! per-pixel gloss references. Measured on the handheld
+//! (`host-tools pixel-map`, held-out MERL materials): the BRDF error is flat
+//! from 16 zones up (per-pixel matrices, 124 zones, are no better), while
+//! the calibration slot holds 16 zones x 4 clusters of the piecewise kind
+//! (184 KB) but not 32 x 4 (364 KB); the device's cost per point does not
+//! depend on the zones (a zone only selects a matrix). The README's
+//! "Every pixel its own calibration" has the table.
+//!
 //! # Compatibility rules
 //! - A parser accepts exactly the format versions it knows; a new field that
 //!   old firmware could misread bumps the version.
@@ -96,8 +118,11 @@ use core::fmt;
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"BRDW";
 /// The newest format version this library writes and reads (it also reads
-/// [`FORMAT_VERSION_1`], and writes it whenever a blob does not need more).
-pub const FORMAT_VERSION: u16 = 3;
+/// [`FORMAT_VERSION_1`] to [`FORMAT_VERSION_3`], and writes the oldest a
+/// blob fits).
+pub const FORMAT_VERSION: u16 = 4;
+/// The format version of the gloss section with one reference per zone.
+pub const FORMAT_VERSION_3: u16 = 3;
 /// The format version that added K clusters and the out-of-prior data, still
 /// written for blobs that need no gloss section.
 pub const FORMAT_VERSION_2: u16 = 2;
@@ -355,6 +380,8 @@ struct Layout {
     crc: usize,
     total: usize,
     clusters: usize,
+    /// References in the gloss section.
+    gloss_refs: usize,
 }
 
 const fn pad4(x: usize) -> usize {
@@ -377,7 +404,7 @@ impl Dims {
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
         let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
-        let crc = gloss + if x.gloss { 4 * gloss_len(self.zones, k, self.m) } else { 0 };
+        let crc = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
         Layout {
             grid,
             led_order,
@@ -391,6 +418,7 @@ impl Dims {
             crc,
             total: crc + 4,
             clusters: k,
+            gloss_refs: if x.gloss { x.gloss_refs } else { 0 },
         }
     }
 
@@ -428,9 +456,10 @@ pub const fn out_of_prior_len(m: usize) -> usize {
     (m - 1) + m * (m - 1) / 2
 }
 
-/// Values of the gloss section for Z zones, K clusters and m readings.
-pub const fn gloss_len(zones: usize, clusters: usize, m: usize) -> usize {
-    GLOSS_HEAD + zones + zones * clusters * crate::gloss::block_len(m)
+/// Values of the gloss section for `refs` references (Z in format version
+/// 3, P in version 4), Z zones, K clusters and m readings.
+pub const fn gloss_len(refs: usize, zones: usize, clusters: usize, m: usize) -> usize {
+    GLOSS_HEAD + refs + zones * clusters * crate::gloss::block_len(m)
 }
 
 /// The gloss section of a blob (`crate::gloss`).
@@ -440,10 +469,18 @@ pub struct GlossData<'a> {
     pub assigned_gu: f32,
     /// The standard's refractive index (a record).
     pub refractive_index: f32,
-    /// Per zone, the standard's specular linear reading through its estimator (Z).
+    /// The standard's specular linear reading through the estimator: per
+    /// pixel (P, format version 4) or per zone (Z, version 3).
     pub reference: &'a [f32],
     /// Per zone and cluster, `crate::gloss::block_len(m)` values (Z x K blocks).
     pub blocks: &'a [f32],
+}
+
+impl GlossData<'_> {
+    /// The reference pixel `p` (in zone `z`) is read with.
+    pub fn reference_for(&self, p: usize, z: usize, pixels: usize) -> f32 {
+        if self.reference.len() == pixels { self.reference[p] } else { self.reference[z] }
+    }
 }
 
 /// The out-of-prior data of a blob.
@@ -481,10 +518,12 @@ struct Extras {
     piecewise: bool,
     out_of_prior: bool,
     gloss: bool,
+    /// References in the gloss section (P in version 4, Z in version 3).
+    gloss_refs: usize,
 }
 
 impl Extras {
-    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false };
+    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false, gloss_refs: 0 };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
         Extras {
@@ -492,6 +531,7 @@ impl Extras {
             piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
             out_of_prior: x.out_of_prior.is_some(),
             gloss: x.gloss.is_some(),
+            gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
         }
     }
 
@@ -577,7 +617,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     }
     if let Some(g) = &extras.gloss {
         sized(
-            g.reference.len() == d.zones && g.blocks.len() == d.zones * k * crate::gloss::block_len(d.m),
+            (g.reference.len() == d.pixels || g.reference.len() == d.zones)
+                && g.blocks.len() == d.zones * k * crate::gloss::block_len(d.m),
             Section::Gloss,
         )?;
     }
@@ -587,8 +628,10 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     let out = &mut out[..lay.total];
     out.fill(0);
     out[0..4].copy_from_slice(&MAGIC);
-    let version = if ex.gloss {
+    let version = if ex.gloss && ex.gloss_refs == d.pixels {
         FORMAT_VERSION
+    } else if ex.gloss {
+        FORMAT_VERSION_3
     } else if v2 {
         FORMAT_VERSION_2
     } else {
@@ -631,7 +674,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     let (gref, gblocks): (&[f32], &[f32]) = extras.gloss.map_or((&[], &[]), |g| (g.reference, g.blocks));
     for (off, xs) in [
         (lay.gloss + 4 * GLOSS_HEAD, gref),
-        (lay.gloss + 4 * (GLOSS_HEAD + d.zones), gblocks),
+        (lay.gloss + 4 * (GLOSS_HEAD + lay.gloss_refs), gblocks),
         (lay.white, c.white),
         (lay.uncertainty, c.uncertainty),
         (lay.matrices, c.matrices),
@@ -692,15 +735,21 @@ impl<'a> BlobView<'a> {
             }
             Extras::NONE
         } else {
+            let gloss = flags & FLAG_GLOSS != 0;
             Extras {
                 clusters: get_u16(bytes, 48) as usize,
                 piecewise: kind == EstimatorKind::ScaleFreePiecewise,
                 out_of_prior: flags & FLAG_OUT_OF_PRIOR != 0,
-                gloss: flags & FLAG_GLOSS != 0,
+                gloss,
+                gloss_refs: match (gloss, version) {
+                    (false, _) => 0,
+                    (true, FORMAT_VERSION_3) => dims.zones,
+                    (true, _) => dims.pixels,
+                },
             }
         };
-        // Version 3 exists for the gloss section: it carries it, 2 never does.
-        if (version == FORMAT_VERSION) != ex.gloss {
+        // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
+        if (version >= FORMAT_VERSION_3) != ex.gloss {
             return Err(BlobError::ReservedNotZero);
         }
         ex.check(kind)?;
@@ -796,24 +845,28 @@ impl<'a> BlobView<'a> {
     }
 
     /// The gloss section's rules: everything finite; the assigned value and
-    /// the zones' references > 0, the refractive index > 1, the covariances'
+    /// the references > 0, the refractive index > 1, the covariances'
     /// diagonals and standard deviations >= 0; except a zone without a
-    /// reading, whose reference and every value of its blocks are NaN (no
-    /// mix). Indices count f32 values from the section's start.
+    /// reading, whose references (its pixels' in version 4, its own in
+    /// version 3) and every value of its blocks are NaN (no mix). Indices
+    /// count f32 values from the section's start.
     fn check_gloss(&self) -> Result<(), BlobError> {
-        let (z, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
+        let (z, k, m, refs) = (self.dims.zones, self.lay.clusters, self.dims.m, self.lay.gloss_refs);
         let block = crate::gloss::block_len(m);
         let rows = crate::gloss::LINEAR * m;
         let diag = [0, 1, 2, 3].map(|i| rows + crate::gloss::cov_index(i, i));
         let sd = [rows + crate::gloss::COV_LEN, rows + crate::gloss::COV_LEN + 1];
-        // Zone `zz` without a reading: its reference and all its blocks NaN.
-        let no_reading = |zz: usize| get_f32(self.bytes, self.lay.gloss + 4 * (GLOSS_HEAD + zz)).is_nan();
-        for i in 0..gloss_len(z, k, m) {
+        // Zone `zz` without a reading: the first value of its first block is
+        // NaN (and then all of its values and references must be).
+        let first_block = GLOSS_HEAD + refs;
+        let no_reading = |zz: usize| get_f32(self.bytes, self.lay.gloss + 4 * (first_block + zz * k * block)).is_nan();
+        let zone_of_ref = |r: usize| if refs == z { r } else { self.zone_of_pixel(r) };
+        for i in 0..gloss_len(refs, z, k, m) {
             let x = get_f32(self.bytes, self.lay.gloss + 4 * i);
             let zone = match i {
                 _ if i < GLOSS_HEAD => None,
-                _ if i < GLOSS_HEAD + z => Some(i - GLOSS_HEAD),
-                _ => Some((i - GLOSS_HEAD - z) / (k * block)),
+                _ if i < first_block => Some(zone_of_ref(i - GLOSS_HEAD)),
+                _ => Some((i - first_block) / (k * block)),
             };
             if zone.is_some_and(no_reading) {
                 if !x.is_nan() {
@@ -827,9 +880,9 @@ impl<'a> BlobView<'a> {
             let ok = match i {
                 0 => x > 0.0,
                 1 => x > 1.0,
-                _ if i < GLOSS_HEAD + z => x > 0.0,
+                _ if i < first_block => x > 0.0,
                 _ => {
-                    let at = (i - GLOSS_HEAD - z) % block;
+                    let at = (i - first_block) % block;
                     !(diag.contains(&at) || sd.contains(&at)) || x >= 0.0
                 }
             };
@@ -987,12 +1040,12 @@ impl<'a> BlobView<'a> {
             return None;
         }
         let all: &'a [f32] = bytemuck::try_cast_slice(self.bytes.get(self.lay.gloss..self.lay.crc)?).ok()?;
-        let z = self.dims.zones;
+        let r = self.lay.gloss_refs;
         Some(GlossData {
             assigned_gu: all[0],
             refractive_index: all[1],
-            reference: &all[GLOSS_HEAD..GLOSS_HEAD + z],
-            blocks: &all[GLOSS_HEAD + z..],
+            reference: &all[GLOSS_HEAD..GLOSS_HEAD + r],
+            blocks: &all[GLOSS_HEAD + r..],
         })
     }
     /// Whether the blob carries the gloss section.
@@ -1000,8 +1053,9 @@ impl<'a> BlobView<'a> {
         self.lay.crc != self.lay.gloss
     }
     /// The gloss section's values copied out (any alignment): assigned value,
-    /// refractive index, then zone `z`'s reference and the block of cluster
-    /// `c` into `block`; `None` when the blob has no gloss section.
+    /// refractive index, then the reference of zone `z`'s first pixel and the
+    /// block of cluster `c` into `block`; `None` when the blob has no gloss
+    /// section.
     pub fn copy_gloss(&self, z: usize, c: usize, block: &mut [f32]) -> Option<(f32, f32, f32)> {
         if !self.has_gloss() {
             return None;
@@ -1010,13 +1064,24 @@ impl<'a> BlobView<'a> {
         let bl = crate::gloss::block_len(m);
         assert!(z < zones && c < k && block.len() == bl);
         let at = |i: usize| get_f32(self.bytes, self.lay.gloss + 4 * i);
-        let off = GLOSS_HEAD + zones + (z * k + c) * bl;
+        let off = GLOSS_HEAD + self.lay.gloss_refs + (z * k + c) * bl;
         for (i, b) in block.iter_mut().enumerate() {
             *b = at(off + i);
         }
-        Some((at(0), at(1), at(GLOSS_HEAD + z)))
+        Some((at(0), at(1), self.gloss_reference(self.zone_start(z) as usize).expect("the blob has the section")))
     }
-    /// Format version of this blob (1, 2 or 3).
+
+    /// The gloss reference pixel `p` is read with: its own (format version
+    /// 4) or its zone's (version 3); `None` without a gloss section.
+    pub fn gloss_reference(&self, p: usize) -> Option<f32> {
+        if !self.has_gloss() {
+            return None;
+        }
+        assert!(p < self.dims.pixels);
+        let r = if self.lay.gloss_refs == self.dims.pixels { p } else { self.zone_of_pixel(p) };
+        Some(get_f32(self.bytes, self.lay.gloss + 4 * (GLOSS_HEAD + r)))
+    }
+    /// Format version of this blob (1 to 4).
     pub fn version(&self) -> u16 {
         get_u16(self.bytes, 4)
     }
@@ -1358,7 +1423,7 @@ mod tests {
         );
         assert_eq!(
             resealed(&|b| put_f32(b, lay.gloss + 4 * 2, f32::NAN)),
-            Err(BlobError::OutOfRange { section: Section::Gloss, index: head })
+            Err(BlobError::NonFinite { section: Section::Gloss, index: 2 })
         );
         // The assigned value is never NaN.
         assert_eq!(
@@ -1379,6 +1444,43 @@ mod tests {
     }
 
     #[test]
+    fn version_4_carries_one_gloss_reference_per_pixel() {
+        let o = sample(6, 4, 2, 5);
+        let (_, blocks) = gloss_parts(&o, 1);
+        let d = o.dims;
+        let reference: Vec<f32> = (0..d.pixels).map(|p| 90.0 + p as f32).collect();
+        let c = contents(&o);
+        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        assert_eq!(buf.len(), o.dims.blob_len() + 4 * gloss_len(d.pixels, d.zones, 1, 4));
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!(v.version(), 4);
+        for p in 0..d.pixels {
+            assert_eq!(v.gloss_reference(p), Some(90.0 + p as f32));
+            assert_eq!(g.reference_for(p, v.zone_of_pixel(p), d.pixels), 90.0 + p as f32);
+        }
+        // copy_gloss gives the zone's first pixel's reference.
+        let mut block = vec![0.0; crate::gloss::block_len(4)];
+        assert_eq!(v.copy_gloss(1, 0, &mut block).unwrap().2, 90.0 + v.zone_start(1) as f32);
+        // A zone without a reading: NaN at each of its pixels and in its blocks, or refused.
+        let z1 = v.zone_start(1) as usize;
+        let mut r2 = reference.clone();
+        let mut b2 = blocks.clone();
+        let bl = crate::gloss::block_len(4);
+        r2[z1..].fill(f32::NAN);
+        b2[bl..].fill(f32::NAN);
+        let g2 = GlossData { reference: &r2, blocks: &b2, ..g };
+        let ex2 = BlobExtras { gloss: Some(g2), ..BlobExtras::NONE };
+        assert_eq!(write_blob_with(&c, &ex2, &mut buf), Ok(buf.len()));
+        r2[z1] = 95.0;
+        let g3 = GlossData { reference: &r2, blocks: &b2, ..g };
+        let ex3 = BlobExtras { gloss: Some(g3), ..BlobExtras::NONE };
+        assert!(write_blob_with(&c, &ex3, &mut buf).is_err(), "a reading pixel in a zone without a reading");
+    }
+
+    #[test]
     fn version_3_carries_the_gloss_section_and_its_rules_hold() {
         let o = sample(6, 4, 2, 5);
         let (reference, blocks) = gloss_parts(&o, 1);
@@ -1387,7 +1489,7 @@ mod tests {
         let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
-        assert_eq!(buf.len(), o.dims.blob_len() + 4 * gloss_len(2, 1, 4));
+        assert_eq!(buf.len(), o.dims.blob_len() + 4 * gloss_len(2, 2, 1, 4));
         let v = BlobView::parse(&buf).unwrap();
         assert_eq!((v.version(), v.clusters(), v.estimator(), v.has_gloss()), (3, 1, EstimatorKind::Wiener, true));
         let mut block = vec![0.0; crate::gloss::block_len(4)];
@@ -1416,7 +1518,9 @@ mod tests {
         };
         assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 2)), Err(BlobError::ReservedNotZero));
         assert_eq!(resealed(old.clone(), &|b| put_u16(b, 22, 4)), Err(BlobError::ReservedNotZero));
-        assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 4)), Err(BlobError::UnsupportedVersion(4)));
+        assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 5)), Err(BlobError::UnsupportedVersion(5)));
+        // Relabelled version 4, it would need one reference per pixel.
+        assert!(matches!(resealed(buf.clone(), &|b| put_u16(b, 4, 4)), Err(BlobError::LengthMismatch { .. })));
         // Every malformed value is named by its index in the section.
         let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::Wiener));
         let bl = crate::gloss::block_len(4);

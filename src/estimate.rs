@@ -173,7 +173,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             }
         }
         let zone_of: [u16; P] = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
-        let gloss_q = core::array::from_fn(|p| gloss.map_or(0.0, |g| g.assigned_gu / g.reference[zone_of[p] as usize]));
+        let gloss_q =
+            core::array::from_fn(|p| gloss.map_or(0.0, |g| g.assigned_gu / g.reference_for(p, zone_of[p] as usize, P)));
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
             for (i, dst) in self.ram[..z * k].iter_mut().enumerate() {

@@ -18,6 +18,8 @@ pub const LEVELS: usize = 1 + crate::acquire::MAX_SHORT_EXPOSURES;
 /// `P` pixels each.
 pub struct FrameStore<const P: usize, const F: usize, const L: usize> {
     frames: [[[[u16; P]; F]; LEVELS]; L],
+    /// Per line, which exposure levels have frames loaded.
+    loaded: [[bool; LEVELS]; L],
     lines: u8,
     current: usize,
     started: bool,
@@ -33,11 +35,13 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
     /// An empty store: reads fail with [`SensorError::NoData`] until
     /// [`Self::set_lines`].
     pub const fn new() -> Self {
-        Self { frames: [[[[0; P]; F]; LEVELS]; L], lines: 0, current: 0, started: false }
+        Self { frames: [[[[0; P]; F]; LEVELS]; L], loaded: [[false; LEVELS]; L], lines: 0, current: 0, started: false }
     }
 
     /// Stores pixel values of one frame part: frame `level F + f` of the
-    /// line (f = 0 dark, 1 + LED).
+    /// line (f = 0 dark, 1 + LED). Load a line's frames in order: its long
+    /// dark frame (frame 0) first, which forgets the line's shorter
+    /// exposures until they are loaded again.
     pub fn load(
         &mut self,
         line: u8,
@@ -49,6 +53,12 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
         if line >= L || frame >= LEVELS * F || first >= P {
             return Err(FrameLoadError::OutOfRange);
         }
+        // Loading a line's long dark frame starts the line afresh: shorter
+        // exposures count as loaded only when loaded after it.
+        if frame == 0 && first == 0 {
+            self.loaded[line] = [false; LEVELS];
+        }
+        self.loaded[line][frame / F] = true;
         let dst = &mut self.frames[line][frame / F][frame % F][first..];
         let mut n = 0;
         for (d, v) in dst.iter_mut().zip(pixels) {
@@ -90,6 +100,10 @@ impl<const P: usize, const F: usize, const L: usize> FrameStore<P, F, L> {
             }
             Some(k) => k as usize + 1,
         };
+        // A shorter exposure the host loaded no frames for: none to give.
+        if level > 0 && !self.loaded[self.current].get(level).copied().unwrap_or(false) {
+            return Err(SensorError::NoData);
+        }
         let frame = self.frames[self.current].get(level).and_then(|l| l.get(frame)).ok_or(SensorError::NoData)?;
         out.copy_from_slice(frame);
         Ok(())

@@ -58,6 +58,7 @@ fn bench(c: &mut Criterion) {
                 estimator: EstimatorKind::Wiener,
                 criterion: host_tools::forward::pairs::Criterion::Plain,
                 false_alarm: 0.05,
+                clusters: None,
                 far_field: false,
                 led_order: None,
                 white: None,

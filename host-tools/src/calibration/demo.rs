@@ -34,6 +34,7 @@ pub fn train_scene(
         estimator: kind,
         criterion,
         false_alarm: 0.05,
+        clusters: None,
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white),

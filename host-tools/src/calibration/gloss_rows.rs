@@ -72,7 +72,8 @@ pub fn zones_without_reading_note(view: &brdf_meter::blob::BlobView<'_>) -> Opti
 /// The gloss section training writes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GlossSection {
-    /// Per zone, the standard's specular linear reading (Z).
+    /// Per pixel, the standard's specular linear reading through its
+    /// zone's rows there (P; blob format version 4).
     pub reference: Vec<f32>,
     /// Per zone and cluster, the block (rows then packed covariance).
     pub blocks: Vec<f32>,
@@ -80,11 +81,11 @@ pub struct GlossSection {
 
 impl GlossSection {
     /// Appends a zone without a reading (it cannot see the standard): its
-    /// reference and its `values` block values NaN, the blob's marker
-    /// (`brdf_meter::blob`, format version 3), so the device streams NaN
-    /// readings for its points.
-    pub fn push_no_reading(&mut self, values: usize) {
-        self.reference.push(f32::NAN);
+    /// `pixels` references and its `values` block values NaN, the blob's
+    /// marker (`brdf_meter::blob`), so the device streams NaN readings for
+    /// its points.
+    pub fn push_no_reading(&mut self, pixels: usize, values: usize) {
+        self.reference.extend(std::iter::repeat_n(f32::NAN, pixels));
         self.blocks.extend(std::iter::repeat_n(f32::NAN, values));
     }
 
@@ -123,8 +124,13 @@ pub fn block(g: &DMatrix<f64>, cov: &DMatrix<f64>) -> Vec<f32> {
     out
 }
 
-/// The black glass's noise-free readings at a pixel.
+/// The black glass's noise-free readings at a pixel: as the instrument
+/// measures it when the pixel knows (`PixelOptics::standard`), else its
+/// sample-pair readings.
 pub fn black_glass_readings(px: &PixelOptics) -> DVector<f64> {
+    if let Some(v) = &px.standard {
+        return v.clone();
+    }
     let model = SampleModel::Brdf(Arc::new(SmoothDielectric::black_glass()));
     px.readings(&model, &px.truth(&model))
 }

@@ -59,6 +59,10 @@ pub struct TrainSpec<'a> {
     /// The out-of-prior flag's false-alarm rate on held-out prior samples
     /// (scale-free kinds).
     pub false_alarm: f64,
+    /// The piecewise kind's cluster count, fixed (`None`: the count of
+    /// `scale_free::CLUSTER_COUNTS` with the least cross-validated error):
+    /// what fits a calibration of many zones into its flash slot.
+    pub clusters: Option<usize>,
     /// Whether H was modelled far-field (recorded in the blob).
     pub far_field: bool,
     /// LED fired for reading i (a permutation of 0..m); `None` = 0..m.
@@ -324,7 +328,18 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
     let piecewise = spec.estimator == EstimatorKind::ScaleFreePiecewise;
     let opts = ScaleFreeOptions { piecewise, false_alarm: spec.false_alarm, ..Default::default() };
     // Per zone and cluster count: the best ridge and its error.
-    let counts: Vec<usize> = if piecewise { scale_free::CLUSTER_COUNTS.to_vec() } else { vec![1] };
+    let counts: Vec<usize> = match (piecewise, spec.clusters) {
+        (false, _) => vec![1],
+        (true, Some(k)) => {
+            ensure!(
+                (2..=brdf_meter::blob::MAX_CLUSTERS).contains(&k),
+                "{k} clusters: the piecewise kind takes 2..={}",
+                brdf_meter::blob::MAX_CLUSTERS
+            );
+            vec![k]
+        }
+        (true, None) => scale_free::CLUSTER_COUNTS.to_vec(),
+    };
     use rayon::prelude::*;
     let cv: Vec<Vec<(f64, f64)>> = pairs
         .par_iter()
@@ -474,6 +489,8 @@ fn gloss_section(
     for (z, ((tz, zo), plan)) in zones.iter().zip(&spec.zones).zip(plans).enumerate() {
         let m = zo.h().nrows();
         let no_reading = tz.scale_free().map_or(1, |s| s.maps.len()) * brdf_meter::gloss::block_len(m);
+        let end = zones.get(z + 1).map_or(spec.pixels, |n| n.first_pixel);
+        let zone_pixels = end - zo.first_pixel;
         let aug = zone_pairs.prior[z].joined(&zone_pairs.standards[z], gloss_rows::STANDARDS_WEIGHT);
         // A pair that reads no light cannot be learnt from (it has no scale).
         let lit: Vec<usize> = (0..aug.len()).filter(|&k| aug.readings.column(k).sum() > 0.0).collect();
@@ -484,7 +501,7 @@ fn gloss_section(
         let Some((mut blocks, s)) =
             gloss_rows_of(tz, &aug, &target, plan, &bg).with_context(|| format!("zone {z}: the gloss rows"))?
         else {
-            out.push_no_reading(no_reading);
+            out.push_no_reading(zone_pixels, no_reading);
             continue;
         };
         // The uncertainty's scale factors from held-out samples: each
@@ -519,7 +536,13 @@ fn gloss_section(
         for b in &mut blocks {
             gloss_rows::scale_block(b, m, f);
         }
-        out.reference.push(s);
+        // Each pixel's own reading of the standard through its zone's rows
+        // (the centre's where a pixel cannot see it), so the black glass
+        // reads its assigned value at every pixel.
+        for p in zo.first_pixel..end {
+            let (c, x, _) = kernel_input(tz, plan, &gloss_rows::black_glass_readings(zo.pixel(p)));
+            out.reference.push(gloss_rows::standard_reading(&blocks[c], &x).unwrap_or(s));
+        }
         out.blocks.extend(blocks.into_iter().flatten());
     }
     Ok(out.if_any_reading())
@@ -576,19 +599,26 @@ fn noisy(v: &DVector<f64>, var: &DVector<f64>, rng: &mut rand_chacha::ChaCha8Rng
 }
 
 /// What to do when zone `z` is refused: the smallest relative noise (in
-/// half-decade steps up to 0.5) at which the Wiener matrix passes the gate.
+/// half-decade steps up to 0.5, rounded up to the three digits it is
+/// printed with) at which the Wiener matrix passes the gate with a
+/// two-fold margin: a heavily cancelling matrix's f32 error moves with the
+/// last digit of its noise, so the advice is not made on the edge.
 fn f32_advice(spec: &TrainSpec<'_>, z: usize, raw: &Pairs, err: f64) -> String {
     let zo = &spec.zones[z];
     let mut s = spec.noise_rel.max(1e-6);
     while s <= 0.5 {
         s *= 10f64.sqrt();
+        // Printed to three significant digits, rounded up.
+        let digits = 10f64.powf(s.log10().floor() - 2.0);
+        let printed = (s / digits).ceil() * digits;
         let mut p = raw.weighted(spec.criterion);
-        p.noise_var = raw.readings.map(|v| (s * v).powi(2));
-        if let Ok(e) = pairs_wiener::build(&p, zo.h(), spec.prior.len(), s)
+        p.noise_var = raw.readings.map(|v| (printed * v).powi(2));
+        if let Ok(e) = pairs_wiener::build(&p, zo.h(), spec.prior.len(), printed)
             && let Ok(plan) = f32_gate(&e.w, &raw.readings)
+            && plan.rel_error <= 0.5 * F32_TOLERANCE
         {
             return format!(
-                "retrain the wiener estimator with --noise {s:.2e} or more (f32 error {:.1e} there, {err:.1e} now), \
+                "retrain the wiener estimator with --noise {printed:.2e} or more (f32 error {:.1e} there, {err:.1e} now), \
                  or use an instrument whose LEDs are better spread",
                 plan.rel_error
             );
@@ -794,6 +824,7 @@ mod tests {
             estimator: kind,
             criterion: Criterion::Plain,
             false_alarm: 0.05,
+            clusters: None,
             far_field: false,
             led_order: None,
             white: None,

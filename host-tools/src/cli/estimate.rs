@@ -135,7 +135,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (0..d.zones).map(|z| PointEstimator::new(view, z)).collect::<anyhow::Result<_>>()?;
     let mut points = Vec::with_capacity(rows.len());
     for r in &rows {
-        let est = match r.pixel {
+        points.push(match r.pixel {
             Some(p) => {
                 ensure!(
                     p < d.pixels,
@@ -143,11 +143,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     a.readings.display(),
                     d.pixels
                 );
-                &zones[view.zone_of_pixel(p)]
+                zones[view.zone_of_pixel(p)].apply_pixel(p, &r.v)
             }
-            None => &app,
-        };
-        points.push(est.apply(&r.v));
+            None => app.apply(&r.v),
+        });
     }
     let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
     let profiles = profiles(&bins, &points);

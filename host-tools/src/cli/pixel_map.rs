@@ -24,6 +24,9 @@ pub struct Args {
     /// Training criterion.
     #[arg(long, value_enum, default_value_t = CriterionArg::PeakRelative)]
     pub criterion: CriterionArg,
+    /// The piecewise kind's cluster count (default: by cross-validation).
+    #[arg(long)]
+    pub clusters: Option<usize>,
     /// Prior (as `train --prior`); its reflection models are the held-out materials.
     #[arg(long, default_value = "merl")]
     pub prior: String,
@@ -57,6 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         zones: a.zones,
         kind: a.estimator.into(),
         criterion: a.criterion.into(),
+        clusters: a.clusters,
         prior,
         folds: a.folds,
         lines: a.lines,

@@ -1,6 +1,6 @@
 //! `host-tools qemu`: start the QEMU instrument for a person to play with.
 use crate::device::link::qemu::{QemuInstrument, build_firmware, firmware_path, workspace_root};
-use crate::device::qemu_demo::{DemoEstimator, connect, set_up};
+use crate::device::qemu_demo::{DemoEstimator, DemoScene, connect, set_up};
 use anyhow::Context;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -20,13 +20,17 @@ pub struct Args {
     /// Firmware ELF to run instead of building it.
     #[arg(long, value_name = "PATH")]
     pub elf: Option<PathBuf>,
-    /// Train a 4-zone calibration for the QEMU instrument's simulated optics
-    /// (patent-profile scene), write it here, provision it and load the scene.
+    /// Train a calibration for the QEMU instrument's simulated optics
+    /// (`--demo-scene`), write it here, provision it and load the scene.
     #[arg(long, value_name = "PATH")]
     pub demo: Option<PathBuf>,
     /// The demo calibration's estimator.
     #[arg(long, value_enum, default_value_t = DemoEstimator::Wiener, requires = "demo")]
     pub demo_estimator: DemoEstimator,
+    /// The demo's simulated optics: the handheld's line cut to the device's
+    /// pixels, or the patent profile.
+    #[arg(long, value_enum, default_value_t = DemoScene::Handheld, requires = "demo")]
+    pub demo_scene: DemoScene,
     /// Stop QEMU after this many minutes.
     #[arg(long, default_value_t = 60)]
     pub minutes: u64,
@@ -67,12 +71,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             c.timeout = Duration::from_secs(600);
         }
         eprintln!("training a {:?} calibration for the simulated optics ...", a.demo_estimator);
-        let (blob, cal) = set_up(&mut c, blob_path, a.demo_estimator)?;
+        let (blob, cal) = set_up(&mut c, blob_path, a.demo_estimator, a.demo_scene)?;
         eprintln!(
-            "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line patent-profile scene",
+            "provisioned {} (CRC {:#010x}, {} zones) and loaded a 4-line {:?} scene",
             blob_path.display(),
             cal.blob_crc,
-            cal.zones
+            cal.zones,
+            a.demo_scene
         );
         if let Some(lines) = a.measure_and_exit {
             c.timeout = Duration::from_secs(600);

@@ -94,7 +94,17 @@ mod tests {
         let j: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.path().join("readings.json")).unwrap()).unwrap();
         assert_eq!(j["pixels"], 128);
-        assert_eq!(j["stages"].as_array().unwrap().len(), 12);
+        assert_eq!(j["stages"].as_array().unwrap().len(), 13);
+        assert_eq!(j["truth"]["view_deg"].as_array().unwrap().len(), 128);
+        assert_eq!(j["truth"]["readings"][0].as_array().unwrap().len(), 3);
+        // points.csv: line, pixel, then the m corrected readings, as `estimate` reads it.
+        let points = std::fs::read_to_string(dir.path().join("points.csv")).unwrap();
+        let mut rows = points.lines();
+        assert_eq!(rows.next().unwrap(), "line,pixel,L1,L2,L3,L4,L5,L6,L7");
+        let first: Vec<&str> = rows.next().unwrap().split(',').collect();
+        assert_eq!((first[0], first[1], first.len()), ("0", "0", 9));
+        let want = j["lines"][0]["corrected"][0][3].as_f64().unwrap() as f32;
+        assert_eq!(first[5].parse::<f32>().unwrap(), want);
         assert_eq!(j["truth"]["rho"].as_array().unwrap().len(), 128);
         assert_eq!(j["truth"]["rho"][0].as_array().unwrap().len(), 81);
         assert_eq!(j["lines"][0]["raw"].as_array().unwrap().len(), 7);

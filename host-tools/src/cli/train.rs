@@ -78,6 +78,11 @@ pub struct Args {
     /// or relative to the readings' scale.
     #[arg(long, value_enum, default_value_t = CriterionArg::PeakRelative)]
     pub criterion: CriterionArg,
+    /// The piecewise kind's cluster count (2..=8), fixed for every zone;
+    /// default: chosen by cross-validation (2 to 4). K matrices per zone:
+    /// fewer fit more zones in a calibration slot.
+    #[arg(long)]
+    pub clusters: Option<usize>,
     /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.
     #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
     pub false_alarm: f64,
@@ -156,6 +161,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         estimator: kind,
         criterion: a.criterion.into(),
         false_alarm: a.false_alarm,
+        clusters: a.clusters,
         far_field,
         led_order: None,
         white,
@@ -282,6 +288,7 @@ pub(crate) mod tests {
             far_field: false,
             scene: None,
             criterion: CriterionArg::PeakRelative,
+            clusters: None,
             false_alarm: 0.05,
             sign: None,
         }
@@ -394,10 +401,10 @@ pub(crate) mod tests {
     fn measured_and_mixed_priors_train_every_kind_into_the_right_format() {
         let dir = tempfile::tempdir().unwrap();
         for (est, prior, kind, version) in [
-            // Format 3: every kind carries the gloss section on the patent profile.
-            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 3),
-            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 3),
-            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 3),
+            // Format 4: every kind carries the gloss section (one reference per pixel).
+            (Estimator::ScaleFree, "merl", EstimatorKind::ScaleFree, 4),
+            (Estimator::ScaleFreePiecewise, "merl@0.9+patent@0.1", EstimatorKind::ScaleFreePiecewise, 4),
+            (Estimator::Wiener, "merl", EstimatorKind::Wiener, 4),
         ] {
             run(args_with(dir.path(), est, prior)).unwrap();
             let blob = std::fs::read(dir.path().join("cal.blob")).unwrap();

@@ -1,8 +1,10 @@
 //! The QEMU instrument's demo: a calibration trained for its simulated
-//! optics (the patent-profile scene at the device's pixel count),
-//! provisioned, and a 4-line scene loaded, so `measure` works at once.
+//! optics (the handheld's line cut to the device's pixels, or the
+//! patent-profile scene at the device's pixel count), provisioned, and a
+//! 4-line scene loaded, so `measure` works at once.
 use crate::calibration::demo::{train_for_scene, train_scale_free_for_scene};
 use crate::device::link::{Client, SerialTransport, TcpTransport, Transport};
+use crate::forward::scene::Scene;
 use crate::forward::scene::frames::{patent_scene, scene_frames};
 use anyhow::Context;
 use brdf_meter::protocol::CalInfo;
@@ -17,6 +19,30 @@ pub fn connect(addr: &str, pty: bool) -> anyhow::Result<Client<Box<dyn Transport
     let mut c = Client::new(t)?;
     c.wait_ready(Duration::from_secs(20))?;
     Ok(c)
+}
+
+/// Which optics the demo simulates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum DemoScene {
+    /// The handheld instrument (`scenes/handheld.toml`, every effect), the
+    /// device's pixels cut from the centre of its line.
+    #[default]
+    Handheld,
+    /// The patent profile's optics at every pixel (no per-pixel geometry).
+    Patent,
+}
+
+impl DemoScene {
+    /// The scene for a device of `pixels` pixels.
+    pub fn scene(self, pixels: usize) -> anyhow::Result<Scene> {
+        match self {
+            Self::Handheld => {
+                let path = crate::device::link::qemu::workspace_root().join("scenes/handheld.toml");
+                Scene::load(&path)?.for_device(pixels)
+            }
+            Self::Patent => Ok(patent_scene(pixels)),
+        }
+    }
 }
 
 /// Which calibration the demo trains.
@@ -40,9 +66,10 @@ pub fn set_up<T: Transport>(
     c: &mut Client<T>,
     blob_path: &Path,
     kind: DemoEstimator,
+    optics: DemoScene,
 ) -> anyhow::Result<(Vec<u8>, CalInfo)> {
     let info = c.info()?;
-    let scene = patent_scene(info.pixels as usize);
+    let scene = optics.scene(info.pixels as usize)?;
     let blob = match kind {
         DemoEstimator::Wiener => train_for_scene(&scene, 4, 0.02)?.blob,
         DemoEstimator::ScaleFree => train_scale_free_for_scene(&scene, 4, 0.02, false)?.blob,

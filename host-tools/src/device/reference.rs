@@ -72,7 +72,7 @@ pub struct PointEstimator<'a> {
     sigma: Vec<Vec<f32>>,
     centroids: Vec<f32>,
     out_of_prior: Option<(Vec<f32>, Vec<f32>, f32)>,
-    /// Per cluster the gloss block, and `assigned / S_z` (`brdf_meter::gloss`).
+    /// Per cluster the gloss block, and the standard's assigned value.
     gloss: Option<(Vec<Vec<f32>>, f32)>,
 }
 
@@ -106,17 +106,15 @@ impl<'a> PointEstimator<'a> {
             (mean, g, t)
         });
         let gloss = view.has_gloss().then(|| {
-            let mut q = 0.0f32;
+            let mut assigned = 0.0f32;
             let blocks = (0..k)
                 .map(|c| {
                     let mut b = vec![0.0f32; brdf_meter::gloss::block_len(d.m)];
-                    let (assigned, _, reference) = view.copy_gloss(zone, c, &mut b).expect("the blob has the section");
-                    // The device's operation, so the same bits.
-                    q = assigned / reference;
+                    assigned = view.copy_gloss(zone, c, &mut b).expect("the blob has the section").0;
                     b
                 })
                 .collect();
-            (blocks, q)
+            (blocks, assigned)
         });
         Ok(Self { view, zone, mats, sigma, centroids, out_of_prior, gloss })
     }
@@ -131,8 +129,16 @@ impl<'a> PointEstimator<'a> {
         self.zone
     }
 
-    /// Estimates one point from its white-corrected readings, as the device does.
+    /// Estimates one point of the zone's first pixel from its
+    /// white-corrected readings, as the device does.
     pub fn apply(&self, v: &[f32]) -> PointEstimate {
+        self.apply_pixel(self.view.zone_start(self.zone) as usize, v)
+    }
+
+    /// Estimates one point of pixel `p` (one of the zone's) from its
+    /// white-corrected readings, as the device does: the gloss readings on
+    /// the pixel's own reference.
+    pub fn apply_pixel(&self, p: usize, v: &[f32]) -> PointEstimate {
         let n = self.view.dims().n;
         assert_eq!(v.len(), self.m());
         let mut rho = vec![0.0f32; n];
@@ -161,13 +167,15 @@ impl<'a> PointEstimator<'a> {
         }
         bits |= guard_estimate(&mut rho);
         let (mut readings, mut reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
-        if let Some((blocks, q)) = &self.gloss {
+        if let Some((blocks, assigned)) = &self.gloss {
+            // The device's operation, so the same bits.
+            let q = *assigned / self.view.gloss_reference(p).expect("the blob has the section");
             // The kernel's input: the scale-free kinds replace the last reading by the scale.
             let mut x = v.to_vec();
             if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
                 x[v.len() - 1] = s;
             }
-            (readings, reading_sigma) = brdf_meter::gloss::readings(&blocks[cluster as usize], &x, *q, sigma_scale);
+            (readings, reading_sigma) = brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, sigma_scale);
         }
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);
@@ -232,14 +240,20 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, 
             };
             let lit = lit_at(0);
             let short: Vec<Vec<u16>> = (1..=levels).map(lit_at).collect();
+            let taken = vec![true; d.m];
             let shorter: Vec<Shorter<'_>> = (0..levels)
-                .map(|l| Shorter { dark: frames[(l + 1) * (d.m + 1)][p], ratio: acq.ratio(l), lit: &short[l] })
+                .map(|l| Shorter {
+                    dark: frames[(l + 1) * (d.m + 1)][p],
+                    ratio: acq.ratio(l),
+                    lit: &short[l],
+                    taken: &taken,
+                })
                 .collect();
             let white: Vec<f32> = (0..d.m).map(|i| blob.white(p, i)).collect();
             let mut v = vec![0.0f32; d.m];
             let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &shorter, &mut v);
             let z = blob.zone_of_pixel(p);
-            let e = zones[z].apply(&v);
+            let e = zones[z].apply_pixel(p, &v);
             ExpectedPoint {
                 zone: z as u16,
                 cluster: e.cluster,

@@ -45,6 +45,11 @@ pub struct PixelOptics {
     pub centres_deg: Vec<f64>,
     /// Its readings' noise.
     pub noise: ReadingNoise,
+    /// The black-glass standard's readings as the instrument measures it
+    /// here (the scene's whole pipeline without noise: its sensor effects
+    /// and shorter exposures too), when known: what calibrating on the
+    /// standard reads. `None`: its sample-pair readings.
+    pub standard: Option<DVector<f64>>,
     /// Each LED's rays, weights normalised to sum to 1; only when the
     /// optics leave the plane of incidence.
     rays: Option<Vec<Vec<Ray>>>,
@@ -89,6 +94,7 @@ impl PixelOptics {
             h,
             centres_deg,
             noise,
+            standard: None,
             rays: (!planar).then_some(rays),
             bins: grid.bins_deg().to_vec(),
             step_deg: grid.step_deg(),
@@ -112,6 +118,7 @@ impl PixelOptics {
             h,
             centres_deg,
             noise,
+            standard: None,
             rays: None,
             bins: grid.bins_deg().to_vec(),
             step_deg: grid.step_deg(),

@@ -29,6 +29,10 @@ pub struct ZoneOptics {
     pub centre: PixelOptics,
     /// The pixels training's sample pairs are taken at.
     pub pixels: Vec<PixelOptics>,
+    /// Every pixel of the zone, first to last (empty when the zone's pixels
+    /// all have the centre's optics): where the zone's gloss reference is
+    /// read, pixel by pixel.
+    pub every: Vec<PixelOptics>,
 }
 
 impl ZoneOptics {
@@ -40,6 +44,11 @@ impl ZoneOptics {
     /// Incidence angle of each LED's centre ray at the zone's centre, degrees (m).
     pub fn centres_deg(&self) -> &[f64] {
         &self.centre.centres_deg
+    }
+
+    /// The optics of pixel `p` of the zone (its own when known, else the centre's).
+    pub fn pixel(&self, p: usize) -> &PixelOptics {
+        p.checked_sub(self.first_pixel).and_then(|i| self.every.get(i)).unwrap_or(&self.centre)
     }
 
     /// A zone whose optics are only an in-plane system matrix `h` (seen
@@ -55,7 +64,7 @@ impl ZoneOptics {
     ) -> Self {
         let t = view_deg.to_radians();
         let centre = PixelOptics::from_h(0.0, h, Vector3::new(t.sin(), 0.0, t.cos()), centres_deg, noise, grid);
-        Self { first_pixel, pixels: vec![centre.clone()], centre }
+        Self { first_pixel, pixels: vec![centre.clone()], centre, every: Vec::new() }
     }
 }
 
@@ -96,7 +105,12 @@ pub fn uniform_zones(
     )
     .context("computing the system matrix H")?;
     Ok((0..zones)
-        .map(|z| ZoneOptics { first_pixel: z * pixels / zones, pixels: vec![centre.clone()], centre: centre.clone() })
+        .map(|z| ZoneOptics {
+            first_pixel: z * pixels / zones,
+            pixels: vec![centre.clone()],
+            centre: centre.clone(),
+            every: Vec::new(),
+        })
         .collect())
 }
 

@@ -54,6 +54,8 @@ pub struct MapSpec {
     pub kind: EstimatorKind,
     /// Training criterion.
     pub criterion: Criterion,
+    /// The piecewise kind's cluster count (`None`: by cross-validation).
+    pub clusters: Option<usize>,
     /// The prior (its reflection models are the held-out materials).
     pub prior: PriorModels,
     /// Folds over the prior's samples.
@@ -218,6 +220,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         estimator: spec.kind,
         criterion: spec.criterion,
         false_alarm: 0.05,
+        clusters: spec.clusters,
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white.clone()),

@@ -74,16 +74,55 @@ pub fn named_scene_frames(
         "analytic" => analytic_scene(blob, lines, full_scale),
         "patent" => scene_frames(&patent_scene(pixels), lines)?,
         path => {
-            let mut s =
+            let whole =
                 super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
-            if s.instrument.sensor.pixels != pixels {
+            let s = whole.for_device(pixels)?;
+            if s.instrument.sensor.pixels != whole.instrument.sensor.pixels {
                 eprintln!(
-                    "note: scene {path} has {} pixels; simulating {pixels} for this device",
-                    s.instrument.sensor.pixels
+                    "note: scene {path} has {} pixels; the device reads {}",
+                    whole.instrument.sensor.pixels, s.name
                 );
-                s.instrument.sensor.pixels = pixels;
             }
+            check_optics(&s, blob)?;
             scene_frames(&s, lines)?
         }
     })
+}
+
+/// Largest relative difference between a calibration's white reference and
+/// a scene's that still counts as the same optics (the white reference is
+/// rounded to f32 and the scene's gain may be trimmed).
+pub const SAME_OPTICS_TOLERANCE: f64 = 0.02;
+
+/// Refuses a scene whose optics are not the ones `blob` was trained for:
+/// the white reference (every pixel's reading of a perfect diffuser under
+/// every LED) is the optics' fingerprint, so a calibration for other LEDs,
+/// another gain or another cut of the line differs there. The error says
+/// where and what to do.
+pub fn check_optics(scene: &super::Scene, blob: &BlobView<'_>) -> anyhow::Result<()> {
+    let d = blob.dims();
+    let (p, m) = (scene.instrument.pixels(), scene.instrument.m());
+    anyhow::ensure!(
+        p == d.pixels && m == d.m,
+        "scene `{}` has {p} pixels and {m} LEDs, the calibration {} and {}: it was trained for other optics; \
+         train one for this scene (host-tools train --scene ...)",
+        scene.name,
+        d.pixels,
+        d.m
+    );
+    let white = super::white_reference(scene)?;
+    for px in 0..p {
+        for i in 0..m {
+            let (w, b) = (f64::from(white[px * m + i]), f64::from(blob.white(px, i)));
+            if (w - b).abs() > SAME_OPTICS_TOLERANCE * w.abs().max(b.abs()) {
+                anyhow::bail!(
+                    "the calibration was trained for other optics than scene `{}`: at pixel {px}, LED {i} its white \
+                     reference is {b:.1} counts, the scene's {w:.1}; its estimates of this scene would mean nothing. \
+                     Train a calibration for this scene (host-tools train --scene ...) and provision it",
+                    scene.name
+                );
+            }
+        }
+    }
+    Ok(())
 }

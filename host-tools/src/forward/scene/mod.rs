@@ -207,6 +207,50 @@ impl Scene {
         }
     }
 
+    /// The scene read through a window of `pixels` of its sensor's pixels
+    /// from `first` (a device with fewer pixels reading a cut of the line:
+    /// every pixel keeps the point and view it has in the whole line).
+    pub fn window(&self, first: usize, pixels: usize) -> anyhow::Result<Self> {
+        let p = self.instrument.sensor.pixels;
+        anyhow::ensure!(
+            pixels >= 1 && first + pixels <= p,
+            "scene `{}`: pixels {first}..{} are not within its {p} pixels",
+            self.name,
+            first + pixels
+        );
+        let mut s = self.clone();
+        s.name = format!("{} (pixels {first}..={})", self.name, first + pixels - 1);
+        s.instrument.sensor = self.instrument.sensor.window(first, pixels);
+        s.surface.segments = self
+            .surface
+            .segments
+            .iter()
+            .filter(|g| g.last_pixel >= first && g.first_pixel < first + pixels)
+            .map(|g| SegmentSpec {
+                first_pixel: g.first_pixel.saturating_sub(first),
+                last_pixel: (g.last_pixel - first).min(pixels - 1),
+                brdf: g.brdf.clone(),
+            })
+            .collect();
+        Ok(s)
+    }
+
+    /// The scene for a simulated device of `pixels` pixels: as it is when
+    /// they agree, else the window of them centred on the line (a device
+    /// with more pixels than the scene is an error).
+    pub fn for_device(&self, pixels: usize) -> anyhow::Result<Self> {
+        let p = self.instrument.sensor.pixels;
+        if p == pixels {
+            return Ok(self.clone());
+        }
+        anyhow::ensure!(
+            pixels < p,
+            "scene `{}` has {p} pixels; the device reads {pixels}: give a scene with at least as many",
+            self.name
+        );
+        self.window((p - pixels) / 2, pixels)
+    }
+
     /// Whether the scene lists effect `name`.
     pub fn has(&self, name: &str) -> bool {
         self.effects.iter().any(|e| e.name() == name)
@@ -386,18 +430,28 @@ pub fn training_optics(scene: &Scene, zones: usize, noise_override: Option<f64>)
             noise_of(px),
         )
     };
+    // The black-glass standard as the instrument measures it, every pixel:
+    // what calibrating the gloss readings on the standard reads.
+    let standard =
+        Simulator::with_surface(scene, std::sync::Arc::new(crate::forward::brdf::SmoothDielectric::black_glass()))?
+            .simulate_line(0, pipeline::Mode::Reference)
+            .corrected;
     let starts = zone_starts(p, zones);
     let mut out = Vec::with_capacity(zones);
     for (z, &first) in starts.iter().enumerate() {
         let last = starts.get(z + 1).map_or(p - 1, |s| s - 1);
         let at = || format!("scene `{}`, zone {z} (pixels {first}..={last})", scene.name);
         let centre = pixel((first + last) as f64 / 2.0).with_context(at)?;
+        let mut every = (first..=last).map(|px| pixel(px as f64)).collect::<Result<Vec<_>, _>>().with_context(at)?;
+        for (i, po) in every.iter_mut().enumerate() {
+            let px = first + i;
+            po.standard = Some(nalgebra::DVector::from_column_slice(&standard[px * m..(px + 1) * m]));
+        }
         let pixels = crate::forward::zone_optics::training_pixels(first, last)
             .into_iter()
-            .map(|px| pixel(px as f64))
-            .collect::<Result<Vec<_>, _>>()
-            .with_context(at)?;
-        out.push(crate::forward::zone_optics::ZoneOptics { first_pixel: first, centre, pixels });
+            .map(|px| every[px - first].clone())
+            .collect();
+        out.push(crate::forward::zone_optics::ZoneOptics { first_pixel: first, centre, pixels, every });
     }
     let noise_level = match noise_override {
         Some(s) => s,

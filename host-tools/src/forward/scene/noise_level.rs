@@ -11,7 +11,9 @@ use crate::forward::reading_noise::ReadingNoise;
 /// signal plus the dark level) and `quantisation` (a uniform error of one
 /// step, variance step^2 / 12), each on the LED frame and again on the
 /// dark frame it is corrected by, divided by the pixel's white count for
-/// the LED. A scene without either trains noise-free (all zeros).
+/// the LED; with `saturation` and `short-exposure`, a reading that
+/// saturates the long exposure has the noise of the shorter one it is read
+/// at. A scene without noise or quantisation trains noise-free (all zeros).
 pub fn reading_noise(scene: &Scene, sim: &Simulator) -> Vec<ReadingNoise> {
     let (m, p) = (sim.m(), sim.pixels());
     let q = scene.effects.iter().find_map(|e| match e {
@@ -22,7 +24,17 @@ pub fn reading_noise(scene: &Scene, sim: &Simulator) -> Vec<ReadingNoise> {
     (0..p)
         .map(|px| {
             let d = sim.dark()[px];
-            let mut r = ReadingNoise { a: 0.0, b: vec![0.0; m], c: vec![0.0; m] };
+            let mut r = ReadingNoise {
+                a: 0.0,
+                b: vec![0.0; m],
+                c: vec![0.0; m],
+                saturates_above: Vec::new(),
+                ratios: sim.pipeline().short_ratios().to_vec(),
+            };
+            if scene.has("saturation") {
+                let fs = scene.instrument.sensor.full_scale;
+                r.saturates_above = (0..m).map(|k| (fs - d) / sim.white()[px * m + k]).collect();
+            }
             for k in 0..m {
                 let w = sim.white()[px * m + k];
                 let w2 = w * w;
