@@ -432,6 +432,44 @@ fn a_zone_without_a_gloss_reading_streams_nan_readings_bit_identically() {
     assert!(pts.iter().any(|p| p.zone == 1));
 }
 
+/// The handheld's line cut to the simulated device, a black glass on it:
+/// its frames saturate the long exposure and the device takes the shorter
+/// ones (the scene's frames carry them), bit for bit as the host's
+/// reference; no point is left saturated, every point reads near 100 GU.
+#[test]
+fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
+    use host_tools::calibration::demo::{scene_prior, train_scene};
+    use host_tools::forward::scene::frames::scene_frames;
+    let whole = host_tools::forward::scene::Scene::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
+    )
+    .unwrap();
+    let mut scene = whole.for_device(P).unwrap();
+    let prior = scene_prior(&scene, "patent").unwrap();
+    let trained = train_scene(
+        &scene,
+        2,
+        0.01,
+        brdf_meter::blob::EstimatorKind::Wiener,
+        &prior,
+        host_tools::forward::pairs::Criterion::Plain,
+    )
+    .unwrap();
+    scene.surface.brdf = host_tools::forward::brdf::BrdfSpec::SmoothDielectric { n: 1.567, base_albedo: 0.0 };
+    let frames = scene_frames(&scene, 2).unwrap();
+    assert_eq!(frames[0].len(), 3 * (M + 1), "long and two shorter exposures");
+    assert!(frames[0][1..=M].iter().any(|f| f.contains(&FULL_SCALE)), "the black glass saturates the long exposure");
+    let mut c = client(flash(), ZONES);
+    c.provision(&sign_for_tests(&trained.blob), |_, _| {}).unwrap();
+    c.load_scene(&frames).unwrap();
+    let pts = c.measure(2).unwrap();
+    check_points(&trained.blob, &frames, &pts, 2);
+    for p in &pts {
+        assert_eq!(p.flags & brdf_meter::protocol::flags::SATURATED, 0, "point {}", p.point);
+        assert!((p.readings[0] - 100.0).abs() < 5.0, "point {}: {} GU", p.point, p.readings[0]);
+    }
+}
+
 /// What every encoding must give: the f32 stream's points, values bit for
 /// bit (f32, corrected readings) or within 1/256 of each bin's uncertainty
 /// (Sigma16), on the bins asked for.

@@ -57,17 +57,25 @@ pub fn expected_meta_bits(w: &ExpectedPoint) -> MetaBits {
 pub fn without_gloss_reading(blob: &[u8], zone: usize) -> Vec<u8> {
     let view = brdf_meter::blob::BlobView::parse(blob).unwrap();
     assert!(view.has_gloss(), "the blob carries the gloss section");
-    let (z, k, m) = (view.dims().zones, view.clusters(), view.dims().m);
+    let (z, k, m, p) = (view.dims().zones, view.clusters(), view.dims().m, view.dims().pixels);
+    // Format 4 holds one reference per pixel, format 3 one per zone.
+    let refs = if view.version() >= 4 { p } else { z };
     let crc_at = blob.len() - 4;
-    let start = crc_at - 4 * brdf_meter::blob::gloss_len(z, k, m);
+    let start = crc_at - 4 * brdf_meter::blob::gloss_len(refs, z, k, m);
     let bl = k * brdf_meter::gloss::block_len(m);
     let mut out = blob.to_vec();
     let head = 2;
     let nan = f32::NAN.to_le_bytes();
     let mut mark = |i: usize| out[start + 4 * i..start + 4 * i + 4].copy_from_slice(&nan);
-    mark(head + zone);
+    if refs == p {
+        for px in (0..p).filter(|px| view.zone_of_pixel(*px) == zone) {
+            mark(head + px);
+        }
+    } else {
+        mark(head + zone);
+    }
     for i in 0..bl {
-        mark(head + z + zone * bl + i);
+        mark(head + refs + zone * bl + i);
     }
     let crc = brdf_meter::blob::CRC32.checksum(&out[..crc_at]);
     out[crc_at..].copy_from_slice(&crc.to_le_bytes());

@@ -1,0 +1,175 @@
+//! The tools a user of the handheld meets, end to end on small cuts of its
+//! line (so each runs in seconds): every zone count trains for every kind;
+//! `simulate` writes `points.csv` and `estimate` reads it with each row's
+//! pixel, as the device does; a calibration for other optics is refused;
+//! `design` tells a layout with gaps between its LEDs from one without;
+//! `pixel-map` reads held-out materials, the black glass and the tiles at
+//! every pixel.
+use brdf_meter::blob::{BlobView, EstimatorKind};
+use host_tools::calibration::demo::{scene_prior, train_scene};
+use host_tools::forward::pairs::Criterion;
+use host_tools::forward::scene::Scene;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn handheld() -> Scene {
+    Scene::load(&root().join("scenes/handheld.toml")).unwrap()
+}
+
+fn host_tools(args: &[&str]) -> (bool, String) {
+    let out =
+        std::process::Command::new(env!("CARGO_BIN_EXE_host-tools")).args(args).current_dir(root()).output().unwrap();
+    (out.status.success(), format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr)))
+}
+
+#[test]
+fn every_zone_count_trains_for_every_kind() {
+    let cut = handheld().window(60, 6).unwrap();
+    let prior = scene_prior(&cut, "patent").unwrap();
+    for kind in [EstimatorKind::Wiener, EstimatorKind::ScaleFree, EstimatorKind::ScaleFreePiecewise] {
+        for zones in 1..=6 {
+            let t = train_scene(&cut, zones, 0.01, kind, &prior, Criterion::PeakRelative)
+                .unwrap_or_else(|e| panic!("{kind:?}, {zones} zones: {e:#}"));
+            let v = BlobView::parse(&t.blob).unwrap();
+            assert_eq!((v.estimator(), v.dims().zones, v.dims().pixels), (kind, zones, 6));
+            // One gloss reference per pixel, every pixel reading the standard.
+            assert!((0..6).all(|p| v.gloss_reference(p).is_some_and(|s| s > 0.0)), "{kind:?} {zones}");
+        }
+    }
+}
+
+#[test]
+fn estimate_reads_simulates_points_csv_pixel_by_pixel_as_the_device_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let cut = handheld().window(56, 16).unwrap();
+    let scene_path = dir.path().join("cut.toml");
+    std::fs::write(&scene_path, toml::to_string(&cut).unwrap()).unwrap();
+    let prior = scene_prior(&cut, "merl").unwrap();
+    let t = train_scene(&cut, 4, 0.01, EstimatorKind::ScaleFree, &prior, Criterion::PeakRelative).unwrap();
+    let blob_path = dir.path().join("cal.blob");
+    std::fs::write(&blob_path, &t.blob).unwrap();
+    let sim_dir = dir.path().join("sim");
+    let (ok, out) =
+        host_tools(&["simulate", scene_path.to_str().unwrap(), "--out", sim_dir.to_str().unwrap(), "--lines", "2"]);
+    assert!(ok, "{out}");
+    let est = dir.path().join("est.csv");
+    let (ok, out) = host_tools(&[
+        "estimate",
+        "--blob",
+        blob_path.to_str().unwrap(),
+        "--readings",
+        sim_dir.join("points.csv").to_str().unwrap(),
+        "--out",
+        est.to_str().unwrap(),
+    ]);
+    assert!(ok, "{out}");
+    // Each row with its pixel's zone and gloss reference, bit for bit.
+    let view = BlobView::parse(&t.blob).unwrap();
+    let rows = host_tools::cli::estimate::read_readings(&sim_dir.join("points.csv"), 7).unwrap();
+    assert_eq!(rows.len(), 2 * 16);
+    let csv = std::fs::read_to_string(&est).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(&header[..4], &["point", "line", "pixel", "flags"]);
+    let gu_col = header.iter().position(|h| *h == brdf_meter::gloss::NAMES[0]).unwrap();
+    for (r, line) in rows.iter().zip(lines) {
+        let f: Vec<&str> = line.split(',').collect();
+        let p = r.pixel.unwrap();
+        assert_eq!(f[2], p.to_string());
+        let want = host_tools::device::reference::PointEstimator::new(view, view.zone_of_pixel(p))
+            .unwrap()
+            .apply_pixel(p, &r.v);
+        assert_eq!(f[gu_col].parse::<f32>().unwrap().to_bits(), want.readings[0].to_bits(), "pixel {p}");
+    }
+}
+
+#[test]
+fn a_calibration_for_other_optics_is_refused_with_the_reason() {
+    let cut = handheld().for_device(16).unwrap();
+    let patent = host_tools::forward::scene::frames::patent_scene(16);
+    let t = host_tools::calibration::demo::train_for_scene(&patent, 1, 0.02).unwrap();
+    let e = host_tools::forward::scene::frames::check_optics(&cut, &BlobView::parse(&t.blob).unwrap()).unwrap_err();
+    assert!(format!("{e:#}").contains("trained for other optics"), "{e:#}");
+    // Its own calibration passes.
+    let own =
+        train_scene(&cut, 1, 0.02, EstimatorKind::Wiener, &scene_prior(&cut, "patent").unwrap(), Criterion::Plain)
+            .unwrap();
+    host_tools::forward::scene::frames::check_optics(&cut, &BlobView::parse(&own.blob).unwrap()).unwrap();
+}
+
+#[test]
+fn design_tells_a_layout_with_gaps_from_one_without() {
+    let dir = tempfile::tempdir().unwrap();
+    let cands = dir.path().join("c.toml");
+    std::fs::write(
+        &cands,
+        r#"
+[[candidate]]
+name = "7 evenly 3 mm"
+leds = { count = 7, first_deg = 33.0, last_deg = 57.0, die_mm = 3.0 }
+[[candidate]]
+name = "7 about specular 4 mm"
+leds = { angles_deg = [31.0, 38.0, 41.5, 45.0, 48.5, 52.0, 59.0], die_mm = 4.0 }
+gain = 2400.0
+short_exposure = [16.0, 80.0]
+"#,
+    )
+    .unwrap();
+    let out = dir.path().join("design");
+    let (ok, text) = host_tools(&[
+        "design",
+        "--candidates",
+        cands.to_str().unwrap(),
+        "--pixels",
+        "0,64,127",
+        "--folds",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("design.json")).unwrap()).unwrap();
+    assert!(j[0]["uncovered"].as_u64().unwrap() > 0, "evenly spread 3 mm dies leave gaps");
+    assert_eq!(j[1]["uncovered"].as_u64().unwrap(), 0, "the handheld's layout covers every pixel");
+    assert_eq!(j[1]["metal_saturated"][1].as_u64().unwrap(), 0, "no metal saturates the shortest exposure");
+    for f in ["design.md", "design.csv", "summary.svg", "summary.png", "candidate-7-about-specular-4-mm.png"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn pixel_map_reads_every_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let cut = handheld().window(48, 12).unwrap();
+    let mut prior = scene_prior(&cut, "merl").unwrap();
+    prior.samples.truncate(20);
+    for s in &mut prior.samples {
+        s.weight = 1.0 / 20.0;
+    }
+    let spec = host_tools::evaluation::pixel_map::MapSpec {
+        scene: cut,
+        zones: 3,
+        kind: EstimatorKind::ScaleFree,
+        criterion: Criterion::PeakRelative,
+        clusters: None,
+        prior,
+        folds: 4,
+        lines: 1,
+        gloss_lines: 3,
+        acq: brdf_meter::platform::timing::ACQUISITION,
+        seed: 1,
+    };
+    let map = host_tools::evaluation::pixel_map::run(&spec, &|_| {}).unwrap();
+    assert_eq!((map.pixels.len(), map.materials.len()), (12, 20));
+    assert!(map.error[0] > 0.0 && map.error[0] < map.interpolation[0], "{:?} {:?}", map.error, map.interpolation);
+    assert_eq!(map.black_glass.no_reading, 0);
+    assert!(
+        (map.black_glass.mean_range_gu[0] - 100.0).abs() < 3.0
+            && (map.black_glass.mean_range_gu[1] - 100.0).abs() < 3.0
+    );
+    host_tools::evaluation::pixel_map::report::write(dir.path(), &map, 4).unwrap();
+    assert!(dir.path().join("pixel-map.png").exists());
+}
