@@ -203,6 +203,9 @@ fn read_surface(
     Ok(Read { points })
 }
 
+/// Per pixel: points flagged out of prior, points flagged saturated, points.
+type FlagCounts = (usize, usize, usize);
+
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
     let scene = &spec.scene;
@@ -246,7 +249,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
         let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
         let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let results: Vec<(MaterialRow, Vec<(usize, usize, usize)>)> = held
+        let results: Vec<(MaterialRow, Vec<FlagCounts>)> = held
             .par_iter()
             .map(|&k| {
                 let s = &spec.prior.samples[k];
@@ -298,7 +301,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         .par_iter()
         .enumerate()
         .map(|(i, (_, b))| {
-            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.min(8).max(1), 2_000_003 + i as u64)?;
+            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
             let truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
             Ok((read, truth))
         })
