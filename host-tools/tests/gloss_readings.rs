@@ -21,7 +21,7 @@ use brdf_meter::gloss::{DISTINCTNESS, HAZE_HU, SPECULAR_GU};
 use host_tools::calibration::demo::{train_for_scene, train_measured_for_scene, train_scale_free_for_scene};
 use host_tools::device::reference::PointEstimator;
 use host_tools::forward::brdf::{Brdf, NbrdfSet};
-use host_tools::forward::gloss::{true_readings, true_rho};
+use host_tools::forward::gloss::model_readings;
 use host_tools::forward::optics::simulate_readings;
 use host_tools::forward::prior_measured::PriorMix;
 use host_tools::forward::scene::Scene;
@@ -81,23 +81,20 @@ fn kind_label(kind: EstimatorKind) -> &'static str {
 /// The library's scenes through `blob`; returns the coverage over all of them.
 fn library(kind: EstimatorKind, blob: &[u8]) -> Tally {
     let view = BlobView::parse(blob).unwrap();
-    assert_eq!(view.version(), 3, "{kind:?}: training writes the gloss section");
+    assert_eq!(view.version(), 4, "{kind:?}: training writes the gloss section");
     let est = PointEstimator::new(view, 0).unwrap();
-    // The standard's L_0 by the definition over the zone's reading of it:
-    // 1 when the rows read the black glass right.
-    let mut block = vec![0.0f32; brdf_meter::gloss::block_len(view.dims().m)];
-    let (_, _, s_ref) = view.copy_gloss(0, 0, &mut block).unwrap();
-    let ratio = host_tools::forward::gloss::black_glass_specular(45.0) / f64::from(s_ref);
-    println!("\n{}: black glass L_0 by definition / as the zone reads it = {ratio:.3}", kind_label(kind));
-    let bins: Vec<f64> = (0..view.dims().n).map(|j| f64::from(view.grid_deg(j))).collect();
-    let step = bins[1] - bins[0];
+    // The rows' reading of the standard on its own scale: 100 when they
+    // read the black glass right.
+    let s_ref = view.gloss_reference(0).unwrap();
+    println!("\n{}: the black glass as the rows read it, on its own scale: {s_ref:.2} (100 when right)", kind_label(kind));
+    let wo = host_tools::forward::brdf::view_dir(45.0);
     println!("scene | truth G H D | device mean G H D | stated u G H D | coverage at k = {K}");
     let mut all = Tally::default();
     for name in ["patent-profile.toml", "black-glass.toml", "matte-white.toml"] {
         let sc = scene(name);
         let sim = Simulator::new(&sc).unwrap();
         let (brdfs, _) = sc.surface_brdfs().unwrap();
-        let truth = true_readings(&true_rho(brdfs[0].as_ref(), &bins, 45.0, step), &bins, 45.0).unwrap();
+        let truth = model_readings(brdfs[0].as_ref(), &wo);
         let mut tally = Tally::default();
         let (mut mean, mut u) = ([0.0f64; 3], [0.0f64; 3]);
         let lines = 200;
@@ -150,8 +147,7 @@ fn merl_held_out(kind: EstimatorKind) -> (Tally, Tally, usize) {
     let models = PriorMix::parse("merl").unwrap().models(&grid, 45.0, inst.spectral_weights).unwrap();
     let names = models.names();
     let set = NbrdfSet::merl();
-    let bins = grid.bins_deg().to_vec();
-    let step = bins[1] - bins[0];
+    let wo = host_tools::forward::brdf::view_dir(45.0);
     let (mut all, mut trusted, mut flagged) = (Tally::default(), Tally::default(), 0);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     for fold in 0..FOLDS {
@@ -160,7 +156,7 @@ fn merl_held_out(kind: EstimatorKind) -> (Tally, Tally, usize) {
         let est = PointEstimator::new(BlobView::parse(&blob).unwrap(), 0).unwrap();
         for name in names.iter().enumerate().filter(|(i, _)| i % FOLDS == fold).map(|(_, n)| n) {
             let mat = set.by_name(name.trim_start_matches("merl:"), inst.spectral_weights).unwrap();
-            let truth = true_readings(&true_rho(&mat as &dyn Brdf, &bins, 45.0, step), &bins, 45.0).unwrap();
+            let truth = model_readings(&mat as &dyn Brdf, &wo);
             let clean = simulate_readings(&inst, &mat, false);
             for _ in 0..4 {
                 let v: Vec<f32> = clean
