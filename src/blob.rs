@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -58,6 +58,20 @@
 //!
 //! before the CRC. A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
+//!
+//! ## The root form (flag bit 3, the scale-free kinds)
+//! A scale-free calibration may be trained in the root form: its matrices
+//! give roots `t = W x` (x the kernel's input as always) of `rho s` (s the
+//! readings' scale), and the device squares them, `rho_j = t_j^2 / s`, so an
+//! estimate is never negative; the gloss rows likewise give roots of the
+//! linear readings (`crate::gloss::readings_root`). The device evaluates
+//! `W (x / sqrt s)` and squares: `m` multiplies and one square root more
+//! than the linear form, then one multiply per value. The uncertainty is of
+//! the roots per unit scale, `sigma_j`; a point's standard uncertainty of
+//! `rho_j` is `sigma_j (2 sqrt(rho_j s) + sqrt(2) s sigma_j)` (the point's
+//! `sigma_scale` is `s`): larger where the estimate is large, as the errors
+//! of a lobe are. Another kind with the flag is refused (reserved), as is
+//! the flag by a firmware that does not know it.
 //!
 //! # Format version 3
 //! Version 2 (every field and section as above, also for the version 1
@@ -140,6 +154,7 @@ pub const MAX_PIXELS: usize = 4096;
 const FLAG_FAR_FIELD: u16 = 1;
 const FLAG_OUT_OF_PRIOR: u16 = 2;
 const FLAG_GLOSS: u16 = 4;
+const FLAG_ROOT: u16 = 8;
 /// Values of the gloss section before the per-zone data: the assigned value
 /// and the refractive index.
 const GLOSS_HEAD: usize = 2;
@@ -504,11 +519,16 @@ pub struct BlobExtras<'a> {
     pub out_of_prior: Option<OutOfPriorData<'a>>,
     /// The gloss section, if any (format version 3).
     pub gloss: Option<GlossData<'a>>,
+    /// The root form (header flag bit 3, format version 2 and up): the
+    /// kernel's outputs `t` are roots, every value is `t^2 / s` with `s` the
+    /// readings' scale (`crate::estimate`, `crate::gloss::readings_root`).
+    pub root_form: bool,
 }
 
 impl BlobExtras<'_> {
     /// Nothing added.
-    pub const NONE: BlobExtras<'static> = BlobExtras { clusters: 1, centroids: &[], out_of_prior: None, gloss: None };
+    pub const NONE: BlobExtras<'static> =
+        BlobExtras { clusters: 1, centroids: &[], out_of_prior: None, gloss: None, root_form: false };
 }
 
 /// The layout-relevant part of the extras.
@@ -518,12 +538,14 @@ struct Extras {
     piecewise: bool,
     out_of_prior: bool,
     gloss: bool,
+    root_form: bool,
     /// References in the gloss section (P in version 4, Z in version 3).
     gloss_refs: usize,
 }
 
 impl Extras {
-    const NONE: Extras = Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false, gloss_refs: 0 };
+    const NONE: Extras =
+        Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false, root_form: false, gloss_refs: 0 };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
         Extras {
@@ -531,6 +553,7 @@ impl Extras {
             piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
             out_of_prior: x.out_of_prior.is_some(),
             gloss: x.gloss.is_some(),
+            root_form: x.root_form,
             gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
         }
     }
@@ -539,6 +562,7 @@ impl Extras {
         self.clusters != 1
             || self.piecewise
             || self.out_of_prior
+            || self.root_form
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
@@ -550,6 +574,9 @@ impl Extras {
         } else {
             k == 1 && !self.piecewise
         };
+        if self.root_form && !matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+            return Err(BlobError::ReservedNotZero);
+        }
         if ok {
             Ok(())
         } else {
@@ -648,7 +675,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     put_u16(out, 20, c.estimator as u16);
     let oop_flag = if ex.out_of_prior { FLAG_OUT_OF_PRIOR } else { 0 };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
-    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag);
+    let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
+    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag | root_flag);
     if v2 {
         put_u16(out, 48, k as u16);
         put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
@@ -741,6 +769,7 @@ impl<'a> BlobView<'a> {
                 piecewise: kind == EstimatorKind::ScaleFreePiecewise,
                 out_of_prior: flags & FLAG_OUT_OF_PRIOR != 0,
                 gloss,
+                root_form: flags & FLAG_ROOT != 0,
                 gloss_refs: match (gloss, version) {
                     (false, _) => 0,
                     (true, FORMAT_VERSION_3) => dims.zones,
@@ -776,7 +805,7 @@ impl<'a> BlobView<'a> {
             bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
         } else {
             bytes[50..52].iter().chain(&bytes[56..64]).all(|b| *b == 0)
-                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS) == 0
+                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT) == 0
                 && (ex.out_of_prior || get_u32(bytes, 52) == 0)
         };
         if !reserved_ok {
@@ -978,6 +1007,19 @@ impl<'a> BlobView<'a> {
         assert!(z < self.dims.zones && c < self.lay.clusters && j < self.dims.n);
         get_f32(self.bytes, self.lay.uncertainty + 4 * ((z * self.lay.clusters + c) * self.dims.n + j))
     }
+    /// A point's standard uncertainty of bin `j`, from its zone `z`,
+    /// cluster `c`, estimate `rho` of the bin and `sigma_scale` (the frame's):
+    /// the blob's uncertainty times `|sigma_scale|`, or in the root form
+    /// [`crate::kernel::scale_free::root_uncertainty`], which follows the
+    /// point's own estimate.
+    pub fn point_uncertainty(&self, z: usize, c: usize, j: usize, rho: f32, sigma_scale: f32) -> f32 {
+        let u = self.uncertainty_of(z, c, j);
+        if self.root_form() {
+            crate::kernel::scale_free::root_uncertainty(u, rho, sigma_scale)
+        } else {
+            u * sigma_scale.abs()
+        }
+    }
     /// Element (j, i) of zone `z`'s matrix (cluster 0).
     pub fn w(&self, z: usize, j: usize, i: usize) -> f32 {
         assert!(z < self.dims.zones && j < self.dims.n && i < self.dims.m);
@@ -1047,6 +1089,14 @@ impl<'a> BlobView<'a> {
             reference: &all[GLOSS_HEAD..GLOSS_HEAD + r],
             blocks: &all[GLOSS_HEAD + r..],
         })
+    }
+    /// Whether the calibration is in the root form (flag bit 3): the
+    /// kernel's outputs are roots `t`, the estimate `t^2 / s`.
+    pub fn root_form(&self) -> bool {
+        self.dims_flags() & FLAG_ROOT != 0
+    }
+    fn dims_flags(&self) -> u16 {
+        get_u16(self.bytes, 22)
     }
     /// Whether the blob carries the gloss section.
     pub fn has_gloss(&self) -> bool {
@@ -1292,6 +1342,7 @@ mod tests {
             centroids: &cents,
             out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }),
             gloss: None,
+            root_form: false,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1343,7 +1394,7 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None, gloss: None };
+        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None, gloss: None, root_form: false };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
         // The threshold must be positive.
@@ -1354,6 +1405,7 @@ mod tests {
             centroids: &[],
             out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }),
             gloss: None,
+            root_form: false,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1364,6 +1416,7 @@ mod tests {
             centroids: &[],
             out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }),
             gloss: None,
+            root_form: false,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1390,6 +1443,7 @@ mod tests {
             centroids: &cents,
             out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
             gloss: Some(g),
+            root_form: false,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();
@@ -1553,6 +1607,7 @@ mod tests {
             centroids: &cents,
             out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
+            root_form: false,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();

@@ -50,6 +50,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     in_place: &'static [f32],
     /// Which rule turns readings into an estimate.
     kind: EstimatorKind,
+    /// The root form: the kernel's outputs are roots (`crate::blob`).
+    root: bool,
     /// K, matrices per zone (piecewise: one per cluster of readings).
     clusters: usize,
     /// Piecewise: the blob's centroids in flash, Z x K x m.
@@ -197,6 +199,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             home: if in_ram { MatrixHome::Ram } else { MatrixHome::InPlace },
             in_place,
             kind: view.estimator(),
+            root: view.root_form(),
             clusters: k,
             centroids,
             out_of_prior,
@@ -281,6 +284,9 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     ///   replaced by the scale, so no extra multiply-adds);
     /// - scale-free piecewise: the same with the matrix of the cluster
     ///   [`crate::kernel::select_cluster`] picks from the zone's centroids;
+    /// - in the root form (the scale-free kinds, `crate::blob`): the kernel's
+    ///   input over the square root of the scale, its outputs squared (never
+    ///   negative);
     ///
     /// and, when the blob carries out-of-prior data, flags the point whose
     /// statistic is above the threshold (or not a number); and, when it
@@ -298,6 +304,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         // Built in locals and written once at the end (the frame's fields
         // are not stored twice per point).
         let (mut cluster, mut flags, mut sigma_scale) = (0u8, 0u8, 1.0f32);
+        // The root form's sqrt(s), for the gloss readings.
+        let mut root_sqrt_s = 0.0f32;
         // The kernel's input: the readings, or (scale-free) a copy whose last is the scale.
         let mut vs;
         let mut x = v;
@@ -312,8 +320,16 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                 };
                 vs = *v;
                 vs[M - 1] = s;
+                if a.root {
+                    let (sqrt_s, r) = crate::kernel::root_scales(s);
+                    crate::kernel::scale_input(vs.as_mut_slice(), r);
+                    root_sqrt_s = sqrt_s;
+                }
                 x = &vs;
                 point_kernel(self.matrix_of(z, c), x, out);
+                if a.root {
+                    crate::kernel::square_in_place(out.as_mut_slice());
+                }
                 cluster = c as u8;
                 sigma_scale = s;
                 (s, c)
@@ -333,7 +349,11 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(g) => {
                 let bl = crate::gloss::block_len(M);
                 let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
-                crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
+                if a.root {
+                    crate::gloss::readings_root(block, x.as_slice(), a.gloss_q[p], root_sqrt_s)
+                } else {
+                    crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
+                }
             }
             None => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
         };

@@ -83,36 +83,6 @@ pub const fn cov_index(i: usize, j: usize) -> usize {
     i * LINEAR - i * (i + 1) / 2 + j
 }
 
-/// `sqrt(max(x, 0))`, IEEE-exact on both sides: the M4's `VSQRT` on the
-/// device, libm (correctly rounded) elsewhere.
-#[inline]
-fn sqrt0(x: f32) -> f32 {
-    let x = if x > 0.0 { x } else { 0.0 };
-    #[cfg(all(target_arch = "arm", target_os = "none", target_abi = "eabihf"))]
-    {
-        // Through core registers: naming an FPU register needs the `vfp2`
-        // target feature, which rustc does not expose on stable.
-        let bits: u32;
-        // SAFETY: one FPU instruction on a register moved in and out, no memory access.
-        unsafe {
-            core::arch::asm!(
-                "vmov s0, {x}",
-                "vsqrt.f32 s0, s0",
-                "vmov {r}, s0",
-                x = in(reg) x.to_bits(),
-                r = lateout(reg) bits,
-                out("s0") _,
-                options(pure, nomem, nostack)
-            )
-        };
-        f32::from_bits(bits)
-    }
-    #[cfg(not(all(target_arch = "arm", target_os = "none", target_abi = "eabihf")))]
-    {
-        libm::sqrtf(x)
-    }
-}
-
 /// One point's readings and their standard uncertainties.
 ///
 /// `block` is the zone and cluster's [`block_len`]`(m)` values, `x` the
@@ -142,13 +112,85 @@ pub fn readings(
     // 100 (L_2 - L_3) / L_2, as 100 - 100 r (one multiply-subtract).
     let d = if l[2] > 0.0 { 100.0 - 100.0 * r } else { f32::NAN };
     let var_d = (r * r) * c[7] - 2.0 * r * c[8] + c[9];
-    let u_d = if l[2] > 0.0 { 100.0 * s.abs() * (sqrt0(var_d) / l[2]) } else { f32::NAN };
+    let u_d = if l[2] > 0.0 { 100.0 * s.abs() * (crate::kernel::sqrt0(var_d) / l[2]) } else { f32::NAN };
     ([q * l[0], q * l[1], d], [qs * sd[0], qs * sd[1], u_d])
+}
+
+/// One point's readings and their standard uncertainties in the root form
+/// (`crate::blob`'s flag bit 3). `x` is the kernel's input already scaled
+/// by `1 / sqrt(s)` (`crate::kernel::root_scales`, `s` the readings'
+/// scale) and `sqrt_s` is `sqrt(s)`: the rows give `t' = t / sqrt(s)` with
+/// `t` the roots of `L s`, so every linear reading `L_r = t'_r^2` is
+/// non-negative by construction and every reading lies within its
+/// definition: gloss and haze >= 0, distinctness
+/// `D = 100 max(L_2 - L_3, 0) / L_2` in 0..=100 (0 for no peak, `t'_2 = 0`).
+/// The covariance is of `t / s` (per unit scale), so to first order
+/// `u(G) = 2 q sqrt(s) |t'_0| sqrt(C_00)`, likewise haze, and, with
+/// `r = t'_3 / t'_2`, `u(D) = 200 sqrt(s) |t'_3| sqrt(r^2 C_22 - 2 r C_23 + C_33) / t'_2^2`
+/// (NaN with no peak). Readings of no light (`sqrt_s` not positive) give NaN.
+///
+/// # Panics
+/// If `block.len() != block_len(x.len())`.
+#[inline]
+pub fn readings_root(
+    block: &[f32],
+    x: &[f32],
+    q: f32,
+    sqrt_s: f32,
+) -> ([f32; crate::shape::READINGS], [f32; crate::shape::READINGS]) {
+    let m = x.len();
+    assert!(block.len() == block_len(m), "a gloss block is LINEAR x m rows and the covariance");
+    if !(sqrt_s > 0.0) {
+        return (NO_READINGS, NO_READINGS);
+    }
+    let mut t = [0.0f32; LINEAR];
+    crate::kernel::mat_vec_f32_4(&block[..LINEAR * m], x, &mut t);
+    let c = &block[LINEAR * m..];
+    let sd = &c[COV_LEN..];
+    let (t2, t3) = (t[2], t[3]);
+    let (d, u_d) = if t2 != 0.0 {
+        let r = t3 / t2;
+        let r2 = r * r;
+        let d = if r2 < 1.0 { 100.0 - 100.0 * r2 } else { 0.0 };
+        let var = r2 * c[7] - 2.0 * r * c[8] + c[9];
+        (d, 200.0 * sqrt_s * (t3.abs() * crate::kernel::sqrt0(var)) / (t2 * t2))
+    } else {
+        (0.0, f32::NAN)
+    };
+    let qs = 2.0 * q * sqrt_s;
+    ([q * (t[0] * t[0]), q * (t[1] * t[1]), d], [qs * t[0].abs() * sd[0], qs * t[1].abs() * sd[1], u_d])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_root_form_reads_within_the_definitions() {
+        // m = 2, x' = (1, 1) (already over sqrt(s) = 2): t' = (3, 1, 2, 1), L = t'^2.
+        let mut block = [0.0f32; 4 * 2 + COV_LEN + SD_LEN];
+        block[..8].copy_from_slice(&[1.5, 1.5, 0.5, 0.5, 1.0, 1.0, 0.5, 0.5]);
+        block[8 + cov_index(2, 2)] = 0.01;
+        block[8 + cov_index(3, 3)] = 0.01;
+        block[8 + COV_LEN] = 0.1;
+        block[8 + COV_LEN + 1] = 0.2;
+        let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0);
+        assert_eq!(r, [2.0 * 9.0, 2.0 * 1.0, 75.0]);
+        assert_eq!([u[0], u[1]], [8.0 * 3.0 * 0.1, 8.0 * 1.0 * 0.2]);
+        assert!(u[2] > 0.0);
+        // Negative roots still give non-negative readings; shoulders above
+        // the peak give no distinctness, not a negative one.
+        let mut neg = block;
+        for x in &mut neg[..8] {
+            *x = -*x;
+        }
+        neg[6] = -1.5;
+        neg[7] = -1.5;
+        let (r, _) = readings_root(&neg, &[1.0, 1.0], 2.0, 2.0);
+        assert!(r[0] > 0.0 && r[1] > 0.0 && r[2] == 0.0, "{r:?}");
+        // Readings of no light: no reading.
+        assert!(readings_root(&block, &[0.0, 0.0], 2.0, 0.0).0.iter().all(|x| x.is_nan()));
+    }
 
     #[test]
     fn packed_covariance_indices_run_row_by_row() {

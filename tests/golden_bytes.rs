@@ -148,6 +148,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         centroids: &centroids,
         out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }),
         gloss: None,
+        root_form: false,
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");

@@ -62,6 +62,7 @@ fn bench(c: &mut Criterion) {
                 far_field: false,
                 led_order: None,
                 white: None,
+                root: false,
             })
             .unwrap()
         })

@@ -247,6 +247,7 @@ fn spec<'a>(
         far_field: false,
         led_order: None,
         white: None,
+        root: host_tools::calibration::train::Form::default_for(kind) == host_tools::calibration::train::Form::Root,
     }
 }
 
@@ -390,6 +391,7 @@ fn scene_library_hard_cases_stay_stable() {
             far_field: false,
             led_order: None,
             white: Some(optics.white),
+            root: false,
         };
         match train(&spec) {
             Ok(t) => {

@@ -65,6 +65,31 @@ pub fn estimate_scale_free(w: &[f32], v: &[f32], out: &mut [f32]) -> f32 {
     s
 }
 
+/// Scale-free estimate of one point in the root form (`crate::blob`'s flag
+/// bit 3): the kernel's input `x = [v_0 .. v_{m-2}, s] / sqrt(s)`
+/// (`crate::kernel::root_scales`), `out[j] = (sum_i w[j*m+i] x[i])^2`
+/// accumulated in index order (unfused), never negative. Returns
+/// `(s, sqrt(s))`; readings of no light give an estimate of 0.
+///
+/// # Panics
+/// If `w.len() != out.len() * v.len()` or `v` is empty.
+#[inline]
+pub fn estimate_scale_free_root(w: &[f32], v: &[f32], out: &mut [f32]) -> (f32, f32) {
+    let m = v.len();
+    assert!(m > 0 && w.len() == out.len() * m, "w must be n x m");
+    let s = scale(v);
+    let (sqrt_s, r) = crate::kernel::root_scales(s);
+    for (row, o) in w.chunks_exact(m).zip(out.iter_mut()) {
+        let mut acc = 0.0f32;
+        for (i, wi) in row.iter().enumerate() {
+            let x = if i + 1 == m { s } else { v[i] };
+            acc += *wi * (x * r);
+        }
+        *o = acc * acc;
+    }
+    (s, sqrt_s)
+}
+
 /// Piecewise scale-free estimate: picks the cluster with the device's rule
 /// ([`crate::kernel::select_cluster`], nearest centroid of `v / sum|v|`),
 /// then [`estimate_scale_free`] with that cluster's matrix. `ws` holds K
@@ -137,6 +162,19 @@ pub fn scaled_uncertainty(sigma_unit: &[f32], s: f32, out: &mut [f32]) {
     for (o, x) in out.iter_mut().zip(sigma_unit) {
         *o = *x * a;
     }
+}
+
+/// One bin's standard uncertainty of a root-form estimate (`crate::blob`'s
+/// flag bit 3): with the root's uncertainty per unit scale `sigma` and the
+/// estimate `rho = t^2 / s`, `sigma (2 sqrt(rho s) + sqrt(2) s sigma)`, an
+/// upper bound within 1.21x of the standard deviation of `(t + e)^2 / s`
+/// for a normal root error `e` of standard deviation `s sigma`
+/// (`sqrt(4 t^2 sigma^2 + 2 s^2 sigma^4)`). So the uncertainty follows the
+/// point: large on its lobe, small in its dark tails.
+#[inline]
+pub fn root_uncertainty(sigma: f32, rho: f32, s: f32) -> f32 {
+    let s = s.abs();
+    sigma * (2.0 * crate::kernel::sqrt0(rho * s) + core::f32::consts::SQRT_2 * s * sigma)
 }
 
 #[cfg(test)]

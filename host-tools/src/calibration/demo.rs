@@ -35,6 +35,7 @@ pub fn train_scene(
         criterion,
         false_alarm: 0.05,
         clusters: None,
+        root: crate::calibration::train::Form::default_for(kind) == crate::calibration::train::Form::Root,
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white),

@@ -160,17 +160,22 @@ fn f32_measure(w: &DMatrix<f64>, vs: &[DVector<f64>], exps: &[i32]) -> (f64, boo
 }
 
 /// The scale-free form of the gate: the device's own function
-/// (`brdf_meter::kernel::scale_free::estimate_scale_free`) on the readings
+/// (`brdf_meter::kernel::scale_free::estimate_scale_free`, or its root
+/// form's) on the readings
 /// against the map's f64 estimate; the relative error, or a refusal.
-pub fn scale_free_gate(map: &ScaleFreeMap, readings: &DMatrix<f64>) -> Result<f64, f64> {
+pub fn scale_free_gate(map: &ScaleFreeMap, readings: &DMatrix<f64>, root: bool) -> Result<f64, f64> {
     let (n, m) = map.w.shape();
     let w32 = map.w_f32();
     let (mut worst, mut scale) = (0.0f64, 0.0f64);
     let mut out = vec![0.0f32; n];
     for v in readings.column_iter() {
         let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-        brdf_meter::kernel::scale_free::estimate_scale_free(&w32, &v32, &mut out);
-        let e64 = map.estimate(&DVector::from_iterator(m, v32.iter().map(|x| *x as f64)));
+        if root {
+            brdf_meter::kernel::scale_free::estimate_scale_free_root(&w32, &v32, &mut out);
+        } else {
+            brdf_meter::kernel::scale_free::estimate_scale_free(&w32, &v32, &mut out);
+        }
+        let e64 = map.estimate(&DVector::from_iterator(m, v32.iter().map(|x| *x as f64)), root);
         for j in 0..n {
             worst = worst.max((out[j] as f64 - e64[j]).abs());
             scale = scale.max(e64[j].abs());

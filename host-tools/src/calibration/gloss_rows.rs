@@ -164,14 +164,14 @@ pub fn reading_weighted(pairs: &Pairs, target: &DMatrix<f64>) -> Pairs {
 }
 
 /// The zone's reading `S_z` of the standard: the device's own linear
-/// reading `L_0` (f32, `brdf_meter::gloss::readings` with q = 1) of the
+/// reading `L_0` (f32, the device's function with q = 1) of the
 /// black glass's readings `v` (already the kernel input `x`), through
 /// `block`. `None` for a reading that is not positive: the zone does not
 /// see the standard's mirror reflection (no LED ray near the specular
 /// direction from where it looks), so no gloss scale can be set and the
 /// zone has no gloss reading ([`GlossSection::push_no_reading`]).
-pub fn standard_reading(block: &[f32], x: &[f32]) -> Option<f32> {
-    let (r, _) = brdf_meter::gloss::readings(block, x, 1.0, 1.0);
+pub fn standard_reading(block: &[f32], x: &[f32], root: bool) -> Option<f32> {
+    let (r, _) = device_readings(block, x, 1.0, 1.0, root);
     let s = r[brdf_meter::gloss::SPECULAR_GU];
     (s.is_finite() && s > 0.0).then_some(s)
 }
@@ -237,11 +237,24 @@ pub const COVERAGE_K: f64 = 2.0;
 /// The coverage it must reach on held-out training samples.
 pub const COVERAGE: f64 = 0.95;
 
+/// The device's readings of a point: `brdf_meter::gloss::readings`, or in
+/// the root form `readings_root` (`x` then over `sqrt(s)` and `s` its
+/// `sqrt(s)`).
+pub fn device_readings(
+    block: &[f32],
+    x: &[f32],
+    q: f32,
+    s: f32,
+    root: bool,
+) -> ([f32; brdf_meter::shape::READINGS], [f32; brdf_meter::shape::READINGS]) {
+    if root { brdf_meter::gloss::readings_root(block, x, q, s) } else { brdf_meter::gloss::readings(block, x, q, s) }
+}
+
 /// The standardised errors `(reading - truth) / u` of one point's readings
 /// (gloss, haze, distinctness), from the device's own function; NaN where
 /// either side has no reading.
-pub fn z_scores(block: &[f32], x: &[f32], q: f32, s: f32, truth: &[f64; 3]) -> [f64; 3] {
-    let (r, u) = brdf_meter::gloss::readings(block, x, q, s);
+pub fn z_scores(block: &[f32], x: &[f32], q: f32, s: f32, truth: &[f64; 3], root: bool) -> [f64; 3] {
+    let (r, u) = device_readings(block, x, q, s, root);
     std::array::from_fn(|i| (f64::from(r[i]) - truth[i]) / f64::from(u[i]))
 }
 

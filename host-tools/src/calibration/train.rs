@@ -63,6 +63,9 @@ pub struct TrainSpec<'a> {
     /// `scale_free::CLUSTER_COUNTS` with the least cross-validated error):
     /// what fits a calibration of many zones into its flash slot.
     pub clusters: Option<usize>,
+    /// The root form (the scale-free kinds: every estimate and reading
+    /// within its definition by construction, `brdf_meter::blob`).
+    pub root: bool,
     /// Whether H was modelled far-field (recorded in the blob).
     pub far_field: bool,
     /// LED fired for reading i (a permutation of 0..m); `None` = 0..m.
@@ -70,6 +73,29 @@ pub struct TrainSpec<'a> {
     /// White reference, P x m; `None` = 1.0 everywhere (a simulated sensor
     /// that is already white-normalised).
     pub white: Option<Vec<f32>>,
+}
+
+/// The form a calibration is trained in (`brdf_meter::blob`'s root form).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Form {
+    /// Roots of the values, squared on the device: no estimate is negative
+    /// and every reading lies within its definition (the scale-free kinds).
+    Root,
+    /// The values themselves (the patent's form; an estimate may go
+    /// negative where the prior's shapes do not fit the surface).
+    Linear,
+}
+
+impl Form {
+    /// The form a kind is trained in unless asked otherwise: root for the
+    /// scale-free kinds, linear for the others (the patent's estimators).
+    pub fn default_for(kind: EstimatorKind) -> Self {
+        if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
+            Self::Root
+        } else {
+            Self::Linear
+        }
+    }
 }
 
 /// One zone's trained estimator.
@@ -201,6 +227,11 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
             );
         }
     }
+    ensure!(
+        !spec.root || matches!(spec.estimator, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise),
+        "the root form is for the scale-free kinds; train the {} estimator in the linear form (--form linear)",
+        kind_name(spec.estimator)
+    );
     let pairs: Vec<Pairs> = raw.iter().map(|p| p.weighted(spec.criterion)).collect();
     let zones = match spec.estimator {
         EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => scale_free_zones(spec, &pairs)?,
@@ -258,6 +289,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         centroids: &centroids,
         out_of_prior: threshold.map(|threshold| OutOfPriorData { threshold, data: &oop }),
         gloss: gloss.as_ref().map(GlossSection::data),
+        root_form: spec.root,
     };
     let mut blob = vec![0u8; dims.blob_len_with(&extras)];
     let len = write_blob_with(&contents, &extras, &mut blob)
@@ -326,7 +358,7 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
         spec.false_alarm
     );
     let piecewise = spec.estimator == EstimatorKind::ScaleFreePiecewise;
-    let opts = ScaleFreeOptions { piecewise, false_alarm: spec.false_alarm, ..Default::default() };
+    let opts = ScaleFreeOptions { piecewise, false_alarm: spec.false_alarm, root: spec.root, ..Default::default() };
     // Per zone and cluster count: the best ridge and its error.
     let counts: Vec<usize> = match (piecewise, spec.clusters) {
         (false, _) => vec![1],
@@ -400,7 +432,7 @@ fn gate(spec: &TrainSpec<'_>, zones: &[TrainedZone], raw: &[Pairs]) -> anyhow::R
             ZoneEstimator::ScaleFree(sz) => {
                 let mut rel = 0.0f64;
                 for (c, map) in sz.maps.iter().enumerate() {
-                    rel = rel.max(scale_free_gate(map, &p.readings).map_err(|e| {
+                    rel = rel.max(scale_free_gate(map, &p.readings, sz.root).map_err(|e| {
                         anyhow::anyhow!(
                             "zone {z}, cluster {c}: f32 evaluation differs from f64 by {e:.2e} of the estimate's scale \
                              (tolerance {F32_TOLERANCE:.0e}); retrain with more noise (--noise)"
@@ -528,7 +560,7 @@ fn gloss_section(
                 for _ in 0..gloss_rows::HELD_OUT_DRAWS {
                     let noisy = noisy(&v, &var, &mut rng);
                     let (c, x, sc) = kernel_input(tz, plan, &noisy);
-                    zs.push(gloss_rows::z_scores(&fb[c], &x, q, sc, &truth));
+                    zs.push(gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz)));
                 }
             }
         }
@@ -541,7 +573,7 @@ fn gloss_section(
         // reads its assigned value at every pixel.
         for p in zo.first_pixel..end {
             let (c, x, _) = kernel_input(tz, plan, &gloss_rows::black_glass_readings(zo.pixel(p)));
-            out.reference.push(gloss_rows::standard_reading(&blocks[c], &x).unwrap_or(s));
+            out.reference.push(gloss_rows::standard_reading(&blocks[c], &x, root_of(tz)).unwrap_or(s));
         }
         out.blocks.extend(blocks.into_iter().flatten());
     }
@@ -571,12 +603,14 @@ fn gloss_rows_of(
         }
     };
     let (c, x, _) = kernel_input(tz, plan, bg);
-    Ok(gloss_rows::standard_reading(&blocks[c], &x).map(|s| (blocks, s)))
+    Ok(gloss_rows::standard_reading(&blocks[c], &x, root_of(tz)).map(|s| (blocks, s)))
 }
 
 /// The device's cluster, kernel input and scale for readings `v`: the
 /// readings as the device corrects them (`v 2^-e`), and for the scale-free
 /// kinds with the last replaced by their scale.
+/// In the root form the input is over `sqrt(s)` and the scale returned is
+/// `sqrt(s)` (`brdf_meter::gloss::readings_root`'s arguments).
 fn kernel_input(tz: &TrainedZone, plan: &F32Plan, v: &DVector<f64>) -> (usize, Vec<f32>, f32) {
     let mut x = plan.readings(v);
     match &tz.estimator {
@@ -586,9 +620,20 @@ fn kernel_input(tz: &TrainedZone, plan: &F32Plan, v: &DVector<f64>) -> (usize, V
             let s = brdf_meter::kernel::scale_free::scale(&x);
             let m = x.len();
             x[m - 1] = s;
-            (c, x, s)
+            if sz.root {
+                let (sqrt_s, r) = brdf_meter::kernel::root_scales(s);
+                brdf_meter::kernel::scale_input(&mut x, r);
+                (c, x, sqrt_s)
+            } else {
+                (c, x, s)
+            }
         }
     }
+}
+
+/// Whether a zone's gloss rows are in the root form.
+fn root_of(tz: &TrainedZone) -> bool {
+    tz.scale_free().is_some_and(|z| z.root)
 }
 
 /// One noisy draw of readings `v` with variances `var`.
@@ -828,6 +873,7 @@ mod tests {
             far_field: false,
             led_order: None,
             white: None,
+            root: false,
         }
     }
 

@@ -83,6 +83,11 @@ pub struct Args {
     /// fewer fit more zones in a calibration slot.
     #[arg(long)]
     pub clusters: Option<usize>,
+    /// The form: `root` (the scale-free kinds' default: every estimate
+    /// non-negative, every reading within its definition) or `linear` (the
+    /// patent's, the other kinds' only form).
+    #[arg(long, value_enum)]
+    pub form: Option<crate::calibration::train::Form>,
     /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.
     #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
     pub false_alarm: f64,
@@ -162,6 +167,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         criterion: a.criterion.into(),
         false_alarm: a.false_alarm,
         clusters: a.clusters,
+        root: a.form.unwrap_or(crate::calibration::train::Form::default_for(kind))
+            == crate::calibration::train::Form::Root,
         far_field,
         led_order: None,
         white,
@@ -291,6 +298,7 @@ pub(crate) mod tests {
             clusters: None,
             false_alarm: 0.05,
             sign: None,
+            form: None,
         }
     }
 

@@ -93,10 +93,15 @@ pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [Point
     (csv, json)
 }
 
-/// The calibration's per-bin standard uncertainty for point `p`: its zone's
-/// and cluster's, times the point's scale, on the bins the point carries.
+/// The calibration's per-bin standard uncertainty for point `p` on the bins
+/// it carries: its zone's and cluster's, for its scale and (root form) its
+/// own estimate (`BlobView::point_uncertainty`).
 pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
-    p.bins.bins().map(|j| view.uncertainty_of(p.zone as usize, p.cluster as usize, j) * p.sigma_scale.abs()).collect()
+    p.bins
+        .bins()
+        .zip(&p.values)
+        .map(|(j, v)| view.point_uncertainty(p.zone as usize, p.cluster as usize, j, *v, p.sigma_scale))
+        .collect()
 }
 
 /// The points as profiles for the plot and the standard files.

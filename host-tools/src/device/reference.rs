@@ -15,7 +15,8 @@ use brdf_meter::acquire::{AcqConfig, Shorter, correct_point_into};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
 use brdf_meter::kernel::scale_free::{
-    estimate_scale_free, out_of_prior_stat, scale, scaled_uncertainty, whitening_len,
+    estimate_scale_free, estimate_scale_free_root, out_of_prior_stat, root_uncertainty, scale, scaled_uncertainty,
+    whitening_len,
 };
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
 use brdf_meter::protocol::flags;
@@ -147,11 +148,23 @@ impl<'a> PointEstimator<'a> {
         if v.iter().any(|x| !x.is_finite()) {
             bits |= flags::NON_FINITE;
         }
+        let root = self.view.root_form();
+        let mut sqrt_s = 0.0f32;
         let (s, sigma_scale, cluster) = match self.view.estimator() {
             EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => {
                 let c = if self.centroids.is_empty() { 0 } else { select_cluster(&self.centroids, v) };
-                let s = estimate_scale_free(&self.mats[c], v, &mut rho);
-                scaled_uncertainty(&self.sigma[c], s, &mut sigma);
+                let s = if root {
+                    let (s, r) = estimate_scale_free_root(&self.mats[c], v, &mut rho);
+                    sqrt_s = r;
+                    for (j, o) in sigma.iter_mut().enumerate() {
+                        *o = root_uncertainty(self.sigma[c][j], rho[j], s);
+                    }
+                    s
+                } else {
+                    let s = estimate_scale_free(&self.mats[c], v, &mut rho);
+                    scaled_uncertainty(&self.sigma[c], s, &mut sigma);
+                    s
+                };
                 (s, s, c as u8)
             }
             _ => {
@@ -175,7 +188,12 @@ impl<'a> PointEstimator<'a> {
             if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
                 x[v.len() - 1] = s;
             }
-            (readings, reading_sigma) = brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, sigma_scale);
+            (readings, reading_sigma) = if root {
+                brdf_meter::kernel::scale_input(&mut x, brdf_meter::kernel::root_scales(s).1);
+                brdf_meter::gloss::readings_root(&blocks[cluster as usize], &x, q, sqrt_s)
+            } else {
+                brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, sigma_scale)
+            };
         }
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);

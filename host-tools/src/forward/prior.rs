@@ -68,7 +68,10 @@ impl SampleSet {
 
     /// The samples on the grid, as reflectance factors at `view_deg`: n x K.
     pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> DMatrix<f64> {
-        DMatrix::from_fn(grid.n(), self.len(), |j, k| self.brdfs[k].reflectance(grid.bins_deg()[j], view_deg))
+        let wo = crate::forward::brdf::view_dir(view_deg);
+        DMatrix::from_fn(grid.n(), self.len(), |j, k| {
+            crate::forward::brdf::binned_factor_at(self.brdfs[k].as_ref(), grid.bins_deg()[j], &wo, grid.step_deg())
+        })
     }
 }
 

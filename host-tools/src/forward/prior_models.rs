@@ -32,7 +32,13 @@ impl SampleModel {
     pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
         match self {
             Self::Brdf(b) => {
-                DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg)))
+                let wo = crate::forward::brdf::view_dir(view_deg);
+                DVector::from_iterator(
+                    grid.n(),
+                    grid.bins_deg()
+                        .iter()
+                        .map(|t| crate::forward::brdf::binned_factor_at(b.as_ref(), *t, &wo, grid.step_deg())),
+                )
             }
             Self::Profile(p) => p.clone(),
         }

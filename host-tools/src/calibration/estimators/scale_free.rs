@@ -23,11 +23,26 @@
 //! - lambda (and the piecewise estimator's cluster count) is chosen by k-fold
 //!   cross-validation inside the prior, on the error normalised by each
 //!   sample's peak: never on a material the evaluation holds out.
+//!
+//! The root form (`brdf_meter::blob`'s flag bit 3) fits the same affine map
+//! to the roots `y = sqrt(rho / s)` instead of `rho / s`; the device
+//! squares, so no estimate is negative, and a lobe's sharp peak and its
+//! dark tails are nearer one scale for a linear map. Each pair's weight is
+//! multiplied by `peak / s`, so an error of the root at the peak counts as
+//! the reflectance factor's error relative to the peak would (`d rho = 2 s y
+//! dy`). Its uncertainty per unit scale is the RMS of held-out roots'
+//! errors per bin and cluster (each pair read by the fold's map trained
+//! without it, with noise draws), scaled by the one factor that makes
+//! `COVERAGE` of the held-out values fall within `COVERAGE_K` of the
+//! point's stated uncertainty (`root_uncertainty`); the linear form keeps
+//! the in-sample posterior.
 use crate::calibration::estimators::clustered::kmeans;
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
-use brdf_meter::kernel::scale_free::{estimate_scale_free, out_of_prior_stat, scale, whitening_len};
+use brdf_meter::kernel::scale_free::{
+    estimate_scale_free, estimate_scale_free_root, out_of_prior_stat, root_uncertainty, scale, whitening_len,
+};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -85,13 +100,19 @@ impl ScaleFreeMap {
         self.w.transpose().iter().map(|x| *x as f32).collect()
     }
 
-    /// f64 estimate (the reference the f32 path is checked against).
-    pub fn estimate(&self, v: &DVector<f64>) -> DVector<f64> {
+    /// f64 estimate (the reference the f32 path is checked against); in
+    /// the root form the map's outputs over `sqrt(s)`, squared.
+    pub fn estimate(&self, v: &DVector<f64>, root: bool) -> DVector<f64> {
         let m = v.len();
         let s: f64 = v.iter().sum();
         let mut x = v.clone();
         x[m - 1] = s;
-        &self.w * x
+        if root {
+            let r = if s > 0.0 { 1.0 / s.sqrt() } else { 0.0 };
+            (&self.w * (x * r)).map(|t| t * t)
+        } else {
+            &self.w * x
+        }
     }
 }
 
@@ -128,6 +149,8 @@ pub struct ScaleFreeZone {
     pub ridge: f64,
     /// Cross-validated mean peak-normalised error of the chosen setting.
     pub cv_error: f64,
+    /// Whether the maps are in the root form.
+    pub root: bool,
 }
 
 impl ScaleFreeZone {
@@ -137,10 +160,19 @@ impl ScaleFreeZone {
         let n = self.maps[0].w.nrows();
         let mut out = vec![0.0f32; n];
         let c = if self.centroids.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&self.centroids, v) };
-        let s = estimate_scale_free(&self.maps[c].w_f32(), v, &mut out);
         let unit: Vec<f32> = self.maps[c].sigma_unit.iter().map(|x| *x as f32).collect();
         let mut sigma = vec![0.0f32; n];
-        brdf_meter::kernel::scale_free::scaled_uncertainty(&unit, s, &mut sigma);
+        let s = if self.root {
+            let (s, _) = estimate_scale_free_root(&self.maps[c].w_f32(), v, &mut out);
+            for j in 0..n {
+                sigma[j] = root_uncertainty(unit[j], out[j], s);
+            }
+            s
+        } else {
+            let s = estimate_scale_free(&self.maps[c].w_f32(), v, &mut out);
+            brdf_meter::kernel::scale_free::scaled_uncertainty(&unit, s, &mut sigma);
+            s
+        };
         (out, sigma, out_of_prior_stat(&self.out_of_prior.g, &self.out_of_prior.mean, v, s), c)
     }
 }
@@ -156,7 +188,15 @@ struct Normalised {
     w: Vec<f64>,
 }
 
-fn normalise(pairs: &Pairs, target: &DMatrix<f64>) -> anyhow::Result<Normalised> {
+/// How a target is fitted: as it is, or in the root form with each pair's
+/// level (its truth's peak; a gloss row's reading) for the weight.
+#[derive(Clone, Copy, Debug)]
+enum Form<'a> {
+    Linear,
+    Root(&'a [f64]),
+}
+
+fn normalise(pairs: &Pairs, target: &DMatrix<f64>, form: Form<'_>) -> anyhow::Result<Normalised> {
     let mut out = Normalised { u: Vec::new(), y: Vec::new(), sn: Vec::new(), w: Vec::new() };
     for k in 0..pairs.len() {
         let v = pairs.readings.column(k);
@@ -167,11 +207,30 @@ fn normalise(pairs: &Pairs, target: &DMatrix<f64>) -> anyhow::Result<Normalised>
             pairs.sample[k]
         );
         out.u.push(v / s);
-        out.y.push(target.column(k) / s);
         out.sn.push(pairs.noise_var.column(k).map(|x| x.max(0.0).sqrt() / s));
-        out.w.push(pairs.weights[k] * s * s);
+        match form {
+            Form::Linear => {
+                out.y.push(target.column(k) / s);
+                out.w.push(pairs.weights[k] * s * s);
+            }
+            Form::Root(level) => {
+                out.y.push(target.column(k).map(|x| (x.max(0.0) / s).sqrt()));
+                out.w.push(pairs.weights[k] * s * level[k].max(f64::MIN_POSITIVE));
+            }
+        }
     }
     Ok(out)
+}
+
+/// Each pair's truth's peak: the root form's level of the BRDF target.
+fn peaks(pairs: &Pairs) -> Vec<f64> {
+    pairs.truth.column_iter().map(|c| c.amax()).collect()
+}
+
+/// A pair's level for a gloss target (its gloss row plus one GU, so a matt
+/// sample's rows still count).
+pub fn gloss_levels(target: &DMatrix<f64>) -> Vec<f64> {
+    target.row(0).iter().map(|g| g.max(0.0) + 1.0).collect()
 }
 
 /// Mean, centred factor (columns scaled by sqrt(w)) and noise covariance of
@@ -299,11 +358,20 @@ pub struct ScaleFreeOptions {
     pub false_alarm: f64,
     /// Seed of folds and noise draws.
     pub seed: u64,
+    /// The root form (every estimate non-negative).
+    pub root: bool,
 }
 
 impl Default for ScaleFreeOptions {
     fn default() -> Self {
-        Self { noise_rel: 0.02, piecewise: false, clusters: None, false_alarm: DEFAULT_FALSE_ALARM, seed: 7 }
+        Self {
+            noise_rel: 0.02,
+            piecewise: false,
+            clusters: None,
+            false_alarm: DEFAULT_FALSE_ALARM,
+            seed: 7,
+            root: false,
+        }
     }
 }
 
@@ -311,24 +379,28 @@ impl Default for ScaleFreeOptions {
 struct Fitted {
     maps: Vec<ScaleFreeMap>,
     centroids: Vec<f32>,
+    root: bool,
 }
 
 impl Fitted {
-    fn estimate(&self, v: &DVector<f64>) -> DVector<f64> {
-        let c = if self.centroids.is_empty() {
+    fn cluster(&self, v: &DVector<f64>) -> usize {
+        if self.centroids.is_empty() {
             0
         } else {
             let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
             brdf_meter::kernel::select_cluster(&self.centroids, &v32)
-        };
-        self.maps[c].estimate(v)
+        }
+    }
+
+    fn estimate(&self, v: &DVector<f64>) -> DVector<f64> {
+        self.maps[self.cluster(v)].estimate(v, self.root)
     }
 }
 
-fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize) -> anyhow::Result<Fitted> {
+fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize, root: bool) -> anyhow::Result<Fitted> {
     let m = nz.u[0].len();
     if clusters <= 1 {
-        return Ok(Fitted { maps: vec![fit_map(&moments(nz, idx), ridge)?], centroids: Vec::new() });
+        return Ok(Fitted { maps: vec![fit_map(&moments(nz, idx), ridge)?], centroids: Vec::new(), root });
     }
     // Clusters in the selection rule's space (v / sum|v|; the readings are
     // non-negative, so it is u).
@@ -336,7 +408,7 @@ fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize) -
     let (cents, _) = kmeans(&feats, clusters, seed);
     let c32: Vec<f32> = cents.iter().flatten().map(|x| *x as f32).collect();
     let maps = cluster_maps(nz, idx, ridge, &c32, m)?;
-    Ok(Fitted { maps, centroids: c32 })
+    Ok(Fitted { maps, centroids: c32, root })
 }
 
 /// One map per centroid of `c32` (K x m, the device's selection rule): each
@@ -387,8 +459,11 @@ fn cluster_maps(
 /// readings, `r x K`, one column per pair of `pairs`): the zone's ridge and
 /// clusters (its centroids, so the device's cluster choice is unchanged),
 /// fitted on every pair.
+/// In the zone's root form the maps give roots of the target, each pair
+/// weighted by its level [`gloss_levels`].
 pub fn fit_target(pairs: &Pairs, target: &DMatrix<f64>, zone: &ScaleFreeZone) -> anyhow::Result<Vec<ScaleFreeMap>> {
-    let nz = normalise(pairs, target)?;
+    let levels = gloss_levels(target);
+    let nz = normalise(pairs, target, if zone.root { Form::Root(&levels) } else { Form::Linear })?;
     let all: Vec<usize> = (0..pairs.len()).collect();
     if zone.centroids.is_empty() {
         return Ok(vec![fit_map(&moments(&nz, &all), zone.ridge)?]);
@@ -420,12 +495,19 @@ impl CrossValidation {
 
     /// Mean peak-normalised error over the prior's own weights of every
     /// pair read by a fit without its fold; `None` when a fit fails.
-    fn error(&self, pairs: &Pairs, nz: &Normalised, seed: u64, ridge: f64, clusters: usize) -> Option<f64> {
+    fn error(
+        &self,
+        pairs: &Pairs,
+        nz: &Normalised,
+        opts: &ScaleFreeOptions,
+        ridge: f64,
+        clusters: usize,
+    ) -> Option<f64> {
         let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
         let mut err = 0.0;
         for f in 0..nf {
             let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| self.fold[*k] != f).collect();
-            let fitted = fit(nz, &train_idx, seed, ridge, clusters).ok()?;
+            let fitted = fit(nz, &train_idx, opts.seed, ridge, clusters, opts.root).ok()?;
             for k in (0..pairs.len()).filter(|k| self.fold[*k] == f) {
                 let truth = pairs.truth.column(k).into_owned();
                 for v in &self.readings[k] {
@@ -441,11 +523,11 @@ impl CrossValidation {
 /// the best `(ridge, error)`.
 pub fn cross_validate(pairs: &Pairs, opts: &ScaleFreeOptions, clusters: usize) -> anyhow::Result<(f64, f64)> {
     check_pairs(pairs)?;
-    let nz = normalise(pairs, &pairs.truth)?;
+    let nz = normalise_truth(pairs, opts)?;
     let cv = CrossValidation::new(pairs, opts.seed);
     let mut best = (RIDGES[0], f64::INFINITY);
     for &ridge in &RIDGES {
-        if let Some(e) = cv.error(pairs, &nz, opts.seed, ridge, clusters)
+        if let Some(e) = cv.error(pairs, &nz, opts, ridge, clusters)
             && e < best.1
         {
             best = (ridge, e);
@@ -453,6 +535,12 @@ pub fn cross_validate(pairs: &Pairs, opts: &ScaleFreeOptions, clusters: usize) -
     }
     ensure!(best.1.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
     Ok(best)
+}
+
+/// The pairs' truths normalised in the options' form.
+fn normalise_truth(pairs: &Pairs, opts: &ScaleFreeOptions) -> anyhow::Result<Normalised> {
+    let levels = peaks(pairs);
+    normalise(pairs, &pairs.truth, if opts.root { Form::Root(&levels) } else { Form::Linear })
 }
 
 fn check_pairs(pairs: &Pairs) -> anyhow::Result<()> {
@@ -495,11 +583,14 @@ pub fn train_with(
     cv_error: f64,
 ) -> anyhow::Result<ScaleFreeZone> {
     check_pairs(pairs)?;
-    let nz = normalise(pairs, &pairs.truth)?;
+    let nz = normalise_truth(pairs, opts)?;
     let all: Vec<usize> = (0..pairs.len()).collect();
-    let fitted = fit(&nz, &all, opts.seed, ridge, clusters)?;
-    // Out-of-prior: held-out statistics -> threshold.
+    let mut fitted = fit(&nz, &all, opts.seed, ridge, clusters, opts.root)?;
     let cv = CrossValidation::new(pairs, opts.seed);
+    if opts.root {
+        held_out_uncertainty(pairs, &nz, &cv, opts, ridge, clusters, &mut fitted)?;
+    }
+    // Out-of-prior: held-out statistics -> threshold.
     let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut stats: Vec<(f32, f64)> = Vec::with_capacity(pairs.len() * DRAWS);
     for f in 0..nf {
@@ -522,7 +613,82 @@ pub fn train_with(
         threshold: if threshold.is_finite() && threshold > 0.0 { threshold } else { f32::MAX },
         false_alarm: opts.false_alarm,
     };
-    Ok(ScaleFreeZone { maps: fitted.maps, centroids: fitted.centroids, out_of_prior, ridge, cv_error })
+    Ok(ScaleFreeZone { maps: fitted.maps, centroids: fitted.centroids, out_of_prior, ridge, cv_error, root: opts.root })
+}
+
+/// The root form's uncertainty per unit scale (module doc): per cluster of
+/// `fitted` and bin, the RMS of the held-out roots' errors (each pair read
+/// by its fold's fit, every noise draw, the prior's own weights), then one
+/// factor on all of them so that `COVERAGE` of the held-out values lie
+/// within `COVERAGE_K` of the point's stated uncertainty.
+fn held_out_uncertainty(
+    pairs: &Pairs,
+    nz: &Normalised,
+    cv: &CrossValidation,
+    opts: &ScaleFreeOptions,
+    ridge: f64,
+    clusters: usize,
+    fitted: &mut Fitted,
+) -> anyhow::Result<()> {
+    let n = pairs.n();
+    let k_maps = fitted.maps.len();
+    let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
+    // (cluster, weight, estimate, held-out root errors per unit scale, truth, scale)
+    let mut held: Vec<(usize, f64, DVector<f64>, DVector<f64>, DVector<f64>, f64)> = Vec::new();
+    for f in 0..nf {
+        let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
+        let fold_fit = fit(nz, &train_idx, opts.seed, ridge, clusters, true)?;
+        for k in (0..pairs.len()).filter(|k| cv.fold[*k] == f) {
+            let truth = pairs.truth.column(k).into_owned();
+            for v in &cv.readings[k] {
+                let s: f64 = v.iter().sum();
+                if !(s > 0.0) {
+                    continue;
+                }
+                let est = fold_fit.estimate(v);
+                let err = DVector::from_fn(n, |j, _| (est[j] / s).sqrt() - (truth[j].max(0.0) / s).sqrt());
+                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, est, err, truth.clone(), s));
+            }
+        }
+    }
+    let mut sigma = vec![DVector::<f64>::zeros(n); k_maps];
+    let mut total = vec![0.0; k_maps];
+    for (c, w, _, e, _, _) in &held {
+        sigma[*c] += e.map(|x| x * x) * *w;
+        total[*c] += w;
+    }
+    // A cluster no held-out pair fell in keeps the pooled value.
+    let pooled = sigma.iter().fold(DVector::zeros(n), |a, b| a + b) / total.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+    for c in 0..k_maps {
+        sigma[c] = if total[c] > 0.0 { &sigma[c] / total[c] } else { pooled.clone() }.map(f64::sqrt);
+    }
+    let covered = |factor: f64| -> f64 {
+        let (mut inside, mut all) = (0.0, 0.0);
+        for (c, w, est, _, truth, s) in &held {
+            for j in 0..n {
+                let u = f64::from(root_uncertainty((sigma[*c][j] * factor) as f32, est[j] as f32, *s as f32));
+                if (est[j] - truth[j]).abs() <= crate::calibration::gloss_rows::COVERAGE_K * u {
+                    inside += w;
+                }
+                all += w;
+            }
+        }
+        inside / all.max(f64::MIN_POSITIVE)
+    };
+    // Coverage grows with the factor: bisect on a log scale.
+    let (mut lo, mut hi) = (1e-3f64, 1e3f64);
+    for _ in 0..60 {
+        let mid = (lo * hi).sqrt();
+        if covered(mid) < crate::calibration::gloss_rows::COVERAGE {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    for (map, sg) in fitted.maps.iter_mut().zip(&sigma) {
+        map.sigma_unit = sg * hi;
+    }
+    Ok(())
 }
 
 /// Trains one zone of in-plane optics `h` on samples on the grid (the
@@ -579,7 +745,7 @@ mod tests {
             let v = &h * prior.samples.column(k);
             let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
             let (est, sigma, _, _) = z.estimate_f32(&v32);
-            let e64 = z.maps[0].estimate(&v.map(|x| x as f32 as f64));
+            let e64 = z.maps[0].estimate(&v.map(|x| x as f32 as f64), false);
             let scale = e64.amax();
             for j in 0..est.len() {
                 assert!((est[j] as f64 - e64[j]).abs() <= 1e-4 * scale, "{k} {j}");

@@ -224,6 +224,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         criterion: spec.criterion,
         false_alarm: 0.05,
         clusters: spec.clusters,
+        root: crate::calibration::train::Form::default_for(spec.kind) == crate::calibration::train::Form::Root,
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white.clone()),

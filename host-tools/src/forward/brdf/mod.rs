@@ -92,16 +92,67 @@ fn spike(brdf: &dyn Brdf, theta_deg: f64, theta_o_deg: f64, step_deg: f64) -> f6
 /// grid step `step_deg`): the reflectance factor there, plus a mirror spike
 /// projected onto the bin (the same kernel as [`ray_reflectance`]).
 pub fn binned_reflectance(brdf: &dyn Brdf, theta_deg: f64, theta_o_deg: f64, step_deg: f64) -> f64 {
-    brdf.reflectance(theta_deg, theta_o_deg) + spike(brdf, theta_deg, theta_o_deg, step_deg)
+    binned_reflectance_at(brdf, theta_deg, &view_dir(theta_o_deg), step_deg)
+}
+
+/// The reflectance factor of `brdf` in bin `theta_deg` (view `wo`): its
+/// average over the bin kernel, without a mirror spike (the priors' grid
+/// vectors; see [`binned_reflectance_at`] for why an average).
+pub fn binned_factor_at(brdf: &dyn Brdf, theta_deg: f64, wo: &Vector3<f64>, step_deg: f64) -> f64 {
+    let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
+    let f = |t: f64| std::f64::consts::PI * brdf.f_r(&light_dir(t.clamp(-MAX_INCIDENCE_DEG, MAX_INCIDENCE_DEG)), wo);
+    bin_kernel_average(f, theta_deg, step_deg, (theta_deg - theta_o).abs())
 }
 
 /// [`binned_reflectance`] for a view `wo` anywhere (surface frame, unit):
 /// light in the plane of incidence at bin centre `theta_deg`, the mirror
 /// spike about the view's own polar angle. The truth at a pixel whose view
 /// is not the instrument's nominal one.
+///
+/// The bin's value is the reflectance factor averaged over the bin kernel
+/// (the triangle of half-width `step_deg` the readings' model splits a
+/// ray's weight by), not its value at the centre: a glossy lobe narrower
+/// than a bin (a specular phenolic's is a few tenths of a degree wide)
+/// would otherwise give the bin at the view's exact mirror incidence a
+/// spike its neighbours do not share, and a prior learnt from such truths
+/// carves a notch into smooth lobes there. The average is taken by the
+/// midpoint rule on sub-intervals, finest near the mirror incidence, where
+/// lobes are narrowest.
 pub fn binned_reflectance_at(brdf: &dyn Brdf, theta_deg: f64, wo: &Vector3<f64>, step_deg: f64) -> f64 {
     let theta_o = wo.z.clamp(-1.0, 1.0).acos().to_degrees();
-    std::f64::consts::PI * brdf.f_r(&light_dir(theta_deg), wo) + spike(brdf, theta_deg, theta_o, step_deg)
+    binned_factor_at(brdf, theta_deg, wo, step_deg) + spike(brdf, theta_deg, theta_o, step_deg)
+}
+
+/// Incidence beyond which the bin kernel's average takes the value at
+/// this angle (light at grazing incidence or below the horizon reads nothing useful).
+const MAX_INCIDENCE_DEG: f64 = 89.9;
+
+/// Sub-intervals per half of the bin kernel: finer within two bins of the
+/// mirror incidence, where lobes are narrowest.
+fn kernel_subdivisions(from_mirror_deg: f64, step_deg: f64) -> usize {
+    if from_mirror_deg < 2.0 * step_deg {
+        32
+    } else if from_mirror_deg < 6.0 * step_deg {
+        8
+    } else {
+        3
+    }
+}
+
+/// `f` averaged over the triangle kernel of half-width `step` centred on
+/// `theta` (weights integrated exactly per sub-interval, `f` at its midpoint).
+pub fn bin_kernel_average(f: impl Fn(f64) -> f64, theta: f64, step: f64, from_mirror_deg: f64) -> f64 {
+    let k = kernel_subdivisions(from_mirror_deg, step);
+    let h = 1.0 / k as f64;
+    let mut sum = 0.0;
+    for i in 0..k {
+        // Sub-interval [a, b] of the kernel's half, in units of step from
+        // the centre: the triangle's weight there is h (1 - (a + b) / 2).
+        let mid = (i as f64 + 0.5) * h;
+        let w = h * (1.0 - mid);
+        sum += w * (f(theta - mid * step) + f(theta + mid * step));
+    }
+    sum
 }
 
 /// Unit direction towards an in-plane light at incidence `theta_deg` (-x side).
@@ -309,5 +360,29 @@ mod tests {
         assert_ne!(red_only.reflectance(45.0, 45.0), b.reflectance(45.0, 45.0));
         let err = BrdfSpec::Merl { material: "unobtainium".into() }.build().unwrap_err();
         assert_eq!(err.field, "material");
+    }
+
+    #[test]
+    fn bins_average_over_their_kernel_so_a_narrow_lobe_is_not_a_spike() {
+        // Exact for linear functions; a partition of unity over the grid.
+        assert!((bin_kernel_average(|t| 3.0 + 0.5 * t, 40.0, 1.0, 10.0) - 23.0).abs() < 1e-12);
+        // A lobe much narrower than a bin: the bins share its integral
+        // (sum over bins x step), the centre bin no longer carries a spike.
+        let lobe = |t: f64| (-((t - 45.0) / 0.1).powi(2)).exp();
+        let integral = 0.1 * std::f64::consts::PI.sqrt();
+        let bins: Vec<f64> =
+            (40..=50).map(|b| bin_kernel_average(lobe, f64::from(b), 1.0, (f64::from(b) - 45.0).abs())).collect();
+        let total: f64 = bins.iter().sum();
+        assert!((total - integral).abs() < 0.01 * integral, "{total} vs {integral}");
+        assert!(bins[5] < 0.25 * lobe(45.0), "{}", bins[5]);
+        // A measured specular material at the exact mirror bin: of the
+        // order of its neighbours, not tens of times them.
+        let m = NbrdfSet::merl().by_name("specular-black-phenolic", [0.2126, 0.7152, 0.0722]).unwrap();
+        let wo = view_dir(45.0);
+        let at = |t: f64| binned_reflectance_at(&m, t, &wo, 1.0);
+        let point = |t: f64| m.reflectance(t, 45.0);
+        let ratio = at(45.0) / (0.5 * (at(44.0) + at(46.0)));
+        let point_ratio = point(45.0) / (0.5 * (point(44.0) + point(46.0)));
+        assert!(ratio < 0.25 * point_ratio, "exact-specular bin {ratio} times its neighbours (points: {point_ratio})");
     }
 }
