@@ -86,7 +86,10 @@ fn library(kind: EstimatorKind, blob: &[u8]) -> Tally {
     // The rows' reading of the standard on its own scale: 100 when they
     // read the black glass right.
     let s_ref = view.gloss_reference(0).unwrap();
-    println!("\n{}: the black glass as the rows read it, on its own scale: {s_ref:.2} (100 when right)", kind_label(kind));
+    println!(
+        "\n{}: the black glass as the rows read it, on its own scale: {s_ref:.2} (100 when right)",
+        kind_label(kind)
+    );
     let wo = host_tools::forward::brdf::view_dir(45.0);
     println!("scene | truth G H D | device mean G H D | stated u G H D | coverage at k = {K}");
     let mut all = Tally::default();
