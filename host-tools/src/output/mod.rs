@@ -1,5 +1,6 @@
 //! What the host writes and reads as files: atomic writes (`io`), the
-//! specular peak the points report (`peak`), plots (`plot`), the TOML/CSV description
+//! point schema `measure` and `estimate` write (`points`, with the specular
+//! peak it reports, `peak`), plots (`plot`), the TOML/CSV description
 //! parsing helpers (`config`), the standard BRDF files (`bird`,
 //! `astm_e1392`, on `profile`), and progress on a terminal (`progress`).
 pub mod astm_e1392;
@@ -8,5 +9,6 @@ pub mod config;
 pub mod io;
 pub mod peak;
 pub mod plot;
+pub mod points;
 pub mod profile;
 pub mod progress;
