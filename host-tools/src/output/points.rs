@@ -4,7 +4,7 @@
 //! `docs/point-schema.md` documents every field; a golden file pins the
 //! bytes (`host-tools/tests/point_schema.rs`).
 //!
-//! One list of fields ([`Points::fields`]) makes both files: a CSV row or
+//! One list of fields (`Points::fields`) makes both files: a CSV row or
 //! a JSON object per point, with the same names in the same order; a
 //! per-bin field is one CSV column per bin (`rho_<deg>`) and one JSON array
 //! (`rho`, the degrees in the document's `bins_deg`). The CSV's first line
@@ -149,7 +149,7 @@ impl Points {
     }
 
     /// The CSV's first line: schema, version, where the points came from, and the units.
-    fn csv_comment(&self) -> String {
+    fn csv_comment(&self) -> anyhow::Result<String> {
         let mut groups: Vec<(Vec<&str>, &str)> = Vec::new();
         for (q, unit) in UNITS {
             match groups.last_mut() {
@@ -158,19 +158,20 @@ impl Points {
             }
         }
         let units: Vec<String> = groups.iter().map(|(names, unit)| format!("{} = {unit}", names.join(" "))).collect();
-        format!(
+        Ok(format!(
             "# {SCHEMA} schema_version {SCHEMA_VERSION}; source {}; calibration_crc {:#010x}; view_deg {}; {UNCERTAINTY}; \
              units: {}\n",
             self.source,
             self.calibration_crc,
-            self.view_deg,
+            // As the JSON writes it.
+            serde_json::to_string(&self.view_deg).context("the view angle")?,
             units.join("; ")
-        )
+        ))
     }
 
     /// The CSV file: the comment line, the header, one row per point.
     pub fn csv(&self) -> anyhow::Result<Vec<u8>> {
-        let mut w = csv::Writer::from_writer(self.csv_comment().into_bytes());
+        let mut w = csv::Writer::from_writer(self.csv_comment()?.into_bytes());
         let n = self.bins_deg.len();
         let template = Point {
             line: None,
