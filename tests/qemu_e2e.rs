@@ -307,18 +307,21 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     assert_eq!(svg.matches("<polygon").count(), 3, "one uncertainty band per plotted point");
     assert!(svg.contains("line 0 point 15"));
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("m.json")).unwrap()).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("m.csv")).unwrap();
+    assert!(csv.starts_with("# brdf-meter/points schema_version 1; source measure;"), "the point schema");
+    assert_eq!((&j["schema"], &j["source"]), (&"brdf-meter/points".into(), &"measure".into()));
     let (profiles, view) = host_tools::output::bird::read(&dir.path().join("m.bird.json")).unwrap();
     assert_eq!((profiles.len(), view), (2 * PIXELS, 45.0));
     for (p, jp) in profiles.iter().zip(j["points"].as_array().unwrap()) {
         assert_eq!(
             (u64::from(p.line), u64::from(p.point)),
-            (jp["line"].as_u64().unwrap(), jp["point"].as_u64().unwrap())
+            (jp["line"].as_u64().unwrap(), jp["pixel"].as_u64().unwrap())
         );
         for ((r, u), (jr, ju)) in p
             .reflectance
             .iter()
             .zip(&p.uncertainty)
-            .zip(jp["values"].as_array().unwrap().iter().zip(jp["uncertainty"].as_array().unwrap()))
+            .zip(jp["rho"].as_array().unwrap().iter().zip(jp["u_rho"].as_array().unwrap()))
         {
             assert!((r - jr.as_f64().unwrap()).abs() <= 1e-6 * r.abs().max(1e-6));
             assert!((u - ju.as_f64().unwrap()).abs() <= 1e-6 * u.abs().max(1e-6));
@@ -333,7 +336,7 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
         serde_json::from_slice(&std::fs::read(dir.path().join("m.bird.json")).unwrap()).unwrap();
     let readings = doc["metadata"]["adhoc_section"]["gloss_readings"].as_array().unwrap();
     assert_eq!(readings.len(), 2 * PIXELS);
-    let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["readings"][0].as_f64().unwrap());
+    let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["gloss_gu"].as_f64().unwrap());
     assert_eq!(a as f32, b as f32, "the device's f32 reading, unchanged");
     assert!(t.header.iter().any(|(k, _)| k == "GLOSS_GU"), "{:?}", t.header);
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());

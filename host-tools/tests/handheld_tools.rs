@@ -71,14 +71,15 @@ fn estimate_reads_simulates_points_csv_pixel_by_pixel_as_the_device_does() {
     let rows = host_tools::cli::estimate::read_readings(&sim_dir.join("points.csv"), 7).unwrap();
     assert_eq!(rows.len(), 2 * 16);
     let csv = std::fs::read_to_string(&est).unwrap();
-    let mut lines = csv.lines();
+    // The point schema: its comment line, then the header.
+    let mut lines = csv.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(&header[..4], &["point", "line", "pixel", "flags"]);
+    assert_eq!(&header[..5], &["line", "pixel", "zone", "cluster", "flags"]);
     let gu_col = header.iter().position(|h| *h == brdf_meter::gloss::NAMES[0]).unwrap();
     for (r, line) in rows.iter().zip(lines) {
         let f: Vec<&str> = line.split(',').collect();
         let p = r.pixel.unwrap();
-        assert_eq!(f[2], p.to_string());
+        assert_eq!((f[1], f[2]), (p.to_string().as_str(), view.zone_of_pixel(p).to_string().as_str()));
         let want = host_tools::device::reference::PointEstimator::new(view, view.zone_of_pixel(p))
             .unwrap()
             .apply_pixel(p, &r.v);

@@ -7,19 +7,18 @@
 //! Input: one row per point, m white-corrected readings in the blob's LED
 //! order (a header row is optional); with `line` and `pixel` columns (the
 //! `points.csv` that `simulate` writes) each row is estimated with its
-//! pixel's zone, as the device does. Output: CSV (point, flags, the n bin
-//! values, the n per-bin standard uncertainties, the gloss readings and
-//! their standard uncertainties, `brdf_meter::gloss`) and optionally JSON
-//! `{"bins_deg": [...], "points": [{"rho": [...], "sigma": [...], "readings": [...],
-//! "reading_sigma": [...], "flags": [...]}]}` (a reading the blob does not
-//! carry is NaN in the CSV, null in the JSON).
+//! pixel's zone, as the device does. Output: the points in the point
+//! schema (`output::points`, docs/point-schema.md), CSV and optionally
+//! JSON, the same fields as `measure` writes: the row's line and pixel when
+//! the input names them, zone, cluster, flags, the n bin values and their
+//! standard uncertainties, the gloss readings (`brdf_meter::gloss`) and the
+//! specular peak with theirs.
 //! Everything is checked and computed before anything is written.
 use crate::device::reference::{PointEstimate, PointEstimator};
+use crate::output::points::{Point, Points};
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
-use brdf_meter::gloss;
 use brdf_meter::protocol::flags;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Apply a calibration blob to readings offline, exactly as the device does.
@@ -116,12 +115,6 @@ pub fn read_readings(path: &Path, m: usize) -> anyhow::Result<Vec<ReadingsRow>> 
     Ok(rows)
 }
 
-#[derive(Serialize)]
-struct JsonOut<'a> {
-    bins_deg: Vec<f32>,
-    points: &'a [PointEstimate],
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.exports.check()?;
@@ -134,8 +127,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let zones: Vec<PointEstimator<'_>> =
         (0..d.zones).map(|z| PointEstimator::new(view, z)).collect::<anyhow::Result<_>>()?;
     let mut points = Vec::with_capacity(rows.len());
+    let mut schema_points = Vec::with_capacity(rows.len());
     for r in &rows {
-        points.push(match r.pixel {
+        let (zone, e) = match r.pixel {
             Some(p) => {
                 ensure!(
                     p < d.pixels,
@@ -143,50 +137,37 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     a.readings.display(),
                     d.pixels
                 );
-                zones[view.zone_of_pixel(p)].apply_pixel(p, &r.v)
+                let z = view.zone_of_pixel(p);
+                (z, zones[z].apply_pixel(p, &r.v))
             }
-            None => app.apply(&r.v),
+            None => (app.zone(), app.apply(&r.v)),
+        };
+        schema_points.push(Point {
+            line: r.line,
+            pixel: r.pixel.map(|p| p as u64),
+            zone: u16::try_from(zone).expect("a blob's zone count fits its u16 field"),
+            cluster: e.cluster,
+            flags: e.flag_bits,
+            rho: e.rho.clone(),
+            u_rho: e.sigma.clone(),
+            readings: e.readings,
+            u_readings: e.reading_sigma,
         });
+        points.push(e);
     }
     let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
     let profiles = profiles(&bins, &points);
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
     }
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let indexed = rows.iter().any(|r| r.pixel.is_some() || r.line.is_some());
-    let mut header = vec!["point".to_string()];
-    if indexed {
-        header.extend(["line".to_string(), "pixel".to_string()]);
-    }
-    header.push("flags".to_string());
-    header.extend(bins.iter().map(|b| format!("rho_{b}")));
-    header.extend(bins.iter().map(|b| format!("sigma_{b}")));
-    header.extend(gloss::NAMES.iter().map(|r| r.to_string()));
-    header.extend(gloss::NAMES.iter().map(|r| format!("u_{r}")));
-    w.write_record(&header)?;
-    for (i, (p, r)) in points.iter().zip(&rows).enumerate() {
-        let mut rec = vec![i.to_string()];
-        if indexed {
-            let opt = |x: Option<u64>| x.map_or(String::new(), |x| x.to_string());
-            rec.extend([opt(r.line), opt(r.pixel.map(|p| p as u64))]);
-        }
-        rec.push(p.flags.join("|"));
-        rec.extend(p.rho.iter().map(|x| x.to_string()));
-        rec.extend(p.sigma.iter().map(|x| x.to_string()));
-        rec.extend(p.readings.iter().chain(&p.reading_sigma).map(|x| x.to_string()));
-        w.write_record(&rec)?;
-    }
-    let csv_bytes = w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))?;
-    let json = a
-        .json
-        .as_ref()
-        .map(|_| serde_json::to_vec_pretty(&JsonOut { bins_deg: bins.clone(), points: &points }))
-        .transpose()?;
-    crate::output::io::write_atomic(&a.out, &csv_bytes).with_context(|| format!("writing {}", a.out.display()))?;
-    if let (Some(p), Some(j)) = (&a.json, &json) {
-        crate::output::io::write_atomic(p, j).with_context(|| format!("writing {}", p.display()))?;
-    }
+    let files = Points {
+        source: "estimate",
+        calibration_crc: view.crc(),
+        view_deg: a.exports.view_deg,
+        bins_deg: bins,
+        points: schema_points,
+    };
+    files.write(&a.out, a.json.as_deref())?;
     let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
         crate::device::measurement_summary::SummaryPoint { line: None, flags: p.flag_bits, readings: p.readings }
     }));
@@ -291,10 +272,17 @@ mod tests {
         brdf_meter::kernel::scale_free::estimate_scale_free_root(&w, &v32, &mut out);
         let got: Vec<f32> = pts[0]["rho"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect();
         assert_eq!(got, out);
+        // The point schema: no line or pixel in these readings, the zone asked for.
+        assert_eq!(j["schema"], crate::output::points::SCHEMA);
+        assert!(pts[0]["line"].is_null() && pts[0]["pixel"].is_null() && pts[0]["zone"] == 0, "{}", pts[0]);
+        assert_eq!(pts[0]["u_rho"].as_array().unwrap().len(), 81);
         let csv = std::fs::read_to_string(dir.path().join("e.csv")).unwrap();
-        assert_eq!(csv.lines().count(), 3);
-        assert_eq!(csv.lines().next().unwrap().split(',').count(), 2 + 2 * 81 + 2 * brdf_meter::shape::READINGS);
-        assert!(csv.lines().nth(2).unwrap().starts_with("1,out-of-prior,"));
+        assert_eq!(csv.lines().count(), 4, "the schema's comment, the header, two points");
+        assert!(csv.starts_with("# brdf-meter/points schema_version 1; source estimate;"));
+        let header = csv.lines().nth(1).unwrap();
+        assert_eq!(header.split(',').count(), 5 + 2 * 81 + 2 * brdf_meter::shape::READINGS + 5);
+        assert!(header.starts_with("line,pixel,zone,cluster,flags,rho_25,"), "{header}");
+        assert!(csv.lines().nth(3).unwrap().starts_with(",,0,0,out-of-prior,"));
     }
 
     #[test]
@@ -349,6 +337,16 @@ mod tests {
         let err = format!("{:#}", run(c).unwrap_err());
         assert!(err.contains("--plot-points 7: line 0 has points 0..=2"), "{err}");
         assert!(!out.path().join("e.csv").exists());
+    }
+
+    #[test]
+    fn readings_with_comment_lines_and_index_columns_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = dir.path().join("r.csv");
+        std::fs::write(&r, "# points of a simulated line\nline,pixel,a,b\n# a comment between rows\n2,5,0.5,0.25\n")
+            .unwrap();
+        let rows = read_readings(&r, 2).unwrap();
+        assert_eq!(rows, vec![ReadingsRow { line: Some(2), pixel: Some(5), v: vec![0.5, 0.25] }]);
     }
 
     #[test]

@@ -23,7 +23,8 @@ pub struct ExportArgs {
     /// one point: one file each, named STEM-l<line>-p<point>.EXT.
     #[arg(long, value_name = "FILE")]
     pub astm: Option<PathBuf>,
-    /// The instrument's view angle (deg): the scatter direction in the files.
+    /// The instrument's view angle (deg): the scatter direction in the files,
+    /// and the mirror incidence the points' specular peak is sought about.
     #[arg(long, default_value_t = 45.0, value_name = "DEG")]
     pub view_deg: f64,
     /// Solid angle one detector element sees (sr), for the BiRD file (its

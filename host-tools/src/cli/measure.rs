@@ -1,6 +1,7 @@
-//! `host-tools measure`: measure lines, write every point as CSV and JSON,
-//! print a per-line summary (gloss readings, flags), and on request plot
-//! chosen points and write the standard files (BiRD JSON, ASTM E1392).
+//! `host-tools measure`: measure lines, write every point as CSV and JSON
+//! (the point schema, `output::points`), print a per-line summary (gloss
+//! readings, flags), and on request plot chosen points and write the
+//! standard files (BiRD JSON, ASTM E1392).
 use crate::device::link::{Endpoint, PointRecord};
 use crate::forward::scene::frames::named_scene_frames;
 use crate::output::profile::ExportInfo;
@@ -9,8 +10,10 @@ use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{BinRange, Encoding, StreamFormat};
 use std::path::PathBuf;
 
-/// Measure N lines; write one row (CSV) / object (JSON) per point with its
-/// BRDF vector and the calibration's predicted per-bin uncertainty.
+/// Measure N lines; write one row (CSV) / object (JSON) per point in the
+/// point schema (docs/point-schema.md): its BRDF vector with the
+/// calibration's predicted per-bin uncertainty, gloss readings and
+/// specular peak with theirs.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The device.
@@ -129,9 +132,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let points = c.measure_observed(a.lines, &mut |_| progress.inc(1));
     progress.finish_and_clear();
     let points: Vec<PointRecord> = points.context("measuring")?;
-    let (csv, json) = crate::device::measurement::measurement_files(&view, a.lines, &points);
-    crate::output::io::write_atomic(&a.csv, csv.as_bytes())?;
-    crate::output::io::write_json(&a.json, &json)?;
+    crate::device::measurement::measurement_points(&view, &points, a.exports.view_deg).write(&a.csv, Some(&a.json))?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();
     print!(
         "{}",

@@ -1,96 +1,47 @@
-//! A measurement as files: one CSV row and one JSON object per point, with
-//! its BRDF vector, flags, the calibration's predicted per-bin
-//! uncertainty for the point's zone, and the point's gloss readings with
-//! their standard uncertainties as the device streamed them
-//! (`brdf_meter::gloss`; NaN in the CSV, null in the JSON, when the
-//! calibration carries no gloss section).
+//! A measurement as files: its points in the point schema
+//! (`output::points`: one CSV row and one JSON object per point, with its
+//! BRDF vector, the calibration's predicted per-bin uncertainty for the
+//! point's zone, its flags, its gloss readings with their standard
+//! uncertainties as the device streamed them (`brdf_meter::gloss`; none
+//! when the calibration carries no gloss section) and its specular peak),
+//! and as profiles for the plot and the standard files.
 use crate::device::link::PointRecord;
 use crate::device::reference::flag_names;
+use crate::output::points::{Point, Points};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss;
 use brdf_meter::shape::READINGS;
-use serde::Serialize;
 
-/// One point in the JSON.
-#[derive(Serialize)]
-pub struct PointJson<'a> {
-    pub line: u32,
-    pub point: u16,
-    pub zone: u16,
-    pub flags: Vec<&'static str>,
-    pub values: &'a [f32],
-    pub uncertainty: Vec<f32>,
-    pub readings: [f32; READINGS],
-    pub reading_sigma: [f32; READINGS],
-}
-
-/// The JSON document.
-#[derive(Serialize)]
-pub struct MeasureJson<'a> {
-    pub blob_crc: u32,
-    pub lines: u32,
-    pub angles_deg: Vec<f32>,
-    pub points: Vec<PointJson<'a>>,
-}
-
-/// The CSV text and the JSON document of `points`, measured over `lines`
-/// lines with the calibration `view`, on the bins the measurement streamed
-/// (every bin unless it asked for a subset; one subset per measurement).
-pub fn measurement_files<'a>(view: &BlobView<'_>, lines: u32, points: &'a [PointRecord]) -> (String, MeasureJson<'a>) {
+/// The points of a measurement with the calibration `view`, on the bins it
+/// streamed (every bin unless it asked for a subset; one subset per
+/// measurement), the specular peak sought about `view_deg`'s mirror incidence.
+pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg: f64) -> Points {
     let d = view.dims();
-    let bins: Vec<usize> = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins).bins().collect();
-    let angles: Vec<f32> = bins.iter().map(|&j| view.grid_deg(j)).collect();
-    // The calibration's per-bin uncertainty for the point's zone, times the
-    // point's own scale (1 for the linear estimators; the readings' scale for
-    // the scale-free ones, whose estimate and uncertainty scale with the point).
-    let unc = |p: &PointRecord| point_uncertainty(view, p);
-    // CSV: one row per point, rho then uncertainty for each angle.
-    let mut csv = String::from("line,point,zone,flags");
-    for g in &angles {
-        csv.push_str(&format!(",rho_{g}"));
-    }
-    for g in &angles {
-        csv.push_str(&format!(",u_{g}"));
-    }
-    for r in gloss::NAMES {
-        csv.push_str(&format!(",{r}"));
-    }
-    for r in gloss::NAMES {
-        csv.push_str(&format!(",u_{r}"));
-    }
-    csv.push('\n');
-    for p in points {
-        csv.push_str(&format!("{},{},{},{}", p.line, p.point, p.zone, flag_names(p.flags).join("|")));
-        for v in &p.values {
-            csv.push_str(&format!(",{v:e}"));
-        }
-        for u in unc(p) {
-            csv.push_str(&format!(",{u:e}"));
-        }
-        for r in p.readings.iter().chain(&p.reading_sigma) {
-            csv.push_str(&format!(",{r:e}"));
-        }
-        csv.push('\n');
-    }
-    let json = MeasureJson {
-        blob_crc: view.crc(),
-        lines,
-        angles_deg: angles,
+    let bins = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins);
+    Points {
+        source: "measure",
+        calibration_crc: view.crc(),
+        view_deg,
+        bins_deg: bins.bins().map(|j| view.grid_deg(j)).collect(),
         points: points
             .iter()
-            .map(|p| PointJson {
-                line: p.line,
-                point: p.point,
+            .map(|p| Point {
+                line: Some(u64::from(p.line)),
+                pixel: Some(u64::from(p.point)),
                 zone: p.zone,
-                flags: flag_names(p.flags),
-                values: &p.values,
-                uncertainty: unc(p),
+                cluster: p.cluster,
+                flags: p.flags,
+                rho: p.values.clone(),
+                // The calibration's per-bin uncertainty for the point's zone,
+                // times the point's own scale (1 for the linear estimators; the
+                // readings' scale for the scale-free ones, whose estimate and
+                // uncertainty scale with the point).
+                u_rho: point_uncertainty(view, p),
                 readings: p.readings,
-                reading_sigma: p.reading_sigma,
+                u_readings: p.reading_sigma,
             })
             .collect(),
-    };
-    (csv, json)
+    }
 }
 
 /// The calibration's per-bin standard uncertainty for point `p` on the bins
@@ -161,6 +112,24 @@ mod tests {
             encoding: brdf_meter::protocol::Encoding::F32,
             values: (0..9).map(|j| 0.5 + 0.1 * j as f32 * scale).collect(),
         }
+    }
+
+    #[test]
+    fn a_measurements_points_carry_their_pixels_bins_and_uncertainty() {
+        let bytes = brdf_meter::test_blobs::test_blob(9, 3, 1, 4, 1.0);
+        let view = BlobView::parse(&bytes).unwrap();
+        let subset = brdf_meter::protocol::BinRange { first: 1, step: 2, count: 4 };
+        let mut points: Vec<PointRecord> = (0..2).map(|p| record(1, p, 2.0, 0)).collect();
+        for p in &mut points {
+            p.bins = subset;
+            p.values.truncate(4);
+        }
+        let doc = measurement_points(&view, &points, 45.0);
+        assert_eq!((doc.source, doc.calibration_crc, doc.view_deg), ("measure", view.crc(), 45.0));
+        assert_eq!(doc.bins_deg, subset.bins().map(|j| view.grid_deg(j)).collect::<Vec<_>>());
+        let p = &doc.points[1];
+        assert_eq!((p.line, p.pixel, p.zone, p.readings[0], p.u_readings[1]), (Some(1), Some(1), 0, 81.0, 0.1));
+        assert_eq!(p.u_rho, subset.bins().map(|j| view.uncertainty_of(0, 0, j) * 2.0).collect::<Vec<_>>());
     }
 
     #[test]
