@@ -90,8 +90,19 @@ fn qemu_takes_a_signed_update_over_its_link_and_refuses_what_it_must() {
     // The reset goes through the bootloader, which reads the boot state from
     // QEMU's read-only flash: no swap, the same image comes back confirmed.
     update_firmware::run(update_firmware::Args { device, image: None, no_reboot: false, reboot_only: true }).unwrap();
-    std::thread::sleep(Duration::from_millis(500));
-    let mut c = q.connect().unwrap();
-    let fw = c.firmware_info().unwrap();
+    // The reset is asynchronous to the reply: ask until the restarted
+    // firmware answers (a loaded machine may take seconds to get there).
+    let mut fw = None;
+    for _ in 0..40 {
+        std::thread::sleep(Duration::from_millis(500));
+        if let Some(info) = q.connect().ok().and_then(|mut c| c.firmware_info().ok()) {
+            let done = info.pending.is_none();
+            fw = Some(info);
+            if done {
+                break;
+            }
+        }
+    }
+    let fw = fw.expect("the device answers after its reset");
     assert_eq!((fw.pending, fw.boot), (None, BootState::Confirmed), "QEMU cannot swap: the image is the same");
 }
