@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, value_name = "PATH")]
     pub demo: Option<PathBuf>,
     /// The demo calibration's estimator.
-    #[arg(long, value_enum, default_value_t = DemoEstimator::Wiener, requires = "demo")]
+    #[arg(long, value_enum, default_value_t = DemoEstimator::ScaleFreePiecewise, requires = "demo")]
     pub demo_estimator: DemoEstimator,
     /// The demo's simulated optics: the handheld's line cut to the device's
     /// pixels, or the patent profile.
@@ -85,6 +85,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let pts = c.measure(lines).context("measuring")?;
             let d = brdf_meter::blob::BlobView::parse(&blob).expect("trained blobs parse").dims();
             println!("measured {lines} lines: {} points, {} multiply-accumulates", pts.len(), pts.len() * d.n * d.m);
+            println!("{}", demo_summary(&pts));
             q.stop();
             return Ok(());
         }
@@ -100,4 +101,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let st = q.wait()?;
     println!("QEMU stopped ({st}); {}", q.log_text().trim());
     Ok(())
+}
+
+/// What a user checks first in a demo measurement: how many points are
+/// flagged (and why), how many estimates go below -1 % of their peak (a
+/// physically impossible reflectance), and the gloss reading's spread.
+fn demo_summary(pts: &[crate::device::link::PointRecord]) -> String {
+    use brdf_meter::protocol::flags;
+    let n = pts.len().max(1) as f64;
+    let share = |bit: u8| 100.0 * pts.iter().filter(|p| p.flags & bit != 0).count() as f64 / n;
+    let impossible = pts
+        .iter()
+        .filter(|p| {
+            let peak = p.values.iter().copied().fold(0.0f32, f32::max);
+            p.values.iter().any(|v| *v < -0.01 * peak)
+        })
+        .count();
+    let mut gloss: Vec<f32> =
+        pts.iter().map(|p| p.readings[brdf_meter::gloss::SPECULAR_GU]).filter(|g| g.is_finite()).collect();
+    gloss.sort_by(f32::total_cmp);
+    let q =
+        |f: f64| gloss.get(((gloss.len().saturating_sub(1)) as f64 * f).round() as usize).copied().unwrap_or(f32::NAN);
+    format!(
+        "flagged: out-of-prior {:.0} %, saturated {:.0} %, under-exposed {:.0} %; estimates with a bin below -1 % of their peak: {impossible}; gloss GU 10/50/90 %: {:.1} / {:.1} / {:.1}",
+        share(flags::OUT_OF_PRIOR),
+        share(flags::SATURATED),
+        share(flags::UNDER_EXPOSED),
+        q(0.1),
+        q(0.5),
+        q(0.9)
+    )
 }
