@@ -140,7 +140,7 @@ pub fn readings_root(
 ) -> ([f32; crate::shape::READINGS], [f32; crate::shape::READINGS]) {
     let m = x.len();
     assert!(block.len() == block_len(m), "a gloss block is LINEAR x m rows and the covariance");
-    if !(sqrt_s > 0.0) {
+    if sqrt_s.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
         return (NO_READINGS, NO_READINGS);
     }
     let mut t = [0.0f32; LINEAR];

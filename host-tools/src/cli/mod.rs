@@ -4,6 +4,7 @@
 //! variant, one match arm).
 use clap::{Parser, Subcommand};
 
+pub mod accuracy;
 pub mod design;
 pub mod estimate;
 pub mod exports;
@@ -71,6 +72,8 @@ pub enum Command {
     Rate(rate::Args),
     /// Leave-one-material-out over measured materials: errors, flags, worst-case plot.
     Materials(materials::Args),
+    /// The calibration `train` would write, applied as the device does to held-out families: error, gloss, coverage, flag.
+    Accuracy(accuracy::Args),
     /// Per-pixel accuracy map of a calibration kind on a scene: held-out error, black glass, tiles, flags.
     PixelMap(pixel_map::Args),
     /// Run the hard-case numerical stability checks over many generated cases.
@@ -97,6 +100,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Tradeoff(a) => tradeoff::run(a),
         Command::Rate(a) => rate::run(a),
         Command::Materials(a) => materials::run(a),
+        Command::Accuracy(a) => accuracy::run(a),
         Command::PixelMap(a) => pixel_map::run(a),
         Command::Stability(a) => stability::run(a),
     }

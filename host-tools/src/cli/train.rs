@@ -52,6 +52,22 @@ pub struct Args {
     /// Also write bins_deg, H, W and the per-bin uncertainty (f64) as JSON here.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
+    /// What to train: the calibration's kind, prior, optics and noise.
+    #[command(flatten)]
+    pub cal: CalibrationArgs,
+    /// Sign the calibration with this secret key (`host-tools keygen`): the
+    /// blob is written with its signature trailer, ready to provision. Without
+    /// it the blob is unsigned and devices refuse it until `host-tools sign`.
+    #[arg(long, value_name = "KEY")]
+    pub sign: Option<PathBuf>,
+}
+
+/// What a calibration is trained from: every argument of `train` but its
+/// outputs. Shared with the commands that evaluate "the calibration `train`
+/// would write with these flags" (`accuracy`), so both read the same flags
+/// with the same defaults and build the same [`TrainSpec`] ([`Self::setup`]).
+#[derive(Clone, Debug, clap::Args)]
+pub struct CalibrationArgs {
     /// Zones of pixels, each with its own matrix.
     #[arg(long, default_value_t = 1)]
     pub zones: usize,
@@ -65,7 +81,7 @@ pub struct Args {
     pub noise: Option<f64>,
     /// Estimator. The default, scale-free piecewise on the measured prior in
     /// the root form, is the one that reads real materials best (never a
-    /// negative value; see the guide's accuracy figures).
+    /// negative value; `host-tools accuracy` measures it).
     #[arg(long, value_enum, default_value_t = Estimator::ScaleFreePiecewise)]
     pub estimator: Estimator,
     /// Prior: `patent` (Table 5, built in), `merl` (the vendored measured
@@ -111,11 +127,110 @@ pub struct Args {
     /// replaces --pixels. Never uses the scene's surface or noise draw.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["instrument", "far_field"])]
     pub scene: Option<PathBuf>,
-    /// Sign the calibration with this secret key (`host-tools keygen`): the
-    /// blob is written with its signature trailer, ready to provision. Without
-    /// it the blob is unsigned and devices refuse it until `host-tools sign`.
-    #[arg(long, value_name = "KEY")]
-    pub sign: Option<PathBuf>,
+}
+
+/// Everything a [`TrainSpec`] borrows, owned: what [`CalibrationArgs`]
+/// resolve to (the instrument, its grid, the prior's models and the zones'
+/// optics).
+pub struct Setup {
+    /// The instrument (the scene's with --scene).
+    pub inst: Instrument,
+    /// Its angle grid.
+    pub grid: crate::forward::grid::AngleGrid,
+    /// The estimator kind.
+    pub kind: EstimatorKind,
+    /// The parsed prior argument.
+    pub mix: PriorMix,
+    /// The prior's samples.
+    pub prior: crate::forward::prior_models::PriorModels,
+    /// The zones' optics, P, white reference, field model and noise level.
+    pub optics: TrainingZones,
+    /// The training criterion.
+    pub criterion: Criterion,
+    /// The flag's false-alarm rate.
+    pub false_alarm: f64,
+    /// The piecewise kind's fixed cluster count.
+    pub clusters: Option<usize>,
+    /// Whether the calibration is trained in the root form.
+    pub root: bool,
+}
+
+impl Setup {
+    /// The training specification `train` trains with.
+    pub fn spec(&self) -> TrainSpec<'_> {
+        let (zones, pixels, white, far_field, noise) = self.optics.clone();
+        TrainSpec {
+            bins_deg: self.grid.bins_deg(),
+            zones,
+            pixels,
+            view_deg: self.inst.view_deg,
+            prior: &self.prior,
+            noise_rel: noise,
+            estimator: self.kind,
+            criterion: self.criterion,
+            false_alarm: self.false_alarm,
+            clusters: self.clusters,
+            root: self.root,
+            far_field,
+            led_order: None,
+            white,
+        }
+    }
+}
+
+impl CalibrationArgs {
+    /// Checks the arguments and resolves them: the scene or instrument, the
+    /// prior's models and the zones' optics.
+    pub fn setup(&self) -> anyhow::Result<Setup> {
+        if self.patent {
+            let patent = Self {
+                estimator: Estimator::Wiener,
+                prior: "patent".into(),
+                criterion: CriterionArg::Plain,
+                form: Some(crate::calibration::train::Form::Linear),
+                patent: false,
+                ..self.clone()
+            };
+            return patent.setup();
+        }
+        let scene = match &self.scene {
+            Some(p) => Some(crate::forward::scene::Scene::load(p)?),
+            None => None,
+        };
+        if let Some(x) = self.noise
+            && (!x.is_finite() || !(0.0..1.0).contains(&x))
+        {
+            anyhow::bail!("--noise {x}: must be a relative level in [0, 1) (0.02 is 2 %)");
+        }
+        ensure!(
+            self.false_alarm > 0.0 && self.false_alarm < 1.0,
+            "--false-alarm {}: must be in (0, 1)",
+            self.false_alarm
+        );
+        let inst: Instrument = match (&scene, &self.instrument) {
+            (Some(s), _) => s.instrument.clone(),
+            (None, Some(p)) => crate::output::config::load_toml(p)?,
+            (None, None) => Instrument::patent_profile(),
+        };
+        let grid = inst.grid().context("the instrument's angle grid")?;
+        let kind: EstimatorKind = self.estimator.into();
+        let mix = PriorMix::parse(&self.prior)?;
+        let prior = mix.models(&grid, inst.view_deg, inst.spectral_weights).context("building the prior")?;
+        let optics = zone_optics(self, scene.as_ref(), &inst, &grid)?;
+        let form = self.form.unwrap_or(crate::calibration::train::Form::default_for(kind));
+        Ok(Setup {
+            inst,
+            grid,
+            kind,
+            mix,
+            prior,
+            optics,
+            criterion: self.criterion.into(),
+            false_alarm: self.false_alarm,
+            clusters: self.clusters,
+            root: form == crate::calibration::train::Form::Root,
+        })
+    }
 }
 
 /// The error training minimises, on the command line.
@@ -142,50 +257,12 @@ impl From<CriterionArg> for Criterion {
 /// Runs the command: parses the arguments into a training specification,
 /// trains (`crate::calibration::train`), signs and writes. Nothing is
 /// written unless training succeeds.
-pub fn run(mut a: Args) -> anyhow::Result<()> {
-    if a.patent {
-        a.estimator = Estimator::Wiener;
-        a.prior = "patent".into();
-        a.criterion = CriterionArg::Plain;
-        a.form = Some(crate::calibration::train::Form::Linear);
-    }
-    let scene = match &a.scene {
-        Some(p) => Some(crate::forward::scene::Scene::load(p)?),
-        None => None,
-    };
-    if let Some(x) = a.noise
-        && (!x.is_finite() || !(0.0..1.0).contains(&x))
-    {
-        anyhow::bail!("--noise {x}: must be a relative level in [0, 1) (0.02 is 2 %)");
-    }
-    ensure!(a.false_alarm > 0.0 && a.false_alarm < 1.0, "--false-alarm {}: must be in (0, 1)", a.false_alarm);
-    let inst: Instrument = match (&scene, &a.instrument) {
-        (Some(s), _) => s.instrument.clone(),
-        (None, Some(p)) => crate::output::config::load_toml(p)?,
-        (None, None) => Instrument::patent_profile(),
-    };
-    let grid = inst.grid().context("the instrument's angle grid")?;
-    let kind: EstimatorKind = a.estimator.into();
-    let mix = PriorMix::parse(&a.prior)?;
-    let prior = mix.models(&grid, inst.view_deg, inst.spectral_weights).context("building the prior")?;
-    let (zones, pixels, white, far_field, noise) = zone_optics(&a, scene.as_ref(), &inst, &grid)?;
-    let trained = train(&TrainSpec {
-        bins_deg: grid.bins_deg(),
-        zones,
-        pixels,
-        view_deg: inst.view_deg,
-        prior: &prior,
-        noise_rel: noise,
-        estimator: kind,
-        criterion: a.criterion.into(),
-        false_alarm: a.false_alarm,
-        clusters: a.clusters,
-        root: a.form.unwrap_or(crate::calibration::train::Form::default_for(kind))
-            == crate::calibration::train::Form::Root,
-        far_field,
-        led_order: None,
-        white,
-    })?;
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let setup = a.cal.setup()?;
+    let kind = setup.kind;
+    let noise = setup.optics.4;
+    let (mix, prior) = (&setup.mix, &setup.prior);
+    let trained = train(&setup.spec())?;
     // Everything is computed; serialise (and sign) before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
     let out = match &a.sign {
@@ -231,7 +308,7 @@ pub fn run(mut a: Args) -> anyhow::Result<()> {
                 z0.ridge,
                 z0.cv_error,
                 trained.out_of_prior_threshold.unwrap_or(f32::INFINITY),
-                100.0 * a.false_alarm,
+                100.0 * a.cal.false_alarm,
                 trained.f32_rel_error
             );
         }
@@ -263,11 +340,11 @@ pub fn run(mut a: Args) -> anyhow::Result<()> {
 /// it) or the instrument's uniform zones (relative noise `--noise`, 0.02
 /// by default): the zones, P, the white reference, the far-field flag and
 /// the noise level the blob records.
-pub(crate) type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool, f64);
+pub type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool, f64);
 
 /// See [`TrainingZones`].
-pub(crate) fn zone_optics(
-    a: &Args,
+pub fn zone_optics(
+    a: &CalibrationArgs,
     scene: Option<&crate::forward::scene::Scene>,
     inst: &Instrument,
     grid: &crate::forward::grid::AngleGrid,
@@ -299,33 +376,33 @@ pub(crate) mod tests {
         Args {
             out: dir.join("out/cal.blob"),
             json: Some(dir.join("out/cal.json")),
-            zones: 2,
-            pixels: 16,
-            noise: Some(0.02),
-            estimator: Estimator::Wiener,
-            prior: "patent".into(),
-            instrument: None,
-            far_field: false,
-            scene: None,
-            criterion: CriterionArg::PeakRelative,
-            clusters: None,
-            false_alarm: 0.05,
+            cal: CalibrationArgs {
+                zones: 2,
+                pixels: 16,
+                noise: Some(0.02),
+                estimator: Estimator::Wiener,
+                prior: "patent".into(),
+                instrument: None,
+                far_field: false,
+                scene: None,
+                criterion: CriterionArg::PeakRelative,
+                clusters: None,
+                false_alarm: 0.05,
+                form: None,
+                patent: false,
+            },
             sign: None,
-            form: None,
-            patent: false,
         }
     }
 
     /// One-zone, 8-pixel arguments for `estimator` on `prior`, writing into `dir`.
     pub(crate) fn args_with(dir: &Path, estimator: Estimator, prior: &str) -> Args {
+        let a = args(dir);
         Args {
             out: dir.join("cal.blob"),
             json: Some(dir.join("cal.json")),
-            zones: 1,
-            pixels: 8,
-            estimator,
-            prior: prior.into(),
-            ..args(dir)
+            cal: CalibrationArgs { zones: 1, pixels: 8, estimator, prior: prior.into(), ..a.cal },
+            ..a
         }
     }
 
@@ -369,11 +446,11 @@ pub(crate) mod tests {
         std::fs::write(&csv, "20,1.0\n30,oops\n").unwrap();
         type Edit<'a> = Box<dyn Fn(&mut Args) + 'a>;
         let cases: Vec<(Edit, &str)> = vec![
-            (Box::new(|a: &mut Args| a.prior = bad.display().to_string()), "prior.toml:3"),
-            (Box::new(|a: &mut Args| a.prior = csv.display().to_string()), "m.csv:2"),
-            (Box::new(|a: &mut Args| a.noise = Some(-0.1)), "--noise"),
-            (Box::new(|a: &mut Args| a.zones = 17), "zones = 17"),
-            (Box::new(|a: &mut Args| a.estimator = Estimator::Inverse), "square"),
+            (Box::new(|a: &mut Args| a.cal.prior = bad.display().to_string()), "prior.toml:3"),
+            (Box::new(|a: &mut Args| a.cal.prior = csv.display().to_string()), "m.csv:2"),
+            (Box::new(|a: &mut Args| a.cal.noise = Some(-0.1)), "--noise"),
+            (Box::new(|a: &mut Args| a.cal.zones = 17), "zones = 17"),
+            (Box::new(|a: &mut Args| a.cal.estimator = Estimator::Inverse), "square"),
         ];
         for (edit, want) in cases {
             let mut a = args(dir.path());

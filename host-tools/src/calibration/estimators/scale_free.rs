@@ -616,6 +616,10 @@ pub fn train_with(
     Ok(ScaleFreeZone { maps: fitted.maps, centroids: fitted.centroids, out_of_prior, ridge, cv_error, root: opts.root })
 }
 
+/// One held-out pair's reading: (cluster, weight, estimate, root errors per
+/// unit scale, truth, scale).
+type HeldOutRoot = (usize, f64, DVector<f64>, DVector<f64>, DVector<f64>, f64);
+
 /// The root form's uncertainty per unit scale (module doc): per cluster of
 /// `fitted` and bin, the RMS of the held-out roots' errors (each pair read
 /// by its fold's fit, every noise draw, the prior's own weights), then one
@@ -633,8 +637,7 @@ fn held_out_uncertainty(
     let n = pairs.n();
     let k_maps = fitted.maps.len();
     let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
-    // (cluster, weight, estimate, held-out root errors per unit scale, truth, scale)
-    let mut held: Vec<(usize, f64, DVector<f64>, DVector<f64>, DVector<f64>, f64)> = Vec::new();
+    let mut held: Vec<HeldOutRoot> = Vec::new();
     for f in 0..nf {
         let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
         let fold_fit = fit(nz, &train_idx, opts.seed, ridge, clusters, true)?;
@@ -642,7 +645,7 @@ fn held_out_uncertainty(
             let truth = pairs.truth.column(k).into_owned();
             for v in &cv.readings[k] {
                 let s: f64 = v.iter().sum();
-                if !(s > 0.0) {
+                if s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                     continue;
                 }
                 let est = fold_fit.estimate(v);

@@ -1,0 +1,274 @@
+//! The figures a metrologist signs, per family and method, from every
+//! estimate (one per noise draw) of every surface:
+//!
+//! - BRDF error: per surface, the RMS over bins and draws of `est - truth`
+//!   over the truth's peak bin; median, 90th percentile and worst surface.
+//! - Physically impossible: the share of estimates with a bin below
+//!   [`IMPOSSIBLE`] of the estimate's own peak (its largest |bin|).
+//! - Gloss: `|G_est - G_true| / G_true` per estimate, median and 90th
+//!   percentile, split at [`GLOSS_SPLIT_GU`] of the truth (up to it also in
+//!   GU); haze (HU) and distinctness (%) as absolute errors.
+//! - Coverage at k = 2: the share of bins with `|est - truth| <= 2 u`, `u`
+//!   the bin's own stated uncertainty; the same per gloss reading.
+//! - Flag: of estimates worse than [`BAD_ERROR`] of the truth's peak, the
+//!   share flagged (any flag); of the rest, the share flagged.
+//! - Specular peak (`output::peak`): height relative error, full width at
+//!   half maximum absolute error, the height's k = 2 coverage.
+//!
+//! Interpolation states no uncertainty and raises no flag: its coverage
+//! and flag figures are absent (`None`), never zero.
+use super::reading::Reading;
+use super::truth::Truth;
+use crate::evaluation::pixel_error::quantiles;
+use serde::Serialize;
+
+/// A bin below this fraction of the estimate's peak is physically impossible
+/// (a reflectance factor is never negative; 1 % leaves room for rounding).
+pub const IMPOSSIBLE: f64 = -0.01;
+/// Gloss readings are split here: a gloss meter's usual range, and the
+/// near-mirror surfaces above it.
+pub const GLOSS_SPLIT_GU: f64 = 300.0;
+/// An estimate worse than this (RMS over bins / truth's peak) should be flagged.
+pub const BAD_ERROR: f64 = 0.10;
+/// The coverage factor of the stated uncertainties checked (the GUM's ~95 %).
+pub const K: f64 = 2.0;
+
+/// Median, 90th percentile and largest.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Spread {
+    /// Median.
+    pub median: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    fn of(x: &[f64]) -> Self {
+        let [median, p90, max] = quantiles(x);
+        Self { median, p90, max }
+    }
+}
+
+/// One family and method's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    /// Family.
+    pub family: String,
+    /// `estimator` or `interpolation`.
+    pub method: String,
+    /// Surfaces.
+    pub materials: usize,
+    /// Estimates (surfaces x draws).
+    pub estimates: usize,
+    /// Per-surface BRDF error (RMS over bins and draws / truth's peak).
+    pub error: Spread,
+    /// The surface with the largest.
+    pub worst_material: String,
+    /// Share of estimates with a bin below [`IMPOSSIBLE`] of their peak.
+    pub impossible: f64,
+    /// Gloss relative error of surfaces up to [`GLOSS_SPLIT_GU`] (truth).
+    pub gloss_rel_low: Spread,
+    /// Estimates in it.
+    pub gloss_low_count: usize,
+    /// Their absolute error, GU (a low-gloss surface's relative error says
+    /// little: 1 GU off a 2 GU matt paint is 50 %).
+    pub gloss_abs_low_gu: Spread,
+    /// The same above.
+    pub gloss_rel_high: Spread,
+    /// Estimates in it.
+    pub gloss_high_count: usize,
+    /// |haze error|, HU.
+    pub haze_abs: Spread,
+    /// |distinctness error|, %.
+    pub distinctness_abs: Spread,
+    /// Estimates with a gloss reading missing (NaN) where the truth has one.
+    pub no_reading: usize,
+    /// Share of bins within k = 2 of their stated uncertainty.
+    pub bin_coverage: Option<f64>,
+    /// The same for gloss, haze and distinctness.
+    pub reading_coverage: Option<[f64; 3]>,
+    /// Estimates worse than [`BAD_ERROR`].
+    pub bad: usize,
+    /// Of those, the share flagged.
+    pub flag_caught: Option<f64>,
+    /// Of the rest, the share flagged.
+    pub flag_false: Option<f64>,
+    /// Specular peak height, relative error.
+    pub peak_height_rel: Spread,
+    /// Its full width at half maximum, absolute error (deg).
+    pub peak_width_abs_deg: Spread,
+    /// Share of peak heights within k = 2 of their stated uncertainty.
+    pub peak_height_coverage: Option<f64>,
+    /// Estimates without a peak where the truth has one.
+    pub peak_missed: usize,
+}
+
+/// The running tally of one family and method.
+#[derive(Debug, Default)]
+pub struct Tally {
+    materials: Vec<(String, f64)>,
+    estimates: usize,
+    impossible: usize,
+    gloss_low: Vec<f64>,
+    gloss_low_abs: Vec<f64>,
+    gloss_high: Vec<f64>,
+    haze: Vec<f64>,
+    distinctness: Vec<f64>,
+    no_reading: usize,
+    bins: Option<(usize, usize)>,
+    readings: Option<[(usize, usize); 3]>,
+    bad: (usize, usize),
+    good: (usize, usize),
+    flags: bool,
+    height: Vec<f64>,
+    width: Vec<f64>,
+    height_cov: Option<(usize, usize)>,
+    peak_missed: usize,
+}
+
+/// `(hits, total)` as a share (`None` when there was nothing to count).
+fn share((hit, total): (usize, usize)) -> Option<f64> {
+    (total > 0).then(|| hit as f64 / total as f64)
+}
+
+fn count(acc: &mut Option<(usize, usize)>, hit: bool) {
+    let a = acc.get_or_insert((0, 0));
+    a.0 += usize::from(hit);
+    a.1 += 1;
+}
+
+/// RMS over the bins of `est - truth`, over the truth's peak.
+pub fn peak_relative_rms(est: &[f64], truth: &Truth) -> f64 {
+    let n = est.len() as f64;
+    let ss: f64 = est.iter().zip(truth.rho.iter()).map(|(e, t)| (e - t).powi(2)).sum();
+    (ss / n).sqrt() / truth.peak.max(f64::MIN_POSITIVE)
+}
+
+/// Whether a bin of `est` is below [`IMPOSSIBLE`] of its largest |bin|.
+pub fn impossible(est: &[f64]) -> bool {
+    let top = est.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    est.iter().any(|x| *x < IMPOSSIBLE * top)
+}
+
+impl Tally {
+    /// Adds every estimate of one surface.
+    pub fn add(&mut self, name: &str, truth: &Truth, estimates: &[Reading]) {
+        let mut ss = 0.0;
+        for r in estimates {
+            let e = peak_relative_rms(&r.rho, truth);
+            ss += e * e;
+            self.estimates += 1;
+            self.impossible += usize::from(impossible(&r.rho));
+            let [gt, ht, dt] = truth.readings;
+            let [g, h, d] = r.gloss;
+            if gt.is_finite() && gt > 0.0 {
+                if g.is_finite() {
+                    let rel = (g - gt).abs() / gt;
+                    if gt <= GLOSS_SPLIT_GU {
+                        self.gloss_low.push(rel);
+                        self.gloss_low_abs.push((g - gt).abs());
+                    } else {
+                        self.gloss_high.push(rel);
+                    }
+                } else {
+                    self.no_reading += 1;
+                }
+            }
+            if ht.is_finite() && h.is_finite() {
+                self.haze.push((h - ht).abs());
+            }
+            if dt.is_finite() && d.is_finite() {
+                self.distinctness.push((d - dt).abs());
+            }
+            if let Some(s) = &r.sigma {
+                let b = self.bins.get_or_insert((0, 0));
+                for ((x, t), u) in r.rho.iter().zip(truth.rho.iter()).zip(s) {
+                    b.0 += usize::from((x - t).abs() <= K * u);
+                    b.1 += 1;
+                }
+            }
+            if let Some(u) = r.gloss_u {
+                let acc = self.readings.get_or_insert([(0, 0); 3]);
+                for i in 0..3 {
+                    let (x, t) = (r.gloss[i], truth.readings[i]);
+                    if x.is_finite() && t.is_finite() && u[i].is_finite() {
+                        acc[i].0 += usize::from((x - t).abs() <= K * u[i]);
+                        acc[i].1 += 1;
+                    }
+                }
+            }
+            let side = if e > BAD_ERROR { &mut self.bad } else { &mut self.good };
+            side.0 += usize::from(r.flagged == Some(true));
+            side.1 += 1;
+            self.flags |= r.flagged.is_some();
+            let (tp, ep) = (truth.specular, r.specular);
+            if tp.rf.is_finite() {
+                if ep.rf.is_finite() {
+                    self.height.push((ep.rf - tp.rf).abs() / tp.rf);
+                    if ep.u_rf.is_finite() && r.sigma.is_some() {
+                        count(&mut self.height_cov, (ep.rf - tp.rf).abs() <= K * ep.u_rf);
+                    }
+                } else {
+                    self.peak_missed += 1;
+                }
+                if tp.width_deg.is_finite() && ep.width_deg.is_finite() {
+                    self.width.push((ep.width_deg - tp.width_deg).abs());
+                }
+            }
+        }
+        let rms = (ss / estimates.len().max(1) as f64).sqrt();
+        self.materials.push((name.to_string(), rms));
+    }
+
+    /// The figures.
+    pub fn row(&self, family: &str, method: &str) -> Row {
+        let errors: Vec<f64> = self.materials.iter().map(|m| m.1).collect();
+        let worst = self
+            .materials
+            .iter()
+            .filter(|m| m.1.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(String::new(), |m| m.0.clone());
+        Row {
+            family: family.into(),
+            method: method.into(),
+            materials: self.materials.len(),
+            estimates: self.estimates,
+            error: Spread::of(&errors),
+            worst_material: worst,
+            impossible: share((self.impossible, self.estimates)).unwrap_or(f64::NAN),
+            gloss_rel_low: Spread::of(&self.gloss_low),
+            gloss_low_count: self.gloss_low.len(),
+            gloss_abs_low_gu: Spread::of(&self.gloss_low_abs),
+            gloss_rel_high: Spread::of(&self.gloss_high),
+            gloss_high_count: self.gloss_high.len(),
+            haze_abs: Spread::of(&self.haze),
+            distinctness_abs: Spread::of(&self.distinctness),
+            no_reading: self.no_reading,
+            bin_coverage: self.bins.and_then(share),
+            reading_coverage: self.readings.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
+            bad: self.bad.1,
+            flag_caught: if self.flags { share(self.bad) } else { None },
+            flag_false: if self.flags { share(self.good) } else { None },
+            peak_height_rel: Spread::of(&self.height),
+            peak_width_abs_deg: Spread::of(&self.width),
+            peak_height_coverage: self.height_cov.and_then(share),
+            peak_missed: self.peak_missed,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn impossible_is_relative_to_the_estimates_own_peak() {
+        assert!(!impossible(&[0.0, 1.0, -0.009]));
+        assert!(impossible(&[0.0, 1.0, -0.011]));
+        assert!(impossible(&[-0.5, -0.2]));
+        assert!(!impossible(&[0.0, 0.0]));
+    }
+}

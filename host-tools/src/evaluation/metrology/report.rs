@@ -1,0 +1,196 @@
+//! The evaluation's report: how each family was held out, one row of
+//! figures per family and method, one line per surface, and the tables
+//! printed from them.
+use super::families::TestFamily;
+use super::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, Row, Spread, peak_relative_rms};
+use super::reading::Reading;
+use super::truth::Truth;
+use serde::Serialize;
+
+/// How one family was held out.
+#[derive(Clone, Debug, Serialize)]
+pub struct FamilyProtocol {
+    /// Family.
+    pub family: String,
+    /// Where its surfaces come from.
+    pub source: String,
+    /// Surfaces.
+    pub materials: usize,
+    /// Of them, training samples (read by the fold that left them out).
+    pub in_training: usize,
+    /// In words.
+    pub protocol: String,
+}
+
+impl FamilyProtocol {
+    /// The protocol of `fam`, `in_training` of whose surfaces are training samples.
+    pub fn new(fam: &TestFamily, in_training: usize, folds: usize) -> Self {
+        let n = fam.materials.len();
+        let protocol = match in_training {
+            0 => "never in training: read by the calibration on the whole prior".to_string(),
+            k if k == n => format!("all in training: {folds}-fold, each read by a calibration trained without it"),
+            k => format!(
+                "{k} in training ({folds}-fold, each read by a calibration trained without it), {} never in training",
+                n - k
+            ),
+        };
+        Self { family: fam.name.clone(), source: fam.source.clone(), materials: n, in_training, protocol }
+    }
+}
+
+/// One surface's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialResult {
+    /// Family.
+    pub family: String,
+    /// Name.
+    pub name: String,
+    /// The fold whose calibration read it (`None`: the calibration on everything).
+    pub fold: Option<usize>,
+    /// Its peak bin.
+    pub peak: f64,
+    /// Its gloss GU, haze HU, distinctness % by the definitions.
+    pub readings_true: [f64; 3],
+    /// The estimator's BRDF error (RMS over bins and draws / peak).
+    pub error_estimator: f64,
+    /// Interpolation's.
+    pub error_interpolation: f64,
+    /// The estimator's gloss readings, mean over the draws.
+    pub readings_estimator: [f64; 3],
+    /// Interpolation's.
+    pub readings_interpolation: [f64; 3],
+    /// Share of the draws flagged.
+    pub flagged: f64,
+}
+
+fn rms_over(rs: &[Reading], t: &Truth) -> f64 {
+    (rs.iter().map(|r| peak_relative_rms(&r.rho, t).powi(2)).sum::<f64>() / rs.len().max(1) as f64).sqrt()
+}
+
+fn mean_readings(rs: &[Reading]) -> [f64; 3] {
+    core::array::from_fn(|i| rs.iter().map(|r| r.gloss[i]).sum::<f64>() / rs.len().max(1) as f64)
+}
+
+impl MaterialResult {
+    /// The result of one surface from its estimates by each method.
+    pub fn new(family: &str, name: &str, fold: Option<usize>, t: &Truth, est: &[Reading], interp: &[Reading]) -> Self {
+        Self {
+            family: family.into(),
+            name: name.into(),
+            fold,
+            peak: t.peak,
+            readings_true: t.readings,
+            error_estimator: rms_over(est, t),
+            error_interpolation: rms_over(interp, t),
+            readings_estimator: mean_readings(est),
+            readings_interpolation: mean_readings(interp),
+            flagged: est.iter().filter(|r| r.flagged == Some(true)).count() as f64 / est.len().max(1) as f64,
+        }
+    }
+}
+
+/// The whole evaluation.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// What was evaluated (the calibration's kind, prior, form; set by the caller).
+    pub calibration: String,
+    /// Relative noise of the readings.
+    pub noise_rel: f64,
+    /// Draws per surface.
+    pub draws: usize,
+    /// Folds K (0: no surface was a training sample).
+    pub folds: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Calibrations trained.
+    pub trainings: usize,
+    /// How each family was held out.
+    pub families: Vec<FamilyProtocol>,
+    /// Per family, the estimator's row then interpolation's.
+    pub rows: Vec<Row>,
+    /// Per surface.
+    pub materials: Vec<MaterialResult>,
+}
+
+fn pct(x: f64) -> String {
+    if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() }
+}
+
+fn opt_pct(x: Option<f64>) -> String {
+    x.map_or("-".into(), pct)
+}
+
+fn pair_pct(s: &Spread) -> String {
+    if s.median.is_finite() { format!("{:.1} / {:.1} %", 100.0 * s.median, 100.0 * s.p90) } else { "-".into() }
+}
+
+fn pair(s: &Spread, digits: usize) -> String {
+    if s.median.is_finite() { format!("{:.digits$} / {:.digits$}", s.median, s.p90) } else { "-".into() }
+}
+
+impl Report {
+    /// The tables, as Markdown.
+    pub fn tables(&self) -> String {
+        let mut s = String::new();
+        s += &format!(
+            "Calibration: {}\nReadings: patent-profile optics, {} % proportional noise, {} draw(s) per surface, seed {}; {} calibration(s) trained\n\n",
+            self.calibration,
+            100.0 * self.noise_rel,
+            self.draws,
+            self.seed,
+            self.trainings
+        );
+        for f in &self.families {
+            s += &format!("- {} ({} surfaces, {}): {}\n", f.family, f.materials, f.source, f.protocol);
+        }
+        s += &format!(
+            "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
+             coverage = |est - truth| <= 2 u; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest)\n\n"
+        );
+        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 | FWHM err. p50 / p90 (deg) |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        for r in &self.rows {
+            s += &format!(
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} ({}) | {} | {} | {} |\n",
+                r.family,
+                r.method,
+                r.materials,
+                r.error.median,
+                r.error.p90,
+                r.error.max,
+                r.worst_material,
+                pct(r.impossible),
+                opt_pct(r.bin_coverage),
+                opt_pct(r.flag_caught),
+                r.bad,
+                opt_pct(r.flag_false),
+                pair_pct(&r.peak_height_rel),
+                pair(&r.peak_width_abs_deg, 2),
+            );
+        }
+        s += &format!(
+            "\nGloss readings (|G_est - G_true| / G_true per estimate, split at {GLOSS_SPLIT_GU} GU of the truth; haze HU and distinctness % absolute; coverage k=2 of the stated u)\n\n"
+        );
+        s += "| family | method | G <= 300: p50 / p90 (n) | G <= 300: GU p50 / p90 | G > 300: p50 / p90 (n) | haze HU p50 / p90 | distinctness % p50 / p90 | no reading | coverage G / H / D |\n";
+        s += "|---|---|---|---|---|---|---|---|---|\n";
+        for r in &self.rows {
+            let cov =
+                r.reading_coverage.map_or("-".into(), |c| format!("{} / {} / {}", pct(c[0]), pct(c[1]), pct(c[2])));
+            s += &format!(
+                "| {} | {} | {} ({}) | {} | {} ({}) | {} | {} | {} | {} |\n",
+                r.family,
+                r.method,
+                pair_pct(&r.gloss_rel_low),
+                r.gloss_low_count,
+                pair(&r.gloss_abs_low_gu, 2),
+                pair_pct(&r.gloss_rel_high),
+                r.gloss_high_count,
+                pair(&r.haze_abs, 2),
+                pair(&r.distinctness_abs, 1),
+                r.no_reading,
+                cov
+            );
+        }
+        s
+    }
+}

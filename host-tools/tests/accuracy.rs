@@ -1,0 +1,99 @@
+//! The metrology evaluation on a reduced set (a few surfaces, one draw):
+//! its figures are computed on the truths both methods share, and it sees
+//! what it is built to see, a physically impossible estimate.
+use clap::Parser;
+use host_tools::cli::train::{CalibrationArgs, Setup};
+use host_tools::evaluation::metrology::families::TestFamily;
+use host_tools::evaluation::metrology::metrics::Row;
+use host_tools::evaluation::metrology::{Config, Report, run};
+use host_tools::forward::brdf::{Brdf, Lambertian};
+use std::sync::Arc;
+
+/// `train`'s flags, parsed as `accuracy` parses them.
+#[derive(Parser)]
+struct Flags {
+    #[command(flatten)]
+    cal: CalibrationArgs,
+}
+
+fn setup(flags: &[&str]) -> Setup {
+    let args = std::iter::once("accuracy").chain(flags.iter().copied());
+    Flags::try_parse_from(args).unwrap().cal.setup().unwrap()
+}
+
+fn evaluate(flags: &[&str], families: &[TestFamily], noise_rel: f64) -> Report {
+    let s = setup(flags);
+    let cfg = Config { draws: 1, noise_rel, ..Default::default() };
+    run(&s.spec(), &s.inst, &s.grid, families, &cfg, &|_| {}).unwrap()
+}
+
+fn row<'a>(r: &'a Report, family: &str, method: &str) -> &'a Row {
+    r.rows.iter().find(|x| x.family == family && x.method == method).unwrap()
+}
+
+#[test]
+fn a_flat_surface_is_read_exactly_by_interpolation_against_the_same_truth() {
+    // A diffuser's readings are its albedo at every LED and its truth is
+    // flat: interpolation is exact, so any error is the evaluation's own.
+    let flat = TestFamily {
+        name: "diffusers".into(),
+        source: "test".into(),
+        materials: [0.2, 0.5, 0.9]
+            .iter()
+            .map(|a| (format!("lambert {a}"), Arc::new(Lambertian { rho: *a }) as Arc<dyn Brdf>))
+            .collect(),
+    };
+    let r = evaluate(&[], &[flat], 0.0);
+    assert_eq!(r.folds, 0, "a diffuser is no sample of the Table 5 prior");
+    for m in &r.materials {
+        assert!(m.error_interpolation < 1e-6, "{}: {}", m.name, m.error_interpolation);
+        assert!(m.error_estimator.is_finite() && m.error_estimator > 1e-4, "{}: {}", m.name, m.error_estimator);
+        // Both methods' gloss is scored against the same truth: a diffuser's
+        // in-plane and three-dimensional readings agree.
+        let (g, gi) = (m.readings_true[0], m.readings_interpolation[0]);
+        assert!((gi - g).abs() < 0.01 * g, "{}: interpolation {gi} GU, truth {g} GU", m.name);
+    }
+    let i = row(&r, "diffusers", "interpolation");
+    assert!(i.error.max < 1e-6 && i.impossible == 0.0);
+    assert!(i.bin_coverage.is_none() && i.flag_caught.is_none(), "interpolation states no uncertainty, raises no flag");
+    let e = row(&r, "diffusers", "estimator");
+    assert!(e.bin_coverage.is_some() && e.reading_coverage.is_some());
+    assert!(r.tables().contains("| diffusers | interpolation | 3 |"), "{}", r.tables());
+}
+
+#[test]
+fn the_root_form_is_never_negative_where_a_linear_wiener_is() {
+    let ward = || vec![TestFamily::ward().at_most(12)];
+    let root = evaluate(&["--estimator", "scale-free", "--prior", "merl"], &ward(), 0.02);
+    let linear = evaluate(&["--prior", "merl"], &ward(), 0.02);
+    let (r, l) = (row(&root, "ward", "estimator"), row(&linear, "ward", "estimator"));
+    assert_eq!((r.materials, l.materials), (12, 12));
+    assert_eq!(r.impossible, 0.0, "{}", root.tables());
+    assert!(l.impossible > 0.5, "{}", linear.tables());
+    // The same draws and truths for interpolation under either calibration.
+    let (ri, li) = (row(&root, "ward", "interpolation"), row(&linear, "ward", "interpolation"));
+    assert_eq!(ri.error.median, li.error.median);
+}
+
+#[test]
+fn measured_materials_in_the_prior_are_read_by_calibrations_trained_without_them() {
+    let set = host_tools::forward::brdf::NbrdfSet::merl();
+    let spectral = host_tools::forward::optics::Instrument::patent_profile().spectral_weights;
+    let fams = vec![TestFamily::measured("merl", &set, spectral).at_most(6)];
+    let r = evaluate(&["--estimator", "scale-free", "--prior", "merl", "--form", "linear"], &fams, 0.02);
+    assert_eq!((r.folds, r.trainings), (5, 5), "every surface a prior sample: folds only");
+    assert_eq!(r.families[0].in_training, 6);
+    assert!(r.materials.iter().all(|m| m.fold.is_some()));
+}
+
+#[test]
+fn the_device_applying_an_interpolation_calibration_scores_as_the_evaluations_interpolation() {
+    // Two independent paths to the same BRDF estimate (the blob's matrix
+    // through the device's f32 kernel; the evaluation's f64 weights) must
+    // give the same error on the same draws and truths.
+    let r = evaluate(&["--estimator", "interpolation"], &[TestFamily::ward().at_most(6)], 0.02);
+    let (e, i) = (row(&r, "ward", "estimator"), row(&r, "ward", "interpolation"));
+    for (a, b) in [(e.error.median, i.error.median), (e.error.max, i.error.max)] {
+        assert!((a - b).abs() < 1e-5 * b, "device {a}, evaluation {b}");
+    }
+}
