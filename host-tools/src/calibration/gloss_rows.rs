@@ -221,6 +221,32 @@ pub fn standards() -> PriorModels {
     PriorModels::from_brdfs("gloss standards", out)
 }
 
+/// The black glass's position among [`standards`]' samples (bare, at its own index).
+pub const BLACK_GLASS_STANDARD: usize = 2 * STANDARD_BASE_ALBEDOS.len();
+
+/// The share of the rows' criterion given to the black glass's own pairs.
+/// Every reading is scaled by the rows' reading of the black glass (as a
+/// gloss meter is set on its standard), so a fit that misreads the glass
+/// by a third misreads every surface by a third: the fit is held to the
+/// standard, and the rest of the criterion shares what is left.
+pub const BLACK_GLASS_SHARE: f64 = 0.5;
+
+/// The pairs with those of sample `standard` (the black glass) holding
+/// [`BLACK_GLASS_SHARE`] of the weight (unchanged when it has none).
+pub fn anchored(pairs: &Pairs, standard: usize) -> Pairs {
+    let mut out = pairs.clone();
+    let on: f64 = (0..out.len()).filter(|&k| out.sample[k] == standard).map(|k| out.weights[k]).sum();
+    let off: f64 = (0..out.len()).filter(|&k| out.sample[k] != standard).map(|k| out.weights[k]).sum();
+    if on <= 0.0 || off <= 0.0 {
+        return out;
+    }
+    for k in 0..out.len() {
+        out.weights[k] *=
+            if out.sample[k] == standard { BLACK_GLASS_SHARE / on } else { (1.0 - BLACK_GLASS_SHARE) / off };
+    }
+    out
+}
+
 /// The weight of the standards' family in the rows' prior: the prior and
 /// the standards are mixed as two families of equal weight (as
 /// `prior_measured::PriorMix` mixes families, `a@0.5+b@0.5`), each

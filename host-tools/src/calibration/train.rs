@@ -529,6 +529,8 @@ fn gloss_section(
         let aug = aug.columns(&lit);
         let Some(target) = gloss_rows::targets(&aug) else { return Ok(None) };
         let aug = gloss_rows::reading_weighted(&aug, &target);
+        let first_standard = zone_pairs.prior[z].sample.iter().copied().max().map_or(0, |x| x + 1);
+        let aug = gloss_rows::anchored(&aug, first_standard + gloss_rows::BLACK_GLASS_STANDARD);
         let bg = gloss_rows::black_glass_readings(&zo.centre);
         let Some((mut blocks, s)) =
             gloss_rows_of(tz, &aug, &target, plan, &bg).with_context(|| format!("zone {z}: the gloss rows"))?
