@@ -1,5 +1,8 @@
-//! The calibration store: two slots (A, B) on a NOR flash, each holding one
-//! slot header and one blob.
+//! The two-slot store on a NOR flash: slots A and B, each holding one slot
+//! header and one signed image. The calibrations live in one ([`Store`]),
+//! the inspection recipes in another (`crate::inspect::RecipeStore`): the
+//! same slot logic, power-cut rules and signature check, told apart only by
+//! what a slot's content must parse as ([`SlotContent`]).
 //!
 //! # Slot layout (slot format version 1)
 //! | offset | size | field |
@@ -8,7 +11,7 @@
 //! | 4 | 2 | slot format version (1) |
 //! | 6 | 2 | header length (32) |
 //! | 8 | 4 | sequence number (higher = newer, wrapping) |
-//! | 12 | 4 | blob length (the signed calibration: blob and signature trailer) |
+//! | 12 | 4 | blob length (the signed content: blob or recipe, and signature trailer) |
 //! | 16 | 4 | blob CRC-32 over all its bytes (trailer included) |
 //! | 20 | 8 | reserved, 0 |
 //! | 28 | 4 | CRC-32 of bytes 0..28 |
@@ -145,6 +148,51 @@ pub fn decode_slot_header(slot: u8, h: &[u8]) -> Option<SlotInfo> {
     Some(SlotInfo { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) })
 }
 
+/// What a store's slots hold: how a verified (signed) slot's content is
+/// parsed, and which whole, signed content this firmware keeps but cannot
+/// read.
+pub trait SlotContent {
+    /// The parsed content, read in place from the slot.
+    type View: Copy;
+    /// Parses the content (signature already verified and removed); also
+    /// checks that it fills exactly the bytes given.
+    fn parse(bytes: &'static [u8]) -> Result<Self::View, DeviceError>;
+    /// The reason a whole, signed content that fails [`Self::parse`] is kept
+    /// but not used, when it is a format this firmware does not read;
+    /// `None` for any other failure.
+    fn unreadable(_bytes: &'static [u8]) -> Option<DeviceError> {
+        None
+    }
+}
+
+/// The calibrations: blobs ([`crate::blob`]).
+pub struct Calibrations;
+
+impl SlotContent for Calibrations {
+    type View = BlobView<'static>;
+
+    fn parse(bytes: &'static [u8]) -> Result<Self::View, DeviceError> {
+        let view = BlobView::parse(bytes)?;
+        if view.as_bytes().len() != bytes.len() {
+            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: bytes.len() }.into());
+        }
+        Ok(view)
+    }
+
+    fn unreadable(bytes: &'static [u8]) -> Option<DeviceError> {
+        match BlobView::parse(bytes) {
+            // Whole, signed, but a format this build cannot read (written
+            // by another firmware): said so, never misread.
+            Err(BlobError::UnsupportedVersion(format)) => Some(DeviceError::CalibrationUnsupported {
+                format,
+                oldest: crate::blob::FORMAT_VERSION_1,
+                newest: crate::blob::FORMAT_VERSION,
+            }),
+            _ => None,
+        }
+    }
+}
+
 /// A provisioning in progress.
 #[derive(Clone, Copy, Debug)]
 struct Session {
@@ -160,17 +208,21 @@ struct Session {
     carry_len: usize,
 }
 
-/// The two-slot calibration store.
-pub struct Store<F> {
+/// The two-slot store of content `K`.
+pub struct SlotStore<F, K: SlotContent> {
     flash: F,
     slot_len: u32,
     /// The keys a slot's signature must verify against.
     trusted: &'static [PublicKeyBytes],
     active: Option<SlotInfo>,
     session: Option<Session>,
-    /// See [`Store::unreadable`].
+    /// See [`SlotStore::unreadable`].
     unreadable: Option<DeviceError>,
+    content: core::marker::PhantomData<K>,
 }
+
+/// The two-slot calibration store.
+pub type Store<F> = SlotStore<F, Calibrations>;
 
 /// Whether sequence `a` is newer than `b` (wrapping).
 /// Whether sequence `a` is newer than `b` (wrapping comparison, so the
@@ -179,7 +231,7 @@ pub fn newer(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
 }
 
-impl<F: MappedFlash> Store<F> {
+impl<F: MappedFlash, K: SlotContent> SlotStore<F, K> {
     /// Opens the store on `flash`, whose first `2 * slot_len` bytes are slots
     /// A and B, and finds the newest valid slot signed by one of the
     /// `trusted` keys (a slot whose signature fails is passed over).
@@ -195,12 +247,20 @@ impl<F: MappedFlash> Store<F> {
         flash: F,
         slot_len: u32,
         trusted: &'static [PublicKeyBytes],
-        mut accept: impl FnMut(&BlobView<'static>) -> bool,
+        mut accept: impl FnMut(&K::View) -> bool,
     ) -> Self {
         assert!((slot_len as usize).is_multiple_of(F::ERASE_SIZE), "slot length must be whole erase pages");
         assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN.is_multiple_of(F::WRITE_SIZE));
         assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
-        let mut s = Self { flash, slot_len, trusted, active: None, session: None, unreadable: None };
+        let mut s = Self {
+            flash,
+            slot_len,
+            trusted,
+            active: None,
+            session: None,
+            unreadable: None,
+            content: core::marker::PhantomData,
+        };
         let (a, b) = (s.scan(0), s.scan(1));
         let newest_first = match (a, b) {
             (Some(x), Some(y)) if newer(y.sequence, x.sequence) => [b, a],
@@ -210,31 +270,24 @@ impl<F: MappedFlash> Store<F> {
             if !s.signed_by_trusted(info) {
                 continue;
             }
-            let bytes = s.flash.mapped(s.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-            match BlobView::parse(bytes) {
+            let image = s.flash.mapped(s.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+            let bytes = &image[..image.len() - crate::signed::TRAILER_LEN];
+            match K::parse(bytes) {
                 Ok(view) if accept(&view) => {
                     s.active = Some(info);
                     break;
                 }
                 Ok(_) => {}
-                // Whole, signed, but a format this build cannot read (written
-                // by another firmware): said so, never misread.
-                Err(BlobError::UnsupportedVersion(format)) if s.unreadable.is_none() => {
-                    s.unreadable = Some(DeviceError::CalibrationUnsupported {
-                        format,
-                        oldest: crate::blob::FORMAT_VERSION_1,
-                        newest: crate::blob::FORMAT_VERSION,
-                    });
-                }
+                Err(_) if s.unreadable.is_none() => s.unreadable = K::unreadable(bytes),
                 Err(_) => {}
             }
         }
         s
     }
 
-    /// Why the newest whole, signed calibration was passed over at boot,
-    /// when it is one this firmware cannot read (a blob format newer or
-    /// older than it reads); `None` when every such slot was readable.
+    /// Why the newest whole, signed content was passed over at boot, when
+    /// it is one this firmware cannot read (a blob format newer or older
+    /// than it reads); `None` when every such slot was readable.
     pub fn unreadable(&self) -> Option<DeviceError> {
         self.unreadable
     }
@@ -244,8 +297,8 @@ impl<F: MappedFlash> Store<F> {
         self.active
     }
 
-    /// The active blob, read in place.
-    pub fn active_blob(&self) -> Option<(SlotInfo, BlobView<'static>)> {
+    /// The active content (blob or recipe), read in place.
+    pub fn active_blob(&self) -> Option<(SlotInfo, K::View)> {
         let info = self.active?;
         Some((info, self.view(info)?))
     }
@@ -275,9 +328,9 @@ impl<F: MappedFlash> Store<F> {
         slot as u32 * self.slot_len
     }
 
-    fn view(&self, info: SlotInfo) -> Option<BlobView<'static>> {
-        let bytes = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-        BlobView::parse(bytes).ok()
+    fn view(&self, info: SlotInfo) -> Option<K::View> {
+        let image = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
+        K::parse(image.get(..image.len().checked_sub(crate::signed::TRAILER_LEN)?)?).ok()
     }
 
     /// Whether the slot's signed calibration verifies against the trusted keys.
@@ -380,7 +433,7 @@ impl<F: MappedFlash> Store<F> {
     /// active.
     pub fn commit(
         &mut self,
-        accept: impl FnOnce(&BlobView<'static>) -> Result<(), DeviceError>,
+        accept: impl FnOnce(&K::View) -> Result<(), DeviceError>,
     ) -> Result<SlotInfo, StoreError<F::Error>> {
         let mut s = self.session.take().ok_or(DeviceError::NotProvisioning)?;
         if s.received != s.len {
@@ -398,10 +451,7 @@ impl<F: MappedFlash> Store<F> {
         }
         // Nothing is parsed before the signature holds.
         let blob = crate::signed::verify(image, self.trusted)?;
-        let view = BlobView::parse(blob)?;
-        if view.as_bytes().len() != blob.len() {
-            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: blob.len() }.into());
-        }
+        let view = K::parse(blob)?;
         accept(&view)?;
         let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
         let h = encode_slot_header(sequence, s.len, computed);
