@@ -3,17 +3,26 @@
 //! same bits).
 //!
 //! # Per point ([`point_stat`]), on the corrected readings v
-//! With the pixel's reference mean `mu`, inverse standard deviations `s`
-//! and its group's whitening `L^-1` of the readings' correlation and
-//! gradient `J` (all from the recipe):
-//! - `z = s .* (v - mu)`, `y = L^-1 z`, the squared distance `d2 = |y|^2`
-//!   (Mahalanobis distance to the reference's distribution);
-//! - the change of each gloss reading, to first order, `delta = J (v - mu)`
-//!   (gloss GU, haze HU, distinctness %: exact for gloss and haze within a
-//!   calibration zone and cluster, whose readings are linear in v).
+//! The readings are first normalised to the reference's line scale,
+//! `f = k v` with `k` the sum of the reference's means over the line's
+//! pixels and readings over the same sum of the line's readings
+//! ([`line_scale`]): a change of the light's intensity common to the whole
+//! line (LED drift, the web's height moving) is not a defect, while a
+//! defect a few pixels wide changes the sum by its share of the line only
+//! (a point-by-point normalisation would hide a gloss step, which on a
+//! broad lobe scales every reading of the point alike). With the
+//! pixel's reference mean `mu` (of f), inverse standard deviations `s` and
+//! its group's whitening `L^-1` of the normalised readings' correlation
+//! and gradient `J` (all from the recipe):
+//! - `z = s .* (f - mu)` over the first m - 1 readings (the last is fixed
+//!   by them and the scale), `y = L^-1 z`, the squared distance
+//!   `d2 = |y|^2` (Mahalanobis distance to the reference's distribution);
+//! - the change of each gloss reading, to first order, `delta = J (f - mu)`
+//!   (gloss GU, haze HU, distinctness %, at the reference's line scale).
 //!
-//! m(m+1)/2 + R m multiply-adds: 49 for m = 7, against the estimation's
-//! 567 plus its gloss readings; the BRDF is never needed.
+//! (m-1)m/2 + R m + m multiply-adds (the scale's sums: 2 m adds): 49 for
+//! m = 7, against the estimation's 567 plus its gloss readings; the BRDF
+//! is never needed.
 //!
 //! # A point's kind (first that holds)
 //! unreadable (a saturated, under-exposed or non-finite reading) >
@@ -214,6 +223,10 @@ pub struct Verdict {
     pub line: u32,
     /// [`verdict`] bits.
     pub flags: u8,
+    /// The line's weighted mean gloss change over its pixels not out, GU
+    /// (NaN when none has a reading): what the drift EWMA and the host's
+    /// SPC figures take.
+    pub mean_gloss: f32,
     /// The drift EWMA after this line, GU.
     pub ewma: f32,
     /// The line's largest point distance `d2`.
@@ -254,19 +267,37 @@ pub struct PointStat {
     pub delta: [f32; READINGS],
 }
 
-/// The per-point statistics of pixel `p` in group `g` (see the module docs).
-/// Not inlined: one symbol for the decision's per-point cost in QEMU.
+/// The line's scale `k` (see the module docs): the reference's sum over
+/// the line's finite readings over theirs.
+pub fn line_scale<const M: usize>(r: &RecipeView<'_>, v: &[SVector<f32, M>]) -> f32 {
+    let (mut sv, mut smu) = (0.0f32, 0.0f32);
+    for (p, vp) in v.iter().enumerate() {
+        let s: f32 = vp.iter().sum();
+        if s.is_finite() {
+            sv += s;
+            for i in 0..M {
+                smu += r.pixel_value(p, i);
+            }
+        }
+    }
+    smu / sv
+}
+
+/// The per-point statistics of pixel `p` in group `g` at the line's
+/// `scale` (see the module docs). Not inlined: one symbol for the
+/// decision's per-point cost in QEMU.
 #[inline(never)]
-pub fn point_stat<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M]) -> PointStat {
+pub fn point_stat<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M], scale: f32) -> PointStat {
     let mut dv = [0.0f32; M];
     let mut z = [0.0f32; M];
     for i in 0..M {
-        dv[i] = v[i] - r.pixel_value(p, i);
+        dv[i] = v[i] * scale - r.pixel_value(p, i);
         z[i] = dv[i] * r.pixel_value(p, M + i);
     }
-    let mut d2 = 0.0f32;
+    // A scale that is not a positive number leaves d2 NaN: unreadable.
+    let mut d2 = if scale > 0.0 && scale.is_finite() { 0.0f32 } else { f32::NAN };
     let mut k = 0;
-    for i in 0..M {
+    for i in 0..M - 1 {
         let mut y = 0.0f32;
         for zj in &z[..=i] {
             y += r.group_value(g, k) * *zj;
@@ -373,12 +404,13 @@ impl<const P: usize> Inspector<P> {
         let (mut g, mut next_group) = (0usize, if r.groups() > 1 { r.group_start(1) } else { P });
         let (mut wsum, mut wdelta) = (0.0f32, 0.0f32);
         let mut max_d2 = 0.0f32;
+        let scale = line_scale(r, v);
         for p in 0..P {
             if p == next_group {
                 g += 1;
                 next_group = if g + 1 < r.groups() { r.group_start(g + 1) } else { P };
             }
-            let stat = point_stat(r, g, p, &v[p].data.0[0]);
+            let stat = point_stat(r, g, p, &v[p].data.0[0], scale);
             let mut kind = classify(r, &stat, reading_flags[p], self.out[p].is_some());
             if kind.is_some_and(|k| k != DefectKind::Unreadable) && out_of_prior(p) {
                 kind = Some(DefectKind::OutOfPrior);
@@ -395,7 +427,7 @@ impl<const P: usize> Inspector<P> {
                 wdelta += w * stat.delta[crate::gloss::SPECULAR_GU];
             }
         }
-        let mut verdict = Verdict { line, flags: 0, ewma: 0.0, max_d2, runs: Runs::new() };
+        let mut verdict = Verdict { line, flags: 0, mean_gloss: f32::NAN, ewma: 0.0, max_d2, runs: Runs::new() };
         let mut p = 0;
         while p < P {
             if !self.defective(p, s.min_lines) {
@@ -424,7 +456,8 @@ impl<const P: usize> Inspector<P> {
             }
         }
         if wsum > 0.0 {
-            self.ewma = s.ewma_lambda * (wdelta / wsum) + (1.0 - s.ewma_lambda) * self.ewma;
+            verdict.mean_gloss = wdelta / wsum;
+            self.ewma = s.ewma_lambda * verdict.mean_gloss + (1.0 - s.ewma_lambda) * self.ewma;
         }
         let alarm = !(self.ewma.abs() <= s.ewma_limit);
         if alarm && !self.alarm {
@@ -461,13 +494,13 @@ mod tests {
         let mut group = vec![0.0f32; group_len(M)];
         // Identity whitening, packed lower triangle.
         let mut k = 0;
-        for i in 0..M {
+        for i in 0..M - 1 {
             for j in 0..=i {
                 group[k] = if i == j { 1.0 } else { 0.0 };
                 k += 1;
             }
         }
-        group[k] = 10.0; // d gloss / d v_0
+        group[k] = 10.0; // d gloss / d f_0
         let mut settings = super::super::recipe::tests::settings();
         settings.min_pixels = min_pixels;
         settings.min_lines = min_lines;
@@ -499,8 +532,8 @@ mod tests {
     fn point_statistics_are_the_distance_and_the_gradient() {
         let bytes = recipe(1, 1);
         let r = RecipeView::parse(&bytes).unwrap();
-        let s = point_stat(&r, 0, 3, &[1.3, 1.0, 0.8]);
-        assert!((s.d2 - (9.0 + 4.0)).abs() < 1e-4, "{}", s.d2);
+        let s = point_stat(&r, 0, 3, &[1.3, 0.9, 0.8], 1.0);
+        assert!((s.d2 - (9.0 + 1.0)).abs() < 1e-4, "{}", s.d2);
         assert!((s.delta[0] - 3.0).abs() < 1e-5);
     }
 
@@ -513,15 +546,15 @@ mod tests {
         // One pixel far out: below the minimum size, not a defect.
         let v = ins.line(&r, 0, &line(&[(2, [1.0, 2.0, 1.0])]), &flags, |_| false);
         assert!(!v.rejected() && v.runs.is_empty());
-        // Pixels 4, 5 with gloss +3 GU (v0 + 0.3, d2 = 9 below the threshold): gloss high.
-        let v = ins.line(&r, 1, &line(&[(4, [1.3, 1.0, 1.0]), (5, [1.3, 1.0, 1.0])]), &flags, |_| false);
+        // Pixels 4, 5 with gloss +3 GU (f0 + 0.3, d2 = 11.25 below the threshold): gloss high.
+        let v = ins.line(&r, 1, &line(&[(4, [1.3, 0.85, 0.85]), (5, [1.3, 0.85, 0.85])]), &flags, |_| false);
         assert!(v.rejected());
         assert_eq!(v.runs.as_slice(), &[DefectRun { first: 4, len: 2, kind: DefectKind::GlossHigh, peak_d2: v.runs[0].peak_d2 }]);
         // Hysteresis: +1.8 GU stays out for pixels that were out (window x 0.8 = 1.6) ...
-        let v = ins.line(&r, 2, &line(&[(4, [1.18, 1.0, 1.0]), (5, [1.18, 1.0, 1.0])]), &flags, |_| false);
+        let v = ins.line(&r, 2, &line(&[(4, [1.18, 0.91, 0.91]), (5, [1.18, 0.91, 0.91])]), &flags, |_| false);
         assert!(v.rejected());
         // ... but does not bring in pixels that were not.
-        let v = ins.line(&r, 3, &line(&[(0, [1.18, 1.0, 1.0]), (1, [1.18, 1.0, 1.0])]), &flags, |_| false);
+        let v = ins.line(&r, 3, &line(&[(0, [1.18, 0.91, 0.91]), (1, [1.18, 0.91, 0.91])]), &flags, |_| false);
         assert!(!v.rejected());
         // Out-of-prior is asked only of pixels out, and wins over the window kinds.
         let mut asked = Vec::new();
@@ -558,7 +591,7 @@ mod tests {
         let r = RecipeView::parse(&bytes).unwrap();
         let mut ins = Inspector::<P>::new();
         // Every pixel +0.9 GU (inside the window): EWMA 0.45, 0.675 -> alarm on the second line.
-        let drifted = vec![SVector::from([1.09f32, 1.0, 1.0]); P];
+        let drifted = vec![SVector::from([1.09f32, 0.955, 0.955]); P];
         let a = ins.line(&r, 0, &drifted, &[0; P], |_| false);
         let b = ins.line(&r, 1, &drifted, &[0; P], |_| false);
         assert_eq!((a.flags & verdict::DRIFT_ALARM, b.flags & verdict::DRIFT_ALARM), (0, verdict::DRIFT_ALARM));

@@ -33,8 +33,8 @@
 //! | 88 | 4 | teach quality (informative), f32 |
 //! | 92 | 4 | lines taught |
 //! | 96 | 2 G, padded to 4 | first pixel of each group, ascending, the first 0 |
-//! | .. | 4 G (m(m+1)/2 + R m) | per group: the whitening of the readings' correlation (lower triangle of `L^-1`, packed row by row), then the readings' gradient `J` (R x m, row-major: d reading / d corrected reading) |
-//! | .. | 4 P (2 m + 1) | per pixel: the reference mean of the corrected readings (m), their inverse standard deviations (m), the pixel's weight in the drift mean |
+//! | .. | 4 G ((m-1)m/2 + R m) | per group: the whitening of the first m - 1 normalised readings' correlation (lower triangle of `L^-1`, packed row by row), then the readings' gradient `J` (R x m, row-major: d reading / d normalised reading) |
+//! | .. | 4 P (2 m + 1) | per pixel: the reference mean of the normalised readings (m), their inverse standard deviations (m; the last unused), the pixel's weight in the drift mean |
 //! | end-4 | 4 | CRC-32 of everything before |
 //!
 //! R = [`crate::shape::READINGS`]. Everything the device computes from a
@@ -142,9 +142,10 @@ fn f32_at(b: &[u8], o: usize) -> f32 {
     f32::from_bits(u32_at(b, o))
 }
 
-/// Values per group for m readings: the packed whitening and the gradient.
+/// Values per group for m readings: the packed whitening (of m - 1
+/// normalised readings) and the gradient.
 pub const fn group_len(m: usize) -> usize {
-    m * (m + 1) / 2 + READINGS * m
+    (m - 1) * m / 2 + READINGS * m
 }
 
 /// Values per pixel for m readings: mean, inverse sd, drift weight.
@@ -177,7 +178,7 @@ impl<'a> RecipeView<'a> {
             return Err(RecipeFault::CrcMismatch);
         }
         let (pixels, m, groups) = (u16_at(bytes, 16) as usize, u16_at(bytes, 18) as usize, u16_at(bytes, 20) as usize);
-        if pixels == 0 || m == 0 {
+        if pixels == 0 || m < 2 {
             return Err(RecipeFault::WrongShape);
         }
         if groups == 0 || groups > MAX_GROUPS || groups > pixels {
