@@ -143,7 +143,8 @@ pub fn correct_line<const M: usize, const P: usize>(
     let levels = cfg.short_levels();
     for p in 0..P {
         let lit: [u16; M] = core::array::from_fn(|i| raw.lit[i][p]);
-        let short: [[u16; M]; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| core::array::from_fn(|i| raw.short[l][i][p]));
+        let short: [[u16; M]; MAX_SHORT_EXPOSURES] =
+            core::array::from_fn(|l| core::array::from_fn(|i| raw.short[l][i][p]));
         let shorter: [Shorter<'_>; MAX_SHORT_EXPOSURES] =
             core::array::from_fn(|l| Shorter { dark: raw.short_dark[l][p], ratio: cfg.ratio(l), lit: &short[l] });
         fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, &shorter[..levels], v[p].as_mut_slice());
@@ -224,7 +225,11 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
         let exposure = cfg.short_exposures_us[level];
         let mut dark_taken = false;
         for (i, &led) in order.iter().enumerate() {
-            let longer = if level == 0 { Some(&raw.lit[i]) } else { raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i]) };
+            let longer = if level == 0 {
+                Some(&raw.lit[i])
+            } else {
+                raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i])
+            };
             if !longer.is_some_and(|f| f.iter().any(|x| *x >= fs)) {
                 continue;
             }

@@ -125,6 +125,9 @@ pub mod qemu {
     pub const RAM_ZONES: usize = 4;
     /// Calibration slot length: 8 pages, room for a blob of 6 zones.
     pub const SLOT_LEN: u32 = 8 * super::FLASH_PAGE as u32;
+    /// Inspection recipe slot length: 2 pages, room for a recipe of P = 32
+    /// pixels in up to 8 groups (RAM-backed, as the calibration slots).
+    pub const RECIPE_SLOT_LEN: u32 = 2 * super::FLASH_PAGE as u32;
     /// Scene lines the simulated sensor holds.
     pub const FRAME_LINES: usize = 4;
     /// The simulated converter's full scale: the board's 12-bit ADC, so the

@@ -38,7 +38,12 @@ fn check_bit_identical(blob: &[u8], frames: &[Vec<Vec<u16>>], points: &[PointRec
     let mut compared = 0;
     for (k, p) in points.iter().enumerate() {
         let line = k / PIXELS;
-        let want = &expected_line(&view, &frames[line % frames.len()], full_scale, &brdf_meter::platform::timing::QEMU_ACQUISITION)[k % PIXELS];
+        let want = &expected_line(
+            &view,
+            &frames[line % frames.len()],
+            full_scale,
+            &brdf_meter::platform::timing::QEMU_ACQUISITION,
+        )[k % PIXELS];
         assert_eq!((p.line as usize, p.seq as usize, p.point as usize), (line, k, k % PIXELS));
         assert_eq!(system_tests::meta_bits(p), system_tests::expected_meta_bits(want), "zone/flags of point {k}");
         for (j, (g, w)) in p.values.iter().zip(&want.values).enumerate() {

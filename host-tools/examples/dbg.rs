@@ -1,5 +1,5 @@
-use host_tools::forward::scene::{Scene, training_optics};
 use host_tools::forward::prior_models::SampleModel;
+use host_tools::forward::scene::{Scene, training_optics};
 use std::sync::Arc;
 fn main() {
     let scene = Scene::load(std::path::Path::new("scenes/handheld.toml")).unwrap();
@@ -22,7 +22,12 @@ fn main() {
         let v = po.readings(&m, &tr);
         let g = po.gloss_target(&m, &tr).unwrap();
         let est = (&map.g * &v)[0];
-        println!("{n:30} truth {:7.2} est {:7.2} v {:?}", g[0], est, v.iter().map(|x| format!("{x:.2}")).collect::<Vec<_>>());
+        println!(
+            "{n:30} truth {:7.2} est {:7.2} v {:?}",
+            g[0],
+            est,
+            v.iter().map(|x| format!("{x:.2}")).collect::<Vec<_>>()
+        );
     }
     let bgm = SampleModel::Brdf(Arc::new(host_tools::forward::brdf::SmoothDielectric::black_glass()));
     let v = po.readings(&bgm, &po.truth(&bgm));

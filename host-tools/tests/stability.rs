@@ -21,8 +21,8 @@ use host_tools::evaluation::stability::solvers::{
 use host_tools::evaluation::stability::{CaseReport, Family, Production, check_case, device_kernel, generate};
 use host_tools::forward::grid::AngleGrid;
 use host_tools::forward::optics::Instrument;
-use host_tools::forward::prior::{Prior, PriorSpec};
 use host_tools::forward::pairs::Criterion;
+use host_tools::forward::prior::{Prior, PriorSpec};
 use host_tools::forward::prior_models::{PriorModels, PriorSample, SampleModel};
 use host_tools::forward::reading_noise::ReadingNoise;
 use host_tools::forward::zone_optics::{ZoneOptics, uniform_zones};

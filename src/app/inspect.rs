@@ -95,7 +95,10 @@ impl<F, const N: usize, const M: usize, const P: usize> Core<F, N, M, P> {
     }
 
     /// The recipe requests (refused while measuring by the caller).
-    pub(super) fn recipe_request(&mut self, req: &crate::protocol::Request<'_>) -> Result<Response<'static>, DeviceError> {
+    pub(super) fn recipe_request(
+        &mut self,
+        req: &crate::protocol::Request<'_>,
+    ) -> Result<Response<'static>, DeviceError> {
         use crate::protocol::Request;
         let cal_crc = self.calibration_crc();
         let slots = self.recipes.as_deref_mut().ok_or(DeviceError::NoRecipe)?;

@@ -549,7 +549,10 @@ mod tests {
         // Pixels 4, 5 with gloss +3 GU (f0 + 0.3, d2 = 11.25 below the threshold): gloss high.
         let v = ins.line(&r, 1, &line(&[(4, [1.3, 0.85, 0.85]), (5, [1.3, 0.85, 0.85])]), &flags, |_| false);
         assert!(v.rejected());
-        assert_eq!(v.runs.as_slice(), &[DefectRun { first: 4, len: 2, kind: DefectKind::GlossHigh, peak_d2: v.runs[0].peak_d2 }]);
+        assert_eq!(
+            v.runs.as_slice(),
+            &[DefectRun { first: 4, len: 2, kind: DefectKind::GlossHigh, peak_d2: v.runs[0].peak_d2 }]
+        );
         // Hysteresis: +1.8 GU stays out for pixels that were out (window x 0.8 = 1.6) ...
         let v = ins.line(&r, 2, &line(&[(4, [1.18, 0.91, 0.91]), (5, [1.18, 0.91, 0.91])]), &flags, |_| false);
         assert!(v.rejected());

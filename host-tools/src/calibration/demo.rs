@@ -44,7 +44,9 @@ pub fn train_scene(
 pub fn scene_prior(scene: &Scene, arg: &str) -> anyhow::Result<PriorModels> {
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
-    PriorMix::parse(arg)?.models(&grid, inst.view_deg, inst.spectral_weights).with_context(|| format!("the {arg} prior"))
+    PriorMix::parse(arg)?
+        .models(&grid, inst.view_deg, inst.spectral_weights)
+        .with_context(|| format!("the {arg} prior"))
 }
 
 /// Trains a calibration for `scene` with host-tools' training: `zones` zones,
@@ -59,7 +61,12 @@ pub fn train_for_scene(scene: &Scene, zones: usize, noise_rel: f64) -> anyhow::R
 /// on the built-in measured prior (the MERL materials), as
 /// `host-tools train --scene S --prior merl --estimator scale-free[-piecewise]`
 /// does.
-pub fn train_scale_free_for_scene(scene: &Scene, zones: usize, noise_rel: f64, piecewise: bool) -> anyhow::Result<Trained> {
+pub fn train_scale_free_for_scene(
+    scene: &Scene,
+    zones: usize,
+    noise_rel: f64,
+    piecewise: bool,
+) -> anyhow::Result<Trained> {
     let prior = scene_prior(scene, "merl")?;
     let kind = if piecewise { EstimatorKind::ScaleFreePiecewise } else { EstimatorKind::ScaleFree };
     train_scene(scene, zones, noise_rel, kind, &prior, Criterion::PeakRelative)

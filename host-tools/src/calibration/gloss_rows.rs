@@ -42,9 +42,9 @@ use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
 use crate::forward::pairs::{Pairs, PixelOptics};
 use crate::forward::prior_models::{PriorModels, SampleModel};
 use anyhow::Context;
-use std::sync::Arc;
 use brdf_meter::gloss::{LINEAR, block_len, cov_index};
 use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
 
 /// What `train` says when a calibration carries no gloss readings.
 pub const NO_GLOSS_NOTE: &str = "no gloss readings in this calibration (the device streams NaN): the angle grid does not \
@@ -281,7 +281,10 @@ mod tests {
     #[test]
     fn the_standards_hold_the_black_glass_and_targets_are_on_its_scale() {
         let s = standards();
-        assert_eq!(s.len(), STANDARD_INDICES.len() * STANDARD_BASE_ALBEDOS.len() + TILE_ROUGHNESS.len() * TILE_ALBEDOS.len());
+        assert_eq!(
+            s.len(),
+            STANDARD_INDICES.len() * STANDARD_BASE_ALBEDOS.len() + TILE_ROUGHNESS.len() * TILE_ALBEDOS.len()
+        );
         assert!(s.samples.iter().any(|x| x.name == format!("standard:n={BLACK_GLASS_INDEX},base=0")));
         // At any view, the black glass's own target is 100 GU.
         let g = AngleGrid::patent();
@@ -289,13 +292,17 @@ mod tests {
             let t = view.to_radians();
             let px = PixelOptics::from_h(
                 0.0,
-                crate::forward::optics::system_matrix(&crate::forward::optics::Instrument::patent_profile(), &g, false).unwrap(),
+                crate::forward::optics::system_matrix(&crate::forward::optics::Instrument::patent_profile(), &g, false)
+                    .unwrap(),
                 nalgebra::Vector3::new(t.sin(), 0.0, t.cos()),
                 vec![0.0; 7],
                 crate::forward::reading_noise::ReadingNoise::relative(0.0, 7),
                 &g,
             );
-            let bg = PriorModels::from_brdfs("bg", vec![("bg".into(), Arc::new(SmoothDielectric::black_glass()) as Arc<dyn Brdf>)]);
+            let bg = PriorModels::from_brdfs(
+                "bg",
+                vec![("bg".into(), Arc::new(SmoothDielectric::black_glass()) as Arc<dyn Brdf>)],
+            );
             let pairs = Pairs::build_with_gloss(std::slice::from_ref(&px), &bg);
             let t = targets(&pairs).unwrap();
             assert!((t[(0, 0)] - 100.0).abs() < 1e-9, "view {view}: {}", t[(0, 0)]);

@@ -21,8 +21,8 @@ use crate::calibration::estimators::scale_free::{self, ScaleFreeOptions, ScaleFr
 use crate::calibration::estimators::{
     self, EstimatorInputs, EstimatorSummary, LinearEstimator, NoiseModel, kind_name, pairs_wiener,
 };
-pub use crate::calibration::f32_gate::{F32_TOLERANCE, F32Plan, F32Refusal, f32_gate};
 use crate::calibration::f32_gate::scale_free_gate;
+pub use crate::calibration::f32_gate::{F32_TOLERANCE, F32Plan, F32Refusal, f32_gate};
 use crate::calibration::gloss_rows::{self, GlossSection};
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::prior_models::PriorModels;
@@ -181,7 +181,12 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         ensure!(h.shape() == (m, n), "zone {z}: H is {}x{}, expected {m}x{n}", h.nrows(), h.ncols());
         ensure!(zo.centres_deg().len() == m, "zone {z}: {} centre angles for {m} LEDs", zo.centres_deg().len());
     }
-    ensure!(zone_pairs.prior.len() == spec.zones.len(), "pairs for {} zones, {} zones", zone_pairs.prior.len(), spec.zones.len());
+    ensure!(
+        zone_pairs.prior.len() == spec.zones.len(),
+        "pairs for {} zones, {} zones",
+        zone_pairs.prior.len(),
+        spec.zones.len()
+    );
     let raw = &zone_pairs.prior;
     for (z, p) in raw.iter().enumerate() {
         if let Some((k, _)) = p.truth.iter().enumerate().find(|(_, x)| !x.is_finite() || **x < 0.0) {
@@ -288,7 +293,9 @@ fn linear_zones(spec: &TrainSpec<'_>, kind: EstimatorKind, pairs: &[Pairs]) -> a
         let at = || format!("zone {z}: training the {} estimator", kind_name(kind));
         let est = match kind {
             EstimatorKind::Wiener => pairs_wiener::build(p, zo.h(), k, spec.noise_rel).with_context(at)?,
-            EstimatorKind::LogWiener => bail!("the log-wiener estimator has no device form; it is evaluated in `tradeoff`"),
+            EstimatorKind::LogWiener => {
+                bail!("the log-wiener estimator has no device form; it is evaluated in `tradeoff`")
+            }
             _ => {
                 let r_pp = pairs_r_pp(p);
                 let inputs = EstimatorInputs {
@@ -351,7 +358,11 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
         .zones
         .iter()
         .zip(trained)
-        .map(|(zo, t)| TrainedZone { first_pixel: zo.first_pixel, h: zo.h().clone(), estimator: ZoneEstimator::ScaleFree(t) })
+        .map(|(zo, t)| TrainedZone {
+            first_pixel: zo.first_pixel,
+            h: zo.h().clone(),
+            estimator: ZoneEstimator::ScaleFree(t),
+        })
         .collect())
 }
 
@@ -390,7 +401,12 @@ fn gate(spec: &TrainSpec<'_>, zones: &[TrainedZone], raw: &[Pairs]) -> anyhow::R
 }
 
 /// The white reference with each zone's f32 exponents folded in.
-fn rescaled_white(spec: &TrainSpec<'_>, zones: &[TrainedZone], plans: &[F32Plan], m: usize) -> anyhow::Result<Vec<f32>> {
+fn rescaled_white(
+    spec: &TrainSpec<'_>,
+    zones: &[TrainedZone],
+    plans: &[F32Plan],
+    m: usize,
+) -> anyhow::Result<Vec<f32>> {
     let mut white = spec.white.clone().unwrap_or_else(|| vec![1.0; spec.pixels * m]);
     for (z, p) in plans.iter().enumerate() {
         if p.exponents.iter().all(|e| *e == 0) {
@@ -527,10 +543,9 @@ fn gloss_rows_of(
             let g = DMatrix::from_fn(r, m, |j, i| map.g[(j, i)] * 2f64.powi(plan.exponents[i]));
             vec![gloss_rows::block(&g, &map.err)]
         }
-        ZoneEstimator::ScaleFree(sz) => scale_free::fit_target(pairs, target, sz)?
-            .iter()
-            .map(|mp| gloss_rows::block(&mp.w, &mp.err_unit))
-            .collect(),
+        ZoneEstimator::ScaleFree(sz) => {
+            scale_free::fit_target(pairs, target, sz)?.iter().map(|mp| gloss_rows::block(&mp.w, &mp.err_unit)).collect()
+        }
     };
     let (c, x, _) = kernel_input(tz, plan, bg);
     Ok(gloss_rows::standard_reading(&blocks[c], &x).map(|s| (blocks, s)))
@@ -749,7 +764,6 @@ impl Trained {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -869,7 +883,8 @@ mod tests {
         // Zone 1 sees the far-field optics: its W must differ.
         let inst = Instrument::patent_profile();
         let far = system_matrix(&inst, &grid, true).unwrap();
-        spec.zones[1] = ZoneOptics::from_h(4, far, inst.centre_angles_deg(), 45.0, &grid, ReadingNoise::relative(0.02, 7));
+        spec.zones[1] =
+            ZoneOptics::from_h(4, far, inst.centre_angles_deg(), 45.0, &grid, ReadingNoise::relative(0.02, 7));
         let t = train(&spec).unwrap();
         let d = (&t.zones[0].linear().unwrap().w - &t.zones[1].linear().unwrap().w).amax();
         assert!(d > 1e-3, "{d}");

@@ -8,11 +8,11 @@ use crate::device::link::{Client, Endpoint};
 use crate::device::provision;
 use crate::forward::scene::Scene;
 use crate::forward::scene::defects::DefectScene;
+use crate::inspection::defect_map;
 use crate::inspection::lines::{DeviceModel, Line};
 use crate::inspection::roc::{self, RocSpec};
 use crate::inspection::spc::spc;
 use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
-use crate::inspection::defect_map;
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
@@ -89,7 +89,10 @@ impl RecipeArgs {
         ensure!(self.min_pixels >= 1 && self.min_lines >= 1, "--min-pixels and --min-lines: at least 1");
         let delay = match self.delay.strip_suffix("us") {
             Some(us) => (us.parse().with_context(|| format!("--delay {}", self.delay))?, DelayUnit::Micros),
-            None => (self.delay.parse().with_context(|| format!("--delay {}: N lines or Nus", self.delay))?, DelayUnit::Lines),
+            None => (
+                self.delay.parse().with_context(|| format!("--delay {}: N lines or Nus", self.delay))?,
+                DelayUnit::Lines,
+            ),
         };
         Ok(TeachSpec {
             false_call_rate: self.false_call_rate,
@@ -220,7 +223,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
 /// The slot's room for a signed recipe.
 fn recipe_room() -> usize {
-    brdf_meter::shape::board::RECIPE_SLOT_LEN as usize - brdf_meter::store::SLOT_HEADER_LEN - brdf_meter::signed::TRAILER_LEN
+    brdf_meter::shape::board::RECIPE_SLOT_LEN as usize
+        - brdf_meter::store::SLOT_HEADER_LEN
+        - brdf_meter::signed::TRAILER_LEN
 }
 
 fn device_model<'a>(view: BlobView<'a>, scene: &Scene) -> anyhow::Result<DeviceModel<'a>> {
@@ -265,7 +270,10 @@ fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
         signed.len()
     );
     if r.no_reading_pixels > 0 {
-        println!("  {} pixel(s) have no gloss reading (their zones cannot read the standard): only the distance applies there", r.no_reading_pixels);
+        println!(
+            "  {} pixel(s) have no gloss reading (their zones cannot read the standard): only the distance applies there",
+            r.no_reading_pixels
+        );
     }
     Ok(())
 }
@@ -274,7 +282,8 @@ fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
 fn read_recipe(path: &Path) -> anyhow::Result<Vec<u8>> {
     let image = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let body = signing::check_signed(&image, &path.display().to_string())?;
-    RecipeView::parse(body).map_err(|e| anyhow::anyhow!("{}: not a recipe this firmware reads ({e:?}); teach it again", path.display()))?;
+    RecipeView::parse(body)
+        .map_err(|e| anyhow::anyhow!("{}: not a recipe this firmware reads ({e:?}); teach it again", path.display()))?;
     Ok(image)
 }
 
@@ -304,7 +313,9 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
         ensure!(info.simulated, "--scene is for simulated devices (QEMU); this device has a real sensor");
         let ds = DefectScene::load_any(path)?;
         let lines = brdf_meter::shape::qemu::FRAME_LINES;
-        let frames = (a.scene_line..a.scene_line + lines as u64).map(|l| ds.raw_frames_at(l)).collect::<anyhow::Result<Vec<_>>>()?;
+        let frames = (a.scene_line..a.scene_line + lines as u64)
+            .map(|l| ds.raw_frames_at(l))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
     let progress = crate::output::progress::bar(a.lines as u64, "lines");
@@ -333,7 +344,12 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
         run.link_bytes as f64 / run.verdicts.len() as f64
     );
     for v in run.verdicts.iter().filter(|v| v.rejected()).take(10) {
-        let runs: Vec<String> = v.runs.as_slice().iter().map(|r| format!("{} px {}..{}", r.kind.name(), r.first, r.first + r.len - 1)).collect();
+        let runs: Vec<String> = v
+            .runs
+            .as_slice()
+            .iter()
+            .map(|r| format!("{} px {}..{}", r.kind.name(), r.first, r.first + r.len - 1))
+            .collect();
         println!("  line {}: {}", v.line, runs.join(", "));
     }
     if let Some(path) = &a.csv {
@@ -372,7 +388,13 @@ fn verdict_rows(v: &[brdf_meter::inspect::Verdict]) -> Vec<VerdictRow> {
             mean_gloss_gu: v.mean_gloss,
             ewma_gu: v.ewma,
             max_d2: v.max_d2,
-            defects: v.runs.as_slice().iter().map(|r| format!("{}:{}+{}", r.kind.name(), r.first, r.len)).collect::<Vec<_>>().join(" "),
+            defects: v
+                .runs
+                .as_slice()
+                .iter()
+                .map(|r| format!("{}:{}+{}", r.kind.name(), r.first, r.len))
+                .collect::<Vec<_>>()
+                .join(" "),
         })
         .collect()
 }
@@ -384,7 +406,11 @@ fn run_roc(a: RocArgs) -> anyhow::Result<()> {
     let image = match &a.blob {
         Some(path) => provision::read_blob(path)?,
         None => {
-            eprintln!("training a scale-free piecewise calibration, {} zones, on MERL for {}", a.zones, a.scene.display());
+            eprintln!(
+                "training a scale-free piecewise calibration, {} zones, on MERL for {}",
+                a.zones,
+                a.scene.display()
+            );
             let noise = crate::forward::scene::noise_level::relative_noise_level(&scene)?;
             crate::calibration::demo::train_scale_free_for_scene(&scene, a.zones, noise, true)?.blob
         }

@@ -214,7 +214,12 @@ pub struct ExpectedPoint {
 /// The device's correction of one scene line (`frames` as
 /// [`expected_line`] takes them): per pixel the corrected readings (reading
 /// order) and their flags, by the library's own `correct_point_into`.
-pub fn corrected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, acq: &AcqConfig) -> Vec<(Vec<f32>, u8)> {
+pub fn corrected_line(
+    blob: &BlobView<'_>,
+    frames: &[Vec<u16>],
+    full_scale: u16,
+    acq: &AcqConfig,
+) -> Vec<(Vec<f32>, u8)> {
     let d = blob.dims();
     let order = blob.led_order();
     let levels = (frames.len() / (d.m + 1)).saturating_sub(1).min(acq.short_levels());

@@ -231,8 +231,13 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         )
     };
     let w_t5 = wiener(&t5.r_pp, 16)?;
-    let sf_opts =
-        ScaleFreeOptions { noise_rel: cfg.noise_rel, piecewise: false, clusters: None, false_alarm: cfg.false_alarm, seed: cfg.seed };
+    let sf_opts = ScaleFreeOptions {
+        noise_rel: cfg.noise_rel,
+        piecewise: false,
+        clusters: None,
+        false_alarm: cfg.false_alarm,
+        seed: cfg.seed,
+    };
     let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts)
         .context("scale-free with the Table 5 prior")?;
     let fit_model = ForwardModel::near_field(&inst);

@@ -316,7 +316,8 @@ mod tests {
         assert!((a - b).abs() < 0.05 * b, "{a} {b}");
         let g = AngleGrid::patent();
         let inplane = |alpha: f64| {
-            let rho = true_rho(&crate::forward::brdf::Ward::new(0.0, 0.05, alpha).unwrap(), g.bins_deg(), 45.0, g.step_deg());
+            let rho =
+                true_rho(&crate::forward::brdf::Ward::new(0.0, 0.05, alpha).unwrap(), g.bins_deg(), 45.0, g.step_deg());
             true_readings(&rho, g.bins_deg(), 45.0).unwrap()[0]
         };
         assert!(inplane(0.01) > 1.5 * inplane(0.02));

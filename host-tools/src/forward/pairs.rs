@@ -170,7 +170,14 @@ impl PixelOptics {
                     led.iter()
                         .map(|r| {
                             r.weight
-                                * ray_reflectance(b.as_ref(), &r.dir, &self.view, r.theta_deg, self.theta_o_deg, self.step_deg)
+                                * ray_reflectance(
+                                    b.as_ref(),
+                                    &r.dir,
+                                    &self.view,
+                                    r.theta_deg,
+                                    self.theta_o_deg,
+                                    self.step_deg,
+                                )
                         })
                         .sum::<f64>()
                 }),
@@ -235,7 +242,8 @@ impl Pairs {
     fn build_inner(pixels: &[PixelOptics], prior: &PriorModels, gloss: bool) -> Self {
         assert!(!pixels.is_empty(), "pairs need at least one pixel");
         let np = pixels.len();
-        type Col = (DVector<f64>, DVector<f64>, DVector<f64>, f64, usize, usize, Option<[f64; brdf_meter::gloss::LINEAR]>);
+        type Col =
+            (DVector<f64>, DVector<f64>, DVector<f64>, f64, usize, usize, Option<[f64; brdf_meter::gloss::LINEAR]>);
         let cols: Vec<Col> = (0..np * prior.len())
             .into_par_iter()
             .map(|i| {

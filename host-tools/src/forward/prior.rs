@@ -227,8 +227,7 @@ impl PriorSpec {
     /// Samples every listed BRDF on the grid at `view_deg` and builds the prior.
     /// CSV paths are resolved against `base`.
     pub fn build(&self, grid: &AngleGrid, view_deg: f64, base: &Path) -> anyhow::Result<Prior> {
-        let cols: Vec<DVector<f64>> =
-            self.models(grid, base)?.iter().map(|(_, m)| m.on_grid(grid, view_deg)).collect();
+        let cols: Vec<DVector<f64>> = self.models(grid, base)?.iter().map(|(_, m)| m.on_grid(grid, view_deg)).collect();
         Prior::from_samples(DMatrix::from_columns(&cols))
     }
 }

@@ -31,7 +31,9 @@ impl SampleModel {
     /// mirror spike is not included, as in the priors' grid vectors).
     pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> DVector<f64> {
         match self {
-            Self::Brdf(b) => DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg))),
+            Self::Brdf(b) => {
+                DVector::from_iterator(grid.n(), grid.bins_deg().iter().map(|t| b.reflectance(*t, view_deg)))
+            }
             Self::Profile(p) => p.clone(),
         }
     }
@@ -82,7 +84,10 @@ impl PriorModels {
     /// The samples on the grid at `view_deg` with their weights.
     pub fn on_grid(&self, grid: &AngleGrid, view_deg: f64) -> WeightedSamples {
         let cols: Vec<DVector<f64>> = self.samples.iter().map(|s| s.model.on_grid(grid, view_deg)).collect();
-        WeightedSamples { samples: DMatrix::from_columns(&cols), weights: self.samples.iter().map(|s| s.weight).collect() }
+        WeightedSamples {
+            samples: DMatrix::from_columns(&cols),
+            weights: self.samples.iter().map(|s| s.weight).collect(),
+        }
     }
 
     /// The names, in order.

@@ -75,14 +75,21 @@ pub fn write_png(path: &Path, verdicts: &[Verdict], pixels: usize, scale: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use brdf_meter::inspect::decide::{Runs, verdict};
     use brdf_meter::inspect::DefectRun;
+    use brdf_meter::inspect::decide::{Runs, verdict};
 
     #[test]
     fn runs_are_painted_in_their_kind_and_alarms_marked() {
         let mut runs = Runs::new();
         runs.push(DefectRun { first: 2, len: 2, kind: DefectKind::GlossHigh, peak_d2: 1.0 }).unwrap();
-        let v = Verdict { line: 0, flags: verdict::REJECT | verdict::DRIFT_ALARM, mean_gloss: 0.0, ewma: 0.0, max_d2: 1.0, runs };
+        let v = Verdict {
+            line: 0,
+            flags: verdict::REJECT | verdict::DRIFT_ALARM,
+            mean_gloss: 0.0,
+            ewma: 0.0,
+            max_d2: 1.0,
+            runs,
+        };
         let img = render(&[v], 5);
         assert_eq!(&img[0..3], &ALARM);
         assert_eq!(&img[3..6], &GOOD);

@@ -52,9 +52,7 @@ impl std::str::FromStr for Window {
         }
         let (lo, hi) = s.split_once(':').ok_or_else(|| format!("`{s}`: expected LO:HI, LO%:HI% or off"))?;
         let rel = lo.ends_with('%') && hi.ends_with('%');
-        let num = |x: &str| {
-            x.trim_end_matches('%').parse::<f64>().map_err(|_| format!("`{s}`: `{x}` is not a number"))
-        };
+        let num = |x: &str| x.trim_end_matches('%').parse::<f64>().map_err(|_| format!("`{s}`: `{x}` is not a number"));
         let (lo, hi) = (num(lo)?, num(hi)?);
         if !(lo <= 0.0 && hi >= 0.0 && lo < hi) {
             return Err(format!("`{s}`: a window must hold the reference (LO <= 0 <= HI, LO < HI)"));
@@ -169,9 +167,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
     );
     // Refusals: an unreadable or out-of-prior reference.
     const UNREADABLE: u8 = flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE;
-    let bad: Vec<usize> = (0..p)
-        .filter(|&px| lines.iter().filter(|l| l.flags[px] & UNREADABLE != 0).count() * 100 > n)
-        .collect();
+    let bad: Vec<usize> =
+        (0..p).filter(|&px| lines.iter().filter(|l| l.flags[px] & UNREADABLE != 0).count() * 100 > n).collect();
     anyhow::ensure!(
         bad.is_empty(),
         "the reference is saturated, under-exposed or not finite at {} pixel(s) ({}): a recipe cannot be taught on readings the device cannot read; check the sample, the exposure and the calibration",
@@ -208,16 +205,14 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
     // The device computes with the f32 mean: its sum is the reference scale.
     let mean32: Vec<[f32; M]> = mean.iter().map(|m| core::array::from_fn(|i| m[i] as f32)).collect();
     // Groups: the calibration's zones, merged evenly until the recipe fits.
-    let zone_starts: Vec<usize> = (0..p).filter(|&px| px == 0 || model.blob().zone_of_pixel(px) != model.blob().zone_of_pixel(px - 1)).collect();
+    let zone_starts: Vec<usize> =
+        (0..p).filter(|&px| px == 0 || model.blob().zone_of_pixel(px) != model.blob().zone_of_pixel(px - 1)).collect();
     let mut groups = zone_starts.len();
     while groups > 1 && recipe::recipe_len(p, M, groups) > spec.max_bytes {
         groups -= 1;
     }
-    let starts: Vec<usize> = if groups == zone_starts.len() {
-        zone_starts
-    } else {
-        (0..groups).map(|g| g * p / groups).collect()
-    };
+    let starts: Vec<usize> =
+        if groups == zone_starts.len() { zone_starts } else { (0..groups).map(|g| g * p / groups).collect() };
     anyhow::ensure!(
         recipe::recipe_len(p, M, groups) <= spec.max_bytes,
         "a recipe for {p} pixels needs {} bytes, more than the slot's {}",
@@ -315,7 +310,9 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
     let windows: [[f32; 2]; READINGS] = core::array::from_fn(|r| match spec.windows[r] {
         Window::Off => [f32::NEG_INFINITY, f32::INFINITY],
         Window::Absolute(lo, hi) => [lo as f32, hi as f32],
-        Window::Relative(lo, hi) => [(lo / 100.0 * reading_mean[r].abs()) as f32, (hi / 100.0 * reading_mean[r].abs()) as f32],
+        Window::Relative(lo, hi) => {
+            [(lo / 100.0 * reading_mean[r].abs()) as f32, (hi / 100.0 * reading_mean[r].abs()) as f32]
+        }
     });
     let quality = (0..READINGS)
         .filter(|&r| windows[r][0].is_finite() || windows[r][1].is_finite())
@@ -371,7 +368,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         pixel_values,
         settings,
     };
-    let bytes = recipe::write(&data).map_err(|e| anyhow::anyhow!("the taught recipe is invalid ({e:?}): {:?}", data.settings))?;
+    let bytes = recipe::write(&data)
+        .map_err(|e| anyhow::anyhow!("the taught recipe is invalid ({e:?}): {:?}", data.settings))?;
     let report = TeachReport {
         lines: n,
         groups,

@@ -84,7 +84,12 @@ fn scale_columns(a: &DMatrix<f64>, s: &DVector<f64>) -> DMatrix<f64> {
 /// The Wiener estimator of the BRDF from `pairs` (weighted for the training
 /// criterion); its uncertainty is the error over the pairs' own weights.
 /// `h` (the zone's in-plane system matrix) only fills the summary.
-pub fn build(pairs: &Pairs, h: &DMatrix<f64>, prior_samples: usize, noise_level: f64) -> anyhow::Result<LinearEstimator> {
+pub fn build(
+    pairs: &Pairs,
+    h: &DMatrix<f64>,
+    prior_samples: usize,
+    noise_level: f64,
+) -> anyhow::Result<LinearEstimator> {
     let map = linear_map(pairs, &pairs.truth).context("the Wiener map from sample pairs")?;
     // The per-bin uncertainty a blob carries is over the prior's own
     // ensemble (absolute reflectance factors), whatever the criterion.
@@ -153,8 +158,8 @@ mod tests {
         let h = system_matrix(&inst, &grid, false).unwrap();
         let prior = PriorSpec::patent().build(&grid, 45.0, std::path::Path::new(".")).unwrap();
         let k = prior.samples.ncols();
-        let pairs =
-            Pairs::in_plane(&h, &prior.samples, &vec![1.0; k], &ReadingNoise::relative(0.02, 7)).weighted(Criterion::Plain);
+        let pairs = Pairs::in_plane(&h, &prior.samples, &vec![1.0; k], &ReadingNoise::relative(0.02, 7))
+            .weighted(Criterion::Plain);
         let from_pairs = build(&pairs, &h, k, 0.02).unwrap();
         let inputs = EstimatorInputs {
             h: &h,

@@ -342,7 +342,13 @@ fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize) -
 /// One map per centroid of `c32` (K x m, the device's selection rule): each
 /// trained on the pairs of `idx` the rule sends to it and, so that every
 /// cluster has enough pairs for a stable covariance, the nearest others.
-fn cluster_maps(nz: &Normalised, idx: &[usize], ridge: f64, c32: &[f32], m: usize) -> anyhow::Result<Vec<ScaleFreeMap>> {
+fn cluster_maps(
+    nz: &Normalised,
+    idx: &[usize],
+    ridge: f64,
+    c32: &[f32],
+    m: usize,
+) -> anyhow::Result<Vec<ScaleFreeMap>> {
     let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let cents: Vec<Vec<f64>> = c32.chunks(m).map(|c| c.iter().map(|x| f64::from(*x)).collect()).collect();
     let k_eff = cents.len();

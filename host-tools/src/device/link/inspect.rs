@@ -1,8 +1,8 @@
 //! The client's inspection calls: provision a recipe, run an inspection
 //! (verdicts, reject pulses, a rejected line's points when asked), read the
 //! inspection's status.
-use super::client::{Client, LinkError, PointRecord, Reply, SlotKind};
 use super::Transport;
+use super::client::{Client, LinkError, PointRecord, Reply, SlotKind};
 use brdf_meter::inspect::Verdict;
 use brdf_meter::protocol::{InspectStatus, RecipeInfo, Request, Response};
 
@@ -33,7 +33,11 @@ pub struct InspectRun {
 
 impl<T: Transport> Client<T> {
     /// Provisions a signed recipe; on any error the device keeps its previous one.
-    pub fn provision_recipe(&mut self, recipe: &[u8], progress: impl FnMut(usize, usize)) -> Result<RecipeInfo, LinkError> {
+    pub fn provision_recipe(
+        &mut self,
+        recipe: &[u8],
+        progress: impl FnMut(usize, usize),
+    ) -> Result<RecipeInfo, LinkError> {
         match self.send_signed(recipe, SlotKind::Recipe, progress)? {
             Response::RecipeCommitted(r) => Ok(r),
             r => Err(LinkError::Unexpected(format!("{r:?} to RecipeCommit"))),

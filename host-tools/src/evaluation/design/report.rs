@@ -115,13 +115,9 @@ impl Figure for PixelPlot<'_> {
         root.fill(&WHITE).map_err(e)?;
         let (top, bottom) = root.split_vertically(root.dim_in_pixel().1 * 3 / 5);
         let p = c.coverage.len().max(1) as f64;
-        let ymax = c
-            .pixel_errors
-            .iter()
-            .flat_map(|(_, a, b)| [a[1], b[1]])
-            .filter(|x| x.is_finite())
-            .fold(0.05f64, f64::max)
-            * 1.15;
+        let ymax =
+            c.pixel_errors.iter().flat_map(|(_, a, b)| [a[1], b[1]]).filter(|x| x.is_finite()).fold(0.05f64, f64::max)
+                * 1.15;
         let mut chart = ChartBuilder::on(&top)
             .caption(&c.name, ("sans-serif", 20))
             .margin(12)
@@ -129,12 +125,7 @@ impl Figure for PixelPlot<'_> {
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..p, 0.0..ymax)
             .map_err(e)?;
-        chart
-            .configure_mesh()
-            .y_desc("held-out error / peak")
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(e)?;
+        chart.configure_mesh().y_desc("held-out error / peak").label_style(("sans-serif", 13)).draw().map_err(e)?;
         let series = [
             ("estimator median", RGBColor(31, 119, 180), 0usize, false),
             ("estimator 90th", RGBColor(31, 119, 180), 1, true),
@@ -142,11 +133,8 @@ impl Figure for PixelPlot<'_> {
         ];
         for (label, col, q, dashed) in series {
             let interp = label.starts_with("interpolation");
-            let pts: Vec<(f64, f64)> = c
-                .pixel_errors
-                .iter()
-                .map(|(px, a, b)| (*px as f64, if interp { b[q] } else { a[q] }))
-                .collect();
+            let pts: Vec<(f64, f64)> =
+                c.pixel_errors.iter().map(|(px, a, b)| (*px as f64, if interp { b[q] } else { a[q] })).collect();
             let style = ShapeStyle { color: col.mix(if dashed { 0.5 } else { 1.0 }), filled: true, stroke_width: 2 };
             chart
                 .draw_series(LineSeries::new(pts.clone(), style))
@@ -234,7 +222,8 @@ impl Figure for Summary<'_> {
 }
 
 fn slug(name: &str) -> String {
-    let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+    let s: String =
+        name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     s.split('-').filter(|p| !p.is_empty()).collect::<Vec<_>>().join("-")
 }
 

@@ -177,7 +177,13 @@ struct Read {
     points: Vec<Vec<crate::device::reference::ExpectedPoint>>,
 }
 
-fn read_surface(spec: &MapSpec, brdf: Arc<dyn Brdf>, blob: &BlobView<'_>, lines: u64, seed: u64) -> anyhow::Result<Read> {
+fn read_surface(
+    spec: &MapSpec,
+    brdf: Arc<dyn Brdf>,
+    blob: &BlobView<'_>,
+    lines: u64,
+    seed: u64,
+) -> anyhow::Result<Read> {
     // Lines 0.. of the scene (its LEDs drift with the frames since
     // calibration), each surface with its own noise draw.
     let mut scene = spec.scene.clone();
@@ -249,7 +255,9 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
                     let truth = DVector::from_iterator(
                         grid.n(),
-                        grid.bins_deg().iter().map(|t| binned_reflectance_at(b.as_ref(), *t, &views[px], grid.step_deg())),
+                        grid.bins_deg()
+                            .iter()
+                            .map(|t| binned_reflectance_at(b.as_ref(), *t, &views[px], grid.step_deg())),
                     );
                     let peak = truth.amax().max(f64::MIN_POSITIVE);
                     let rms = |x: &DVector<f64>| ((x - &truth).norm_squared() / grid.n() as f64).sqrt() / peak;
@@ -349,11 +357,8 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         saturated: pixels.iter().filter(|r| r.black_glass_saturated).count(),
     };
     let devs: Vec<f64> = pixels.iter().map(|r| r.tiles_mean_abs_gu).filter(|x| x.is_finite()).collect();
-    let tile_gu = tiles
-        .iter()
-        .zip(&tile_reads)
-        .map(|((n, _), (_, t))| (n.clone(), t[p / 2].unwrap_or(f64::NAN)))
-        .collect();
+    let tile_gu =
+        tiles.iter().zip(&tile_reads).map(|((n, _), (_, t))| (n.clone(), t[p / 2].unwrap_or(f64::NAN))).collect();
     Ok(PixelMap {
         scene: scene.name.clone(),
         kind: crate::calibration::estimators::kind_name(spec.kind).into(),

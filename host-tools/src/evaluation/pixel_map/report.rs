@@ -21,7 +21,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         map.kind, map.scene, map.zones, map.folds, map.lines
     );
     let _ = writeln!(s, "| figure | value |\n|---|---|");
-    let _ = writeln!(s, "| BRDF error / peak, held out (median / 90th / worst over material x pixel) | {} |", q(map.error));
+    let _ =
+        writeln!(s, "| BRDF error / peak, held out (median / 90th / worst over material x pixel) | {} |", q(map.error));
     let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(map.interpolation));
     let _ = writeln!(
         s,
@@ -31,7 +32,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(s, "| black glass: largest per-pixel 1 sigma over lines, GU | {:.2} |", bg.max_pixel_sd_gu);
     let _ = writeln!(s, "| black glass: 1 sigma of the line's mean, GU | {:.3} |", bg.line_mean_sd_gu);
     let _ = writeln!(s, "| black glass: pixels without a reading / saturated | {} / {} |", bg.no_reading, bg.saturated);
-    let _ = writeln!(s, "| gloss tiles: mean / worst abs(delta GU) over tile x pixel | {:.2} / {:.2} |", map.tiles[0], map.tiles[1]);
+    let _ = writeln!(
+        s,
+        "| gloss tiles: mean / worst abs(delta GU) over tile x pixel | {:.2} / {:.2} |",
+        map.tiles[0], map.tiles[1]
+    );
     let tiles: Vec<String> = map.tile_gu.iter().map(|(_, g)| format!("{g:.1}")).collect();
     let _ = writeln!(s, "| gloss tiles' GU at the centre pixel | {} |", tiles.join(", "));
     let _ = writeln!(s);
@@ -124,7 +129,10 @@ impl Figure for MapPlot<'_> {
         // Error.
         let ymax = map.pixels.iter().map(|r| r.error[1].max(r.interpolation[1])).fold(0.05, f64::max) * 1.2;
         let mut c = ChartBuilder::on(&panels[0])
-            .caption(format!("{} on {}, {} zones: held-out error per pixel", map.kind, map.scene, map.zones), ("sans-serif", 18))
+            .caption(
+                format!("{} on {}, {} zones: held-out error per pixel", map.kind, map.scene, map.zones),
+                ("sans-serif", 18),
+            )
             .margin(10)
             .x_label_area_size(25)
             .y_label_area_size(60)
@@ -190,12 +198,7 @@ impl Figure for MapPlot<'_> {
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..p, 0.0..tmax)
             .map_err(e)?;
-        c.configure_mesh()
-            .x_desc("pixel")
-            .y_desc("tiles |dGU|")
-            .label_style(("sans-serif", 12))
-            .draw()
-            .map_err(e)?;
+        c.configure_mesh().x_desc("pixel").y_desc("tiles |dGU|").label_style(("sans-serif", 12)).draw().map_err(e)?;
         for (label, q, col) in [("mean", 0, blue), ("worst", 1, red)] {
             let pts: Vec<(f64, f64)> = map
                 .pixels

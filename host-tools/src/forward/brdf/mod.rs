@@ -248,15 +248,17 @@ impl BrdfSpec {
         match self {
             BrdfSpec::Nbrdf { file, material } => {
                 let set = NbrdfSet::load(file).map_err(|e| file_error("nbrdf", e))?;
-                return set.by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| BrdfParamError {
-                    model: "nbrdf",
-                    field: "material",
-                    value: f64::NAN,
-                    why: format!(
-                        "no material {material:?} in {}; it has: {}",
-                        file.display(),
-                        set.names().collect::<Vec<_>>().join(", ")
-                    ),
+                return set.by_name(material, spectral).map(|b| Box::new(b) as Box<dyn Brdf>).map_err(|_| {
+                    BrdfParamError {
+                        model: "nbrdf",
+                        field: "material",
+                        value: f64::NAN,
+                        why: format!(
+                            "no material {material:?} in {}; it has: {}",
+                            file.display(),
+                            set.names().collect::<Vec<_>>().join(", ")
+                        ),
+                    }
                 });
             }
             BrdfSpec::MerlBinary { file } => {

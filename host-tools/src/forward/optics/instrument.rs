@@ -469,11 +469,18 @@ impl Validate for Instrument {
         {
             return Err(at_s(FieldError::new(
                 "first_pixel",
-                format!("pixels {}..{} are outside the line of {l} (line_pixels)", s.first_pixel, s.first_pixel + s.pixels),
+                format!(
+                    "pixels {}..{} are outside the line of {l} (line_pixels)",
+                    s.first_pixel,
+                    s.first_pixel + s.pixels
+                ),
             )));
         }
         if s.line_pixels.is_none() && s.first_pixel > 0 {
-            return Err(at_s(FieldError::new("line_pixels", "a window (first_pixel > 0) needs the whole line's line_pixels")));
+            return Err(at_s(FieldError::new(
+                "line_pixels",
+                "a window (first_pixel > 0) needs the whole line's line_pixels",
+            )));
         }
         check_positive("pitch_um", s.pitch_um, "um").map_err(at_s)?;
         check_positive("magnification", s.magnification, "").map_err(at_s)?;

@@ -221,7 +221,9 @@ impl DefectScene {
         // Per GU of gloss: the surface's specular part over the gloss it gives.
         let per_gu = || -> anyhow::Result<Vec<f64>> {
             let BrdfSpec::Ward { rho_d, alpha, .. } = scene.surface.brdf else {
-                bail!("a gloss step or drift needs a Ward surface (surface.brdf.model = \"ward\"), to scale its specular part");
+                bail!(
+                    "a gloss step or drift needs a Ward surface (surface.brdf.model = \"ward\"), to scale its specular part"
+                );
             };
             let diffuse = BrdfSpec::Ward { rho_d, rho_s: Some(0.0), alpha }.build_for(spectral)?;
             let wo = super::pipeline::pixel_view(&scene, p / 2);
@@ -237,7 +239,9 @@ impl DefectScene {
         for (i, d) in defects.iter().enumerate() {
             let ctx = || format!("defects[{i}]");
             let (at, signal) = match d {
-                DefectSpec::Scratch { at, brdf } => (*at, light(Arc::from(brdf.build_for(spectral).with_context(ctx)?))?),
+                DefectSpec::Scratch { at, brdf } => {
+                    (*at, light(Arc::from(brdf.build_for(spectral).with_context(ctx)?))?)
+                }
                 DefectSpec::MattPatch { at, alpha } => {
                     let BrdfSpec::Ward { rho_d, rho_s, .. } = scene.surface.brdf else {
                         bail!("{}: a matt patch needs a Ward surface", ctx());

@@ -447,9 +447,18 @@ impl EffectSpec {
                 }
                 let mut last = 1.0;
                 for (i, r) in ratios.iter().enumerate() {
-                    check_range(&format!("ratios[{i}]"), *r, 1.0 + 1e-9, 1e6, "(the long exposure over a shorter one, > 1)")?;
+                    check_range(
+                        &format!("ratios[{i}]"),
+                        *r,
+                        1.0 + 1e-9,
+                        1e6,
+                        "(the long exposure over a shorter one, > 1)",
+                    )?;
                     if *r <= last {
-                        return Err(FieldError::new(format!("ratios[{i}]"), "ratios must ascend: each exposure shorter than the one before"));
+                        return Err(FieldError::new(
+                            format!("ratios[{i}]"),
+                            "ratios must ascend: each exposure shorter than the one before",
+                        ));
                     }
                     last = *r;
                 }

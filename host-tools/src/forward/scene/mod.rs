@@ -404,12 +404,7 @@ pub fn training_optics(scene: &Scene, zones: usize, noise_override: Option<f64>)
         Some(s) => s,
         None => noise_level::relative_noise_level(scene)?,
     };
-    Ok(TrainingOptics {
-        zones: out,
-        pixels: p,
-        white: sim.white().iter().map(|w| *w as f32).collect(),
-        noise_level,
-    })
+    Ok(TrainingOptics { zones: out, pixels: p, white: sim.white().iter().map(|w| *w as f32).collect(), noise_level })
 }
 
 /// The blob's white reference: for every pixel p and LED i (physical order),

@@ -28,15 +28,22 @@ pub fn reading_noise(scene: &Scene, sim: &Simulator) -> Vec<ReadingNoise> {
                 let w2 = w * w;
                 // Frame variance as a function of its counts x: s2 x^2 + s1 x + s0.
                 let (s2, s1, s0) = match scene.noise() {
-                    Some(EffectSpec::Noise { model, sigma, sigma_counts, electrons_per_count, read_sigma_counts, .. }) => {
-                        match model {
-                            NoiseModel::Proportional => (sigma.unwrap_or(0.0).powi(2), 0.0, 0.0),
-                            NoiseModel::Additive => (0.0, 0.0, sigma_counts.unwrap_or(0.0).powi(2)),
-                            NoiseModel::ShotRead => {
-                                (0.0, 1.0 / electrons_per_count.unwrap_or(f64::INFINITY), read_sigma_counts.unwrap_or(0.0).powi(2))
-                            }
-                        }
-                    }
+                    Some(EffectSpec::Noise {
+                        model,
+                        sigma,
+                        sigma_counts,
+                        electrons_per_count,
+                        read_sigma_counts,
+                        ..
+                    }) => match model {
+                        NoiseModel::Proportional => (sigma.unwrap_or(0.0).powi(2), 0.0, 0.0),
+                        NoiseModel::Additive => (0.0, 0.0, sigma_counts.unwrap_or(0.0).powi(2)),
+                        NoiseModel::ShotRead => (
+                            0.0,
+                            1.0 / electrons_per_count.unwrap_or(f64::INFINITY),
+                            read_sigma_counts.unwrap_or(0.0).powi(2),
+                        ),
+                    },
                     _ => (0.0, 0.0, 0.0),
                 };
                 // lit = v w + d and the dark frame d: var(v) = (var(lit) + var(dark)) / w^2.

@@ -341,11 +341,7 @@ impl Simulator {
         Self::with_models(scene, &[brdf], &vec![0; scene.instrument.pixels()])
     }
 
-    fn with_models(
-        scene: &Scene,
-        brdfs: &[std::sync::Arc<dyn Brdf>],
-        of_pixel: &[usize],
-    ) -> anyhow::Result<Self> {
+    fn with_models(scene: &Scene, brdfs: &[std::sync::Arc<dyn Brdf>], of_pixel: &[usize]) -> anyhow::Result<Self> {
         let pipeline = Pipeline::new(scene);
         let inst = &scene.instrument;
         let (m, p) = (inst.m(), inst.pixels());
@@ -506,7 +502,8 @@ impl Simulator {
     /// (`forward::scene::defects`).
     pub fn raw_frames_of(&self, line: u64, signal: &[f64]) -> anyhow::Result<Vec<Vec<u16>>> {
         let mut frames = self.frames_at(line, Mode::Full, 1.0, signal);
-        frames.extend(self.pipeline.short_ratios.iter().flat_map(|r| self.frames_at(line, Mode::Full, 1.0 / r, signal)));
+        frames
+            .extend(self.pipeline.short_ratios.iter().flat_map(|r| self.frames_at(line, Mode::Full, 1.0 / r, signal)));
         let mut out = Vec::with_capacity(frames.len());
         for (f, frame) in frames.into_iter().enumerate() {
             let mut px_out = Vec::with_capacity(frame.len());

@@ -41,7 +41,12 @@ pub struct Case {
 /// The library's defect cases: gloss steps, scratches, a matt patch, a
 /// contamination film.
 pub fn cases() -> Vec<Case> {
-    let case = |kind: &str, pixels, magnitude: &str, defect| Case { kind: kind.into(), pixels, magnitude: magnitude.into(), defect };
+    let case = |kind: &str, pixels, magnitude: &str, defect| Case {
+        kind: kind.into(),
+        pixels,
+        magnitude: magnitude.into(),
+        defect,
+    };
     vec![
         case("gloss step", 8, "+1 GU", |at| DefectSpec::GlossStep { at, delta_gu: 1.0 }),
         case("gloss step", 8, "+2 GU", |at| DefectSpec::GlossStep { at, delta_gu: 2.0 }),
@@ -139,7 +144,8 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
                 group += 1;
             }
             let st = point_stat::<M>(recipe, group, px, &line.v[px].data.0[0], scale);
-            if line.flags[px] & (flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE) != 0 || !st.d2.is_finite() {
+            if line.flags[px] & (flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE) != 0 || !st.d2.is_finite()
+            {
                 return f64::INFINITY;
             }
             let mut score = st.d2 as f64 / s.threshold_on as f64;
@@ -161,14 +167,16 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
 }
 
 /// Runs teach, defect-free lines and every case on `scene` with `model`.
-pub fn run(scene: &Scene, model: &DeviceModel<'_>, spec: &RocSpec, progress: &(dyn Fn(&str) + Sync)) -> anyhow::Result<Roc> {
+pub fn run(
+    scene: &Scene,
+    model: &DeviceModel<'_>,
+    spec: &RocSpec,
+    progress: &(dyn Fn(&str) + Sync),
+) -> anyhow::Result<Roc> {
     let p = model.pixels();
     let clean = DefectScene::new("defect-free", scene.clone(), &[])?;
     let lines_of = |ds: &DefectScene, from: u64, count: usize| -> anyhow::Result<Vec<Line>> {
-        (from..from + count as u64)
-            .into_par_iter()
-            .map(|l| Ok(model.correct(&ds.raw_frames_at(l)?)))
-            .collect()
+        (from..from + count as u64).into_par_iter().map(|l| Ok(model.correct(&ds.raw_frames_at(l)?))).collect()
     };
     progress("teaching");
     let taught: Taught = teach(model, &lines_of(&clean, 0, spec.teach_lines)?, &spec.teach)?;
@@ -184,7 +192,12 @@ pub fn run(scene: &Scene, model: &DeviceModel<'_>, spec: &RocSpec, progress: &(d
         let mut detected = 0;
         for q in 0..4 {
             let centre = (2 * q + 1) * p / 8;
-            let at = Extent { first_pixel: centre - case.pixels / 2, pixels: case.pixels, first_line: 0, lines: u64::MAX / 4 };
+            let at = Extent {
+                first_pixel: centre - case.pixels / 2,
+                pixels: case.pixels,
+                first_line: 0,
+                lines: u64::MAX / 4,
+            };
             let ds = DefectScene::new(&case.kind, scene.clone(), &[(case.defect)(at)])?;
             let n = spec.defect_lines / 4;
             let (s, d) = decide(&recipe, model, &ds, first + (q * n) as u64, n)?;

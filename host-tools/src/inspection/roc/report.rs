@@ -33,7 +33,10 @@ pub fn markdown(r: &Roc) -> String {
         1e4 * r.false_calls as f64 / r.clean_lines as f64,
         c1
     );
-    let _ = writeln!(s, "| defect | size (px) | magnitude | lines | detected (device, operating point) | PoD | PoD at 1 false call / 10^4 |");
+    let _ = writeln!(
+        s,
+        "| defect | size (px) | magnitude | lines | detected (device, operating point) | PoD | PoD at 1 false call / 10^4 |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for c in &r.cases {
         let at = c.scores.iter().filter(|x| **x > c1).count() as f64 / c.scores.len() as f64;
@@ -83,7 +86,12 @@ impl Figure for Curves<'_> {
             let op = (r.false_calls_at(1.0).max(floor), c.pod);
             chart.draw_series(std::iter::once(Circle::new(op, 4, colour.filled())))?;
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).position(SeriesLabelPosition::LowerRight).draw()?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()?;
         Ok(())
     }
 }
