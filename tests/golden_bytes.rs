@@ -269,7 +269,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         Request::UpdateCommit,
         Request::UpdateAbort,
         Request::Reboot,
-        Request::RecipeBegin { len: 2_700, crc: 0x0DDB_A11 },
+        Request::RecipeBegin { len: 2_700, crc: 0x00DD_BA11 },
         Request::RecipeChunk { offset: 512, data: &chunk },
         Request::RecipeCommit,
         Request::RecipeAbort,

@@ -459,7 +459,8 @@ impl<const P: usize> Inspector<P> {
             verdict.mean_gloss = wdelta / wsum;
             self.ewma = s.ewma_lambda * verdict.mean_gloss + (1.0 - s.ewma_lambda) * self.ewma;
         }
-        let alarm = !(self.ewma.abs() <= s.ewma_limit);
+        // A NaN EWMA (never, with finite readings) alarms too.
+        let alarm = self.ewma.abs() > s.ewma_limit || self.ewma.is_nan();
         if alarm && !self.alarm {
             self.counters.drift_alarms = self.counters.drift_alarms.wrapping_add(1);
         }
@@ -482,7 +483,7 @@ impl<const P: usize> Inspector<P> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::recipe::{RecipeData, group_len, pixel_len, write};
+    use super::super::recipe::{RecipeData, group_len, write};
     use super::*;
 
     const M: usize = 3;

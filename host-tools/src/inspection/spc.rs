@@ -26,7 +26,7 @@ pub fn spc(values: &[f32], lsl: f32, usl: f32) -> Spc {
     let sd = if n > 1 { (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt() } else { f64::NAN };
     let (lsl, usl) = (lsl as f64, usl as f64);
     let cp = if lsl.is_finite() && usl.is_finite() { (usl - lsl) / (6.0 * sd) } else { f64::NAN };
-    let sides = [usl.is_finite().then(|| usl - mean), lsl.is_finite().then(|| mean - lsl)];
+    let sides = [usl.is_finite().then_some(usl - mean), lsl.is_finite().then_some(mean - lsl)];
     let cpk = sides.iter().flatten().map(|d| d / (3.0 * sd)).fold(f64::NAN, f64::min);
     Spc { lines: n, mean, sd, cp, cpk }
 }

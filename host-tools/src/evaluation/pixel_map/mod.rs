@@ -201,6 +201,9 @@ fn read_surface(
     Ok(Read { points })
 }
 
+/// A held-out material's row and its per-pixel flag counts.
+type MaterialFlags = (MaterialRow, Vec<(usize, usize, usize)>);
+
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
     let scene = &spec.scene;
@@ -243,7 +246,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
         let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
         let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let results: Vec<(MaterialRow, Vec<(usize, usize, usize)>)> = held
+        let results: Vec<MaterialFlags> = held
             .par_iter()
             .map(|&k| {
                 let s = &spec.prior.samples[k];
@@ -295,7 +298,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         .par_iter()
         .enumerate()
         .map(|(i, (_, b))| {
-            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.min(8).max(1), 2_000_003 + i as u64)?;
+            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
             let truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
             Ok((read, truth))
         })

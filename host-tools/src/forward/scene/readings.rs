@@ -117,7 +117,7 @@ pub fn points_csv(out: &Output) -> anyhow::Result<Vec<u8>> {
             w.write_record(&rec)?;
         }
     }
-    Ok(w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))?)
+    w.into_inner().map_err(|e| anyhow::anyhow!("CSV: {e}"))
 }
 
 /// Simulates lines `first..first + lines` of `scene`: the JSON document and
