@@ -112,7 +112,8 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 Request::Inspect { format, .. } if !format.bin_range(N).fits(N) => {
                     Err(DeviceError::BadBins { bins: N as u16 })
                 }
-                Request::Inspect { lines, defect_points, format } => c.usable_recipe().map(|_| {
+                Request::Inspect { lines, defect_points, format } => c.usable_recipe().map(|view| {
+                    c.recipe_view = Some(view);
                     c.status.measuring = true;
                     c.inspecting = true;
                     c.inspector = crate::inspect::Inspector::new();

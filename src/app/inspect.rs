@@ -166,7 +166,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         let now = Instant::now().as_micros();
         self.core.lock(|c| {
             let c = &mut *c.borrow_mut();
-            let recipe = c.usable_recipe()?;
+            let recipe = c.recipe_view.ok_or(DeviceError::NoRecipe)?;
             let cal = &c.cal;
             // The calibration's out-of-prior flag, asked only of the points
             // the recipe already found out (an estimate costs ~20 times the decision).

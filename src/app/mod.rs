@@ -158,6 +158,10 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub reject_plan: crate::inspect::reject::Planner,
     /// Whether the running job is an inspection.
     pub inspecting: bool,
+    /// The recipe of the running inspection, parsed once when it started
+    /// (the store never writes the active slot, and neither the recipe nor
+    /// the calibration can change while a job runs).
+    pub recipe_view: Option<crate::inspect::RecipeView<'static>>,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -222,6 +226,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             inspector: crate::inspect::Inspector::new(),
             reject_plan: crate::inspect::reject::Planner::new(),
             inspecting: false,
+            recipe_view: None,
         };
         Self {
             core: BlockingMutex::new(RefCell::new(core)),

@@ -4,13 +4,13 @@
 //!
 //! # Per point ([`point_stat`]), on the corrected readings v
 //! The readings are first normalised to the reference's line scale,
-//! `f = k v` with `k` the sum of the reference's means over the line's
-//! pixels and readings over the same sum of the line's readings
-//! ([`line_scale`]): a change of the light's intensity common to the whole
-//! line (LED drift, the web's height moving) is not a defect, while a
-//! defect a few pixels wide changes the sum by its share of the line only
-//! (a point-by-point normalisation would hide a gloss step, which on a
-//! broad lobe scales every reading of the point alike). With the
+//! `f = k v` with `1 / k` the median over the line's pixels of each pixel's
+//! sum of readings over its reference's ([`line_scale`]): a change of the
+//! light's intensity common to the line (LED drift, the web's height
+//! moving) is not a defect, while a defect on fewer than half the pixels
+//! does not move the median (a line mean would: a bright scratch would put
+//! every pixel out; a point-by-point normalisation would hide a gloss step,
+//! which on a broad lobe scales every reading of the point alike). With the
 //! pixel's reference mean `mu` (of f), inverse standard deviations `s` and
 //! its group's whitening `L^-1` of the normalised readings' correlation
 //! and gradient `J` (all from the recipe):
@@ -25,10 +25,9 @@
 //! is never needed.
 //!
 //! # A point's kind (first that holds)
-//! unreadable (a saturated, under-exposed or non-finite reading) >
-//! out-of-prior (only asked of points already out, see below) > gloss low >
-//! gloss high > haze > distinctness (a window of the recipe) > out of the
-//! reference's distribution (`d2` above the threshold). A point that was out
+//! unreadable (a saturated, under-exposed or non-finite reading) > gloss
+//! low > gloss high > haze > distinctness (a window of the recipe) > out of
+//! the reference's distribution (`d2` above the threshold). A point that was out
 //! on the previous line stays out until it is back inside the leaving
 //! thresholds (the distance's `threshold_off`, the windows times
 //! `window_hysteresis`): hysteresis.
@@ -36,7 +35,9 @@
 //! # Per line ([`Inspector::line`])
 //! A pixel is defective once it has been out for `min_lines` consecutive
 //! lines; a defect is a run of at least `min_pixels` consecutive defective
-//! pixels; its kind is the highest of its pixels' kinds in the order above.
+//! pixels; its kind is out-of-prior when the calibration flags any of its
+//! pixels out of its prior (asked only of a defect's pixels: an estimate
+//! each), else the highest of its pixels' kinds in the order above.
 //! Any defect rejects the line. The drift statistic is the EWMA of each
 //! line's weighted mean gloss change over its pixels that are not out,
 //! with an alarm while `|EWMA|` exceeds the recipe's limit.
@@ -267,32 +268,115 @@ pub struct PointStat {
     pub delta: [f32; READINGS],
 }
 
-/// The line's scale `k` (see the module docs): the reference's sum over
-/// the line's finite readings over theirs.
-pub fn line_scale<const M: usize>(r: &RecipeView<'_>, v: &[SVector<f32, M>]) -> f32 {
-    let (mut sv, mut smu) = (0.0f32, 0.0f32);
-    for (p, vp) in v.iter().enumerate() {
-        let s: f32 = vp.iter().sum();
-        if s.is_finite() {
-            sv += s;
-            for i in 0..M {
-                smu += r.pixel_value(p, i);
-            }
-        }
+/// Most values a group holds (its whitening and gradient): m up to 9.
+pub const MAX_GROUP_VALUES: usize = 64;
+
+/// Decodes little-endian f32 values into `out` (as many as it holds).
+#[inline]
+fn read_f32s(bytes: &[u8], out: &mut [f32]) {
+    for (o, c) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+        *o = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
     }
-    smu / sv
 }
 
-/// The per-point statistics of pixel `p` in group `g` at the line's
-/// `scale` (see the module docs). Not inlined: one symbol for the
-/// decision's per-point cost in QEMU.
+/// One pixel's reference, decoded from the recipe.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelRef<const M: usize> {
+    /// The mean of the normalised readings.
+    pub mean: [f32; M],
+    /// Their inverse standard deviations (the first m - 1; the last is
+    /// the inverse of the means' sum, [`inverse_reference_sum`]).
+    pub inv_sd: [f32; M],
+    /// The pixel's weight in the drift mean.
+    pub weight: f32,
+}
+
+impl<const M: usize> PixelRef<M> {
+    /// Zeros, to [`Self::load`] into.
+    pub const fn new() -> Self {
+        Self { mean: [0.0; M], inv_sd: [0.0; M], weight: 0.0 }
+    }
+
+    /// Pixel `p` of `r`.
+    pub fn of(r: &RecipeView<'_>, p: usize) -> Self {
+        let mut x = Self::new();
+        x.load(r, p);
+        x
+    }
+
+    /// Decodes pixel `p` of `r` in place (the decision's loop reuses one:
+    /// no copy per pixel).
+    #[inline(always)]
+    pub fn load(&mut self, r: &RecipeView<'_>, p: usize) {
+        if let Some(w) = r.pixel_words(p) {
+            self.mean.copy_from_slice(&w[..M]);
+            self.inv_sd.copy_from_slice(&w[M..2 * M]);
+            self.weight = w[2 * M];
+            return;
+        }
+        let b = r.pixel_bytes(p);
+        read_f32s(&b[..4 * M], &mut self.mean);
+        read_f32s(&b[4 * M..8 * M], &mut self.inv_sd);
+        self.weight = f32::from_le_bytes([b[8 * M], b[8 * M + 1], b[8 * M + 2], b[8 * M + 3]]);
+    }
+}
+
+impl<const M: usize> Default for PixelRef<M> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The inverse of the sum of pixel `p`'s reference means.
+#[inline]
+pub fn inverse_reference_sum<const M: usize>(r: &RecipeView<'_>, p: usize) -> f32 {
+    match r.pixel_words(p) {
+        Some(w) => w[2 * M - 1],
+        None => r.pixel_value(p, 2 * M - 1),
+    }
+}
+
+/// Group `g`'s values (whitening, then gradient), decoded into `out`.
+#[inline]
+pub fn load_group(r: &RecipeView<'_>, g: usize, out: &mut [f32; MAX_GROUP_VALUES]) {
+    match r.group_words(g) {
+        Some(w) => out[..w.len()].copy_from_slice(w),
+        None => read_f32s(r.group_bytes(g), out),
+    }
+}
+
+/// The line's scale `k` (see the module docs): 1 over the median of the
+/// pixels' ratios of their readings' sum to their reference's (pixels
+/// whose ratio is not finite left out; NaN when none is). `ratios` is
+/// scratch room, at least one value per pixel.
+pub fn line_scale<const M: usize>(r: &RecipeView<'_>, v: &[SVector<f32, M>], ratios: &mut [f32]) -> f32 {
+    let mut n = 0;
+    for (p, vp) in v.iter().enumerate().take(ratios.len()) {
+        let x = vp.iter().sum::<f32>() * inverse_reference_sum::<M>(r, p);
+        if x.is_finite() {
+            ratios[n] = x;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return f32::NAN;
+    }
+    let (_, median, _) = ratios[..n].select_nth_unstable_by(n / 2, f32::total_cmp);
+    1.0 / *median
+}
+
+/// The per-point statistics of a point with readings `v`, its pixel's
+/// reference `px` and its group's values `group`, at the line's `scale`
+/// (see the module docs). Not inlined: one symbol for the decision's
+/// per-point cost in QEMU.
 #[inline(never)]
-pub fn point_stat<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M], scale: f32) -> PointStat {
+pub fn point_stat<const M: usize>(px: &PixelRef<M>, group: &[f32], v: &[f32; M], scale: f32) -> PointStat {
+    const { assert!(M >= 2 && super::recipe::group_len(M) <= MAX_GROUP_VALUES) };
     let mut dv = [0.0f32; M];
     let mut z = [0.0f32; M];
     for i in 0..M {
-        dv[i] = v[i] * scale - r.pixel_value(p, i);
-        z[i] = dv[i] * r.pixel_value(p, M + i);
+        dv[i] = v[i] * scale - px.mean[i];
+        z[i] = dv[i] * px.inv_sd[i];
     }
     // A scale that is not a positive number leaves d2 NaN: unreadable.
     let mut d2 = if scale > 0.0 && scale.is_finite() { 0.0f32 } else { f32::NAN };
@@ -300,7 +384,7 @@ pub fn point_stat<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f
     for i in 0..M - 1 {
         let mut y = 0.0f32;
         for zj in &z[..=i] {
-            y += r.group_value(g, k) * *zj;
+            y += group[k] * *zj;
             k += 1;
         }
         d2 += y * y;
@@ -309,12 +393,21 @@ pub fn point_stat<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f
     for d in delta.iter_mut() {
         let mut acc = 0.0f32;
         for dvi in &dv {
-            acc += r.group_value(g, k) * *dvi;
+            acc += group[k] * *dvi;
             k += 1;
         }
         *d = acc;
     }
     PointStat { d2, delta }
+}
+
+/// [`point_stat`] of pixel `p` (in group `g`) of `r`, decoding its
+/// reference (for callers that look at single points; [`Inspector::line`]
+/// decodes each group once).
+pub fn point_stat_at<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M], scale: f32) -> PointStat {
+    let mut group = [0.0f32; MAX_GROUP_VALUES];
+    load_group(r, g, &mut group);
+    point_stat(&PixelRef::of(r, p), &group, v, scale)
 }
 
 /// The kind of a point from its statistics, before the out-of-prior
@@ -388,9 +481,10 @@ impl<const P: usize> Inspector<P> {
     }
 
     /// Decides line `line` from its corrected readings `v` and reading
-    /// flags (P each). `out_of_prior(p)` is asked only of pixels already out
-    /// by the recipe (the calibration's flag: an estimate the device makes
-    /// only there). `r` must be a recipe for P pixels and M readings.
+    /// flags (P each). `out_of_prior(p)` is asked only of the pixels of a
+    /// defect, until one says yes (the calibration's flag: an estimate the
+    /// device makes only there). `r` must be a recipe for P pixels and M
+    /// readings.
     pub fn line<const M: usize>(
         &mut self,
         r: &RecipeView<'_>,
@@ -402,19 +496,21 @@ impl<const P: usize> Inspector<P> {
         debug_assert!(r.pixels() == P && r.leds() == M && v.len() == P && reading_flags.len() == P);
         let s = *r.settings();
         let (mut g, mut next_group) = (0usize, if r.groups() > 1 { r.group_start(1) } else { P });
+        let mut group = [0.0f32; MAX_GROUP_VALUES];
+        load_group(r, 0, &mut group);
+        let mut px = PixelRef::<M>::new();
         let (mut wsum, mut wdelta) = (0.0f32, 0.0f32);
         let mut max_d2 = 0.0f32;
-        let scale = line_scale(r, v);
+        let scale = line_scale(r, v, &mut [0.0f32; P]);
         for p in 0..P {
             if p == next_group {
                 g += 1;
                 next_group = if g + 1 < r.groups() { r.group_start(g + 1) } else { P };
+                load_group(r, g, &mut group);
             }
-            let stat = point_stat(r, g, p, &v[p].data.0[0], scale);
-            let mut kind = classify(r, &stat, reading_flags[p], self.out[p].is_some());
-            if kind.is_some_and(|k| k != DefectKind::Unreadable) && out_of_prior(p) {
-                kind = Some(DefectKind::OutOfPrior);
-            }
+            px.load(r, p);
+            let stat = point_stat(&px, &group, &v[p].data.0[0], scale);
+            let kind = classify(r, &stat, reading_flags[p], self.out[p].is_some());
             self.out[p] = kind;
             self.age[p] = if kind.is_some() { self.age[p].saturating_add(1) } else { 0 };
             self.d2[p] = stat.d2;
@@ -422,7 +518,7 @@ impl<const P: usize> Inspector<P> {
                 max_d2 = stat.d2;
             }
             if kind.is_none() {
-                let w = r.pixel_value(p, 2 * M);
+                let w = px.weight;
                 wsum += w;
                 wdelta += w * stat.delta[crate::gloss::SPECULAR_GU];
             }
@@ -448,6 +544,13 @@ impl<const P: usize> Inspector<P> {
             }
             run.len = (p - first) as u16;
             if run.len >= s.min_pixels {
+                // The calibration's out-of-prior question, asked only here:
+                // an estimate per pixel of a defect, none on a good line.
+                if run.kind.rank() < DefectKind::OutOfPrior.rank()
+                    && (first..p).any(|q| self.out[q] != Some(DefectKind::Unreadable) && out_of_prior(q))
+                {
+                    run.kind = DefectKind::OutOfPrior;
+                }
                 self.counters.defects = self.counters.defects.wrapping_add(1);
                 if verdict.runs.push(run).is_err() {
                     verdict.flags |= verdict::MORE_DEFECTS;
@@ -515,7 +618,7 @@ mod tests {
             m: M,
             group_starts: vec![0],
             group_values: vec![group],
-            pixel_values: (0..P).map(|_| [1.0, 1.0, 1.0, 10.0, 10.0, 10.0, 1.0 / P as f32].to_vec()).collect(),
+            pixel_values: (0..P).map(|_| [1.0, 1.0, 1.0, 10.0, 10.0, 1.0 / 3.0, 1.0 / P as f32].to_vec()).collect(),
             settings,
         })
         .unwrap()
@@ -533,7 +636,7 @@ mod tests {
     fn point_statistics_are_the_distance_and_the_gradient() {
         let bytes = recipe(1, 1);
         let r = RecipeView::parse(&bytes).unwrap();
-        let s = point_stat(&r, 0, 3, &[1.3, 0.9, 0.8], 1.0);
+        let s = point_stat_at(&r, 0, 3, &[1.3, 0.9, 0.8], 1.0);
         assert!((s.d2 - (9.0 + 1.0)).abs() < 1e-4, "{}", s.d2);
         assert!((s.delta[0] - 3.0).abs() < 1e-5);
     }
@@ -560,13 +663,14 @@ mod tests {
         // ... but does not bring in pixels that were not.
         let v = ins.line(&r, 3, &line(&[(0, [1.18, 0.91, 0.91]), (1, [1.18, 0.91, 0.91])]), &flags, |_| false);
         assert!(!v.rejected());
-        // Out-of-prior is asked only of pixels out, and wins over the window kinds.
+        // Out-of-prior is asked only of a defect's pixels, until one says
+        // yes, and wins over the window kinds.
         let mut asked = Vec::new();
         let v = ins.line(&r, 4, &line(&[(6, [1.0, 2.0, 1.0]), (7, [0.7, 1.0, 1.0])]), &flags, |p| {
             asked.push(p);
             p == 6
         });
-        assert_eq!(asked, [6, 7]);
+        assert_eq!(asked, [6]);
         assert_eq!(v.runs[0].kind, DefectKind::OutOfPrior);
         // Saturation is unreadable whatever the readings.
         let mut f = [0u8; P];

@@ -34,7 +34,7 @@
 //! | 92 | 4 | lines taught |
 //! | 96 | 2 G, padded to 4 | first pixel of each group, ascending, the first 0 |
 //! | .. | 4 G ((m-1)m/2 + R m) | per group: the whitening of the first m - 1 normalised readings' correlation (lower triangle of `L^-1`, packed row by row), then the readings' gradient `J` (R x m, row-major: d reading / d normalised reading) |
-//! | .. | 4 P (2 m + 1) | per pixel: the reference mean of the normalised readings (m), their inverse standard deviations (m; the last unused), the pixel's weight in the drift mean |
+//! | .. | 4 P (2 m + 1) | per pixel: the reference mean of the normalised readings (m), the inverse standard deviations of the first m - 1, the inverse of the m means' sum, the pixel's weight in the drift mean |
 //! | end-4 | 4 | CRC-32 of everything before |
 //!
 //! R = [`crate::shape::READINGS`]. Everything the device computes from a
@@ -130,6 +130,9 @@ pub struct RecipeView<'a> {
     group_data: usize,
     pixel_data: usize,
     settings: RecipeSettings,
+    /// The group and pixel values as f32, when the bytes are 4-byte aligned
+    /// (a recipe in a flash slot always is): read with plain loads.
+    words: Option<&'a [f32]>,
 }
 
 fn u16_at(b: &[u8], o: usize) -> u16 {
@@ -148,7 +151,8 @@ pub const fn group_len(m: usize) -> usize {
     (m - 1) * m / 2 + READINGS * m
 }
 
-/// Values per pixel for m readings: mean, inverse sd, drift weight.
+/// Values per pixel for m readings: mean (m), inverse sd (m - 1), the
+/// inverse of the means' sum, drift weight.
 pub const fn pixel_len(m: usize) -> usize {
     2 * m + 1
 }
@@ -202,11 +206,16 @@ impl<'a> RecipeView<'a> {
             prev = first;
         }
         let settings = decode_settings(bytes)?;
-        let view = Self { bytes, pixels, m, groups, group_table, group_data, pixel_data, settings };
+        let words = bytemuck::try_cast_slice(&bytes[group_data..total - 4]).ok();
+        let view = Self { bytes, pixels, m, groups, group_table, group_data, pixel_data, settings, words };
         // Every per-group and per-pixel value must be finite: NaN would
         // silently never (or always) reject.
         let values = (total - 4 - group_data) / 4;
         if (0..values).any(|i| !f32_at(bytes, group_data + 4 * i).is_finite()) {
+            return Err(RecipeFault::BadValue);
+        }
+        // A pixel's reference sum divides the line scale's ratios: positive.
+        if (0..pixels).any(|p| !(view.pixel_value(p, 2 * m - 1) > 0.0)) {
             return Err(RecipeFault::BadValue);
         }
         Ok(view)
@@ -240,15 +249,32 @@ impl<'a> RecipeView<'a> {
     pub fn group_start(&self, g: usize) -> usize {
         u16_at(self.bytes, self.group_table + 2 * g) as usize
     }
-    /// Group `g`'s value `i` (whitening, then gradient).
+    /// Group `g`'s values (whitening, then gradient) as f32, when the
+    /// recipe is 4-byte aligned (else read [`Self::group_bytes`]).
     #[inline]
-    pub fn group_value(&self, g: usize, i: usize) -> f32 {
-        f32_at(self.bytes, self.group_data + 4 * (g * group_len(self.m) + i))
+    pub fn group_words(&self, g: usize) -> Option<&'a [f32]> {
+        let at = g * group_len(self.m);
+        self.words.map(|w| &w[at..at + group_len(self.m)])
+    }
+    /// Pixel `p`'s values as f32, when the recipe is 4-byte aligned.
+    #[inline]
+    pub fn pixel_words(&self, p: usize) -> Option<&'a [f32]> {
+        let at = (self.pixel_data - self.group_data) / 4 + p * pixel_len(self.m);
+        self.words.map(|w| &w[at..at + pixel_len(self.m)])
+    }
+    /// Group `g`'s values (whitening, then gradient), little-endian f32.
+    pub fn group_bytes(&self, g: usize) -> &'a [u8] {
+        let at = self.group_data + 4 * g * group_len(self.m);
+        &self.bytes[at..at + 4 * group_len(self.m)]
+    }
+    /// Pixel `p`'s values (mean, inverse sd, drift weight), little-endian f32.
+    pub fn pixel_bytes(&self, p: usize) -> &'a [u8] {
+        let at = self.pixel_data + 4 * p * pixel_len(self.m);
+        &self.bytes[at..at + 4 * pixel_len(self.m)]
     }
     /// Pixel `p`'s value `i` (mean, inverse sd, drift weight).
-    #[inline]
     pub fn pixel_value(&self, p: usize, i: usize) -> f32 {
-        f32_at(self.bytes, self.pixel_data + 4 * (p * pixel_len(self.m) + i))
+        f32_at(self.pixel_bytes(p), 4 * i)
     }
 }
 
@@ -426,7 +452,7 @@ pub(crate) mod tests {
         assert_eq!((v.pixels(), v.leds(), v.groups()), (6, 3, 2));
         assert_eq!(*v.settings(), settings());
         assert_eq!((v.group_start(0), v.group_start(1)), (0, 4));
-        assert_eq!(v.group_value(1, 5), 5.0);
+        assert_eq!(v.group_bytes(1)[20..24], 5.0f32.to_le_bytes());
         assert_eq!(v.pixel_value(4, 6), 46.0);
         assert_eq!(v.crc(), CRC32.checksum(&bytes[..bytes.len() - 4]));
     }

@@ -39,6 +39,19 @@ pub enum Sub {
     Run(RunArgs),
     /// Probability of detection per defect kind and size against false calls, simulated.
     Roc(RocArgs),
+    /// The decision's latency and cost, counted exactly in QEMU (needs QEMU and the ARM binutils).
+    Bench(BenchArgs),
+}
+
+/// `inspect bench`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Zones of the calibration (at most the board's RAM budget, 8).
+    #[arg(long, default_value_t = 8)]
+    pub zones: usize,
+    /// Also write the figures as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
 }
 
 /// The recipe's settings, as `teach` and `roc` take them.
@@ -218,6 +231,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Sub::Provision(a) => run_provision(a),
         Sub::Run(a) => run_inspect(a),
         Sub::Roc(a) => run_roc(a),
+        Sub::Bench(a) => run_bench(a),
     }
 }
 
@@ -228,9 +242,16 @@ fn recipe_room() -> usize {
         - brdf_meter::signed::TRAILER_LEN
 }
 
+/// The device a scene's calibration runs on: the board's acquisition for
+/// its pixel count, else the QEMU build's (the same exposure ratios).
 fn device_model<'a>(view: BlobView<'a>, scene: &Scene) -> anyhow::Result<DeviceModel<'a>> {
     let full_scale = scene.instrument.sensor.full_scale.round() as u16;
-    DeviceModel::new(view, full_scale, brdf_meter::platform::timing::QEMU_ACQUISITION)
+    let acq = if scene.instrument.sensor.pixels == brdf_meter::shape::board::PIXELS {
+        brdf_meter::platform::timing::ACQUISITION
+    } else {
+        brdf_meter::platform::timing::QEMU_ACQUISITION
+    };
+    DeviceModel::new(view, full_scale, acq)
 }
 
 fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
@@ -433,6 +454,47 @@ fn run_roc(a: RocArgs) -> anyhow::Result<()> {
     roc::report::plot(&result, &a.out.join("roc.png"))?;
     if a.quick {
         bail_if_empty(&result)?;
+    }
+    Ok(())
+}
+
+fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
+    ensure!(
+        (1..=brdf_meter::shape::board::RAM_ZONES).contains(&a.zones),
+        "--zones {}: 1 to {} (the board's RAM budget)",
+        a.zones,
+        brdf_meter::shape::board::RAM_ZONES
+    );
+    let root = crate::device::link::qemu::workspace_root();
+    let lines = crate::inspection::bench::run(&root, a.zones, &|s| eprintln!("  {s}"))?;
+    let p = brdf_meter::shape::board::PIXELS as f64;
+    println!(
+        "| line (P = 128) | verdict | frame bytes | correct | decide | frame | latency (cycles) | latency at 80 MHz | decide per point | estimate per point | decide / estimate |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for l in &lines {
+        let get = |n: &str| l.stages.iter().filter(|s| s.0 == n).fold((0.0, 0.0), |a, s| (a.0 + s.1, a.1 + s.2));
+        let (c, d, f, e) = (get("correct"), get("decide"), get("frame"), get("estimate"));
+        println!(
+            "| {} | {} | {} | {:.0} instr / {:.0} cyc | {:.0} / {:.0} | {:.0} / {:.0} | {:.0} | {:.3} ms | {:.0} cyc | {:.0} cyc | {:.1} % |",
+            l.line,
+            if l.rejected { "reject" } else { "good" },
+            l.frame_bytes,
+            c.0,
+            c.1,
+            d.0,
+            d.1,
+            f.0,
+            f.1,
+            l.latency_cycles,
+            l.latency_us / 1000.0,
+            d.1 / p,
+            e.1 / p,
+            100.0 * l.decision_share
+        );
+    }
+    if let Some(path) = &a.json {
+        crate::output::io::write_json(path, &lines)?;
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 //! and the probability of detection against false calls on simulated runs
 //! (`roc`). The decision itself is the device library's
 //! (`brdf_meter::inspect`), called here as it is there.
+pub mod bench;
 pub mod defect_map;
 pub mod lines;
 pub mod roc;

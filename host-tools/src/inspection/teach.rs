@@ -187,18 +187,29 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         100.0 * MAX_OUT_OF_PRIOR
     );
     // Normalised readings, per pixel: mean and sd. The line scale is the
-    // device's: the reference's line sum over the line's.
-    let line_sum = |l: &Line| l.v.iter().map(|v| v.iter().map(|x| *x as f64).sum::<f64>()).sum::<f64>();
-    let ref_sum = lines.iter().map(line_sum).sum::<f64>() / n as f64;
-    let scales: Vec<f64> = lines.iter().map(|l| ref_sum / line_sum(l)).collect();
-    let line_index = |l: &Line| (l as *const Line as usize - lines.as_ptr() as usize) / std::mem::size_of::<Line>();
-    let norm = |l: &Line, px: usize, _: f64| -> SVector<f64, M> { l.v[px].map(|x| x as f64) * scales[line_index(l)] };
-    let sref = vec![0.0f64; p];
+    // device's (`brdf_meter::inspect::decide::line_scale`): 1 over the
+    // median of the pixels' sums over their reference's; the reference
+    // sums are the normalised means' own, so two rounds settle them.
+    let sums: Vec<Vec<f64>> =
+        lines.iter().map(|l| l.v.iter().map(|v| v.iter().map(|x| *x as f64).sum()).collect()).collect();
+    let mut reference: Vec<f64> = (0..p).map(|px| sums.iter().map(|s| s[px]).sum::<f64>() / n as f64).collect();
+    let mut scales = vec![1.0f64; n];
+    for _ in 0..2 {
+        for (k, s) in sums.iter().enumerate() {
+            let mut r: Vec<f64> = (0..p).map(|px| s[px] / reference[px]).filter(|x| x.is_finite()).collect();
+            r.sort_by(f64::total_cmp);
+            scales[k] = 1.0 / r[r.len() / 2];
+        }
+        reference = (0..p).map(|px| sums.iter().zip(&scales).map(|(s, k)| k * s[px]).sum::<f64>() / n as f64).collect();
+    }
+    // Per line and pixel, the normalised readings.
+    let normed: Vec<Vec<SVector<f64, M>>> =
+        lines.iter().zip(&scales).map(|(l, k)| l.v.iter().map(|v| v.map(|x| x as f64) * *k).collect()).collect();
     let mean: Vec<SVector<f64, M>> =
-        (0..p).map(|px| lines.iter().map(|l| norm(l, px, sref[px])).sum::<SVector<f64, M>>() / n as f64).collect();
+        (0..p).map(|px| normed.iter().map(|l| l[px]).sum::<SVector<f64, M>>() / n as f64).collect();
     let sd: Vec<SVector<f64, M>> = (0..p)
         .map(|px| {
-            let ss = lines.iter().map(|l| (norm(l, px, sref[px]) - mean[px]).map(|x| x * x)).sum::<SVector<f64, M>>();
+            let ss = normed.iter().map(|l| (l[px] - mean[px]).map(|x| x * x)).sum::<SVector<f64, M>>();
             (ss / (n - 1) as f64).map(f64::sqrt)
         })
         .collect();
@@ -246,8 +257,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         let mut r = DMatrix::<f64>::zeros(d, d);
         let mut count = 0usize;
         for px in a..b {
-            for l in lines {
-                let f = norm(l, px, sref[px]);
+            for l in &normed {
+                let f = l[px];
                 let z: Vec<f64> = (0..d).map(|i| (f[i] - mean[px][i]) / sd[px][i]).collect();
                 for i in 0..d {
                     for k in 0..d {
@@ -283,8 +294,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
     }
     let group_of = |px: usize| starts.iter().rposition(|&s| s <= px).expect("group 0 starts at 0");
     // The readings' change per line and pixel through the recipe's gradient (for sd and drift).
-    let delta = |l: &Line, px: usize| -> [f64; READINGS] {
-        let f = norm(l, px, sref[px]);
+    let delta = |l: &[SVector<f64, M>], px: usize| -> [f64; READINGS] {
+        let f = l[px];
         let g = &group_values[group_of(px)];
         let off = (M - 1) * M / 2;
         core::array::from_fn(|r| (0..M).map(|i| g[off + r * M + i] as f64 * (f[i] - mean[px][i])).sum())
@@ -296,7 +307,7 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         for r in 0..READINGS {
             let mut sds: Vec<f64> = with_reading
                 .iter()
-                .map(|&px| (lines.iter().map(|l| delta(l, px)[r].powi(2)).sum::<f64>() / (n - 1) as f64).sqrt())
+                .map(|&px| (normed.iter().map(|l| delta(l, px)[r].powi(2)).sum::<f64>() / (n - 1) as f64).sqrt())
                 .collect();
             sds.sort_by(f64::total_cmp);
             reading_sd[r] = sds[sds.len() / 2];
@@ -320,7 +331,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         .fold(f64::INFINITY, f64::min);
     // Drift: the weighted line mean of the gloss change.
     let w = if with_reading.is_empty() { 0.0 } else { 1.0 / with_reading.len() as f64 };
-    let line_means: Vec<f64> = lines.iter().map(|l| with_reading.iter().map(|&px| w * delta(l, px)[0]).sum()).collect();
+    let line_means: Vec<f64> =
+        normed.iter().map(|l| with_reading.iter().map(|&px| w * delta(l, px)[0]).sum()).collect();
     let lm = line_means.iter().sum::<f64>() / n as f64;
     let line_sd = (line_means.iter().map(|x| (x - lm).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
     let lambda = spec.ewma_lambda as f64;
@@ -338,7 +350,8 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         .map(|px| {
             let mut v = Vec::with_capacity(pixel_len(M));
             v.extend_from_slice(&mean32[px]);
-            v.extend((0..M).map(|i| if i + 1 < M { (1.0 / sd[px][i]) as f32 } else { 0.0 }));
+            v.extend((0..M - 1).map(|i| (1.0 / sd[px][i]) as f32));
+            v.push(1.0 / mean32[px].iter().sum::<f32>());
             v.push(if has_reading(px) { w as f32 } else { 0.0 });
             v
         })

@@ -18,7 +18,7 @@ use crate::forward::brdf::BrdfSpec;
 use crate::forward::scene::Scene;
 use crate::forward::scene::defects::{DefectScene, DefectSpec, Extent};
 use brdf_meter::inspect::RecipeView;
-use brdf_meter::inspect::decide::point_stat;
+use brdf_meter::inspect::decide::point_stat_at;
 use brdf_meter::protocol::flags;
 use brdf_meter::shape::{LEDS as M, READINGS};
 use rayon::prelude::*;
@@ -137,13 +137,13 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
     let s = recipe.settings();
     let p = recipe.pixels();
     let mut group = 0;
-    let scale = brdf_meter::inspect::decide::line_scale(recipe, &line.v);
+    let scale = brdf_meter::inspect::decide::line_scale(recipe, &line.v, &mut vec![0.0f32; p]);
     let scores: Vec<f64> = (0..p)
         .map(|px| {
             while group + 1 < recipe.groups() && recipe.group_start(group + 1) <= px {
                 group += 1;
             }
-            let st = point_stat::<M>(recipe, group, px, &line.v[px].data.0[0], scale);
+            let st = point_stat_at::<M>(recipe, group, px, &line.v[px].data.0[0], scale);
             if line.flags[px] & (flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE) != 0 || !st.d2.is_finite()
             {
                 return f64::INFINITY;
