@@ -5,50 +5,12 @@
 //! verdict per line, bit for bit the host's reference, drives its reject
 //! output, and a defect-free line costs at most 64 link bytes.
 use brdf_meter::blob::CRC32;
-use brdf_meter::inspect::{RecipeStore, RecipeView};
+use brdf_meter::inspect::RecipeStore;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{DeviceError, Response};
 use host_tools::device::link::{Client, LinkError, frame_len};
-use host_tools::forward::brdf::BrdfSpec;
-use host_tools::forward::scene::defects::{DefectScene, DefectSpec, Extent};
-use host_tools::forward::scene::frames::patent_scene;
-use host_tools::inspection::lines::{DeviceModel, HostInspector};
-use host_tools::inspection::teach::{TeachSpec, Window, teach};
-use system_tests::sim::{ACQ, FULL_SCALE, P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
-
-struct Fixture {
-    cal: Vec<u8>,
-    recipe: Vec<u8>,
-    scene: DefectScene,
-}
-
-/// A scale-free calibration for the QEMU build's scene (patent profile,
-/// 32 pixels, 4 zones), a recipe taught on 60 of its defect-free lines, and
-/// the same scene with a 3-pixel scratch on lines 61 and 63.
-fn fixture() -> Fixture {
-    let scene = patent_scene(P);
-    let cal = host_tools::calibration::demo::train_scale_free_for_scene(&scene, 4, 0.02, false).unwrap().blob;
-    let view = brdf_meter::blob::BlobView::parse(&cal).unwrap();
-    let model = DeviceModel::new(view, FULL_SCALE, ACQ).unwrap();
-    let clean = DefectScene::new("clean", scene.clone(), &[]).unwrap();
-    let lines: Vec<_> = (0..60).map(|l| model.correct(&clean.raw_frames_at(l).unwrap())).collect();
-    let spec = TeachSpec {
-        max_bytes: RECIPE_SLOT_LEN as usize - brdf_meter::store::SLOT_HEADER_LEN - brdf_meter::signed::TRAILER_LEN,
-        pulse_us: 20_000,
-        // The patent scene's gloss (hundreds of GU, 2 % noise) spreads by
-        // several GU per pixel: the distance alone decides here.
-        windows: [Window::Off; 3],
-        ..TeachSpec::default()
-    };
-    let taught = teach(&model, &lines, &spec).unwrap();
-    let recipe = host_tools::calibration::signing::sign_with_dev_key(&taught.bytes);
-    let scratch = |first_line| DefectSpec::Scratch {
-        at: Extent { first_pixel: 10, pixels: 3, first_line, lines: 1 },
-        brdf: BrdfSpec::Ward { rho_d: 0.9, rho_s: Some(0.05), alpha: 0.4 },
-    };
-    let scene = DefectScene::new("scratch", scene, &[scratch(61), scratch(63)]).unwrap();
-    Fixture { cal: host_tools::calibration::signing::sign_with_dev_key(&cal), recipe, scene }
-}
+use system_tests::inspection::{bytes, fixture, host_verdicts, recipe_cal, scene_lines};
+use system_tests::sim::{P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
 
 fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
     match r {
@@ -87,23 +49,13 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
     assert_eq!(info.calibration_crc, recipe_cal(&f.recipe));
 
     // The scene: lines 60..64, the scratch on the 2nd and 4th; 8 lines cycle it twice.
-    let frames: Vec<_> = (60..64).map(|l| f.scene.raw_frames_at(l).unwrap()).collect();
+    let frames = scene_lines(&f);
     c.load_scene(&frames).unwrap();
     c.set_calibration(&f.cal).unwrap();
     let run = c.inspect(8, true, &mut |_| {}).unwrap();
     assert_eq!(run.verdicts.len(), 8);
-
     // The host's reference, line after line with the same state.
-    let cal_view = brdf_meter::blob::BlobView::parse(&f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN]).unwrap();
-    let model = DeviceModel::new(cal_view, FULL_SCALE, ACQ).unwrap();
-    let recipe = RecipeView::parse(&f.recipe[..f.recipe.len() - brdf_meter::signed::TRAILER_LEN]).unwrap();
-    let mut host = HostInspector::new(P).unwrap();
-    for (k, got) in run.verdicts.iter().enumerate() {
-        let line = model.correct(&frames[k % 4]);
-        let mut want = host.line(&recipe, &model, k as u32, &line);
-        if want.rejected() {
-            want.flags |= brdf_meter::inspect::decide::verdict::POINTS_FOLLOW;
-        }
+    for (k, (got, want)) in run.verdicts.iter().zip(host_verdicts(&f, &frames, 8, true)).enumerate() {
         assert_eq!(bytes(got), bytes(&want), "line {k}: device {got:?}, host {want:?}");
     }
     let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
@@ -134,15 +86,6 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
         assert_eq!((*start, *len), (p.start_us, p.len_us as u64));
         assert!(*len >= 20_000, "a pulse a PLC scanning every 10 ms cannot miss");
     }
-}
-
-/// The calibration CRC a signed recipe names.
-fn recipe_cal(signed: &[u8]) -> u32 {
-    RecipeView::parse(&signed[..signed.len() - brdf_meter::signed::TRAILER_LEN]).unwrap().settings().calibration_crc
-}
-
-fn bytes(v: &brdf_meter::inspect::Verdict) -> Vec<u8> {
-    postcard::to_allocvec(v).unwrap()
 }
 
 #[test]

@@ -141,17 +141,18 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     /// Opens the recipe store on `flash` (two slots of `slot_len` bytes):
     /// the newest signed recipe for this device's shape and its active
     /// calibration is taken. The platform keeps it in a static and hands it
-    /// over with [`Self::with_recipes`].
+    /// over with [`Self::set_recipes`].
     pub fn open_recipes<RF: MappedFlash>(&self, flash: RF, slot_len: u32) -> RecipeStore<RF> {
         let cal = self.core.lock(|c| c.borrow().calibration_crc());
         RecipeStore::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| check_recipe::<M, P>(v, cal).is_ok())
     }
 
     /// Hands the application the platform's recipe store: it then takes
-    /// recipes over the link and inspects.
-    pub fn with_recipes(self, port: RecipePort) -> Self {
+    /// recipes over the link and inspects. (By reference, once the
+    /// application is in its static: the QEMU build's stack has no room for
+    /// another copy of it.)
+    pub fn set_recipes(&self, port: RecipePort) {
         self.core.lock(|c| c.borrow_mut().recipes = Some(port));
-        self
     }
 
     /// Decides one corrected line (the estimation task's inspection step):

@@ -115,9 +115,8 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
         let (host, dev_end) = pipe();
         let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, ACQ, host.frames_counter());
-        let dev = setup(Shared::new(store, SLOT_LEN, ram, ACQ, FULL_SCALE, true));
-        let recipe_store = leak(dev.open_recipes(recipes.clone(), RECIPE_SLOT_LEN));
-        let shared: &'static Dev<Fl> = leak(dev.with_recipes(recipe_store));
+        let shared: &'static Dev<Fl> = leak(setup(Shared::new(store, SLOT_LEN, ram, ACQ, FULL_SCALE, true)));
+        shared.set_recipes(leak(shared.open_recipes(recipes.clone(), RECIPE_SLOT_LEN)));
         let reject = SimReject::default();
         let reject_out = reject.clone();
         let pending: &'static AtomicBool = leak(AtomicBool::new(false));
