@@ -9,7 +9,7 @@
 //! bench`), read over semihosting: the board's shape (P = 128), a trained
 //! calibration, a recipe taught for it, and two lines of raw frames (a
 //! defect-free one, one with a defect). Per line, between calls of
-//! [`inspect_bench_mark`]:
+//! [`bench_mark`]:
 //! - `correct`: `acquire::correct_line` (in the acquisition task, after the
 //!   last LED frame);
 //! - `decide`: `Inspector::line` (distance, windows, runs, drift; the
@@ -33,26 +33,14 @@ use cortex_m_semihosting::debug;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Line, fail, halt, read_file};
+use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
 const P: usize = shape::board::PIXELS;
 const DATA_LEN: usize = 56 * 1024;
 
-/// A segment boundary for the trace counter. Never inlined: its address is
-/// what the analysis looks for.
-#[inline(never)]
-#[unsafe(no_mangle)]
-pub fn inspect_bench_mark() {
-    // SAFETY: a plain no-op.
-    unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
-}
-
-#[repr(C, align(4))]
-struct Aligned([u8; DATA_LEN]);
-
-static mut DATA: Aligned = Aligned([0; DATA_LEN]);
+static mut DATA: Aligned<DATA_LEN> = Aligned([0; DATA_LEN]);
 static mut RAM: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
     [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
 static mut INSPECTOR: Inspector<P> = Inspector::new();
@@ -61,7 +49,7 @@ static mut OUT: [u8; MAX_FRAME] = [0; MAX_FRAME];
 /// Names the segments (first pass) or marks them (second pass).
 fn at(marking: bool, line: usize, stage: &[u8]) {
     if marking {
-        inspect_bench_mark();
+        bench_mark();
     } else {
         let mut l = Line::new();
         l.push(b"SEG ");
@@ -164,7 +152,7 @@ fn main() -> ! {
             }
         }
     }
-    inspect_bench_mark();
+    bench_mark();
     let mut l = Line::new();
     l.push(b"DONE");
     l.end();

@@ -8,7 +8,7 @@
 //! over semihosting: per build (P = 128, the board; P = 32, QEMU) a trained
 //! calibration blob and one line of raw frames from the scene simulator.
 //! For each build it runs the library functions the firmware runs, between
-//! calls of [`line_bench_mark`]:
+//! calls of [`bench_mark`]:
 //! - `correct`: `acquire::correct_line` (dark, white, saturation and
 //!   exposure flags) of the whole line;
 //! - `estimate`: `Calibration::estimate_point` for every point (zone,
@@ -45,7 +45,7 @@ use cortex_m_semihosting::debug;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Line, fail, halt, read_file};
+use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -53,19 +53,7 @@ const BOARD_P: usize = shape::board::PIXELS;
 const QEMU_P: usize = shape::qemu::PIXELS;
 const DATA_LEN: usize = 44 * 1024;
 
-/// A segment boundary for the trace counter. Never inlined: its address is
-/// what the analysis looks for.
-#[inline(never)]
-#[unsafe(no_mangle)]
-pub fn line_bench_mark() {
-    // SAFETY: a plain no-op.
-    unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
-}
-
-#[repr(C, align(4))]
-struct Aligned([u8; DATA_LEN]);
-
-static mut DATA: Aligned = Aligned([0; DATA_LEN]);
+static mut DATA: Aligned<DATA_LEN> = Aligned([0; DATA_LEN]);
 static mut RAM_BOARD: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
     [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
 static mut RAM_QEMU: [ZoneMatrix<N, M>; shape::qemu::RAM_ZONES] =
@@ -83,7 +71,7 @@ impl Bounds {
     #[inline(always)]
     fn at(&self, stage: &str, enc: &str) {
         if self.marking {
-            line_bench_mark();
+            bench_mark();
         } else {
             let mut l = Line::new();
             l.push(b"SEG ");
@@ -290,7 +278,7 @@ fn main() -> ! {
         run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
     }
     // Closes the last segment (each boundary opens one).
-    line_bench_mark();
+    bench_mark();
     let mut l = Line::new();
     l.push(b"DONE");
     l.end();

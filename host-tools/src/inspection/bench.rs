@@ -8,10 +8,10 @@
 //! from its timing table, zero wait states assumed).
 use super::lines::{DeviceModel, HostInspector};
 use super::teach::{TeachSpec, Window, teach};
-use crate::evaluation::tradeoff::kernel_bench::count_segments;
+use crate::evaluation::tradeoff::kernel_bench::run_traced;
 use crate::forward::scene::Scene;
 use crate::forward::scene::defects::{DefectScene, DefectSpec, Extent};
-use anyhow::{Context, ensure};
+use anyhow::ensure;
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
 use brdf_meter::platform::timing::SYSCLK_HZ;
@@ -76,17 +76,7 @@ pub fn run(root: &Path, zones: usize, progress: &dyn Fn(&str)) -> anyhow::Result
     std::fs::create_dir_all(&dir)?;
     crate::output::io::write_atomic(&dir.join("data.bin"), &data)?;
     progress("running the bench in QEMU (instruction trace)");
-    let script = root.join("scripts/inspect-bench.sh");
-    let status = std::process::Command::new("bash")
-        .arg(&script)
-        .arg(&dir)
-        .current_dir(root)
-        .status()
-        .with_context(|| format!("running {}", script.display()))?;
-    ensure!(status.success(), "{} failed ({status})", script.display());
-    let segs = count_segments(&dir, "inspect_bench_mark");
-    let _ = std::fs::remove_file(dir.join("trace.txt"));
-    let segs = segs?;
+    let segs = run_traced(root, "scripts/inspect-bench.sh", &dir)?;
     let stdout = std::fs::read_to_string(dir.join("stdout.txt"))?;
     let verdicts: Vec<(bool, usize)> = stdout
         .lines()

@@ -4,6 +4,19 @@
 //! `#[path]` (a folder without `main.rs` is no binary of its own).
 use cortex_m_semihosting::{debug, hio};
 
+/// A segment boundary for the trace counter (`host-tools`' `count_segments`
+/// looks for this symbol). Never inlined: its address is what it looks for.
+#[inline(never)]
+#[unsafe(no_mangle)]
+pub fn bench_mark() {
+    // SAFETY: a plain no-op.
+    unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
+}
+
+/// A bench's input file, 4-byte aligned (a calibration read in place).
+#[repr(C, align(4))]
+pub struct Aligned<const N: usize>(pub [u8; N]);
+
 /// Reads a host file (path NUL-terminated, relative to QEMU's working
 /// directory) over semihosting; returns the bytes read.
 pub fn read_file(path: &[u8], buf: &mut [u8]) -> usize {
