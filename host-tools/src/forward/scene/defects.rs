@@ -335,3 +335,63 @@ fn overlap(a: f64, b: f64, at: &Extent) -> f64 {
     let (lo, hi) = (at.first_line as f64, at.first_line as f64 + at.lines as f64);
     ((b.min(hi) - a.max(lo)) / (b - a)).clamp(0.0, 1.0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn library(name: &str) -> DefectScene {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/inspect").join(name);
+        DefectScene::load(&path).unwrap_or_else(|e| panic!("{name}: {e:#}"))
+    }
+
+    fn light(ds: &DefectScene, line: u64) -> Vec<Vec<u16>> {
+        ds.raw_frames_at(line).unwrap()
+    }
+
+    #[test]
+    fn each_library_defect_changes_its_pixels_and_lines_only() {
+        let clean = DefectScene::new("clean", library("scratch.toml").scene.clone(), &[]).unwrap();
+        for (file, pixels, line) in [
+            ("scratch.toml", 62..66, 12),
+            ("matt-patch.toml", 40..56, 12),
+            ("gloss-step.toml", 80..88, 12),
+            ("film.toml", 20..36, 12),
+        ] {
+            let ds = library(file);
+            // Before the defect's lines: the defect-free frames, noise draw and all.
+            assert_eq!(light(&ds, 3), light(&clean, 3), "{file}: line 3");
+            let (got, want) = (light(&ds, line), light(&clean, line));
+            let differs: Vec<usize> =
+                (0..ds.pixels()).filter(|&p| got.iter().zip(&want).any(|(g, w)| g[p] != w[p])).collect();
+            assert!(!differs.is_empty() && differs.iter().all(|p| pixels.contains(p)), "{file}: pixels {differs:?}");
+            assert_eq!(ds.defect_pixels(line), Some((pixels.start, pixels.end - 1)), "{file}");
+        }
+        // Drift: nothing at line 0, the whole line later.
+        let drift = library("gloss-drift.toml");
+        assert_eq!(light(&drift, 0), light(&clean, 0));
+        let (got, want) = (light(&drift, 200), light(&clean, 200));
+        assert!((0..drift.pixels()).filter(|&p| got.iter().zip(&want).any(|(g, w)| g[p] != w[p])).count() > 100);
+        // Motion: line 9's later LED frames already see the step of line 10, its first frame not.
+        let moving = library("motion.toml");
+        let still = library("gloss-step.toml");
+        assert_eq!(light(&still, 9), light(&clean, 9));
+        let (got, want) = (light(&moving, 9), light(&clean, 9));
+        let m = moving.scene.instrument.m();
+        for level in 0..got.len() / (m + 1) {
+            let first_led = level * (m + 1) + 1;
+            assert_eq!(got[first_led], want[first_led], "the first LED's frames of line 9 see line 9");
+        }
+        assert_ne!(got, want, "the later LEDs' frames see part of line 10");
+    }
+
+    #[test]
+    fn bad_defects_are_refused_with_their_field() {
+        let text = "name = \"x\"\nscene = \"../handheld.toml\"\n[[defects]]\nkind = \"film\"\nfirst_pixel = 0\npixels = 4\nalbedo = 0.5\ncoverage = 1.5\n";
+        let e = crate::output::config::parse_toml::<DefectSceneFile>(text, "x.toml").unwrap_err().to_string();
+        assert!(e.contains("defects[0]") && e.contains("coverage"), "{e}");
+        let text = "name = \"x\"\nscene = \"h.toml\"\n[[defects]]\nkind = \"motion\"\nshift_per_frame = 2.0\n";
+        let e = crate::output::config::parse_toml::<DefectSceneFile>(text, "x.toml").unwrap_err().to_string();
+        assert!(e.contains("skip lines"), "{e}");
+    }
+}
