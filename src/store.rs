@@ -208,6 +208,10 @@ struct Session {
     carry_len: usize,
 }
 
+/// A provisioning's image written and checked: the session, the signed
+/// content's bytes (without the trailer) and the image's CRC.
+type Finished = (Session, &'static [u8], u32);
+
 /// The two-slot store of content `K`: the slot logic ([`Slots`], the same
 /// code whatever the content, so a firmware with two stores on one kind of
 /// flash carries it once) and what its content parses as.
@@ -464,7 +468,7 @@ impl<F: MappedFlash> Slots<F> {
     /// over all the image against the one declared at begin, the signature
     /// by a trusted key. Returns the session, the signed content's bytes
     /// (without the trailer) and the CRC.
-    fn finish(&mut self) -> Result<(Session, &'static [u8], u32), StoreError<F::Error>> {
+    fn finish(&mut self) -> Result<Finished, StoreError<F::Error>> {
         let mut s = self.session.take().ok_or(DeviceError::NotProvisioning)?;
         if s.received != s.len {
             return Err(DeviceError::Incomplete { received: s.received, len: s.len }.into());

@@ -676,8 +676,8 @@ mod tests {
                 .collect();
             let mut sorted = v.clone();
             sorted.sort_by(f32::total_cmp);
-            for k in 0..n {
-                assert_eq!(select(&mut v.clone(), k), sorted[k], "n {n}, k {k}, {v:?}");
+            for (k, want) in sorted.iter().enumerate() {
+                assert_eq!(select(&mut v.clone(), k), *want, "n {n}, k {k}, {v:?}");
             }
         }
     }

@@ -215,7 +215,10 @@ impl<'a> RecipeView<'a> {
             return Err(RecipeFault::BadValue);
         }
         // A pixel's reference sum divides the line scale's ratios: positive.
-        if (0..pixels).any(|p| !(view.pixel_value(p, 2 * m - 1) > 0.0)) {
+        if (0..pixels).any(|p| {
+            let sum = view.pixel_value(p, 2 * m - 1);
+            sum.is_nan() || sum <= 0.0
+        }) {
             return Err(RecipeFault::BadValue);
         }
         Ok(view)
