@@ -35,6 +35,9 @@ pub fn fixture() -> Fixture {
         // The patent scene's gloss (hundreds of GU, 2 % noise) spreads by
         // several GU per pixel: the distance alone decides here.
         windows: [Window::Off; 3],
+        // The scratch is 3 pixels wide and its edge pixels see part of the
+        // surface beside it: 2 adjacent pixels make a defect here.
+        min_pixels: 2,
         ..TeachSpec::default()
     };
     let taught = teach(&model, &lines, &spec).unwrap();

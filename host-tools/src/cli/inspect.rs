@@ -13,7 +13,7 @@ use crate::inspection::lines::{DeviceModel, Line};
 use crate::inspection::roc::{self, RocSpec};
 use crate::inspection::spc::spc;
 use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
-use anyhow::{Context, bail, ensure};
+use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
 use brdf_meter::inspect::recipe::DelayUnit;
@@ -133,7 +133,7 @@ pub struct TeachArgs {
     #[arg(long, value_name = "PATH")]
     pub scene: PathBuf,
     /// Lines of the reference to teach from.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 1000)]
     pub lines: usize,
     /// First line (its noise draw).
     #[arg(long, default_value_t = 0)]
@@ -204,8 +204,9 @@ pub struct RocArgs {
     /// Zones of the calibration trained here.
     #[arg(long, default_value_t = 32)]
     pub zones: usize,
-    /// Lines to teach from.
-    #[arg(long, default_value_t = 200)]
+    /// Lines to teach from (1,000: 40 s of the handheld's line rate; 200
+    /// leave the per-pixel statistics noisy enough to cost detection).
+    #[arg(long, default_value_t = 1000)]
     pub teach_lines: usize,
     /// Defect-free lines.
     #[arg(long, default_value_t = 10_000)]
@@ -213,7 +214,7 @@ pub struct RocArgs {
     /// Lines per defect case.
     #[arg(long, default_value_t = 400)]
     pub defect_lines: usize,
-    /// The small run for tests: 60 teach, 400 defect-free, 40 per case.
+    /// The small run the tests make: 1,000 teach, 2,000 defect-free, 40 per case.
     #[arg(long)]
     pub quick: bool,
     /// The recipe's settings.
@@ -422,8 +423,6 @@ fn verdict_rows(v: &[brdf_meter::inspect::Verdict]) -> Vec<VerdictRow> {
 
 fn run_roc(a: RocArgs) -> anyhow::Result<()> {
     let scene = Scene::load(&a.scene)?;
-    let (teach_lines, clean_lines, defect_lines) =
-        if a.quick { (60, 400, 40) } else { (a.teach_lines, a.clean_lines, a.defect_lines) };
     let image = match &a.blob {
         Some(path) => provision::read_blob(path)?,
         None => {
@@ -441,7 +440,12 @@ fn run_roc(a: RocArgs) -> anyhow::Result<()> {
         None => BlobView::parse(&image).map_err(|e| anyhow::anyhow!("{e:?}"))?,
     };
     let model = device_model(view, &scene)?;
-    let spec = RocSpec { teach_lines, clean_lines, defect_lines, teach: a.recipe.spec(recipe_room())? };
+    let teach = a.recipe.spec(recipe_room())?;
+    let spec = if a.quick {
+        RocSpec::quick(teach)
+    } else {
+        RocSpec { teach_lines: a.teach_lines, clean_lines: a.clean_lines, defect_lines: a.defect_lines, teach }
+    };
     let started = std::time::Instant::now();
     let result = roc::run(&scene, &model, &spec, &|s| eprintln!("  {s}"))?;
     let table = roc::report::markdown(&result);
@@ -452,9 +456,6 @@ fn run_roc(a: RocArgs) -> anyhow::Result<()> {
     crate::output::io::write_json(&a.out.join("roc.json"), &result)?;
     roc::report::plot(&result, &a.out.join("roc.svg"))?;
     roc::report::plot(&result, &a.out.join("roc.png"))?;
-    if a.quick {
-        bail_if_empty(&result)?;
-    }
     Ok(())
 }
 
@@ -495,13 +496,6 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &a.json {
         crate::output::io::write_json(path, &lines)?;
-    }
-    Ok(())
-}
-
-fn bail_if_empty(r: &roc::Roc) -> anyhow::Result<()> {
-    if r.cases.is_empty() {
-        bail!("no case ran");
     }
     Ok(())
 }

@@ -102,7 +102,7 @@ impl Default for TeachSpec {
         Self {
             false_call_rate: 1e-4,
             windows: [Window::Absolute(-1.5, 1.5), Window::Off, Window::Off],
-            min_pixels: 2,
+            min_pixels: 3,
             min_lines: 1,
             hysteresis: 0.7,
             ewma_lambda: 0.1,

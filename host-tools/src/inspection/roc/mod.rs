@@ -82,6 +82,16 @@ pub struct RocSpec {
     pub teach: TeachSpec,
 }
 
+impl RocSpec {
+    /// The small run (`inspect roc --quick`, the tests): the full run's
+    /// 1,000 teach lines (fewer leave the per-pixel covariances noisy
+    /// enough to multiply the false calls), 2,000 defect-free lines and
+    /// 40 per case.
+    pub fn quick(teach: TeachSpec) -> Self {
+        Self { teach_lines: 1000, clean_lines: 2000, defect_lines: 40, teach }
+    }
+}
+
 /// One case's result.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseResult {
