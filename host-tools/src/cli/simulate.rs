@@ -94,7 +94,7 @@ mod tests {
         let j: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.path().join("readings.json")).unwrap()).unwrap();
         assert_eq!(j["pixels"], 128);
-        assert_eq!(j["stages"].as_array().unwrap().len(), 12);
+        assert_eq!(j["stages"].as_array().unwrap().len(), 13);
         assert_eq!(j["truth"]["rho"].as_array().unwrap().len(), 128);
         assert_eq!(j["truth"]["rho"][0].as_array().unwrap().len(), 81);
         assert_eq!(j["lines"][0]["raw"].as_array().unwrap().len(), 7);

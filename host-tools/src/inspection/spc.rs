@@ -45,7 +45,7 @@ mod tests {
         assert!((s.sd - sd).abs() < 1e-12);
         assert!((s.cp - 6.0 / (6.0 * sd)).abs() < 1e-12);
         assert!((s.cpk - 2.5 / (3.0 * sd)).abs() < 1e-12);
-        // One-sided: only the upper limit counts.
-        assert!((spc(&[-0.5, 1.5], f32::NEG_INFINITY, 3.0).cpk - 1.5 / (3.0 * 2f64.sqrt())).abs() < 1e-12);
+        // One-sided: only the upper limit counts (USL - mean = 2.5, sd = sqrt 2).
+        assert!((spc(&[-0.5, 1.5], f32::NEG_INFINITY, 3.0).cpk - 2.5 / (3.0 * 2f64.sqrt())).abs() < 1e-12);
     }
 }

@@ -103,6 +103,6 @@ mod tests {
         assert!((a.line_us - a.line_derived_us - 8.0 * 128.0 * ASSUMED_PIXEL_OVERHEAD_US).abs() < 1e-6);
         assert_eq!(a.cpu_free_us, 8.0 * 2200.0);
         let q = qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, 8);
-        assert_eq!(q.line_us, 2400.0);
+        assert_eq!(q.line_us, 8.0 * (100.0 + 400.0));
     }
 }

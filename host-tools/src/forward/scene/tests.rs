@@ -151,18 +151,20 @@ fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
             assert!((rays[0].theta_deg - s.instrument.leds[led].centre_deg).abs() < 1e-9);
         }
     }
-    // Near field: 25 rays per extended LED, spread around the centre angle.
+    // Near field: one ray per sample point of each extended LED, spread
+    // around the centre angle.
     let near = handheld_with(vec![EffectSpec::NearField {}, EffectSpec::ThreeDGeometry {}], ward());
     let optics = Optics::new(&near.instrument, near.ray_model());
-    assert_eq!(optics.sources_built(), 7 * 25);
+    let per_led = near.instrument.leds[3].extended.as_ref().map(|e| e.samples[0] * e.samples[1]).unwrap();
+    assert_eq!(optics.sources_built(), 7 * per_led);
     let rays = optics.rays_at(3, &near.pixel_point(0.0));
-    assert_eq!(rays.len(), 25);
+    assert_eq!(rays.len(), per_led);
     assert!(rays.iter().any(|r| (r.theta_deg - 45.0).abs() > 0.5));
     assert!(rays.iter().any(|r| r.dir.y.abs() > 1e-3));
-    // In-plane (no 3d-geometry): the emitter's height collapses, 5 rays, all in the plane.
+    // In-plane (no 3d-geometry): the emitter's height collapses, one row of rays, all in the plane.
     let flat = handheld_with(vec![EffectSpec::NearField {}], ward());
     let rays = Optics::new(&flat.instrument, flat.ray_model()).rays_at(3, &flat.pixel_point(0.0));
-    assert_eq!(rays.len(), 5);
+    assert_eq!(rays.len(), flat.instrument.leds[3].extended.as_ref().unwrap().samples[0]);
     assert!(rays.iter().all(|r| r.dir.y == 0.0));
     // Near field alone spreads each H row over several bins; far field is one-hot.
     let h = pixel_system_matrix(&flat, 0.0).unwrap();
@@ -275,8 +277,10 @@ mod one_effect {
     #[test]
     fn inverse_square_scales_weights_by_distance_only() {
         let t = with(EffectSpec::InverseSquare {});
-        // At the centre point r = d: nothing changes.
-        assert_eq!(sim(&base()).signal(), sim(&t).signal());
+        // At the centre point r = d: nothing changes (to rounding of the distance).
+        for (a, b) in sim(&base()).signal().iter().zip(sim(&t).signal()) {
+            assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} {b}");
+        }
         // With per-pixel points, the weight changes by (d / r)^2 and the angle does not.
         let mut pp = base();
         pp.effects.push(EffectSpec::PerPixelGeometry {});
@@ -470,14 +474,16 @@ fn white_reference_and_raw_frames_have_the_blob_and_link_layouts() {
     let s = load("handheld.toml");
     let w = white_reference(&s).unwrap();
     assert_eq!(w.len(), 128 * 7);
-    assert!(w.iter().all(|x| *x > 100.0 && *x < 400.0), "{:?}", &w[..7]);
+    // Gain 2400: a perfect diffuser reads 1,000-2,500 counts above dark.
+    assert!(w.iter().all(|x| *x > 1000.0 && *x < 2500.0), "{:?}", &w[..7]);
     let frames = raw_frames(&s, 0).unwrap();
-    assert_eq!(frames.len(), 8);
+    // The long exposure's dark and LED frames, then each shorter exposure's.
+    assert_eq!(frames.len(), 3 * 8);
     assert!(frames.iter().all(|f| f.len() == 128));
     // Dark first (dark offset + ambient, ~75 counts), then the LEDs.
     let mean = |f: &[u16]| f.iter().map(|x| *x as f64).sum::<f64>() / f.len() as f64;
     assert!((mean(&frames[0]) - 75.0).abs() < 5.0, "{}", mean(&frames[0]));
-    assert!(frames[1..].iter().all(|f| mean(f) > mean(&frames[0]) + 50.0));
+    assert!(frames[1..8].iter().all(|f| mean(f) > mean(&frames[0]) + 50.0));
     // The u16 frames are the simulator's raw counts.
     let sm = sim(&s);
     let raw = sm.simulate_line(0, Mode::Full).raw;
