@@ -91,7 +91,7 @@ fn trusted_keys(root: &Path) {
 /// fails to link (its linker finds no memory.x).
 const APP_BINS: &[&str] = &["board-fw", "qemu-fw"];
 /// The QEMU benches: linked from the reset vector, run without a bootloader.
-const BENCH_BINS: &[&str] = &["kernel-bench", "line-bench", "verify-bench"];
+const BENCH_BINS: &[&str] = &["kernel-bench", "line-bench", "verify-bench", "inspect-bench"];
 
 /// Writes `OUT_DIR/region-<name>/image-region.x` (the file memory.x
 /// includes to say which region is FLASH); returns the folder.

@@ -32,6 +32,14 @@ pub enum SensorError {
     NoData,
 }
 
+/// The inspection's reject output: a digital line a PLC reads (a GPIO on
+/// the board; recorded in the host simulation; a GPIO QEMU cannot show, so
+/// the application also reports each pulse on the link).
+pub trait RejectOutput {
+    /// Drives the output: `true` = reject (active).
+    fn set(&mut self, on: bool);
+}
+
 /// A line sensor: P pixels, each one point on the surface.
 pub trait LineSensor {
     /// Pixels per line.

@@ -18,6 +18,8 @@
 //! - [`estimate`]: the active calibration and one point's estimate.
 //! - [`gloss`]: the gloss readings (specular gloss, haze, distinctness) and
 //!   their uncertainties, from a point's estimate.
+//! - [`inspect`]: on-device inspection: the recipe taught from a reference,
+//!   the per-point and per-line decision, the reject output's schedule.
 //! - [`acquire`]: raw frames to corrected readings.
 //! - [`protocol`]: the wire protocol (messages, errors, framing).
 //! - [`hw`]: the hardware traits the application needs.
@@ -43,6 +45,7 @@ pub mod firmware;
 pub mod frame_store;
 pub mod gloss;
 pub mod hw;
+pub mod inspect;
 pub mod kernel;
 pub mod platform;
 pub mod protocol;

@@ -125,6 +125,10 @@ pub mod qemu {
     pub const RAM_ZONES: usize = 4;
     /// Calibration slot length: 8 pages, room for a blob of 6 zones.
     pub const SLOT_LEN: u32 = 8 * super::FLASH_PAGE as u32;
+    /// Inspection recipe slot length: 2 pages, room for a recipe of P = 32
+    /// pixels in up to 8 groups (RAM-backed, in SRAM2 beside the update
+    /// partition: SRAM1 has no room left for them and the stack).
+    pub const RECIPE_SLOT_LEN: u32 = 2 * super::FLASH_PAGE as u32;
     /// Scene lines the simulated sensor holds.
     pub const FRAME_LINES: usize = 4;
     /// The simulated converter's full scale: the board's 12-bit ADC, so the
@@ -132,8 +136,9 @@ pub mod qemu {
     /// the board.
     pub const FULL_SCALE: u16 = 4095;
     /// The QEMU build's update partition: RAM (QEMU's flash is read-only),
-    /// the whole 32 KiB SRAM2 bank (memory.x's `.sram2`), which is all the
-    /// RAM the QEMU firmware's statics leave. Updates up to this size run
-    /// there through transfer, verification and marking; the swap cannot.
-    pub const DFU_LEN: u32 = 32 * 1024;
+    /// 24 KiB of the 32 KiB SRAM2 bank (memory.x's `.sram2`; the recipe
+    /// slots take the rest), which is all the RAM the QEMU firmware's
+    /// statics leave. Updates up to this size run there through transfer,
+    /// verification and marking; the swap cannot.
+    pub const DFU_LEN: u32 = 24 * 1024;
 }

@@ -1,5 +1,8 @@
-//! The calibration store: two slots (A, B) on a NOR flash, each holding one
-//! slot header and one blob.
+//! The two-slot store on a NOR flash: slots A and B, each holding one slot
+//! header and one signed image. The calibrations live in one ([`Store`]),
+//! the inspection recipes in another (`crate::inspect::RecipeStore`): the
+//! same slot logic, power-cut rules and signature check, told apart only by
+//! what a slot's content must parse as ([`SlotContent`]).
 //!
 //! # Slot layout (slot format version 1)
 //! | offset | size | field |
@@ -8,7 +11,7 @@
 //! | 4 | 2 | slot format version (1) |
 //! | 6 | 2 | header length (32) |
 //! | 8 | 4 | sequence number (higher = newer, wrapping) |
-//! | 12 | 4 | blob length (the signed calibration: blob and signature trailer) |
+//! | 12 | 4 | blob length (the signed content: blob or recipe, and signature trailer) |
 //! | 16 | 4 | blob CRC-32 over all its bytes (trailer included) |
 //! | 20 | 8 | reserved, 0 |
 //! | 28 | 4 | CRC-32 of bytes 0..28 |
@@ -145,6 +148,51 @@ pub fn decode_slot_header(slot: u8, h: &[u8]) -> Option<SlotInfo> {
     Some(SlotInfo { slot, sequence: u32_at(8), blob_len: u32_at(12), blob_crc: u32_at(16) })
 }
 
+/// What a store's slots hold: how a verified (signed) slot's content is
+/// parsed, and which whole, signed content this firmware keeps but cannot
+/// read.
+pub trait SlotContent {
+    /// The parsed content, read in place from the slot.
+    type View: Copy;
+    /// Parses the content (signature already verified and removed); also
+    /// checks that it fills exactly the bytes given.
+    fn parse(bytes: &'static [u8]) -> Result<Self::View, DeviceError>;
+    /// The reason a whole, signed content that fails [`Self::parse`] is kept
+    /// but not used, when it is a format this firmware does not read;
+    /// `None` for any other failure.
+    fn unreadable(_bytes: &'static [u8]) -> Option<DeviceError> {
+        None
+    }
+}
+
+/// The calibrations: blobs ([`crate::blob`]).
+pub struct Calibrations;
+
+impl SlotContent for Calibrations {
+    type View = BlobView<'static>;
+
+    fn parse(bytes: &'static [u8]) -> Result<Self::View, DeviceError> {
+        let view = BlobView::parse(bytes)?;
+        if view.as_bytes().len() != bytes.len() {
+            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: bytes.len() }.into());
+        }
+        Ok(view)
+    }
+
+    fn unreadable(bytes: &'static [u8]) -> Option<DeviceError> {
+        match BlobView::parse(bytes) {
+            // Whole, signed, but a format this build cannot read (written
+            // by another firmware): said so, never misread.
+            Err(BlobError::UnsupportedVersion(format)) => Some(DeviceError::CalibrationUnsupported {
+                format,
+                oldest: crate::blob::FORMAT_VERSION_1,
+                newest: crate::blob::FORMAT_VERSION,
+            }),
+            _ => None,
+        }
+    }
+}
+
 /// A provisioning in progress.
 #[derive(Clone, Copy, Debug)]
 struct Session {
@@ -160,17 +208,33 @@ struct Session {
     carry_len: usize,
 }
 
-/// The two-slot calibration store.
-pub struct Store<F> {
+/// A provisioning's image written and checked: the session, the signed
+/// content's bytes (without the trailer) and the image's CRC.
+type Finished = (Session, &'static [u8], u32);
+
+/// The two-slot store of content `K`: the slot logic ([`Slots`], the same
+/// code whatever the content, so a firmware with two stores on one kind of
+/// flash carries it once) and what its content parses as.
+pub struct SlotStore<F, K: SlotContent> {
+    s: Slots<F>,
+    content: core::marker::PhantomData<K>,
+}
+
+/// The slots, whatever they hold: headers, sessions, power-cut rules,
+/// signatures.
+struct Slots<F> {
     flash: F,
     slot_len: u32,
     /// The keys a slot's signature must verify against.
     trusted: &'static [PublicKeyBytes],
     active: Option<SlotInfo>,
     session: Option<Session>,
-    /// See [`Store::unreadable`].
+    /// See [`SlotStore::unreadable`].
     unreadable: Option<DeviceError>,
 }
+
+/// The two-slot calibration store.
+pub type Store<F> = SlotStore<F, Calibrations>;
 
 /// Whether sequence `a` is newer than `b` (wrapping).
 /// Whether sequence `a` is newer than `b` (wrapping comparison, so the
@@ -179,7 +243,7 @@ pub fn newer(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
 }
 
-impl<F: MappedFlash> Store<F> {
+impl<F: MappedFlash, K: SlotContent> SlotStore<F, K> {
     /// Opens the store on `flash`, whose first `2 * slot_len` bytes are slots
     /// A and B, and finds the newest valid slot signed by one of the
     /// `trusted` keys (a slot whose signature fails is passed over).
@@ -195,12 +259,12 @@ impl<F: MappedFlash> Store<F> {
         flash: F,
         slot_len: u32,
         trusted: &'static [PublicKeyBytes],
-        mut accept: impl FnMut(&BlobView<'static>) -> bool,
+        mut accept: impl FnMut(&K::View) -> bool,
     ) -> Self {
         assert!((slot_len as usize).is_multiple_of(F::ERASE_SIZE), "slot length must be whole erase pages");
         assert!(F::WRITE_SIZE <= MAX_WRITE && SLOT_HEADER_LEN.is_multiple_of(F::WRITE_SIZE));
         assert!(flash.capacity() >= 2 * slot_len as usize, "flash smaller than two slots");
-        let mut s = Self { flash, slot_len, trusted, active: None, session: None, unreadable: None };
+        let mut s = Slots { flash, slot_len, trusted, active: None, session: None, unreadable: None };
         let (a, b) = (s.scan(0), s.scan(1));
         let newest_first = match (a, b) {
             (Some(x), Some(y)) if newer(y.sequence, x.sequence) => [b, a],
@@ -210,80 +274,112 @@ impl<F: MappedFlash> Store<F> {
             if !s.signed_by_trusted(info) {
                 continue;
             }
-            let bytes = s.flash.mapped(s.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-            match BlobView::parse(bytes) {
+            let image = s.image(info.slot, info.blob_len);
+            let bytes = &image[..image.len() - crate::signed::TRAILER_LEN];
+            match K::parse(bytes) {
                 Ok(view) if accept(&view) => {
                     s.active = Some(info);
                     break;
                 }
                 Ok(_) => {}
-                // Whole, signed, but a format this build cannot read (written
-                // by another firmware): said so, never misread.
-                Err(BlobError::UnsupportedVersion(format)) if s.unreadable.is_none() => {
-                    s.unreadable = Some(DeviceError::CalibrationUnsupported {
-                        format,
-                        oldest: crate::blob::FORMAT_VERSION_1,
-                        newest: crate::blob::FORMAT_VERSION,
-                    });
-                }
+                Err(_) if s.unreadable.is_none() => s.unreadable = K::unreadable(bytes),
                 Err(_) => {}
             }
         }
-        s
+        Self { s, content: core::marker::PhantomData }
     }
 
-    /// Why the newest whole, signed calibration was passed over at boot,
-    /// when it is one this firmware cannot read (a blob format newer or
-    /// older than it reads); `None` when every such slot was readable.
+    /// Why the newest whole, signed content was passed over at boot, when
+    /// it is one this firmware cannot read (a blob format newer or older
+    /// than it reads); `None` when every such slot was readable.
     pub fn unreadable(&self) -> Option<DeviceError> {
-        self.unreadable
+        self.s.unreadable
     }
 
     /// The active slot.
     pub fn active(&self) -> Option<SlotInfo> {
-        self.active
+        self.s.active
     }
 
-    /// The active blob, read in place.
-    pub fn active_blob(&self) -> Option<(SlotInfo, BlobView<'static>)> {
-        let info = self.active?;
-        Some((info, self.view(info)?))
+    /// The active content (blob or recipe), read in place.
+    pub fn active_blob(&self) -> Option<(SlotInfo, K::View)> {
+        let info = self.s.active?;
+        let image = self.s.image(info.slot, info.blob_len);
+        Some((info, K::parse(image.get(..image.len().checked_sub(crate::signed::TRAILER_LEN)?)?).ok()?))
     }
 
     /// Largest blob a slot holds.
     pub fn max_blob(&self) -> u32 {
-        self.slot_len - SLOT_HEADER_LEN as u32
+        self.s.max_blob()
     }
 
     /// Bytes received by the provisioning in progress.
     pub fn provisioning(&self) -> Option<u32> {
-        self.session.map(|s| s.received)
+        self.s.session.map(|s| s.received)
     }
 
     /// The flash (for tests).
     pub fn flash(&self) -> &F {
-        &self.flash
+        &self.s.flash
     }
 
     /// Gives the flash back, dropping everything the store knew (the board
     /// tests reopen the store on it, as a reboot would).
     pub fn into_flash(self) -> F {
-        self.flash
+        self.s.flash
+    }
+
+    /// Starts writing a blob of `len` bytes (CRC `crc`) into the inactive slot;
+    /// returns that slot. Cancels any provisioning in progress.
+    pub fn begin(&mut self, len: u32, crc: u32) -> Result<u8, StoreError<F::Error>> {
+        self.s.begin(len, crc)
+    }
+
+    /// Writes the blob bytes at `offset`; returns the next expected offset.
+    pub fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, StoreError<F::Error>> {
+        self.s.write_chunk(offset, data)
+    }
+
+    /// Verifies the written signed content (CRC over all of it against
+    /// the one declared at begin, the signature by a trusted key, the
+    /// content's own checks, then `accept`) and, only if all pass,
+    /// writes the slot header that makes it the active one.
+    ///
+    /// On error the provisioning is over and the previous content stays
+    /// active.
+    pub fn commit(
+        &mut self,
+        accept: impl FnOnce(&K::View) -> Result<(), DeviceError>,
+    ) -> Result<SlotInfo, StoreError<F::Error>> {
+        let (session, blob, crc) = self.s.finish()?;
+        // Nothing is parsed before the signature holds (`finish`).
+        accept(&K::parse(blob)?)?;
+        self.s.activate(session, crc)
+    }
+
+    /// Abandons the provisioning in progress (the target slot stays invalid).
+    pub fn abort(&mut self) -> Result<(), StoreError<F::Error>> {
+        self.s.session.take().map(|_| ()).ok_or(StoreError::Refused(DeviceError::NotProvisioning))
+    }
+}
+
+impl<F: MappedFlash> Slots<F> {
+    fn max_blob(&self) -> u32 {
+        self.slot_len - SLOT_HEADER_LEN as u32
     }
 
     fn base(&self, slot: u8) -> u32 {
         slot as u32 * self.slot_len
     }
 
-    fn view(&self, info: SlotInfo) -> Option<BlobView<'static>> {
-        let bytes = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-        BlobView::parse(bytes).ok()
+    /// The bytes of slot `slot`'s image of `len` bytes, read in place.
+    fn image(&self, slot: u8, len: u32) -> &'static [u8] {
+        self.flash.mapped(self.base(slot) + SLOT_HEADER_LEN as u32, len as usize)
     }
 
-    /// Whether the slot's signed calibration verifies against the trusted keys.
+    /// Whether the slot's signed content verifies against the trusted keys.
     fn signed_by_trusted(&self, info: SlotInfo) -> bool {
-        let image = self.flash.mapped(self.base(info.slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-        crate::signed::verify(image, self.trusted).is_ok()
+        crate::signed::verify(self.image(info.slot, info.blob_len), self.trusted).is_ok()
     }
 
     /// Validates slot `slot`'s header and blob CRC.
@@ -292,13 +388,10 @@ impl<F: MappedFlash> Store<F> {
         if info.blob_len > self.max_blob() {
             return None;
         }
-        let blob = self.flash.mapped(self.base(slot) + SLOT_HEADER_LEN as u32, info.blob_len as usize);
-        (CRC32.checksum(blob) == info.blob_crc).then_some(info)
+        (CRC32.checksum(self.image(slot, info.blob_len)) == info.blob_crc).then_some(info)
     }
 
-    /// Starts writing a blob of `len` bytes (CRC `crc`) into the inactive slot;
-    /// returns that slot. Cancels any provisioning in progress.
-    pub fn begin(&mut self, len: u32, crc: u32) -> Result<u8, StoreError<F::Error>> {
+    fn begin(&mut self, len: u32, crc: u32) -> Result<u8, StoreError<F::Error>> {
         self.session = None;
         if len > self.max_blob() {
             return Err(DeviceError::BlobTooLarge { len, max: self.max_blob() }.into());
@@ -327,7 +420,7 @@ impl<F: MappedFlash> Store<F> {
     }
 
     /// Writes the blob bytes at `offset`; returns the next expected offset.
-    pub fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, StoreError<F::Error>> {
+    fn write_chunk(&mut self, offset: u32, data: &[u8]) -> Result<u32, StoreError<F::Error>> {
         let mut s = self.session.ok_or(DeviceError::NotProvisioning)?;
         if offset != s.received {
             return Err(DeviceError::OutOfOrder { expected: s.received, got: offset }.into());
@@ -371,17 +464,11 @@ impl<F: MappedFlash> Store<F> {
         Ok(())
     }
 
-    /// Verifies the written signed calibration (CRC over all of it against
-    /// the one declared at begin, the signature by a trusted key, the blob's
-    /// own checks, then `accept`) and, only if all pass,
-    /// writes the slot header that makes it the active calibration.
-    ///
-    /// On error the provisioning is over and the previous calibration stays
-    /// active.
-    pub fn commit(
-        &mut self,
-        accept: impl FnOnce(&BlobView<'static>) -> Result<(), DeviceError>,
-    ) -> Result<SlotInfo, StoreError<F::Error>> {
+    /// The first half of a commit: the last write unit programmed, the CRC
+    /// over all the image against the one declared at begin, the signature
+    /// by a trusted key. Returns the session, the signed content's bytes
+    /// (without the trailer) and the CRC.
+    fn finish(&mut self) -> Result<Finished, StoreError<F::Error>> {
         let mut s = self.session.take().ok_or(DeviceError::NotProvisioning)?;
         if s.received != s.len {
             return Err(DeviceError::Incomplete { received: s.received, len: s.len }.into());
@@ -390,32 +477,26 @@ impl<F: MappedFlash> Store<F> {
             let at = SLOT_HEADER_LEN as u32 + s.received - s.carry_len as u32;
             self.program(&mut s, at)?;
         }
-        let base = self.base(s.slot);
-        let image = self.flash.mapped(base + SLOT_HEADER_LEN as u32, s.len as usize);
+        let image = self.image(s.slot, s.len);
         let computed = CRC32.checksum(image);
         if computed != s.crc {
             return Err(DeviceError::CrcMismatch { declared: s.crc, computed }.into());
         }
-        // Nothing is parsed before the signature holds.
         let blob = crate::signed::verify(image, self.trusted)?;
-        let view = BlobView::parse(blob)?;
-        if view.as_bytes().len() != blob.len() {
-            return Err(BlobError::LengthMismatch { expected: view.as_bytes().len(), got: blob.len() }.into());
-        }
-        accept(&view)?;
+        Ok((s, blob, computed))
+    }
+
+    /// The second half: the slot header that makes the slot active, trusted
+    /// only once it reads back.
+    fn activate(&mut self, s: Session, crc: u32) -> Result<SlotInfo, StoreError<F::Error>> {
         let sequence = self.active.map_or(1, |a| a.sequence.wrapping_add(1));
-        let h = encode_slot_header(sequence, s.len, computed);
+        let h = encode_slot_header(sequence, s.len, crc);
+        let base = self.base(s.slot);
         self.flash.write(base, &h).map_err(StoreError::Flash)?;
-        // Trust only what reads back.
         let info = self.scan(s.slot).ok_or(StoreError::ReadBack)?;
         self.active = Some(info);
         self.unreadable = None;
         Ok(info)
-    }
-
-    /// Abandons the provisioning in progress (the target slot stays invalid).
-    pub fn abort(&mut self) -> Result<(), StoreError<F::Error>> {
-        self.session.take().map(|_| ()).ok_or(StoreError::Refused(DeviceError::NotProvisioning))
     }
 }
 

@@ -3,13 +3,15 @@
 //! a format cannot slip past the round-trip tests without a version bump.
 //!
 //! Pinned: the calibration blob (format 1, its signed form, and format 2 with
-//! clusters and out-of-prior data), the calibration store's slot header, and one frame of
+//! clusters and out-of-prior data), the inspection recipe (format 1), the
+//! calibration store's slot header, and one frame of
 //! every request and response (and every device error) of the wire protocol.
 //! The lists below match every variant without a wildcard: a new variant
 //! does not compile until it has a golden line.
 //!
 //! A difference means the bytes changed: bump the version of what changed
-//! (`blob::FORMAT_VERSION`, `signed::TRAILER_VERSION`, `store::SLOT_VERSION`,
+//! (`blob::FORMAT_VERSION`, `inspect::recipe::FORMAT_VERSION`,
+//! `signed::TRAILER_VERSION`, `store::SLOT_VERSION`,
 //! `protocol::PROTOCOL_VERSION`)
 //! and regenerate with
 //!
@@ -65,6 +67,12 @@ fn request_name(r: &Request<'_>) -> &'static str {
         Request::UpdateCommit => "UpdateCommit",
         Request::UpdateAbort => "UpdateAbort",
         Request::Reboot => "Reboot",
+        Request::RecipeBegin { .. } => "RecipeBegin",
+        Request::RecipeChunk { .. } => "RecipeChunk",
+        Request::RecipeCommit => "RecipeCommit",
+        Request::RecipeAbort => "RecipeAbort",
+        Request::Inspect { .. } => "Inspect",
+        Request::InspectStatus => "InspectStatus",
     }
 }
 
@@ -92,6 +100,10 @@ fn response_name(r: &Response<'_>) -> &'static str {
         Response::UpdateReady { .. } => "UpdateReady",
         Response::UpdateCommitted { .. } => "UpdateCommitted",
         Response::Rebooting => "Rebooting",
+        Response::RecipeCommitted(_) => "RecipeCommitted",
+        Response::Verdict(_) => "Verdict",
+        Response::RejectPulse { .. } => "RejectPulse",
+        Response::Inspection(_) => "Inspection",
     }
 }
 
@@ -117,7 +129,67 @@ fn error_name(e: &DeviceError) -> &'static str {
         DeviceError::FirmwareRejected(_) => "Error.FirmwareRejected",
         DeviceError::Update(_) => "Error.Update",
         DeviceError::CalibrationUnsupported { .. } => "Error.CalibrationUnsupported",
+        DeviceError::RecipeRejected(_) => "Error.RecipeRejected",
+        DeviceError::RecipeForOtherCalibration { .. } => "Error.RecipeForOtherCalibration",
+        DeviceError::NoRecipe => "Error.NoRecipe",
     }
+}
+
+fn recipe_info() -> brdf_meter::protocol::RecipeInfo {
+    brdf_meter::protocol::RecipeInfo {
+        slot: 0,
+        sequence: 3,
+        crc: 0x5EED_0001,
+        version: 2,
+        calibration_crc: 0xDEAD_BEEF,
+    }
+}
+
+/// A defect-free verdict (the frame every good line sends) and one with two defects.
+fn verdict() -> brdf_meter::inspect::Verdict {
+    use brdf_meter::inspect::{DefectKind, DefectRun, decide::Runs, decide::verdict};
+    let mut runs = Runs::new();
+    runs.push(DefectRun { first: 12, len: 4, kind: DefectKind::GlossHigh, peak_d2: 48.5 }).unwrap();
+    runs.push(DefectRun { first: 90, len: 2, kind: DefectKind::OutOfPrior, peak_d2: 1e4 }).unwrap();
+    brdf_meter::inspect::Verdict {
+        line: 1_000,
+        flags: verdict::REJECT | verdict::POINTS_FOLLOW,
+        mean_gloss: 0.25,
+        ewma: -0.125,
+        max_d2: 1e4,
+        runs,
+    }
+}
+
+/// A recipe with every field set.
+fn golden_recipe() -> Vec<u8> {
+    use brdf_meter::inspect::recipe::{DelayUnit, RecipeData, RecipeSettings, group_len, pixel_len, write};
+    let m = 3;
+    write(&RecipeData {
+        pixels: 6,
+        m,
+        group_starts: vec![0, 4],
+        group_values: (0..2).map(|g| (0..group_len(m)).map(|i| (g * 100 + i) as f32 * 0.5).collect()).collect(),
+        pixel_values: (0..6).map(|p| (0..pixel_len(m)).map(|i| (p * 10 + i) as f32 * 0.25).collect()).collect(),
+        settings: RecipeSettings {
+            calibration_crc: 0xDEAD_BEEF,
+            version: 2,
+            threshold_on: 31.5,
+            threshold_off: 22.0,
+            min_pixels: 3,
+            min_lines: 2,
+            ewma_lambda: 0.125,
+            ewma_limit: 0.75,
+            pulse_us: 25_000,
+            delay: 3,
+            delay_unit: DelayUnit::Lines,
+            window_hysteresis: 0.75,
+            windows: [[-1.5, 1.5], [-0.5, 2.0], [f32::NEG_INFINITY, f32::INFINITY]],
+            teach_quality: 1.25,
+            teach_lines: 200,
+        },
+    })
+    .expect("a valid recipe")
 }
 
 fn cal() -> CalInfo {
@@ -172,6 +244,9 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     b3.truncate(n);
     out.push(("blob.v3".into(), b3));
 
+    // The inspection recipe: 6 pixels, 3 readings, 2 groups.
+    out.push(("recipe.v1".into(), golden_recipe()));
+
     // The store's slot header.
     out.push(("slot_header".into(), encode_slot_header(7, 4096, 0x1234_5678).to_vec()));
 
@@ -195,6 +270,12 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         Request::UpdateCommit,
         Request::UpdateAbort,
         Request::Reboot,
+        Request::RecipeBegin { len: 2_700, crc: 0x00DD_BA11 },
+        Request::RecipeChunk { offset: 512, data: &chunk },
+        Request::RecipeCommit,
+        Request::RecipeAbort,
+        Request::Inspect { lines: 0, defect_points: true, format: StreamFormat::default() },
+        Request::InspectStatus,
     ];
     for r in &requests {
         out.push((format!("request.{}", request_name(r)), request_frame(42, r)));
@@ -268,6 +349,21 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         Response::UpdateReady { next_offset: 2048, max_chunk: 512 },
         Response::UpdateCommitted { version: [0, 2, 0] },
         Response::Rebooting,
+        Response::RecipeCommitted(recipe_info()),
+        Response::Verdict(verdict()),
+        Response::RejectPulse { line: 17, start_us: 1_234_567, len_us: 25_000 },
+        Response::Inspection(brdf_meter::protocol::InspectStatus {
+            recipe: Some(recipe_info()),
+            refused: None,
+            inspecting: true,
+            counters: brdf_meter::inspect::InspectCounters {
+                lines: 100,
+                rejected: 3,
+                defects: 4,
+                drift_alarms: 1,
+                pulses: 3,
+            },
+        }),
     ];
     for e in [
         DeviceError::Frame(FrameError::Truncated { declared: 30, got: 12 }),
@@ -291,6 +387,9 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         )),
         DeviceError::Update(brdf_meter::protocol::UpdateFault::TooLarge { len: 200_000, max: 163_840 }),
         DeviceError::CalibrationUnsupported { format: 4, oldest: 1, newest: 3 },
+        DeviceError::RecipeRejected(brdf_meter::inspect::RecipeFault::WrongShape),
+        DeviceError::RecipeForOtherCalibration { recipe: 0xDEAD_BEEF, active: 0x1234_5678 },
+        DeviceError::NoRecipe,
     ] {
         responses.push(Response::Error(e));
     }

@@ -16,4 +16,5 @@ pub mod cli; // one file per subcommand: parse arguments, call the library
 pub mod device; // link, provisioning (USB, SWD), memory map, reference computation, firmware budget
 pub mod evaluation; // accuracy and cost: fitting, reproduce, tradeoff, stability, metrology (held-out figures of one calibration as the device applies it), one timing harness
 pub mod forward; // the forward model: BRDFs, angle grid, optics, priors, per-zone optics, scenes
+pub mod inspection; // on-device inspection's host side: teach, the device's decision, SPC, defect map, ROC
 pub mod output; // atomic file writes, plots, progress, TOML/CSV description parsing, BiRD JSON and ASTM E1392 files

@@ -64,8 +64,9 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 }
                 Request::Measure { lines, format } => {
                     c.status.measuring = true;
+                    c.inspecting = false;
                     self.stop.store(false, Ordering::SeqCst);
-                    self.start.signal(Job { seq, lines, format });
+                    self.start.signal(Job { seq, lines, format, inspect: None });
                     Ok(Response::MeasureStarted { lines })
                 }
                 Request::Stop => {
@@ -99,6 +100,30 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                     self.reboot.signal(());
                     Ok(Response::Rebooting)
                 }
+                Request::RecipeBegin { .. } | Request::RecipeCommit if measuring => Err(DeviceError::Busy),
+                Request::RecipeBegin { .. }
+                | Request::RecipeChunk { .. }
+                | Request::RecipeCommit
+                | Request::RecipeAbort => c.recipe_request(req),
+                Request::Inspect { .. } if measuring => Err(DeviceError::Busy),
+                Request::Inspect { .. } if c.cal.active().is_none() => {
+                    Err(c.store.unreadable().unwrap_or(DeviceError::NoCalibration))
+                }
+                Request::Inspect { format, .. } if !format.bin_range(N).fits(N) => {
+                    Err(DeviceError::BadBins { bins: N as u16 })
+                }
+                Request::Inspect { lines, defect_points, format } => c.usable_recipe().map(|view| {
+                    c.recipe_view = Some(view);
+                    c.status.measuring = true;
+                    c.inspecting = true;
+                    c.inspector = crate::inspect::Inspector::new();
+                    c.reject_plan = crate::inspect::reject::Planner::new();
+                    self.stop.store(false, Ordering::SeqCst);
+                    let inspect = Some(super::InspectJob { defect_points });
+                    self.start.signal(Job { seq, lines, format, inspect });
+                    Response::MeasureStarted { lines }
+                }),
+                Request::InspectStatus => Ok(Response::Inspection(c.inspect_status())),
             };
             if r.is_err() {
                 c.status.refused = c.status.refused.wrapping_add(1);

@@ -18,12 +18,14 @@
 //! `#[embassy_executor::task]` wrappers around [`acquisition`], [`estimation`]
 //! and [`transport`] with its concrete types (see `src/bin/qemu-fw.rs`).
 mod handler;
+mod inspect;
 mod self_test;
 mod tasks;
 mod update;
 #[cfg(feature = "usb-dfu")]
 pub mod usb_dfu;
 
+pub use inspect::{InspectJob, RecipePort, RecipeSlots, reject_output};
 pub use tasks::{acquisition, estimation, reboot, transport};
 
 use crate::acquire::{AcqConfig, RawLine};
@@ -71,6 +73,8 @@ pub struct Job {
     pub lines: u32,
     /// What the stream carries (bins already checked against n).
     pub format: crate::protocol::StreamFormat,
+    /// An inspection (verdicts per line) rather than a measurement.
+    pub inspect: Option<InspectJob>,
 }
 
 /// What travels in a line buffer.
@@ -146,6 +150,18 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     /// until an update is committed: USB DFU can only say "verify failed",
     /// `FirmwareInfo` says what.
     pub update_refused: Option<crate::protocol::DeviceError>,
+    /// The inspection recipe store, on a platform with recipe slots.
+    pub recipes: Option<RecipePort>,
+    /// The inspection's state across lines and its counters.
+    pub inspector: crate::inspect::Inspector<P>,
+    /// The reject pulses waiting for their line.
+    pub reject_plan: crate::inspect::reject::Planner,
+    /// Whether the running job is an inspection.
+    pub inspecting: bool,
+    /// The recipe of the running inspection, parsed once when it started
+    /// (the store never writes the active slot, and neither the recipe nor
+    /// the calibration can change while a job runs).
+    pub recipe_view: Option<crate::inspect::RecipeView<'static>>,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -172,6 +188,8 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     pub target: crate::firmware::image::Target,
     /// The running firmware's version (`Info`, `FirmwareInfo`).
     pub version: [u8; 3],
+    /// Estimation -> reject output: pulses to drive (with the job's sequence number).
+    pub reject: Channel<Cs, (u32, crate::inspect::reject::Pulse), 4>,
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -197,7 +215,19 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
         // The store was opened and both slots read: the self-test's first part.
         let self_test = crate::protocol::SelfTest { store: true, ..Default::default() };
-        let core = Core { store, cal, status, firmware: None, self_test, update_refused: None };
+        let core = Core {
+            store,
+            cal,
+            status,
+            firmware: None,
+            self_test,
+            update_refused: None,
+            recipes: None,
+            inspector: crate::inspect::Inspector::new(),
+            reject_plan: crate::inspect::reject::Planner::new(),
+            inspecting: false,
+            recipe_view: None,
+        };
         Self {
             core: BlockingMutex::new(RefCell::new(core)),
             start: Signal::new(),
@@ -207,6 +237,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             full_scale,
             simulated,
             reboot: Signal::new(),
+            reject: Channel::new(),
             version: built_version(),
             target: if simulated {
                 crate::firmware::image::Target::Qemu

@@ -15,7 +15,7 @@ use embedded_io_async::{Read, Write};
 use nalgebra::SVector;
 
 /// Encodes a frame for the writer.
-fn frame(seq: u32, r: &Response<'_>) -> OutFrame {
+pub(super) fn frame(seq: u32, r: &Response<'_>) -> OutFrame {
     let mut f = OutFrame::new();
     let _ = f.resize(MAX_FRAME, 0);
     // Every message fits MAX_PAYLOAD by construction (protocol tests check
@@ -165,11 +165,34 @@ where
                     current = Some(job);
                     stream_seq = 0;
                 }
+                // An inspection sends the line's verdict, and its points only
+                // for a rejected line whose points the host asked for.
+                let points = match job.inspect {
+                    None => P,
+                    Some(ins) => match shared.decide_line(line, &buf.v, &buf.flags) {
+                        Ok((mut verdict, pulse)) => {
+                            let follow = verdict.rejected() && ins.defect_points;
+                            if follow {
+                                verdict.flags |= crate::inspect::decide::verdict::POINTS_FOLLOW;
+                            }
+                            shared.out.send(frame(job.seq, &Response::Verdict(verdict))).await;
+                            if let Some(pulse) = pulse {
+                                shared.reject.send((job.seq, pulse)).await;
+                            }
+                            if follow { P } else { 0 }
+                        }
+                        Err(e) => {
+                            shared.out.send(frame(job.seq, &Response::Error(e))).await;
+                            shared.stop.store(true, Ordering::SeqCst);
+                            0
+                        }
+                    },
+                };
                 let bins = job.format.bin_range(N);
                 let encoding = job.format.encoding;
                 let crc = shared.core.lock(|c| c.borrow().cal.active().map_or(0, |a| a.info.blob_crc));
                 block.start(line, stream_seq, 0, crc, encoding, bins, M);
-                for p in 0..P {
+                for p in 0..points {
                     let mut rho = SVector::<f32, N>::zeros();
                     let meta = shared.core.lock(|c| {
                         let c = c.borrow();

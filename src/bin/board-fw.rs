@@ -68,6 +68,12 @@ async fn reboot(shared: &'static BoardShared) -> ! {
     app::reboot(shared, || cortex_m::peripheral::SCB::sys_reset()).await
 }
 
+/// Drives the inspection's reject output (PA4) and reports each pulse.
+#[embassy_executor::task]
+async fn reject(shared: &'static BoardShared, pin: board::RejectPin) -> ! {
+    app::reject_output(shared, pin).await
+}
+
 #[embassy_executor::task]
 async fn estimation(shared: &'static BoardShared, lines: Receiver<'static, Cs, LineBuf<M, P>>) -> ! {
     app::estimation(shared, lines).await
@@ -118,6 +124,11 @@ async fn main(spawner: Spawner) {
     ));
     let shared: &'static BoardShared =
         SHARED.init(Shared::new(cal, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false).with_firmware(updater));
+    // The inspection recipes: a third window of the same flash.
+    static RECIPES: StaticCell<brdf_meter::inspect::RecipeStore<Part>> = StaticCell::new();
+    let recipe_flash = board::flash::recipes(b.flash);
+    let recipe_slot = recipe_flash.capacity() as u32 / 2;
+    shared.set_recipes(RECIPES.init(shared.open_recipes(recipe_flash, recipe_slot)));
     let fw = shared.firmware_info();
     defmt::info!("firmware {}: boot state {}", fw.version, fw.boot);
     match shared.status().calibration {
@@ -147,4 +158,5 @@ async fn main(spawner: Spawner) {
     spawner.spawn(acquisition(shared, b.leds, b.sensor, lines_tx).expect("spawned once"));
     spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
     spawner.spawn(supervisor(shared, b.status_led).expect("spawned once"));
+    spawner.spawn(reject(shared, b.reject).expect("spawned once"));
 }

@@ -8,7 +8,7 @@
 //! over semihosting: per build (P = 128, the board; P = 32, QEMU) a trained
 //! calibration blob and one line of raw frames from the scene simulator.
 //! For each build it runs the library functions the firmware runs, between
-//! calls of [`line_bench_mark`]:
+//! calls of [`bench_mark`]:
 //! - `correct`: `acquire::correct_line` (dark, white, saturation and
 //!   exposure flags) of the whole line;
 //! - `estimate`: `Calibration::estimate_point` for every point (zone,
@@ -41,7 +41,11 @@ use brdf_meter::protocol::{
 use brdf_meter::shape;
 use brdf_meter::store::SlotInfo;
 use cortex_m_rt::entry;
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_semihosting::debug;
+
+#[path = "bench_io/mod.rs"]
+mod bench_io;
+use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -49,19 +53,7 @@ const BOARD_P: usize = shape::board::PIXELS;
 const QEMU_P: usize = shape::qemu::PIXELS;
 const DATA_LEN: usize = 44 * 1024;
 
-/// A segment boundary for the trace counter. Never inlined: its address is
-/// what the analysis looks for.
-#[inline(never)]
-#[unsafe(no_mangle)]
-pub fn line_bench_mark() {
-    // SAFETY: a plain no-op.
-    unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
-}
-
-#[repr(C, align(4))]
-struct Aligned([u8; DATA_LEN]);
-
-static mut DATA: Aligned = Aligned([0; DATA_LEN]);
+static mut DATA: Aligned<DATA_LEN> = Aligned([0; DATA_LEN]);
 static mut RAM_BOARD: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
     [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
 static mut RAM_QEMU: [ZoneMatrix<N, M>; shape::qemu::RAM_ZONES] =
@@ -79,7 +71,7 @@ impl Bounds {
     #[inline(always)]
     fn at(&self, stage: &str, enc: &str) {
         if self.marking {
-            line_bench_mark();
+            bench_mark();
         } else {
             let mut l = Line::new();
             l.push(b"SEG ");
@@ -286,89 +278,12 @@ fn main() -> ! {
         run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
     }
     // Closes the last segment (each boundary opens one).
-    line_bench_mark();
+    bench_mark();
     let mut l = Line::new();
     l.push(b"DONE");
     l.end();
     debug::exit(debug::EXIT_SUCCESS);
     halt()
-}
-
-/// Reads a host file (path NUL-terminated, relative to QEMU's working
-/// directory) over semihosting; returns the bytes read.
-fn read_file(path: &[u8], buf: &mut [u8]) -> usize {
-    // SAFETY: semihosting calls with valid pointers and lengths.
-    unsafe {
-        let fd = cortex_m_semihosting::syscall!(
-            OPEN,
-            path.as_ptr(),
-            cortex_m_semihosting::nr::open::R_BINARY,
-            path.len() - 1
-        );
-        if fd == usize::MAX {
-            fail(b"line-bench: cannot open target/line-bench/data.bin");
-        }
-        let left = cortex_m_semihosting::syscall!(READ, fd, buf.as_mut_ptr(), buf.len());
-        cortex_m_semihosting::syscall!(CLOSE, fd);
-        buf.len() - left
-    }
-}
-
-/// A line written to the semihosting console with SYS_WRITE0.
-struct Line {
-    buf: [u8; 96],
-    len: usize,
-}
-
-impl Line {
-    const fn new() -> Self {
-        Self { buf: [0; 96], len: 0 }
-    }
-    fn push(&mut self, s: &[u8]) {
-        for &c in s {
-            if self.len + 2 < self.buf.len() {
-                self.buf[self.len] = c;
-                self.len += 1;
-            }
-        }
-    }
-    fn num(&mut self, mut x: u32) {
-        let mut d = [0u8; 10];
-        let mut k = d.len();
-        loop {
-            k -= 1;
-            d[k] = b'0' + (x % 10) as u8;
-            x /= 10;
-            if x == 0 {
-                break;
-            }
-        }
-        self.push(&d[k..]);
-    }
-    fn end(&mut self) {
-        self.push(b"\n");
-        self.buf[self.len] = 0;
-        // SAFETY: SYS_WRITE0 takes a NUL-terminated string: `buf` holds one.
-        unsafe { cortex_m_semihosting::syscall1!(WRITE0, self.buf.as_ptr()) };
-        self.len = 0;
-    }
-}
-
-fn fail(msg: &[u8]) -> ! {
-    if let Ok(mut err) = hio::hstderr() {
-        let _ = err.write_all(msg);
-        let _ = err.write_all(b"\n");
-    }
-    debug::exit(debug::EXIT_FAILURE);
-    halt()
-}
-
-/// After a semihosting exit QEMU has stopped; on anything else, wait here.
-fn halt() -> ! {
-    loop {
-        // SAFETY: wait for an interrupt; nothing else.
-        unsafe { core::arch::asm!("wfi", options(nomem, nostack)) };
-    }
 }
 
 #[panic_handler]

@@ -20,6 +20,7 @@ use embassy_sync::zerocopy_channel::{Channel, Receiver, Sender};
 use nalgebra::SMatrix;
 use qemu::flash::{Memory, RamFlash};
 use qemu::leds::GpioLeds;
+use qemu::reject::GpioReject;
 use qemu::sensor::{FrameSensor, Frames, FramesIn};
 use qemu::usart::{UsartRx, UsartTx};
 use static_cell::StaticCell;
@@ -31,6 +32,7 @@ const F: usize = shape::FRAMES_PER_LINE;
 const FRAME_LINES: usize = shape::qemu::FRAME_LINES;
 const RAM_ZONES: usize = shape::qemu::RAM_ZONES;
 const SLOT_LEN: usize = shape::qemu::SLOT_LEN as usize;
+const RECIPE_SLOT_LEN: usize = shape::qemu::RECIPE_SLOT_LEN as usize;
 /// The simulated converter's full scale: the board's (`shape::qemu`).
 const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
 /// Acquisition timing: short, it is a simulation (`platform::timing`).
@@ -41,10 +43,16 @@ const DFU_LEN: usize = shape::qemu::DFU_LEN as usize;
 const STATE_LEN: usize = shape::board::BOOT_STATE_LEN as usize;
 
 type Flash = RamFlash<{ 2 * SLOT_LEN }>;
+type RecipeFlash = RamFlash<{ 2 * RECIPE_SLOT_LEN }>;
 type QemuShared = Shared<Flash, N, M, P>;
 type Updater = brdf_meter::firmware::update::Updater<'static, RamFlash<DFU_LEN>, RamFlash<STATE_LEN>>;
 
 static FLASH_MEM: Memory<{ 2 * SLOT_LEN }> = Memory::new();
+/// The inspection recipe slots, in RAM as the calibration's (in SRAM2,
+/// beside the update partition: SRAM1 keeps its room for the stack).
+#[unsafe(link_section = ".sram2")]
+static RECIPE_MEM: Memory<{ 2 * RECIPE_SLOT_LEN }> = Memory::new();
+static RECIPES: StaticCell<brdf_meter::inspect::RecipeStore<RecipeFlash>> = StaticCell::new();
 /// The update partition, in SRAM2 (the RAM the rest leaves): updates are
 /// received, verified and marked as on the board, but the bootloader reads
 /// its state from the read-only flash, so no swap follows.
@@ -76,6 +84,12 @@ async fn estimation(shared: &'static QemuShared, lines: Receiver<'static, Cs, Li
     app::estimation(shared, lines).await
 }
 
+/// Drives the inspection's reject output (PA4) and reports each pulse.
+#[embassy_executor::task]
+async fn reject(shared: &'static QemuShared) -> ! {
+    app::reject_output(shared, GpioReject::configure()).await
+}
+
 /// Resets the machine on a `Reboot` request (through the bootloader again).
 #[embassy_executor::task]
 async fn reboot(shared: &'static QemuShared) -> ! {
@@ -99,6 +113,7 @@ fn main() -> ! {
     ));
     let shared: &'static QemuShared =
         SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true).with_firmware(updater));
+    shared.set_recipes(RECIPES.init(shared.open_recipes(qemu::flash::take(&RECIPE_MEM), RECIPE_SLOT_LEN as u32)));
     let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
     let (lines_tx, lines_rx) = channel.split();
     let (rx, tx) = qemu::usart::init();
@@ -107,6 +122,7 @@ fn main() -> ! {
         spawner.spawn(acquisition(shared, lines_tx).expect("spawned once"));
         spawner.spawn(estimation(shared, lines_rx).expect("spawned once"));
         spawner.spawn(reboot(shared).expect("spawned once"));
+        spawner.spawn(reject(shared).expect("spawned once"));
     })
 }
 

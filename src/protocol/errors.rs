@@ -177,6 +177,19 @@ pub enum DeviceError {
         /// The newest format this firmware reads.
         newest: u16,
     },
+    /// The inspection recipe was refused (malformed, another format, another
+    /// device's shape); the previous recipe is kept.
+    RecipeRejected(crate::inspect::RecipeFault),
+    /// The recipe was taught with another calibration than the active one
+    /// (`active` 0: none is active); the previous recipe is kept.
+    RecipeForOtherCalibration {
+        /// CRC of the calibration the recipe was taught with.
+        recipe: u32,
+        /// CRC of the active calibration.
+        active: u32,
+    },
+    /// An inspection needs a recipe (for the active calibration) and none is.
+    NoRecipe,
 }
 
 /// Why an update request cannot be served.
@@ -288,6 +301,18 @@ impl core::fmt::Display for DeviceError {
             Self::CalibrationUnsupported { format, oldest, newest } => write!(
                 f,
                 "the calibration in flash is blob format {format}, which this firmware cannot read (it reads formats {oldest} to {newest}): provision a calibration trained for this firmware, or go back to the firmware that wrote it; nothing is measured with it"
+            ),
+            Self::RecipeRejected(fault) => write!(
+                f,
+                "the device refused the inspection recipe: {fault:?}; teach it again for this device (host-tools inspect teach); the previous recipe is kept"
+            ),
+            Self::RecipeForOtherCalibration { recipe, active } => write!(
+                f,
+                "the recipe was taught with calibration {recipe:#010x}, but the device's active calibration is {active:#010x}: teach the recipe again with the active calibration; the previous recipe is kept"
+            ),
+            Self::NoRecipe => write!(
+                f,
+                "no inspection recipe for the active calibration: teach one (host-tools inspect teach) and provision it (inspect provision)"
             ),
         }
     }

@@ -136,6 +136,42 @@ pub enum Request<'a> {
     /// Resets the device (after [`Request::UpdateCommit`]: into the new
     /// firmware), once the reply is sent.
     Reboot,
+    /// Starts provisioning an inspection recipe (signed, `host-tools inspect
+    /// teach`) of `len` bytes with CRC-32 `crc` into the inactive recipe
+    /// slot; chunks and commit as for a calibration.
+    RecipeBegin {
+        /// Signed recipe length in bytes.
+        len: u32,
+        /// CRC-32 (ISO-HDLC) of all its bytes.
+        crc: u32,
+    },
+    /// The recipe bytes at `offset`, in order.
+    RecipeChunk {
+        /// Byte offset of `data`.
+        offset: u32,
+        /// At most [`MAX_CHUNK`] bytes.
+        #[serde(borrow)]
+        data: &'a [u8],
+    },
+    /// Verifies the recipe (CRC, signature, format, shape, the calibration
+    /// it was taught with) and makes it the active one.
+    RecipeCommit,
+    /// Abandons a recipe provisioning; the active recipe is untouched.
+    RecipeAbort,
+    /// Inspects `lines` lines (0: until [`Request::Stop`]) with the active
+    /// recipe: one [`Response::Verdict`] per line, reject pulses as
+    /// [`Response::RejectPulse`] events, and with `defect_points` the
+    /// points of each rejected line in `format` after its verdict.
+    Inspect {
+        /// Number of lines, 0 for continuous.
+        lines: u32,
+        /// Whether a rejected line's points follow its verdict.
+        defect_points: bool,
+        /// How those points travel.
+        format: super::StreamFormat,
+    },
+    /// The active recipe and the inspection's counters.
+    InspectStatus,
 }
 
 /// What the device answers or streams.
@@ -202,6 +238,23 @@ pub enum Response<'a> {
     },
     /// The device resets once this reply is sent.
     Rebooting,
+    /// The recipe was verified, committed and is now the active one.
+    RecipeCommitted(RecipeInfo),
+    /// One inspected line's verdict.
+    Verdict(crate::inspect::Verdict),
+    /// The reject output was driven: a pulse for `line` from `start_us` (the
+    /// device's clock) for `len_us`. The event that makes the output
+    /// observable where no pin can be seen (QEMU, the host simulation).
+    RejectPulse {
+        /// The rejected line.
+        line: u32,
+        /// Start, us since boot.
+        start_us: u64,
+        /// Length, us.
+        len_us: u32,
+    },
+    /// Reply to [`Request::InspectStatus`].
+    Inspection(InspectStatus),
 }
 
 impl<'a> Response<'a> {
@@ -226,6 +279,10 @@ impl<'a> Response<'a> {
             Self::UpdateReady { next_offset, max_chunk } => Response::UpdateReady { next_offset, max_chunk },
             Self::UpdateCommitted { version } => Response::UpdateCommitted { version },
             Self::Rebooting => Response::Rebooting,
+            Self::RecipeCommitted(x) => Response::RecipeCommitted(x),
+            Self::Verdict(x) => Response::Verdict(x),
+            Self::RejectPulse { line, start_us, len_us } => Response::RejectPulse { line, start_us, len_us },
+            Self::Inspection(x) => Response::Inspection(x),
         })
     }
 }
@@ -372,6 +429,36 @@ pub struct FirmwareInfo {
     /// until an update is committed; USB DFU's own status can only say
     /// that the file failed verification.
     pub refused: Option<DeviceError>,
+}
+
+/// The active inspection recipe.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RecipeInfo {
+    /// Recipe slot (0 = A, 1 = B).
+    pub slot: u8,
+    /// Slot sequence number.
+    pub sequence: u32,
+    /// The recipe's own CRC (identifies it).
+    pub crc: u32,
+    /// The user's version number.
+    pub version: u32,
+    /// CRC of the calibration it was taught with.
+    pub calibration_crc: u32,
+}
+
+/// Reply to [`Request::InspectStatus`].
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct InspectStatus {
+    /// The active recipe, if any.
+    pub recipe: Option<RecipeInfo>,
+    /// Why the newest recipe in flash is not used, if one is not.
+    pub refused: Option<DeviceError>,
+    /// Whether an inspection is running.
+    pub inspecting: bool,
+    /// Counters of the current (or last) inspection.
+    pub counters: crate::inspect::InspectCounters,
 }
 
 /// Most trusted key ids a [`FirmwareInfo`] lists.

@@ -11,10 +11,13 @@
 //!   simulated device, and the soak over it (`link_faults.rs`, example
 //!   `link_soak`).
 //! - [`qemu`]: building the QEMU firmware once and running it under QEMU.
+//! - [`inspection`]: the inspection tests' calibration, recipe, scene and
+//!   the host's reference verdicts (host simulation and QEMU).
 //! - [`meta_bits`] / [`expected_meta_bits`]: what a streamed point and the
 //!   host's reproduction of it must share bit for bit besides the values.
 pub mod fuzz_bodies;
 pub mod fw_sim;
+pub mod inspection;
 pub mod link_faults;
 pub mod qemu;
 pub mod sim;

@@ -3,7 +3,7 @@ use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
 use brdf_meter::estimate::ZoneMatrix;
 use brdf_meter::hw::MappedFlash;
-use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimFrames, SimLeds, SimSensor, pipe, sim_optics};
+use brdf_meter::platform::host_sim::{Pipe, SimFlash, SimFrames, SimLeds, SimReject, SimSensor, pipe, sim_optics};
 use brdf_meter::shape;
 use embassy_executor::raw::{Executor, TaskStorage};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
@@ -23,6 +23,8 @@ pub const P: usize = shape::qemu::PIXELS;
 pub const F: usize = shape::FRAMES_PER_LINE;
 /// Calibration slot length.
 pub const SLOT_LEN: u32 = shape::qemu::SLOT_LEN;
+/// Inspection recipe slot length.
+pub const RECIPE_SLOT_LEN: u32 = shape::qemu::RECIPE_SLOT_LEN;
 /// Sensor full scale (the QEMU build's, the board's 12-bit converter).
 pub const FULL_SCALE: u16 = shape::qemu::FULL_SCALE;
 /// Acquisition settings (the QEMU build's, with its shorter exposures).
@@ -60,6 +62,10 @@ pub struct SimDevice<Fl: 'static = SimFlash> {
     /// Simulated time a `recv` waits before reporting nothing, in 100 us
     /// steps ([`RECV_STEPS`] unless a test shortens it).
     pub recv_steps: usize,
+    /// The inspection recipe slots (survive a reboot with [`SimFlash::reboot`]).
+    pub recipe_flash: SimFlash,
+    /// The reject output's record.
+    pub reject: SimReject,
     _lock: MutexGuard<'static, ()>,
 }
 
@@ -79,6 +85,11 @@ impl SimDevice {
     pub fn boot(flash: SimFlash, ram_zones: usize) -> Self {
         SimDevice::boot_on(flash.clone(), flash, ram_zones, |dev| dev)
     }
+
+    /// Boots a device on calibration flash `flash` and recipe flash `recipes`.
+    pub fn boot_with_recipes(flash: SimFlash, recipes: SimFlash, ram_zones: usize) -> Self {
+        SimDevice::boot_full(flash.clone(), flash, recipes, ram_zones, |dev| dev)
+    }
 }
 
 impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
@@ -87,6 +98,17 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
     /// `setup` completes the application before its tasks start (hands it
     /// an updater, sets the version the running image reports).
     pub fn boot_on(store: Fl, chip: SimFlash, ram_zones: usize, setup: impl FnOnce(Dev<Fl>) -> Dev<Fl>) -> Self {
+        Self::boot_full(store, chip, SimFlash::new(2 * RECIPE_SLOT_LEN as usize), ram_zones, setup)
+    }
+
+    /// [`Self::boot_on`] with the recipe slots on `recipes`.
+    pub fn boot_full(
+        store: Fl,
+        chip: SimFlash,
+        recipes: SimFlash,
+        ram_zones: usize,
+        setup: impl FnOnce(Dev<Fl>) -> Dev<Fl>,
+    ) -> Self {
         let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         MockDriver::get().reset();
         let ram: &'static mut [ZoneMatrix<N, M>] = Box::leak(vec![ZoneMatrix::zeros(); ram_zones].into_boxed_slice());
@@ -94,6 +116,9 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
         let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, ACQ, host.frames_counter());
         let shared: &'static Dev<Fl> = leak(setup(Shared::new(store, SLOT_LEN, ram, ACQ, FULL_SCALE, true)));
+        shared.set_recipes(leak(shared.open_recipes(recipes.clone(), RECIPE_SLOT_LEN)));
+        let reject = SimReject::default();
+        let reject_out = reject.clone();
         let pending: &'static AtomicBool = leak(AtomicBool::new(false));
         let exec: &'static Executor = leak(Executor::new(pending as *const AtomicBool as *mut ()));
         let bufs: &'static mut [LineBuf<M, P>; 2] = leak([LineBuf::new(), LineBuf::new()]);
@@ -103,6 +128,7 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
         spawn(exec, async move { app::transport(shared, dev_end.clone(), dev_end, scene_in).await });
         spawn(exec, async move { app::acquisition(shared, leds, sensor, tx_lines).await });
         spawn(exec, async move { app::estimation(shared, rx_lines).await });
+        spawn(exec, async move { app::reject_output(shared, reject_out).await });
         let mut dev = Self {
             exec,
             pending,
@@ -112,6 +138,8 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
             shared,
             flash: chip,
             recv_steps: RECV_STEPS,
+            recipe_flash: recipes,
+            reject,
             _lock: lock,
         };
         pending.store(true, Ordering::SeqCst);

@@ -9,6 +9,7 @@ pub mod design;
 pub mod estimate;
 pub mod exports;
 pub mod info;
+pub mod inspect;
 pub mod keygen;
 pub mod materials;
 pub mod measure;
@@ -62,6 +63,8 @@ pub enum Command {
     ProvisionSwd(provision_swd::Args),
     /// Update a device's firmware over its link with a signed image.
     UpdateFirmware(update_firmware::Args),
+    /// On-device inspection: teach a recipe, provision it, run (verdicts, SPC, defect map), ROC.
+    Inspect(inspect::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
     /// Apply a calibration blob to logged readings offline, exactly as the device does.
@@ -95,6 +98,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(a) => info::run(a),
         Command::Provision(a) => provision::run(a),
         Command::ProvisionSwd(a) => provision_swd::run(a),
+        Command::Inspect(a) => inspect::run(a),
         Command::Measure(a) => measure::run(a),
         Command::Estimate(a) => estimate::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),

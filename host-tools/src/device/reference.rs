@@ -237,19 +237,17 @@ pub struct ExpectedPoint {
     pub corrected: Vec<f32>,
 }
 
-/// What the device must send for one scene line, point by point, computed
-/// with the library's own correction and the device's rule (so equality is
-/// bit for bit). `frames` is the line as the simulated sensor serves it:
-/// the dark frame and one per LED (physical order), then the same at each
-/// shorter exposure of `acq` the scene has (`forward::scene::raw_frames`).
-///
-/// # Panics
-/// If the blob is one the device refuses to run (see [`PointEstimator::new`]).
-pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, acq: &AcqConfig) -> Vec<ExpectedPoint> {
+/// The device's correction of one scene line (`frames` as
+/// [`expected_line`] takes them): per pixel the corrected readings (reading
+/// order) and their flags, by the library's own `correct_point_into`.
+pub fn corrected_line(
+    blob: &BlobView<'_>,
+    frames: &[Vec<u16>],
+    full_scale: u16,
+    acq: &AcqConfig,
+) -> Vec<(Vec<f32>, u8)> {
     let d = blob.dims();
     let order = blob.led_order();
-    let zones: Vec<PointEstimator<'_>> =
-        (0..d.zones).map(|z| PointEstimator::new(*blob, z).expect("a calibration the device runs")).collect();
     let levels = (frames.len() / (d.m + 1)).saturating_sub(1).min(acq.short_levels());
     (0..d.pixels)
         .map(|p| {
@@ -270,6 +268,26 @@ pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, 
             let white: Vec<f32> = (0..d.m).map(|i| blob.white(p, i)).collect();
             let mut v = vec![0.0f32; d.m];
             let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &shorter, &mut v);
+            (v, flags)
+        })
+        .collect()
+}
+
+/// What the device must send for one scene line, point by point, computed
+/// with the library's own correction and the device's rule (so equality is
+/// bit for bit). `frames` is the line as the simulated sensor serves it:
+/// the dark frame and one per LED (physical order), then the same at each
+/// shorter exposure of `acq` the scene has (`forward::scene::raw_frames`).
+///
+/// # Panics
+/// If the blob is one the device refuses to run (see [`PointEstimator::new`]).
+pub fn expected_line(blob: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, acq: &AcqConfig) -> Vec<ExpectedPoint> {
+    let zones: Vec<PointEstimator<'_>> =
+        (0..blob.dims().zones).map(|z| PointEstimator::new(*blob, z).expect("a calibration the device runs")).collect();
+    corrected_line(blob, frames, full_scale, acq)
+        .into_iter()
+        .enumerate()
+        .map(|(p, (v, flags))| {
             let z = blob.zone_of_pixel(p);
             let e = zones[z].apply_pixel(p, &v);
             ExpectedPoint {

@@ -49,6 +49,9 @@ unsafe extern "C" {
     static __bootloader_state_end: u8;
     static __bootloader_dfu_start: u8;
     static __bootloader_dfu_end: u8;
+    static __recipe_slot_a_start: u8;
+    static __recipe_slot_b_start: u8;
+    static __recipe_slot_len: u8;
 }
 
 /// A linker symbol's address (its value; the symbol is never read).
@@ -102,6 +105,19 @@ pub fn calibration(chip: &'static Chip) -> CalFlash {
     );
     assert_eq!(b, a + len, "memory.x: CAL_SLOT_B must follow CAL_SLOT_A");
     defmt::info!("calibration slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);
+    window(chip, a, 2 * len)
+}
+
+/// The inspection recipe region: slot A then slot B, back to back, checked
+/// against `crate::shape::board` as the calibration's.
+pub fn recipes(chip: &'static Chip) -> Part {
+    let (a, b, len) = (sym!(__recipe_slot_a_start), sym!(__recipe_slot_b_start), sym!(__recipe_slot_len));
+    assert!(
+        (a, b, len) == (map::RECIPE_SLOT_A as usize, map::RECIPE_SLOT_B as usize, map::RECIPE_SLOT_LEN as usize),
+        "memory.x's recipe slots disagree with shape::board"
+    );
+    assert_eq!(b, a + len, "memory.x: RECIPE_SLOT_B must follow RECIPE_SLOT_A");
+    defmt::info!("recipe slots: A at {=usize:#x}, B at {=usize:#x}, {=usize} bytes each", a, b, len);
     window(chip, a, 2 * len)
 }
 

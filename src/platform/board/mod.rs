@@ -22,6 +22,7 @@
 //! | USB D- / D+ | PA11 / PA12 | CN7 (USB OTG FS) | USB_OTG_FS |
 //! | USB VBUS sense | PA9 | CN7 | USB_OTG_FS |
 //! | status LED | PB14 | LED2 (on board) | GPIO |
+//! | reject output | PA4 | D7 | GPIO push-pull, active high (inspection) |
 //!
 //! Other peripherals: TIM5 is embassy-time's driver; IWDG is the watchdog;
 //! FLASH holds the calibration slots and the update partitions that memory.x
@@ -95,6 +96,8 @@ pub struct Board {
     pub usb: usb::UsbPins,
     /// On-board LED2, lit while the application runs healthily.
     pub status_led: Output<'static>,
+    /// The inspection's reject output (PA4, Arduino D7), low.
+    pub reject: RejectPin,
 }
 
 impl Board {
@@ -115,6 +118,22 @@ impl Board {
         let flash = flash::share(p.FLASH);
         let usb = usb::UsbPins { otg: p.USB_OTG_FS, dp: p.PA12, dm: p.PA11 };
         let status_led = Output::new(p.PB14, Level::Low, Speed::Low);
-        (Self { leds, sensor, flash, usb, status_led }, p.IWDG)
+        let reject = RejectPin(Output::new(p.PA4, Level::Low, Speed::Low));
+        (Self { leds, sensor, flash, usb, status_led, reject }, p.IWDG)
+    }
+}
+
+/// The inspection's reject output: PA4 (Arduino D7), a free header pin (not
+/// the LED PWM pins, the sensor's PD14/PA3/PC5, USB or the heartbeat);
+/// active high, for a PLC's digital input through its interface.
+pub struct RejectPin(Output<'static>);
+
+impl crate::hw::RejectOutput for RejectPin {
+    fn set(&mut self, on: bool) {
+        if on {
+            self.0.set_high();
+        } else {
+            self.0.set_low();
+        }
     }
 }

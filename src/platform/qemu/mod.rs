@@ -14,10 +14,13 @@
 //! - [`sensor`]: a simulated line sensor serving frames of a scene the host
 //!   loads over the link; it sees which LED is lit by reading GPIOE.
 //! - [`flash`]: the calibration slots in RAM (QEMU's flash is read-only), so
-//!   provisioning works but does not survive a restart of QEMU.
+//!   provisioning works but does not survive a restart of QEMU (the recipe
+//!   slots likewise).
+//! - [`reject`]: the inspection's reject output on PA4 (the board's pin).
 pub mod flash;
 pub mod leds;
 mod regs;
+pub mod reject;
 pub mod sensor;
 pub mod time_driver;
 pub mod usart;

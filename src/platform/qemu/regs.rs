@@ -3,9 +3,11 @@
 pub const RCC: usize = 0x4002_1000;
 pub const RCC_AHB2ENR: usize = RCC + 0x4C;
 pub const RCC_AHB2ENR_GPIOEEN: u32 = 1 << 4;
+pub const RCC_AHB2ENR_GPIOAEN: u32 = 1 << 0;
 pub const RCC_APB2ENR: usize = RCC + 0x60;
 pub const RCC_APB2ENR_USART1EN: u32 = 1 << 14;
 
+pub const GPIOA: usize = 0x4800_0000;
 pub const GPIOE: usize = 0x4800_1000;
 pub const GPIO_MODER: usize = 0x00;
 pub const GPIO_ODR: usize = 0x14;

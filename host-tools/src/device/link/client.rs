@@ -155,6 +155,15 @@ fn link_fault(e: &LinkError) -> bool {
     )
 }
 
+/// Which two-slot store a signed image goes to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SlotKind {
+    /// The calibration slots.
+    Calibration,
+    /// The inspection recipe slots.
+    Recipe,
+}
+
 /// A device client over any transport.
 pub struct Client<T> {
     t: T,
@@ -319,29 +328,57 @@ impl<T: Transport> Client<T> {
     /// Provisions `blob`: begin, chunks (each acknowledged), commit. On any
     /// error the device keeps its previous calibration; this aborts the
     /// provisioning when the link still works.
-    pub fn provision(&mut self, blob: &[u8], mut progress: impl FnMut(usize, usize)) -> Result<CalInfo, LinkError> {
-        let crc = brdf_meter::blob::CRC32.checksum(blob);
-        let max_chunk = match self.request(&Request::ProvisionBegin { len: blob.len() as u32, crc })? {
+    pub fn provision(&mut self, blob: &[u8], progress: impl FnMut(usize, usize)) -> Result<CalInfo, LinkError> {
+        match self.send_signed(blob, SlotKind::Calibration, progress)? {
+            Response::Committed(c) => Ok(c),
+            r => Err(LinkError::Unexpected(format!("{r:?} to ProvisionCommit"))),
+        }
+    }
+
+    /// Sends a signed image into one of the device's two-slot stores:
+    /// begin, chunks (each acknowledged), commit; returns the commit's
+    /// reply. Aborts when a chunk is refused and the link still works.
+    pub(crate) fn send_signed(
+        &mut self,
+        image: &[u8],
+        kind: SlotKind,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<Response<'static>, LinkError> {
+        let crc = brdf_meter::blob::CRC32.checksum(image);
+        let len = image.len() as u32;
+        let begin = match kind {
+            SlotKind::Calibration => Request::ProvisionBegin { len, crc },
+            SlotKind::Recipe => Request::RecipeBegin { len, crc },
+        };
+        let max_chunk = match self.request(&begin)? {
             Response::ProvisionReady { max_chunk, .. } => max_chunk as usize,
-            r => return Err(LinkError::Unexpected(format!("{r:?} to ProvisionBegin"))),
+            r => return Err(LinkError::Unexpected(format!("{r:?} to {begin:?}"))),
         };
         let result = (|| {
             let mut offset = 0usize;
-            for chunk in blob.chunks(max_chunk.max(1)) {
-                match self.request(&Request::ProvisionChunk { offset: offset as u32, data: chunk })? {
-                    Response::ChunkAck { next_offset } if next_offset as usize == offset + chunk.len() => {}
+            for data in image.chunks(max_chunk.max(1)) {
+                let at = offset as u32;
+                let chunk = match kind {
+                    SlotKind::Calibration => Request::ProvisionChunk { offset: at, data },
+                    SlotKind::Recipe => Request::RecipeChunk { offset: at, data },
+                };
+                match self.request(&chunk)? {
+                    Response::ChunkAck { next_offset } if next_offset as usize == offset + data.len() => {}
                     r => return Err(LinkError::Unexpected(format!("{r:?} to the chunk at {offset}"))),
                 }
-                offset += chunk.len();
-                progress(offset, blob.len());
+                offset += data.len();
+                progress(offset, image.len());
             }
-            match self.request(&Request::ProvisionCommit)? {
-                Response::Committed(c) => Ok(c),
-                r => Err(LinkError::Unexpected(format!("{r:?} to ProvisionCommit"))),
-            }
+            self.request(match kind {
+                SlotKind::Calibration => &Request::ProvisionCommit,
+                SlotKind::Recipe => &Request::RecipeCommit,
+            })
         })();
         if let Err(LinkError::Device(DeviceError::OutOfOrder { .. } | DeviceError::ChunkTooLarge { .. })) = &result {
-            let _ = self.request(&Request::ProvisionAbort);
+            let _ = self.request(match kind {
+                SlotKind::Calibration => &Request::ProvisionAbort,
+                SlotKind::Recipe => &Request::RecipeAbort,
+            });
         }
         result
     }

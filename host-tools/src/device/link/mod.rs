@@ -4,12 +4,14 @@
 //! wire protocol defined once in `brdf_meter::protocol`.
 mod client;
 mod firmware;
+mod inspect;
 pub mod qemu;
 mod serial;
 mod stream;
 mod tcp;
 
 pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
+pub use inspect::{InspectRun, PulseEvent, frame_len};
 pub use serial::SerialTransport;
 pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
 pub use tcp::TcpTransport;

@@ -28,7 +28,7 @@ pub mod link;
 pub mod report;
 
 use crate::calibration::demo::train_for_scene;
-use crate::evaluation::tradeoff::kernel_bench::{Segment, count_segments};
+use crate::evaluation::tradeoff::kernel_bench::Segment;
 use crate::forward::scene::Scene;
 use crate::forward::scene::frames::{patent_scene, scene_frames};
 use anyhow::{Context, ensure};
@@ -138,18 +138,11 @@ pub fn write_bench_data(path: &Path, builds: &[BuildInput]) -> anyhow::Result<()
 /// Runs `scripts/line-bench.sh` in `root` and counts its segments; the
 /// trace (hundreds of MB) is deleted once counted.
 pub fn run_bench(root: &Path) -> anyhow::Result<Vec<Segment>> {
-    let script = root.join("scripts/line-bench.sh");
-    let dir = root.join("target/line-bench");
-    let status = std::process::Command::new("bash")
-        .arg(&script)
-        .arg(&dir)
-        .current_dir(root)
-        .status()
-        .with_context(|| format!("running {}", script.display()))?;
-    ensure!(status.success(), "{} failed ({status})", script.display());
-    let segs = count_segments(&dir, "line_bench_mark");
-    let _ = std::fs::remove_file(dir.join("trace.txt"));
-    segs
+    crate::evaluation::tradeoff::kernel_bench::run_traced(
+        root,
+        "scripts/line-bench.sh",
+        &root.join("target/line-bench"),
+    )
 }
 
 /// Instructions and cycles of one stage over a line.

@@ -167,9 +167,27 @@ fn words(line: &str, tag: &str) -> Option<Vec<u32>> {
     Some(rest.split_whitespace().filter_map(|h| u32::from_str_radix(h, 16).ok()).collect())
 }
 
+/// Runs a traced bench script (`scripts/trace-bench.sh` behind it) in
+/// `root` with output folder `dir`, counts its segments between calls of
+/// the benches' `bench_mark` (`src/bin/bench_io`), and deletes the trace
+/// (hundreds of MB) once counted.
+pub fn run_traced(root: &Path, script: &str, dir: &Path) -> anyhow::Result<Vec<Segment>> {
+    let script = root.join(script);
+    let status = std::process::Command::new("bash")
+        .arg(&script)
+        .arg(dir)
+        .current_dir(root)
+        .status()
+        .with_context(|| format!("running {}", script.display()))?;
+    anyhow::ensure!(status.success(), "{} failed ({status})", script.display());
+    let segs = count_segments(dir, "bench_mark");
+    let _ = std::fs::remove_file(dir.join("trace.txt"));
+    segs
+}
+
 /// Cuts a bench's trace (`trace.txt`, with `nm.txt`, `objdump.txt` and
 /// `stdout.txt` beside it, as the bench scripts write them) at every
-/// execution of the function `mark`, and counts each segment's instructions
+/// execution of the function `mark_symbol`, and counts each segment's instructions
 /// (the mark's own excluded) and cycles (the module's table), named by the
 /// `SEG` lines the firmware printed, in order.
 pub fn count_segments(dir: &Path, mark_symbol: &str) -> anyhow::Result<Vec<Segment>> {

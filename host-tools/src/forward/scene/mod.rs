@@ -30,6 +30,7 @@
 //! - [`raw_frames`]: one line's raw u16 frames (dark first, then the LEDs in
 //!   physical order) for the simulated line sensor; [`frames`] for whole
 //!   lines and the synthetic analytic pattern.
+pub mod defects;
 pub mod effects;
 pub mod frames;
 pub mod noise_level;

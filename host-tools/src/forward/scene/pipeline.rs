@@ -426,17 +426,18 @@ impl Simulator {
 
     /// The raw frames of `line` in `mode`: dark, then one per LED.
     pub fn frames(&self, line: u64, mode: Mode) -> Vec<Vec<f64>> {
-        self.frames_at(line, mode, 1.0)
+        self.frames_at(line, mode, 1.0, &self.signal)
     }
 
-    /// The same frames at exposure `exposure` (relative to the long one).
-    fn frames_at(&self, line: u64, mode: Mode, exposure: f64) -> Vec<Vec<f64>> {
+    /// The same frames at exposure `exposure` (relative to the long one),
+    /// of the light `signal` (`p * m + k`).
+    fn frames_at(&self, line: u64, mode: Mode, exposure: f64, signal: &[f64]) -> Vec<Vec<f64>> {
         (0..=self.m)
             .map(|f| {
                 let mut frame = if f == 0 {
                     vec![0.0; self.p]
                 } else {
-                    (0..self.p).map(|px| self.signal[px * self.m + f - 1] * exposure).collect()
+                    (0..self.p).map(|px| signal[px * self.m + f - 1] * exposure).collect()
                 };
                 self.pipeline.run(&mut frame, &FrameCtx { line, frame: f, m: self.m, exposure }, mode);
                 frame
@@ -448,7 +449,7 @@ impl Simulator {
     /// frame and one per LED at the exposure 1 / ratio (none when the scene
     /// does not list the effect).
     pub fn short_frames(&self, line: u64, mode: Mode) -> Vec<Vec<Vec<f64>>> {
-        self.pipeline.short_ratios.iter().map(|r| self.frames_at(line, mode, 1.0 / r)).collect()
+        self.pipeline.short_ratios.iter().map(|r| self.frames_at(line, mode, 1.0 / r, &self.signal)).collect()
     }
 
     /// Simulates line `line`: raw frames and white-calibrated readings.
@@ -493,8 +494,16 @@ impl Simulator {
     /// A count above 65535 cannot cross the link: that is an error naming
     /// the pixel and LED (lower `instrument.sensor.gain` or list `saturation`).
     pub fn raw_frames(&self, line: u64) -> anyhow::Result<Vec<Vec<u16>>> {
-        let mut frames = self.frames(line, Mode::Full);
-        frames.extend(self.short_frames(line, Mode::Full).into_iter().flatten());
+        self.raw_frames_of(line, &self.signal)
+    }
+
+    /// [`Self::raw_frames`] of another light `signal` (`p * m + k`) through
+    /// the same pipeline: a defect scene mixes other surfaces' light in
+    /// (`forward::scene::defects`).
+    pub fn raw_frames_of(&self, line: u64, signal: &[f64]) -> anyhow::Result<Vec<Vec<u16>>> {
+        let mut frames = self.frames_at(line, Mode::Full, 1.0, signal);
+        frames
+            .extend(self.pipeline.short_ratios.iter().flat_map(|r| self.frames_at(line, Mode::Full, 1.0 / r, signal)));
         let mut out = Vec::with_capacity(frames.len());
         for (f, frame) in frames.into_iter().enumerate() {
             let mut px_out = Vec::with_capacity(frame.len());

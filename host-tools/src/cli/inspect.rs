@@ -1,0 +1,501 @@
+//! `host-tools inspect`: on-device inspection. `teach` a recipe from lines
+//! of a reference sample, `provision` it, `run` an inspection (live
+//! verdicts, SPC figures, CSV/JSON, the defect map), and `roc`: the
+//! probability of detection against false calls on simulated runs.
+//! See `host_tools::inspection` and the device's `brdf_meter::inspect`.
+use crate::calibration::signing;
+use crate::device::link::{Client, Endpoint};
+use crate::device::provision;
+use crate::forward::scene::Scene;
+use crate::forward::scene::defects::DefectScene;
+use crate::inspection::defect_map;
+use crate::inspection::lines::{DeviceModel, Line};
+use crate::inspection::roc::{self, RocSpec};
+use crate::inspection::spc::spc;
+use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
+use anyhow::{Context, ensure};
+use brdf_meter::blob::BlobView;
+use brdf_meter::inspect::RecipeView;
+use brdf_meter::inspect::recipe::DelayUnit;
+use std::path::{Path, PathBuf};
+
+/// On-device inspection: teach, provision, run, ROC.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Sub,
+}
+
+/// The inspection subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum Sub {
+    /// Teach a recipe from lines of a reference sample (a scene, simulated
+    /// as the device reads it) and write it signed.
+    Teach(TeachArgs),
+    /// Provision a signed recipe onto a device.
+    Provision(ProvisionArgs),
+    /// Inspect lines on a device: live verdicts, SPC figures, CSV/JSON, defect map.
+    Run(RunArgs),
+    /// Probability of detection per defect kind and size against false calls, simulated.
+    Roc(RocArgs),
+    /// The decision's latency and cost, counted exactly in QEMU (needs QEMU and the ARM binutils).
+    Bench(BenchArgs),
+}
+
+/// `inspect bench`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Zones of the calibration (at most the board's RAM budget, 8).
+    #[arg(long, default_value_t = 8)]
+    pub zones: usize,
+    /// Also write the figures as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+}
+
+/// The recipe's settings, as `teach` and `roc` take them.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RecipeArgs {
+    /// Gloss window: change from the reference allowed, `LO:HI` GU, `LO%:HI%` or `off`.
+    #[arg(long, default_value = "-1.5:1.5", allow_hyphen_values = true)]
+    pub gloss_window: Window,
+    /// Haze window (HU, %, or off).
+    #[arg(long, default_value = "off", allow_hyphen_values = true)]
+    pub haze_window: Window,
+    /// Distinctness window (%, relative %, or off).
+    #[arg(long, default_value = "off", allow_hyphen_values = true)]
+    pub distinctness_window: Window,
+    /// False calls per defect-free line the distance threshold is set for.
+    #[arg(long, default_value_t = 1e-4)]
+    pub false_call_rate: f64,
+    /// Smallest defect, pixels.
+    #[arg(long, default_value_t = 3)]
+    pub min_pixels: u16,
+    /// Smallest defect, lines.
+    #[arg(long, default_value_t = 1)]
+    pub min_lines: u16,
+    /// Hysteresis: a point out stays out until below this share of the thresholds.
+    #[arg(long, default_value_t = 0.7)]
+    pub hysteresis: f32,
+    /// Drift alarm: EWMA weight.
+    #[arg(long, default_value_t = 0.1)]
+    pub ewma_lambda: f32,
+    /// Drift alarm limit in GU (default: 4 standard deviations of the EWMA of the reference's line means).
+    #[arg(long)]
+    pub drift_limit_gu: Option<f64>,
+    /// Reject pulse length, ms (a PLC scanning every 10 ms sees >= 20 ms).
+    #[arg(long, default_value_t = 25.0)]
+    pub pulse_ms: f64,
+    /// Reject delay: `N` lines (encoder counts) or `Nus` microseconds.
+    #[arg(long, default_value = "0")]
+    pub delay: String,
+    /// The recipe's version number.
+    #[arg(long, default_value_t = 1)]
+    pub version: u32,
+}
+
+impl RecipeArgs {
+    fn spec(&self, max_bytes: usize) -> anyhow::Result<TeachSpec> {
+        ensure!(self.hysteresis > 0.0 && self.hysteresis <= 1.0, "--hysteresis {}: within (0, 1]", self.hysteresis);
+        ensure!(self.pulse_ms >= 1.0, "--pulse-ms {}: at least 1 ms", self.pulse_ms);
+        ensure!(self.min_pixels >= 1 && self.min_lines >= 1, "--min-pixels and --min-lines: at least 1");
+        let delay = match self.delay.strip_suffix("us") {
+            Some(us) => (us.parse().with_context(|| format!("--delay {}", self.delay))?, DelayUnit::Micros),
+            None => (
+                self.delay.parse().with_context(|| format!("--delay {}: N lines or Nus", self.delay))?,
+                DelayUnit::Lines,
+            ),
+        };
+        Ok(TeachSpec {
+            false_call_rate: self.false_call_rate,
+            windows: [self.gloss_window, self.haze_window, self.distinctness_window],
+            min_pixels: self.min_pixels,
+            min_lines: self.min_lines,
+            hysteresis: self.hysteresis,
+            ewma_lambda: self.ewma_lambda,
+            drift_limit: self.drift_limit_gu.map_or(DriftLimit::Sigmas(4.0), DriftLimit::Gu),
+            pulse_us: (self.pulse_ms * 1000.0) as u32,
+            delay,
+            version: self.version,
+            max_bytes,
+        })
+    }
+}
+
+/// `inspect teach`.
+#[derive(Debug, clap::Args)]
+pub struct TeachArgs {
+    /// The signed calibration the device runs.
+    #[arg(long, value_name = "PATH")]
+    pub blob: PathBuf,
+    /// The reference sample: a scene (its surface, with every effect it lists).
+    #[arg(long, value_name = "PATH")]
+    pub scene: PathBuf,
+    /// Lines of the reference to teach from.
+    #[arg(long, default_value_t = 1000)]
+    pub lines: usize,
+    /// First line (its noise draw).
+    #[arg(long, default_value_t = 0)]
+    pub first_line: u64,
+    /// Secret key to sign the recipe with (default: the DEVELOPMENT key).
+    #[arg(long, value_name = "PATH")]
+    pub key: Option<PathBuf>,
+    /// The recipe's settings.
+    #[command(flatten)]
+    pub recipe: RecipeArgs,
+    /// Where to write the signed recipe (and `.json` beside it: the teach report).
+    #[arg(long, value_name = "PATH", default_value = "out/recipe.bin")]
+    pub out: PathBuf,
+}
+
+/// `inspect provision`.
+#[derive(Debug, clap::Args)]
+pub struct ProvisionArgs {
+    /// The device.
+    #[command(flatten)]
+    pub device: Endpoint,
+    /// The signed recipe.
+    #[arg(long, value_name = "PATH")]
+    pub recipe: PathBuf,
+}
+
+/// `inspect run`.
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// The device.
+    #[command(flatten)]
+    pub device: Endpoint,
+    /// The signed recipe the device runs (for its windows and the map).
+    #[arg(long, value_name = "PATH")]
+    pub recipe: PathBuf,
+    /// Lines to inspect.
+    #[arg(long, default_value_t = 100)]
+    pub lines: u32,
+    /// Send a rejected line's points too.
+    #[arg(long)]
+    pub defect_points: bool,
+    /// A defect scene (or scene) to load into a simulated device first (4 lines, cycled).
+    #[arg(long, value_name = "PATH")]
+    pub scene: Option<PathBuf>,
+    /// First scene line loaded.
+    #[arg(long, default_value_t = 0)]
+    pub scene_line: u64,
+    /// Verdicts as CSV.
+    #[arg(long, value_name = "PATH")]
+    pub csv: Option<PathBuf>,
+    /// Verdicts, pulses and SPC figures as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+    /// The defect map (PNG).
+    #[arg(long, value_name = "PATH")]
+    pub map: Option<PathBuf>,
+}
+
+/// `inspect roc`.
+#[derive(Debug, clap::Args)]
+pub struct RocArgs {
+    /// The instrument and its effects (the defect-free surface).
+    #[arg(long, value_name = "PATH", default_value = "scenes/handheld.toml")]
+    pub scene: PathBuf,
+    /// The signed calibration (default: trained here, scale-free piecewise on MERL, --zones).
+    #[arg(long, value_name = "PATH")]
+    pub blob: Option<PathBuf>,
+    /// Zones of the calibration trained here.
+    #[arg(long, default_value_t = 32)]
+    pub zones: usize,
+    /// Lines to teach from (1,000: 40 s of the handheld's line rate; 200
+    /// leave the per-pixel statistics noisy enough to cost detection).
+    #[arg(long, default_value_t = 1000)]
+    pub teach_lines: usize,
+    /// Defect-free lines.
+    #[arg(long, default_value_t = 10_000)]
+    pub clean_lines: usize,
+    /// Lines per defect case.
+    #[arg(long, default_value_t = 400)]
+    pub defect_lines: usize,
+    /// The small run the tests make: 1,000 teach, 2,000 defect-free, 40 per case.
+    #[arg(long)]
+    pub quick: bool,
+    /// The recipe's settings.
+    #[command(flatten)]
+    pub recipe: RecipeArgs,
+    /// Output directory: roc.md, roc.json, roc.svg/.png.
+    #[arg(long, value_name = "DIR", default_value = "out/inspect-roc")]
+    pub out: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    match a.command {
+        Sub::Teach(a) => run_teach(a),
+        Sub::Provision(a) => run_provision(a),
+        Sub::Run(a) => run_inspect(a),
+        Sub::Roc(a) => run_roc(a),
+        Sub::Bench(a) => run_bench(a),
+    }
+}
+
+/// The slot's room for a signed recipe.
+fn recipe_room() -> usize {
+    brdf_meter::shape::board::RECIPE_SLOT_LEN as usize
+        - brdf_meter::store::SLOT_HEADER_LEN
+        - brdf_meter::signed::TRAILER_LEN
+}
+
+/// The device a scene's calibration runs on: the board's acquisition for
+/// its pixel count, else the QEMU build's (the same exposure ratios).
+fn device_model<'a>(view: BlobView<'a>, scene: &Scene) -> anyhow::Result<DeviceModel<'a>> {
+    let full_scale = scene.instrument.sensor.full_scale.round() as u16;
+    let acq = if scene.instrument.sensor.pixels == brdf_meter::shape::board::PIXELS {
+        brdf_meter::platform::timing::ACQUISITION
+    } else {
+        brdf_meter::platform::timing::QEMU_ACQUISITION
+    };
+    DeviceModel::new(view, full_scale, acq)
+}
+
+fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
+    let image = provision::read_blob(&a.blob)?;
+    let view = provision::parse_signed(&image, &a.blob.display().to_string())?;
+    let ds = DefectScene::load_any(&a.scene)?;
+    let model = device_model(view, &ds.scene)?;
+    ensure!(
+        model.pixels() == ds.pixels(),
+        "{} has {} pixels but the calibration {}",
+        a.scene.display(),
+        ds.pixels(),
+        model.pixels()
+    );
+    let lines: Vec<Line> = (a.first_line..a.first_line + a.lines as u64)
+        .map(|l| Ok(model.correct(&ds.raw_frames_at(l)?)))
+        .collect::<anyhow::Result<_>>()?;
+    let taught = teach(&model, &lines, &a.recipe.spec(recipe_room())?)?;
+    let seed = match &a.key {
+        Some(k) => signing::read_secret(k)?,
+        None => signing::read_secret(&signing::dev_key_path())?,
+    };
+    let signed = signing::sign_blob(&taught.bytes, &seed);
+    crate::output::io::write_atomic(&a.out, &signed)?;
+    crate::output::io::write_json(&a.out.with_extension("json"), &taught.report)?;
+    let r = &taught.report;
+    println!(
+        "taught {} from {} lines: {} groups, distance threshold {:.1}, gloss sd {:.3} GU (median pixel), windows {:?}, teach quality {:.2}{}; {} bytes signed",
+        a.out.display(),
+        r.lines,
+        r.groups,
+        r.threshold,
+        r.reading_sd[0],
+        r.windows,
+        r.quality,
+        if r.quality < 1.0 { " (below 1: the window is inside the reference's own +-3 sd; widen it)" } else { "" },
+        signed.len()
+    );
+    if r.no_reading_pixels > 0 {
+        println!(
+            "  {} pixel(s) have no gloss reading (their zones cannot read the standard): only the distance applies there",
+            r.no_reading_pixels
+        );
+    }
+    Ok(())
+}
+
+/// Reads a signed recipe, checked as the device will.
+fn read_recipe(path: &Path) -> anyhow::Result<Vec<u8>> {
+    let image = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let body = signing::check_signed(&image, &path.display().to_string())?;
+    RecipeView::parse(body)
+        .map_err(|e| anyhow::anyhow!("{}: not a recipe this firmware reads ({e:?}); teach it again", path.display()))?;
+    Ok(image)
+}
+
+fn run_provision(a: ProvisionArgs) -> anyhow::Result<()> {
+    let image = read_recipe(&a.recipe)?;
+    let mut c = Client::new(a.device.open()?)?;
+    let info = c.provision_recipe(&image, |_, _| {}).with_context(|| format!("provisioning {}", a.recipe.display()))?;
+    println!(
+        "provisioned {}: recipe {:#010x} version {}, for calibration {:#010x}, slot {}, sequence {}",
+        a.recipe.display(),
+        info.crc,
+        info.version,
+        info.calibration_crc,
+        provision::slot_name(info.slot),
+        info.sequence
+    );
+    Ok(())
+}
+
+fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
+    ensure!(a.lines >= 1, "--lines must be at least 1");
+    let image = read_recipe(&a.recipe)?;
+    let recipe = RecipeView::parse(&image[..image.len() - brdf_meter::signed::TRAILER_LEN]).expect("checked");
+    let mut c = Client::new(a.device.open()?)?;
+    let info = c.info()?;
+    if let Some(path) = &a.scene {
+        ensure!(info.simulated, "--scene is for simulated devices (QEMU); this device has a real sensor");
+        let ds = DefectScene::load_any(path)?;
+        let lines = brdf_meter::shape::qemu::FRAME_LINES;
+        let frames = (a.scene_line..a.scene_line + lines as u64)
+            .map(|l| ds.raw_frames_at(l))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
+    }
+    let progress = crate::output::progress::bar(a.lines as u64, "lines");
+    let mut rejected = 0usize;
+    let run = c.inspect(a.lines, a.defect_points, &mut |v| {
+        rejected += v.rejected() as usize;
+        progress.set_position(v.line as u64 + 1);
+        progress.set_message(format!("{rejected} rejected, EWMA {:+.3} GU", v.ewma));
+    })?;
+    progress.finish_and_clear();
+    let [lsl, usl] = recipe.settings().windows[brdf_meter::gloss::SPECULAR_GU];
+    let means: Vec<f32> = run.verdicts.iter().map(|v| v.mean_gloss).collect();
+    let s = spc(&means, lsl, usl);
+    let status = c.inspect_status()?;
+    println!(
+        "{} lines, {} rejected, {} defects, {} drift alarm(s), {} reject pulse(s); gloss change mean {:+.3} GU, sd {:.3}, Cp {:.2}, Cpk {:.2}; {:.1} link bytes per line",
+        run.verdicts.len(),
+        status.counters.rejected,
+        status.counters.defects,
+        status.counters.drift_alarms,
+        run.pulses.len(),
+        s.mean,
+        s.sd,
+        s.cp,
+        s.cpk,
+        run.link_bytes as f64 / run.verdicts.len() as f64
+    );
+    for v in run.verdicts.iter().filter(|v| v.rejected()).take(10) {
+        let runs: Vec<String> = v
+            .runs
+            .as_slice()
+            .iter()
+            .map(|r| format!("{} px {}..{}", r.kind.name(), r.first, r.first + r.len - 1))
+            .collect();
+        println!("  line {}: {}", v.line, runs.join(", "));
+    }
+    if let Some(path) = &a.csv {
+        crate::output::io::write_atomic(path, &crate::output::io::csv_bytes(&verdict_rows(&run.verdicts))?)?;
+    }
+    if let Some(path) = &a.json {
+        crate::output::io::write_json(
+            path,
+            &serde_json::json!({ "verdicts": verdict_rows(&run.verdicts), "pulses": run.pulses, "spc": s, "counters": status.counters }),
+        )?;
+    }
+    if let Some(path) = &a.map {
+        defect_map::write_png(path, &run.verdicts, usize::from(info.pixels), 4)?;
+    }
+    Ok(())
+}
+
+/// One row per verdict (and per defect of it) for CSV and JSON.
+#[derive(serde::Serialize)]
+struct VerdictRow {
+    line: u32,
+    rejected: bool,
+    drift_alarm: bool,
+    mean_gloss_gu: f32,
+    ewma_gu: f32,
+    max_d2: f32,
+    defects: String,
+}
+
+fn verdict_rows(v: &[brdf_meter::inspect::Verdict]) -> Vec<VerdictRow> {
+    v.iter()
+        .map(|v| VerdictRow {
+            line: v.line,
+            rejected: v.rejected(),
+            drift_alarm: v.flags & brdf_meter::inspect::decide::verdict::DRIFT_ALARM != 0,
+            mean_gloss_gu: v.mean_gloss,
+            ewma_gu: v.ewma,
+            max_d2: v.max_d2,
+            defects: v
+                .runs
+                .as_slice()
+                .iter()
+                .map(|r| format!("{}:{}+{}", r.kind.name(), r.first, r.len))
+                .collect::<Vec<_>>()
+                .join(" "),
+        })
+        .collect()
+}
+
+fn run_roc(a: RocArgs) -> anyhow::Result<()> {
+    let scene = Scene::load(&a.scene)?;
+    let image = match &a.blob {
+        Some(path) => provision::read_blob(path)?,
+        None => {
+            eprintln!(
+                "training a scale-free piecewise calibration, {} zones, on MERL for {}",
+                a.zones,
+                a.scene.display()
+            );
+            let noise = crate::forward::scene::noise_level::relative_noise_level(&scene)?;
+            crate::calibration::demo::train_scale_free_for_scene(&scene, a.zones, noise, true)?.blob
+        }
+    };
+    let view = match &a.blob {
+        Some(path) => provision::parse_signed(&image, &path.display().to_string())?,
+        None => BlobView::parse(&image).map_err(|e| anyhow::anyhow!("{e:?}"))?,
+    };
+    let model = device_model(view, &scene)?;
+    let teach = a.recipe.spec(recipe_room())?;
+    let spec = if a.quick {
+        RocSpec::quick(teach)
+    } else {
+        RocSpec { teach_lines: a.teach_lines, clean_lines: a.clean_lines, defect_lines: a.defect_lines, teach }
+    };
+    let started = std::time::Instant::now();
+    let result = roc::run(&scene, &model, &spec, &|s| eprintln!("  {s}"))?;
+    let table = roc::report::markdown(&result);
+    println!("{table}");
+    eprintln!("({:.0} s)", started.elapsed().as_secs_f64());
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    crate::output::io::write_atomic(&a.out.join("roc.md"), table.as_bytes())?;
+    crate::output::io::write_json(&a.out.join("roc.json"), &result)?;
+    roc::report::plot(&result, &a.out.join("roc.svg"))?;
+    roc::report::plot(&result, &a.out.join("roc.png"))?;
+    Ok(())
+}
+
+fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
+    ensure!(
+        (1..=brdf_meter::shape::board::RAM_ZONES).contains(&a.zones),
+        "--zones {}: 1 to {} (the board's RAM budget)",
+        a.zones,
+        brdf_meter::shape::board::RAM_ZONES
+    );
+    let root = crate::device::link::qemu::workspace_root();
+    let lines = crate::inspection::bench::run(&root, a.zones, &|s| eprintln!("  {s}"))?;
+    let p = brdf_meter::shape::board::PIXELS as f64;
+    println!(
+        "| line (P = 128) | verdict | frame bytes | correct | decide | frame | latency (cycles) | latency at 80 MHz | decide per point | estimate per point | decide / estimate |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for l in &lines {
+        let get = |n: &str| l.stages.iter().filter(|s| s.0 == n).fold((0.0, 0.0), |a, s| (a.0 + s.1, a.1 + s.2));
+        let (c, d, f, e) = (get("correct"), get("decide"), get("frame"), get("estimate"));
+        println!(
+            "| {} | {} | {} | {:.0} instr / {:.0} cyc | {:.0} / {:.0} | {:.0} / {:.0} | {:.0} | {:.3} ms | {:.0} cyc | {:.0} cyc | {:.1} % |",
+            l.line,
+            if l.rejected { "reject" } else { "good" },
+            l.frame_bytes,
+            c.0,
+            c.1,
+            d.0,
+            d.1,
+            f.0,
+            f.1,
+            l.latency_cycles,
+            l.latency_us / 1000.0,
+            d.1 / p,
+            e.1 / p,
+            100.0 * l.decision_share
+        );
+    }
+    if let Some(path) = &a.json {
+        crate::output::io::write_json(path, &lines)?;
+    }
+    Ok(())
+}

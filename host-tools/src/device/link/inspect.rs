@@ -1,0 +1,123 @@
+//! The client's inspection calls: provision a recipe, run an inspection
+//! (verdicts, reject pulses, a rejected line's points when asked), read the
+//! inspection's status.
+use super::Transport;
+use super::client::{Client, LinkError, PointRecord, Reply, SlotKind};
+use brdf_meter::inspect::Verdict;
+use brdf_meter::protocol::{InspectStatus, RecipeInfo, Request, Response};
+
+/// A reject pulse the device reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct PulseEvent {
+    /// The (last) rejected line it was driven for.
+    pub line: u32,
+    /// Start, us on the device's clock.
+    pub start_us: u64,
+    /// Length, us.
+    pub len_us: u32,
+}
+
+/// What an inspection sent.
+#[derive(Clone, Debug, Default)]
+pub struct InspectRun {
+    /// One verdict per line, in order.
+    pub verdicts: Vec<Verdict>,
+    /// The reject pulses, in order.
+    pub pulses: Vec<PulseEvent>,
+    /// The points of rejected lines (when asked).
+    pub points: Vec<PointRecord>,
+    /// Bytes on the link of the verdict and pulse frames (COBS frames with
+    /// their delimiter, re-encoded by the device's own encoder: the same bytes).
+    pub link_bytes: usize,
+}
+
+impl<T: Transport> Client<T> {
+    /// Provisions a signed recipe; on any error the device keeps its previous one.
+    pub fn provision_recipe(
+        &mut self,
+        recipe: &[u8],
+        progress: impl FnMut(usize, usize),
+    ) -> Result<RecipeInfo, LinkError> {
+        match self.send_signed(recipe, SlotKind::Recipe, progress)? {
+            Response::RecipeCommitted(r) => Ok(r),
+            r => Err(LinkError::Unexpected(format!("{r:?} to RecipeCommit"))),
+        }
+    }
+
+    /// The active recipe and the inspection's counters.
+    pub fn inspect_status(&mut self) -> Result<InspectStatus, LinkError> {
+        match self.request(&Request::InspectStatus)? {
+            Response::Inspection(s) => Ok(s),
+            r => Err(LinkError::Unexpected(format!("{r:?} to InspectStatus"))),
+        }
+    }
+
+    /// Inspects `lines` lines (>= 1); `on_verdict` sees each verdict as it arrives.
+    /// The pulses still under way when the last verdict arrives are waited
+    /// for (up to the client's timeout).
+    pub fn inspect(
+        &mut self,
+        lines: u32,
+        defect_points: bool,
+        on_verdict: &mut dyn FnMut(&Verdict),
+    ) -> Result<InspectRun, LinkError> {
+        assert!(lines >= 1, "an inspection of at least one line");
+        let seq = self.send(&Request::Inspect { lines, defect_points, format: self.format })?;
+        let mut run = InspectRun::default();
+        let mut started = false;
+        let mut error = None;
+        let mut done = None;
+        loop {
+            let f = match self.next_frame(self.timeout) {
+                // After the end, the wait for pulses still under way is over.
+                Err(LinkError::Timeout(..)) if done.is_some() => break,
+                Err(LinkError::Timeout(..)) => return Err(LinkError::Timeout(self.timeout, "inspection verdicts")),
+                r => r?,
+            };
+            if f.seq != seq && f.seq != 0 {
+                continue;
+            }
+            if let Reply::Msg(r @ (Response::Verdict(_) | Response::RejectPulse { .. })) = &f.reply {
+                run.link_bytes += frame_len(seq, r);
+            }
+            match f.reply {
+                Reply::Msg(Response::MeasureStarted { .. }) => started = true,
+                Reply::Msg(Response::Verdict(v)) => {
+                    on_verdict(&v);
+                    run.verdicts.push(v);
+                }
+                Reply::Msg(Response::RejectPulse { line, start_us, len_us }) => {
+                    run.pulses.push(PulseEvent { line, start_us, len_us })
+                }
+                Reply::Point(p) => run.points.push(p),
+                Reply::Points(ps) => run.points.extend(ps),
+                Reply::Msg(Response::Error(e)) if !started => return Err(LinkError::Device(e)),
+                Reply::Msg(Response::Error(e)) => error = Some(e),
+                Reply::Msg(Response::MeasureDone { lines_done }) => {
+                    if let Some(e) = error {
+                        return Err(LinkError::Device(e));
+                    }
+                    if lines_done != lines {
+                        return Err(LinkError::Unexpected(format!("{lines_done} of {lines} lines inspected")));
+                    }
+                    done = Some(lines_done);
+                    let rejected = run.verdicts.iter().filter(|v| v.rejected()).count();
+                    if run.pulses.len() >= rejected {
+                        break;
+                    }
+                }
+                Reply::Msg(r) => return Err(LinkError::Unexpected(format!("{r:?} during an inspection"))),
+            }
+            if done.is_some() && run.pulses.len() >= run.verdicts.iter().filter(|v| v.rejected()).count() {
+                break;
+            }
+        }
+        Ok(run)
+    }
+}
+
+/// Bytes of the frame that carries `r` with sequence number `seq`.
+pub fn frame_len(seq: u32, r: &Response<'_>) -> usize {
+    let mut buf = [0u8; brdf_meter::protocol::MAX_FRAME];
+    brdf_meter::protocol::encode(seq, r, &mut buf).expect("every reply fits a frame")
+}

@@ -1,0 +1,515 @@
+//! Teaching a recipe from lines of a reference ("golden") sample.
+//!
+//! Per pixel the mean of the normalised readings `f = k v` (k the line's
+//! scale, the device's, `brdf_meter::inspect::decide`) and their standard
+//! deviations; per group (the calibration's zones, merged until the recipe
+//! fits its slot) the correlation of the standardised readings pooled over
+//! the group's pixels and lines, whitened by its Cholesky factor, and the
+//! gloss readings' gradient at the reference, by central differences of the
+//! device's own readings (`PointEstimator`) averaged over the group.
+//!
+//! The distance threshold is set from the false-call rate asked for: a
+//! false call needs `min_pixels` adjacent pixels out at once, so each pixel
+//! may be out with probability `q = (rate / P)^(1 / min_pixels)`; the
+//! threshold is the chi-square quantile of m - 1 degrees of freedom at
+//! `1 - q`, times Hotelling's factor `(N+1)(N-1) / (N (N-m+1))` for a
+//! mean and covariance estimated from N lines. Its actual rate is measured
+//! by `inspection::roc`, never assumed.
+//!
+//! Refused, with the reason: fewer lines than [`MIN_LINES`]; a reference
+//! whose points are saturated, under-exposed or not finite (in more than
+//! 1 % of a pixel's lines); a reference the calibration flags out of its
+//! prior in more than [`MAX_OUT_OF_PRIOR`] of its points (it flags about
+//! 5 % of materials inside its prior by design).
+use super::lines::{DeviceModel, Line};
+use brdf_meter::inspect::recipe::{self, DelayUnit, RecipeData, RecipeSettings, group_len, pixel_len};
+use brdf_meter::protocol::flags;
+use brdf_meter::shape::{LEDS as M, READINGS};
+use nalgebra::{DMatrix, SVector};
+
+/// Fewest lines a recipe is taught from.
+pub const MIN_LINES: usize = 50;
+/// Largest share of the reference's points out of the calibration's prior.
+pub const MAX_OUT_OF_PRIOR: f64 = 0.2;
+
+/// A tolerance window on one gloss reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Window {
+    /// No window.
+    Off,
+    /// The lowest and highest change allowed, in the reading's unit.
+    Absolute(f64, f64),
+    /// The same in % of the reference's mean reading over the line.
+    Relative(f64, f64),
+}
+
+impl std::str::FromStr for Window {
+    type Err = String;
+    /// `off`, `LO:HI` (in the reading's unit) or `LO%:HI%`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "off" {
+            return Ok(Self::Off);
+        }
+        let (lo, hi) = s.split_once(':').ok_or_else(|| format!("`{s}`: expected LO:HI, LO%:HI% or off"))?;
+        let rel = lo.ends_with('%') && hi.ends_with('%');
+        let num = |x: &str| x.trim_end_matches('%').parse::<f64>().map_err(|_| format!("`{s}`: `{x}` is not a number"));
+        let (lo, hi) = (num(lo)?, num(hi)?);
+        if !(lo <= 0.0 && hi >= 0.0 && lo < hi) {
+            return Err(format!("`{s}`: a window must hold the reference (LO <= 0 <= HI, LO < HI)"));
+        }
+        Ok(if rel { Self::Relative(lo, hi) } else { Self::Absolute(lo, hi) })
+    }
+}
+
+/// What to teach.
+#[derive(Clone, Debug)]
+pub struct TeachSpec {
+    /// False calls per defect-free line the distance threshold is set for.
+    pub false_call_rate: f64,
+    /// Gloss, haze and distinctness windows.
+    pub windows: [Window; READINGS],
+    /// Smallest defect in pixels and in lines.
+    pub min_pixels: u16,
+    /// Smallest defect in lines.
+    pub min_lines: u16,
+    /// Leaving thresholds as a share of the entering ones.
+    pub hysteresis: f32,
+    /// Drift EWMA weight.
+    pub ewma_lambda: f32,
+    /// Drift alarm in standard deviations of the EWMA, or a limit in GU.
+    pub drift_limit: DriftLimit,
+    /// Reject pulse length, us.
+    pub pulse_us: u32,
+    /// Reject delay and its unit.
+    pub delay: (u32, DelayUnit),
+    /// The user's version number.
+    pub version: u32,
+    /// Bytes the signed recipe may take (the slot less its header).
+    pub max_bytes: usize,
+}
+
+/// The drift alarm's limit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DriftLimit {
+    /// This many standard deviations of the EWMA of the reference's line means.
+    Sigmas(f64),
+    /// A fixed limit, GU.
+    Gu(f64),
+}
+
+impl Default for TeachSpec {
+    fn default() -> Self {
+        Self {
+            false_call_rate: 1e-4,
+            windows: [Window::Absolute(-1.5, 1.5), Window::Off, Window::Off],
+            min_pixels: 3,
+            min_lines: 1,
+            hysteresis: 0.7,
+            ewma_lambda: 0.1,
+            drift_limit: DriftLimit::Sigmas(4.0),
+            pulse_us: 25_000,
+            delay: (0, DelayUnit::Lines),
+            version: 1,
+            max_bytes: brdf_meter::shape::board::RECIPE_SLOT_LEN as usize
+                - brdf_meter::store::SLOT_HEADER_LEN
+                - brdf_meter::signed::TRAILER_LEN,
+        }
+    }
+}
+
+/// What teaching found, for the user.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TeachReport {
+    /// Lines taught.
+    pub lines: usize,
+    /// Groups.
+    pub groups: usize,
+    /// The distance threshold (to enter, `d2`).
+    pub threshold: f32,
+    /// Per reading, the median over pixels of its standard deviation in
+    /// the reference (NaN: no reading).
+    pub reading_sd: [f64; READINGS],
+    /// Per reading, the reference's mean over the line.
+    pub reading_mean: [f64; READINGS],
+    /// The windows as changes, in the readings' units.
+    pub windows: [[f32; 2]; READINGS],
+    /// Teach quality: the smallest window half-width over 3 standard
+    /// deviations of the reference's own noise (>= 1: the tolerance stands
+    /// beyond the reference's +-3 sd).
+    pub quality: f64,
+    /// Pixels with no gloss reading (their windows cannot apply).
+    pub no_reading_pixels: usize,
+    /// Share of the reference's points the calibration flags out of prior.
+    pub out_of_prior: f64,
+    /// The drift alarm's limit, GU.
+    pub drift_limit_gu: f32,
+    /// Recipe bytes (unsigned).
+    pub bytes: usize,
+}
+
+/// A taught recipe.
+pub struct Taught {
+    /// The recipe's contents.
+    pub data: RecipeData,
+    /// The recipe's bytes (unsigned).
+    pub bytes: Vec<u8>,
+    /// What teaching found.
+    pub report: TeachReport,
+}
+
+/// Teaches a recipe from `lines` of the reference through `model`.
+pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyhow::Result<Taught> {
+    let p = model.pixels();
+    let n = lines.len();
+    anyhow::ensure!(
+        n >= MIN_LINES,
+        "{n} lines of the reference are too few to teach from: measure at least {MIN_LINES} (the covariance of {M} readings per pixel needs them)"
+    );
+    // Refusals: an unreadable or out-of-prior reference.
+    const UNREADABLE: u8 = flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE;
+    let bad: Vec<usize> =
+        (0..p).filter(|&px| lines.iter().filter(|l| l.flags[px] & UNREADABLE != 0).count() * 100 > n).collect();
+    anyhow::ensure!(
+        bad.is_empty(),
+        "the reference is saturated, under-exposed or not finite at {} pixel(s) ({}): a recipe cannot be taught on readings the device cannot read; check the sample, the exposure and the calibration",
+        bad.len(),
+        pixel_list(&bad)
+    );
+    let mut oop = 0usize;
+    for l in lines {
+        oop += (0..p).filter(|&px| model.out_of_prior(px, &l.v[px])).count();
+    }
+    let oop_share = oop as f64 / (n * p) as f64;
+    anyhow::ensure!(
+        oop_share <= MAX_OUT_OF_PRIOR,
+        "the calibration flags {:.0} % of the reference's points out of its prior (at most {:.0} % allowed): it cannot read this sample reliably; calibrate on a prior that holds it",
+        100.0 * oop_share,
+        100.0 * MAX_OUT_OF_PRIOR
+    );
+    // Normalised readings, per pixel: mean and sd. The line scale is the
+    // device's (`brdf_meter::inspect::decide::line_scale`): 1 over the
+    // median of the pixels' sums over their reference's; the reference
+    // sums are the normalised means' own, so two rounds settle them.
+    let sums: Vec<Vec<f64>> =
+        lines.iter().map(|l| l.v.iter().map(|v| v.iter().map(|x| *x as f64).sum()).collect()).collect();
+    let mut reference: Vec<f64> = (0..p).map(|px| sums.iter().map(|s| s[px]).sum::<f64>() / n as f64).collect();
+    let mut scales = vec![1.0f64; n];
+    for _ in 0..2 {
+        for (k, s) in sums.iter().enumerate() {
+            let mut r: Vec<f64> = (0..p).map(|px| s[px] / reference[px]).filter(|x| x.is_finite()).collect();
+            r.sort_by(f64::total_cmp);
+            scales[k] = 1.0 / r[r.len() / 2];
+        }
+        reference = (0..p).map(|px| sums.iter().zip(&scales).map(|(s, k)| k * s[px]).sum::<f64>() / n as f64).collect();
+    }
+    // Per line and pixel, the normalised readings.
+    let normed: Vec<Vec<SVector<f64, M>>> =
+        lines.iter().zip(&scales).map(|(l, k)| l.v.iter().map(|v| v.map(|x| x as f64) * *k).collect()).collect();
+    let mean: Vec<SVector<f64, M>> =
+        (0..p).map(|px| normed.iter().map(|l| l[px]).sum::<SVector<f64, M>>() / n as f64).collect();
+    let sd: Vec<SVector<f64, M>> = (0..p)
+        .map(|px| {
+            let ss = normed.iter().map(|l| (l[px] - mean[px]).map(|x| x * x)).sum::<SVector<f64, M>>();
+            (ss / (n - 1) as f64).map(f64::sqrt)
+        })
+        .collect();
+    // The device computes with the f32 mean: its sum is the reference scale.
+    let mean32: Vec<[f32; M]> = mean.iter().map(|m| core::array::from_fn(|i| m[i] as f32)).collect();
+    // Groups: the calibration's zones, merged evenly until the recipe fits.
+    let zone_starts: Vec<usize> =
+        (0..p).filter(|&px| px == 0 || model.blob().zone_of_pixel(px) != model.blob().zone_of_pixel(px - 1)).collect();
+    let mut groups = zone_starts.len();
+    while groups > 1 && recipe::recipe_len(p, M, groups) > spec.max_bytes {
+        groups -= 1;
+    }
+    let starts: Vec<usize> =
+        if groups == zone_starts.len() { zone_starts } else { (0..groups).map(|g| g * p / groups).collect() };
+    anyhow::ensure!(
+        recipe::recipe_len(p, M, groups) <= spec.max_bytes,
+        "a recipe for {p} pixels needs {} bytes, more than the slot's {}",
+        recipe::recipe_len(p, M, groups),
+        spec.max_bytes
+    );
+    let ends: Vec<usize> = starts.iter().skip(1).copied().chain([p]).collect();
+    // Per pixel, the gloss readings' gradient at the reference (device's own readings).
+    let gradient = |px: usize| -> DMatrix<f64> {
+        let mut j = DMatrix::zeros(READINGS, M);
+        for i in 0..M {
+            let h = 1e-3 * mean[px][i].abs().max(1e-3);
+            let at = |s: f64| {
+                let mut v = mean[px];
+                v[i] += s * h;
+                model.estimate(px, &v.map(|x| x as f32)).readings
+            };
+            let (a, b) = (at(1.0), at(-1.0));
+            for r in 0..READINGS {
+                j[(r, i)] = (a[r] as f64 - b[r] as f64) / (2.0 * h);
+            }
+        }
+        j
+    };
+    let grads: Vec<DMatrix<f64>> = (0..p).map(gradient).collect();
+    let has_reading = |px: usize| grads[px].iter().all(|x| x.is_finite());
+    let mut group_values = Vec::with_capacity(groups);
+    for (&a, &b) in starts.iter().zip(&ends) {
+        // Pooled correlation of the first m - 1 standardised readings.
+        let d = M - 1;
+        let mut r = DMatrix::<f64>::zeros(d, d);
+        let mut count = 0usize;
+        for px in a..b {
+            for l in &normed {
+                let f = l[px];
+                let z: Vec<f64> = (0..d).map(|i| (f[i] - mean[px][i]) / sd[px][i]).collect();
+                for i in 0..d {
+                    for k in 0..d {
+                        r[(i, k)] += z[i] * z[k];
+                    }
+                }
+                count += 1;
+            }
+        }
+        r /= (count - 1) as f64;
+        let chol = r.clone().cholesky().ok_or_else(|| {
+            anyhow::anyhow!("pixels {a}..{b}: the reference's readings are degenerate (a reading constant over every line); the sensor may be saturated or dark")
+        })?;
+        let linv = chol.l().solve_lower_triangular(&DMatrix::identity(d, d)).expect("a Cholesky factor is regular");
+        let mut values = Vec::with_capacity(group_len(M));
+        for i in 0..d {
+            for k in 0..=i {
+                values.push(linv[(i, k)] as f32);
+            }
+        }
+        let with: Vec<usize> = (a..b).filter(|&px| has_reading(px)).collect();
+        for r in 0..READINGS {
+            for i in 0..M {
+                let g = if with.is_empty() {
+                    0.0
+                } else {
+                    with.iter().map(|&px| grads[px][(r, i)]).sum::<f64>() / with.len() as f64
+                };
+                values.push(g as f32);
+            }
+        }
+        group_values.push(values);
+    }
+    let group_of = |px: usize| starts.iter().rposition(|&s| s <= px).expect("group 0 starts at 0");
+    // The readings' change per line and pixel through the recipe's gradient (for sd and drift).
+    let delta = |l: &[SVector<f64, M>], px: usize| -> [f64; READINGS] {
+        let f = l[px];
+        let g = &group_values[group_of(px)];
+        let off = (M - 1) * M / 2;
+        core::array::from_fn(|r| (0..M).map(|i| g[off + r * M + i] as f64 * (f[i] - mean[px][i])).sum())
+    };
+    let with_reading: Vec<usize> = (0..p).filter(|&px| has_reading(px)).collect();
+    let mut reading_sd = [f64::NAN; READINGS];
+    let mut reading_mean = [f64::NAN; READINGS];
+    if !with_reading.is_empty() {
+        for r in 0..READINGS {
+            let mut sds: Vec<f64> = with_reading
+                .iter()
+                .map(|&px| (normed.iter().map(|l| delta(l, px)[r].powi(2)).sum::<f64>() / (n - 1) as f64).sqrt())
+                .collect();
+            sds.sort_by(f64::total_cmp);
+            reading_sd[r] = sds[sds.len() / 2];
+            reading_mean[r] = with_reading
+                .iter()
+                .map(|&px| model.estimate(px, &mean[px].map(|x| x as f32)).readings[r] as f64)
+                .sum::<f64>()
+                / with_reading.len() as f64;
+        }
+    }
+    let windows: [[f32; 2]; READINGS] = core::array::from_fn(|r| match spec.windows[r] {
+        Window::Off => [f32::NEG_INFINITY, f32::INFINITY],
+        Window::Absolute(lo, hi) => [lo as f32, hi as f32],
+        Window::Relative(lo, hi) => {
+            [(lo / 100.0 * reading_mean[r].abs()) as f32, (hi / 100.0 * reading_mean[r].abs()) as f32]
+        }
+    });
+    let quality = (0..READINGS)
+        .filter(|&r| windows[r][0].is_finite() || windows[r][1].is_finite())
+        .map(|r| (windows[r][0].abs().min(windows[r][1].abs()) as f64) / (3.0 * reading_sd[r]))
+        .fold(f64::INFINITY, f64::min);
+    // Drift: the weighted line mean of the gloss change.
+    let w = if with_reading.is_empty() { 0.0 } else { 1.0 / with_reading.len() as f64 };
+    let line_means: Vec<f64> =
+        normed.iter().map(|l| with_reading.iter().map(|&px| w * delta(l, px)[0]).sum()).collect();
+    let lm = line_means.iter().sum::<f64>() / n as f64;
+    let line_sd = (line_means.iter().map(|x| (x - lm).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    let lambda = spec.ewma_lambda as f64;
+    let drift_limit = match spec.drift_limit {
+        DriftLimit::Gu(g) => g,
+        DriftLimit::Sigmas(k) => k * line_sd * (lambda / (2.0 - lambda)).sqrt(),
+    };
+    let drift_limit = if drift_limit > 0.0 && drift_limit.is_finite() { drift_limit } else { f64::from(f32::MAX) };
+    // The distance threshold from the false-call rate.
+    let q = (spec.false_call_rate / p as f64).powf(1.0 / spec.min_pixels.max(1) as f64);
+    let nf = n as f64;
+    let hotelling = (nf + 1.0) * (nf - 1.0) / (nf * (nf - (M - 1) as f64));
+    let threshold = (chi_square_quantile((M - 1) as f64, 1.0 - q) * hotelling) as f32;
+    let pixel_values = (0..p)
+        .map(|px| {
+            let mut v = Vec::with_capacity(pixel_len(M));
+            v.extend_from_slice(&mean32[px]);
+            v.extend((0..M - 1).map(|i| (1.0 / sd[px][i]) as f32));
+            v.push(1.0 / mean32[px].iter().sum::<f32>());
+            v.push(if has_reading(px) { w as f32 } else { 0.0 });
+            v
+        })
+        .collect();
+    let settings = RecipeSettings {
+        calibration_crc: model.blob().crc(),
+        version: spec.version,
+        threshold_on: threshold,
+        threshold_off: threshold * spec.hysteresis,
+        min_pixels: spec.min_pixels,
+        min_lines: spec.min_lines,
+        ewma_lambda: spec.ewma_lambda,
+        ewma_limit: drift_limit as f32,
+        pulse_us: spec.pulse_us,
+        delay: spec.delay.0,
+        delay_unit: spec.delay.1,
+        window_hysteresis: spec.hysteresis,
+        windows,
+        teach_quality: if quality.is_finite() { quality as f32 } else { 0.0 },
+        teach_lines: n as u32,
+    };
+    let data = RecipeData {
+        pixels: p,
+        m: M,
+        group_starts: starts.iter().map(|&s| s as u16).collect(),
+        group_values,
+        pixel_values,
+        settings,
+    };
+    let bytes = recipe::write(&data)
+        .map_err(|e| anyhow::anyhow!("the taught recipe is invalid ({e:?}): {:?}", data.settings))?;
+    let report = TeachReport {
+        lines: n,
+        groups,
+        threshold,
+        reading_sd,
+        reading_mean,
+        windows,
+        quality,
+        no_reading_pixels: p - with_reading.len(),
+        out_of_prior: oop_share,
+        drift_limit_gu: drift_limit as f32,
+        bytes: bytes.len(),
+    };
+    Ok(Taught { data, bytes, report })
+}
+
+fn pixel_list(px: &[usize]) -> String {
+    let shown: Vec<String> = px.iter().take(8).map(|p| p.to_string()).collect();
+    if px.len() > 8 { format!("{}, ...", shown.join(", ")) } else { shown.join(", ") }
+}
+
+/// The chi-square distribution's quantile: x with `P(X <= x) = prob` for
+/// `k` degrees of freedom (bisection on the regularised lower incomplete gamma).
+pub fn chi_square_quantile(k: f64, prob: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0f64, k.max(1.0));
+    while upper_gamma(k / 2.0, hi / 2.0) > 1.0 - prob {
+        hi *= 2.0;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if upper_gamma(k / 2.0, mid / 2.0) > 1.0 - prob {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The regularised upper incomplete gamma `Q(a, x)` (series below `a + 1`,
+/// Lentz's continued fraction above; accurate to ~1e-14 relative, enough
+/// for tail probabilities down to 1e-300).
+fn upper_gamma(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let ln_front = -x + a * x.ln() - ln_gamma(a);
+    if x < a + 1.0 {
+        let (mut sum, mut term, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..1000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        1.0 - sum * ln_front.exp()
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..1000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        h * ln_front.exp()
+    }
+}
+
+/// ln Gamma(x), Lanczos (g = 7, 9 terms).
+fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chi_square_quantiles_match_the_tables() {
+        // Published values: chi2(6) at 0.95 = 12.592, at 0.999 = 22.458; chi2(1) at 0.95 = 3.841.
+        for (k, p, x) in [(6.0, 0.95, 12.5916), (6.0, 0.999, 22.4577), (1.0, 0.95, 3.8415), (2.0, 1.0 - 1e-8, 36.841)] {
+            let got = chi_square_quantile(k, p);
+            assert!((got - x).abs() < 1e-3 * x, "chi2({k}) at {p}: {got}, table {x}");
+        }
+    }
+
+    #[test]
+    fn windows_parse_and_refuse_with_their_reason() {
+        assert_eq!("-2:2".parse::<Window>(), Ok(Window::Absolute(-2.0, 2.0)));
+        assert_eq!("-5%:5%".parse::<Window>(), Ok(Window::Relative(-5.0, 5.0)));
+        assert_eq!("off".parse::<Window>(), Ok(Window::Off));
+        assert!("1:2".parse::<Window>().unwrap_err().contains("must hold the reference"));
+        assert!("2".parse::<Window>().unwrap_err().contains("expected LO:HI"));
+    }
+}

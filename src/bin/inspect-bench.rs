@@ -1,0 +1,165 @@
+//! Inspection bench firmware for QEMU (b-l475e-iot01a): what the device runs
+//! for an inspected line between the last LED frame and the verdict, stage
+//! by stage, on real data, so that `scripts/inspect-bench.sh` can count each
+//! stage's instructions exactly from QEMU's execution trace (as the line
+//! bench does) and `host-tools inspect bench` can report the decision
+//! latency and the decision's cost against the estimation path.
+//!
+//! Input: `target/inspect-bench/data.bin` (written by `host-tools inspect
+//! bench`), read over semihosting: the board's shape (P = 128), a trained
+//! calibration, a recipe taught for it, and two lines of raw frames (a
+//! defect-free one, one with a defect). Per line, between calls of
+//! [`bench_mark`]:
+//! - `correct`: `acquire::correct_line` (in the acquisition task, after the
+//!   last LED frame);
+//! - `decide`: `Inspector::line` (distance, windows, runs, drift; the
+//!   calibration's out-of-prior question at the points out);
+//! - `frame`: the verdict's frame (postcard, CRC, COBS: `protocol::encode`);
+//! - `estimate`: `Calibration::estimate_point` for every point: the
+//!   estimation path a measurement runs instead, for the comparison.
+#![no_std]
+#![no_main]
+
+use brdf_meter::acquire::{MAX_SHORT_EXPOSURES, RawLine, correct_line};
+use brdf_meter::blob::BlobView;
+use brdf_meter::estimate::{Calibration, ZoneMatrix};
+use brdf_meter::inspect::{Inspector, RecipeView};
+use brdf_meter::nalgebra::SVector;
+use brdf_meter::protocol::{self, MAX_FRAME, Response, flags};
+use brdf_meter::shape;
+use brdf_meter::store::SlotInfo;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::debug;
+
+#[path = "bench_io/mod.rs"]
+mod bench_io;
+use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
+
+const N: usize = shape::BINS;
+const M: usize = shape::LEDS;
+const P: usize = shape::board::PIXELS;
+const DATA_LEN: usize = 56 * 1024;
+
+static mut DATA: Aligned<DATA_LEN> = Aligned([0; DATA_LEN]);
+static mut RAM: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
+    [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
+static mut INSPECTOR: Inspector<P> = Inspector::new();
+static mut OUT: [u8; MAX_FRAME] = [0; MAX_FRAME];
+
+/// Names the segments (first pass) or marks them (second pass).
+fn at(marking: bool, line: usize, stage: &[u8]) {
+    if marking {
+        bench_mark();
+    } else {
+        let mut l = Line::new();
+        l.push(b"SEG ");
+        l.num(line as u32);
+        l.push(b" ");
+        l.push(stage);
+        l.end();
+    }
+}
+
+fn u32_at(d: &[u8], at: usize) -> usize {
+    u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
+}
+
+/// Bytes of one line in the data: every exposure level's dark and LED frames.
+const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
+
+/// One line's frames, the shorter exposures as taken (the correction reads
+/// them only where the long one saturated, as on the device).
+fn raw_line(frames: &[u8]) -> RawLine<M, P> {
+    let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
+    let mut raw = RawLine::<M, P>::new();
+    for p in 0..P {
+        raw.dark[p] = px(0, p);
+        for i in 0..M {
+            raw.lit[i][p] = px(1 + i, p);
+        }
+        for l in 0..MAX_SHORT_EXPOSURES {
+            let base = (l + 1) * (M + 1);
+            raw.short_dark[l][p] = px(base, p);
+            for i in 0..M {
+                raw.short[l][i][p] = px(base + 1 + i, p);
+                raw.short_taken[l][i] = true;
+            }
+        }
+    }
+    raw
+}
+
+#[entry]
+fn main() -> ! {
+    // SAFETY: single-threaded firmware, no interrupts use these statics.
+    let (data, ram, inspector, out) = unsafe {
+        (
+            &mut (*core::ptr::addr_of_mut!(DATA)).0,
+            &mut *core::ptr::addr_of_mut!(RAM),
+            &mut *core::ptr::addr_of_mut!(INSPECTOR),
+            &mut *core::ptr::addr_of_mut!(OUT),
+        )
+    };
+    let n = read_file(b"target/inspect-bench/data.bin\0", data);
+    let data: &'static [u8] = &data[..n];
+    if n < 24 || &data[..4] != b"IBD1" || u32_at(data, 4) != P {
+        fail(b"inspect-bench: no data for P = 128 (run `host-tools inspect bench`)");
+    }
+    let full_scale = u32_at(data, 8) as u16;
+    let (blob_len, recipe_len, frames_len) = (u32_at(data, 12), u32_at(data, 16), u32_at(data, 20));
+    let blob = &data[24..24 + blob_len];
+    let recipe_at = 24 + blob_len.div_ceil(4) * 4;
+    let recipe = &data[recipe_at..recipe_at + recipe_len];
+    let frames_at = recipe_at + recipe_len.div_ceil(4) * 4;
+    let frames = &data[frames_at..frames_at + frames_len];
+    let view = BlobView::parse(blob).unwrap_or_else(|_| fail(b"inspect-bench: bad blob"));
+    let mut cal = Calibration::<N, M, P>::new(ram);
+    if cal.load(&view, SlotInfo { slot: 0, sequence: 1, blob_len: blob.len() as u32, blob_crc: 0 }).is_err() {
+        fail(b"inspect-bench: the blob does not fit this build");
+    }
+    let recipe = RecipeView::parse(recipe).unwrap_or_else(|_| fail(b"inspect-bench: bad recipe"));
+    let acq = brdf_meter::platform::timing::ACQUISITION;
+    let white = &cal.active().expect("loaded").white;
+    let lines = frames.len() / LINE_BYTES;
+    for marking in [false, true] {
+        for l in 0..lines {
+            let raw = raw_line(&frames[l * LINE_BYTES..]);
+            let mut v = [SVector::<f32, M>::zeros(); P];
+            let mut fl = [0u8; P];
+            at(marking, l, b"correct");
+            correct_line(&raw, white, full_scale, &acq, &mut v, &mut fl);
+            at(marking, l, b"decide");
+            let verdict = inspector.line(&recipe, l as u32, &v, &fl, |p| {
+                let mut rho = SVector::<f32, N>::zeros();
+                cal.estimate_point(p, &v[p], fl[p], &mut rho).flags & flags::OUT_OF_PRIOR != 0
+            });
+            at(marking, l, b"frame");
+            let n = protocol::encode(1, &Response::Verdict(verdict), out).unwrap_or(0);
+            core::hint::black_box(&out[..n]);
+            at(marking, l, b"estimate");
+            let mut rho = SVector::<f32, N>::zeros();
+            for p in 0..P {
+                core::hint::black_box(cal.estimate_point(p, &v[p], fl[p], &mut rho));
+            }
+            at(marking, l, b"end");
+            if !marking {
+                let mut s = Line::new();
+                s.push(b"VERDICT ");
+                s.num(l as u32);
+                s.push(if verdict.rejected() { b" reject " } else { b" good " });
+                s.num(n as u32);
+                s.end();
+            }
+        }
+    }
+    bench_mark();
+    let mut l = Line::new();
+    l.push(b"DONE");
+    l.end();
+    debug::exit(debug::EXIT_SUCCESS);
+    halt()
+}
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
+    fail(b"inspect-bench panic")
+}

@@ -1,0 +1,130 @@
+//! Inspection on the host simulation of the firmware: a recipe taught by
+//! host-tools is provisioned over the link (refused for another
+//! calibration, unsigned, or malformed; power cuts leave the old or the new
+//! recipe whole), the device inspects a scene with a scratch and sends one
+//! verdict per line, bit for bit the host's reference, drives its reject
+//! output, and a defect-free line costs at most 64 link bytes.
+use brdf_meter::blob::CRC32;
+use brdf_meter::inspect::RecipeStore;
+use brdf_meter::platform::host_sim::SimFlash;
+use brdf_meter::protocol::{DeviceError, Response};
+use host_tools::device::link::{Client, LinkError, frame_len};
+use system_tests::inspection::{bytes, fixture, host_verdicts, recipe_cal, scene_lines};
+use system_tests::sim::{P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
+
+fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
+    match r {
+        Err(LinkError::Device(e)) => e,
+        other => panic!("expected a device error, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output() {
+    let f = fixture();
+    let mut c = Client::new(SimDevice::boot_with_recipes(
+        SimFlash::new(2 * SLOT_LEN as usize),
+        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
+        4,
+    ))
+    .unwrap();
+    // No calibration yet: a recipe taught with one is refused.
+    assert_eq!(
+        device_error(c.provision_recipe(&f.recipe, |_, _| {})),
+        DeviceError::RecipeForOtherCalibration { recipe: recipe_cal(&f.recipe), active: 0 }
+    );
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    assert_eq!(device_error(c.inspect(1, false, &mut |_| {})), DeviceError::NoRecipe);
+    // Unsigned and malformed recipes are refused; the device keeps none.
+    let unsigned = &f.recipe[..f.recipe.len() - brdf_meter::signed::TRAILER_LEN];
+    assert!(matches!(device_error(c.provision_recipe(unsigned, |_, _| {})), DeviceError::SignatureRejected(_)));
+    let mut bad = unsigned.to_vec();
+    bad[16] = 7; // pixels: 7 (CRC made right, then signed): another device's shape
+    let n = bad.len();
+    let crc = CRC32.checksum(&bad[..n - 4]);
+    bad[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    let bad = host_tools::calibration::signing::sign_with_dev_key(&bad);
+    assert!(matches!(device_error(c.provision_recipe(&bad, |_, _| {})), DeviceError::RecipeRejected(_)));
+    let info = c.provision_recipe(&f.recipe, |_, _| {}).unwrap();
+    assert_eq!(info.calibration_crc, recipe_cal(&f.recipe));
+
+    // The scene: lines 60..64, the scratch on the 2nd and 4th; 8 lines cycle it twice.
+    let frames = scene_lines(&f);
+    c.load_scene(&frames).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    let run = c.inspect(8, true, &mut |_| {}).unwrap();
+    assert_eq!(run.verdicts.len(), 8);
+    // The host's reference, line after line with the same state.
+    for (k, (got, want)) in run.verdicts.iter().zip(host_verdicts(&f, &frames, 8, true)).enumerate() {
+        assert_eq!(bytes(got), bytes(&want), "line {k}: device {got:?}, host {want:?}");
+    }
+    let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
+    assert_eq!(rejected, [1, 3, 5, 7], "the scratch lines, and only them");
+    for v in run.verdicts.iter().filter(|v| v.rejected()) {
+        let r = v.runs.as_slice();
+        assert!(
+            r.iter().any(|r| r.first <= 12 && r.first + r.len >= 10),
+            "line {}: defects {r:?} miss pixels 10..12",
+            v.line
+        );
+    }
+    // The points of the rejected lines followed their verdicts.
+    assert_eq!(run.points.len(), 4 * P);
+    // Defect-free lines: one verdict frame each, at most 64 bytes.
+    for v in run.verdicts.iter().filter(|v| !v.rejected()) {
+        let n = frame_len(7, &Response::Verdict(*v));
+        assert!(n <= 64, "a defect-free line's verdict frame is {n} bytes");
+    }
+    // Reject pulses: reported on the link and seen on the output, 20 ms each.
+    let status = c.inspect_status().unwrap();
+    assert_eq!(status.counters.rejected, 4);
+    let edges = c.transport().reject.edges();
+    let highs: Vec<(u64, u64)> =
+        edges.windows(2).filter(|w| w[0].1 && !w[1].1).map(|w| (w[0].0, w[1].0 - w[0].0)).collect();
+    assert!(!highs.is_empty() && highs.len() == run.pulses.len(), "edges {edges:?}, pulses {:?}", run.pulses);
+    for ((start, len), p) in highs.iter().zip(&run.pulses) {
+        assert_eq!((*start, *len), (p.start_us, p.len_us as u64));
+        assert!(*len >= 20_000, "a pulse a PLC scanning every 10 ms cannot miss");
+    }
+}
+
+#[test]
+fn a_power_cut_while_provisioning_a_recipe_leaves_the_old_or_the_new_whole() {
+    let f = fixture();
+    let old = f.recipe.clone();
+    let mut new_body = old[..old.len() - brdf_meter::signed::TRAILER_LEN].to_vec();
+    new_body[24] ^= 1; // another version number
+    let n = new_body.len();
+    let crc = CRC32.checksum(&new_body[..n - 4]);
+    new_body[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    let new = host_tools::calibration::signing::sign_with_dev_key(&new_body);
+    let keys = brdf_meter::test_blobs::dev_trusted();
+    let open = |fl: SimFlash| RecipeStore::open(fl, RECIPE_SLOT_LEN, keys, |_| true);
+    let base = SimFlash::new(2 * RECIPE_SLOT_LEN as usize);
+    let provision = |st: &mut RecipeStore<SimFlash>, image: &[u8]| -> Result<(), ()> {
+        st.begin(image.len() as u32, CRC32.checksum(image)).map_err(|_| ())?;
+        let mut off = 0;
+        for c in image.chunks(512) {
+            off = st.write_chunk(off, c).map_err(|_| ())?;
+        }
+        st.commit(|_| Ok(())).map(|_| ()).map_err(|_| ())
+    };
+    provision(&mut open(base.clone()), &old).unwrap();
+    let whole = |fl: SimFlash| open(fl.reboot()).active_blob().map(|(_, v)| v.as_bytes().to_vec());
+    let (old_body, new_body) = (old[..old.len() - 80].to_vec(), new_body);
+    let mut cuts = 0;
+    for k in 0.. {
+        let fl = SimFlash::with_contents(base.contents());
+        let mut st = open(fl.clone());
+        fl.cut_after(k);
+        let done = provision(&mut st, &new).is_ok();
+        let found = whole(fl).expect("a whole recipe after every cut");
+        assert!(found == old_body || found == new_body, "cut after {k} steps");
+        if done {
+            assert_eq!(found, new_body);
+            break;
+        }
+        cuts += 1;
+    }
+    assert!(cuts > 100, "cut at every step ({cuts})");
+}
