@@ -189,10 +189,12 @@ fn help(args: &[&str]) -> Help {
             continue;
         }
         let t = line.trim_start();
-        if section == "Commands:" && line.starts_with("  ") && !line.starts_with("    ") {
-            if let Some(name) = t.split_whitespace().next() {
-                h.subcommands.insert(name.to_string());
-            }
+        if section == "Commands:"
+            && line.starts_with("  ")
+            && !line.starts_with("    ")
+            && let Some(name) = t.split_whitespace().next()
+        {
+            h.subcommands.insert(name.to_string());
         }
         if t.starts_with('-') {
             for word in t.split([' ', ',', '=', '[', '<']) {
