@@ -10,7 +10,7 @@
 #     first one committed, intact after the reset. Otherwise it says plainly
 #     why they were not run and succeeds: no board is attached to CI.
 #
-# probe-rs is not installed here (building it takes long): see README,
+# probe-rs is not installed here (building it takes long): see docs/guide/board.md,
 # "On-target tests". BOARD_TEST_CHIP overrides the chip (default STM32L475VGTx).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -50,7 +50,7 @@ echo "[board] built $elf"
 arm-none-eabi-size -B -d "$elf" 2>/dev/null | tail -1 || true
 
 if ! command -v probe-rs >/dev/null; then
-  echo "[board] SKIPPED running on the board: probe-rs is not installed (README, \"On-target tests\", says how)"
+  echo "[board] SKIPPED running on the board: probe-rs is not installed (docs/guide/board.md, \"On-target tests\", says how)"
   exit 0
 fi
 if ! probes=$(probe-rs list 2>&1); then

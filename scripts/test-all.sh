@@ -14,6 +14,10 @@ echo "[test] board tests: build for the chip; run only when a debug probe is att
 bash scripts/board-test.sh
 echo "[test] clippy on the host crates (-D warnings)"
 cargo clippy --workspace --release --all-targets -q -- -D warnings
+# The API docs: broken intra-doc links and bad markup fail the run (about a
+# minute and a half on a cold cache: rustdoc checks the dependencies' metadata).
+echo "[test] API docs (cargo doc, warnings denied)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps -q
 echo "[test] host, host simulation and QEMU tests"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

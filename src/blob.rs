@@ -118,8 +118,8 @@
 //! from 16 zones up (per-pixel matrices, 124 zones, are no better), while
 //! the calibration slot holds 16 zones x 4 clusters of the piecewise kind
 //! (184 KB) but not 32 x 4 (364 KB); the device's cost per point does not
-//! depend on the zones (a zone only selects a matrix). The README's
-//! "Every pixel its own calibration" has the table.
+//! depend on the zones (a zone only selects a matrix). docs/handheld.md
+//! ("A calibration that follows the pixel") has the table.
 //!
 //! # Compatibility rules
 //! - A parser accepts exactly the format versions it knows; a new field that

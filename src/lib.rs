@@ -34,7 +34,7 @@
 //!
 //! The firmware binaries (src/bin/) only wire a platform to [`app`].
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod acquire;
 #[cfg(feature = "app")]

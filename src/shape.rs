@@ -26,7 +26,7 @@ pub const FLASH_BASE: u32 = 0x0800_0000;
 pub const FLASH_SIZE: u32 = 1024 * 1024;
 
 /// The B-L475E-IOT01A board's flash map and sizes (memory.x holds the same
-/// map; the drawing is in memory.x and the README's "Firmware updates").
+/// map; the drawing is in memory.x and docs/guide/firmware-updates.md).
 ///
 /// Flash, in order: bootloader, boot state, active image, update (DFU)
 /// image, two inspection-recipe slots, two calibration slots. The QEMU

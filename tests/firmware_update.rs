@@ -314,7 +314,7 @@ fn flash_work(flash: &SimFlash, from: usize) -> (usize, usize) {
 /// The flash work of an update on the board's own partition sizes (80-page
 /// active image, 82-page update partition, 2-page state), counted on the
 /// NOR fake, priced with the STM32L475's datasheet times (page erase 22.02 ms,
-/// double word 81.69 us, typical): the figures the README's estimate of the
+/// double word 81.69 us, typical): the figures the firmware-updates guide's estimate of the
 /// board's update time uses. embassy-boot swaps the whole active partition,
 /// whatever the image's size.
 #[test]
@@ -329,7 +329,7 @@ fn a_board_sized_update_s_flash_work() {
             BlockingPartition::new(m, 0, BOOT_STATE_LEN),
         )
     };
-    // About today's board image (see the README's budget table).
+    // About today's board image (see the budget table in docs/guide/board.md).
     let (a, b) = (app_image(120 * 1024, 1, [1, 0, 0]), app_image(128 * 1024, 2, [2, 0, 0]));
     let mut mem = vec![0xFFu8; flash_len];
     mem[active_at as usize..active_at as usize + a.len()].copy_from_slice(&a);

@@ -1,7 +1,7 @@
 //! The estimator kernels: `rho = W v`, one matrix-vector product per point,
 //! in the forms the device runs and the host reproduces bit for bit.
 //!
-//! - [`f32`]: the f32 kernel (what the firmware runs per point; Cortex-M4F
+//! - [`f32`](mod@self::f32): the f32 kernel (what the firmware runs per point; Cortex-M4F
 //!   assembly for m = 7), on nalgebra's fixed-size types and on slices.
 //! - [`q15`]: the fixed-point (Q15) kernel, its quantisation and error bound.
 //! - [`cluster`]: the clustered estimator's choice of matrix per point.

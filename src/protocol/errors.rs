@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub enum FrameError {
     /// The COBS encoding is invalid.
     Cobs,
-    /// More bytes than [`MAX_FRAME`] before a delimiter.
+    /// More bytes than [`MAX_FRAME`](super::MAX_FRAME) before a delimiter.
     Oversized,
     /// Fewer bytes than the header declares (or than a header).
     Truncated {
@@ -31,7 +31,7 @@ pub enum FrameError {
     },
     /// The body is not a valid message (unknown variant, bad field, trailing bytes).
     Malformed,
-    /// The message does not fit [`MAX_PAYLOAD`] (sender side).
+    /// The message does not fit [`MAX_PAYLOAD`](super::MAX_PAYLOAD) (sender side).
     TooLarge,
 }
 
@@ -102,7 +102,7 @@ pub enum DeviceError {
         /// Offset received.
         got: u32,
     },
-    /// A chunk is larger than [`MAX_CHUNK`] or runs past the declared length.
+    /// A chunk is larger than [`MAX_CHUNK`](super::MAX_CHUNK) or runs past the declared length.
     ChunkTooLarge {
         /// Largest acceptable.
         max: u32,
@@ -123,7 +123,7 @@ pub enum DeviceError {
     },
     /// The received blob's CRC differs from the one declared at begin.
     CrcMismatch {
-        /// Declared at [`Request::ProvisionBegin`].
+        /// Declared at [`Request::ProvisionBegin`](super::Request::ProvisionBegin).
         declared: u32,
         /// Computed over the bytes stored in flash.
         computed: u32,

@@ -71,7 +71,7 @@ pub enum Request<'a> {
     ProvisionChunk {
         /// Byte offset of `data` in the blob.
         offset: u32,
-        /// At most [`MAX_CHUNK`] bytes.
+        /// At most [`MAX_CHUNK`](super::MAX_CHUNK) bytes.
         #[serde(borrow)]
         data: &'a [u8],
     },
@@ -124,7 +124,7 @@ pub enum Request<'a> {
     UpdateChunk {
         /// Byte offset of `data` in the image.
         offset: u32,
-        /// At most [`MAX_CHUNK`] bytes.
+        /// At most [`MAX_CHUNK`](super::MAX_CHUNK) bytes.
         #[serde(borrow)]
         data: &'a [u8],
     },

@@ -30,10 +30,10 @@
 //! encoding time on the device.
 //!
 //! # Where
-//! - [`messages`]: the requests, replies and streamed points, and what they carry.
-//! - [`errors`]: the typed errors that travel (frame, blob, device).
-//! - [`framing`]: header + CRC + COBS around a message, and the frame reader.
-//! - [`points`]: line frames (several points per frame), their per-point
+//! - `messages`: the requests, replies and streamed points, and what they carry.
+//! - `errors`: the typed errors that travel (frame, blob, device).
+//! - `framing`: header + CRC + COBS around a message, and the frame reader.
+//! - `points`: line frames (several points per frame), their per-point
 //!   records and value encodings (f32, Sigma16, readings).
 mod errors;
 mod framing;

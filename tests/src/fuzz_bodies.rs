@@ -159,7 +159,7 @@ impl Transport for Chunked<'_> {
 
 /// A byte stream (after a first byte giving how many chunk-size bytes follow)
 /// through the [`FrameReader`] byte by byte and through the host client in
-/// those chunk sizes: both must cut exactly the frames of [`model_cuts`], and
+/// those chunk sizes: both must cut exactly the frames of `model_cuts`, and
 /// every frame decodes or errors cleanly, the same way in both.
 pub fn frame_reader(data: &[u8]) {
     let Some((&k, rest)) = data.split_first() else { return };

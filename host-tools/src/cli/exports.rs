@@ -20,7 +20,7 @@ pub struct ExportArgs {
     #[arg(long, value_name = "FILE")]
     pub bird: Option<PathBuf>,
     /// Write every point as an ASTM E1392 table (BRDF in sr^-1); more than
-    /// one point: one file each, named STEM-l<line>-p<point>.EXT.
+    /// one point: one file each, named `STEM-l<line>-p<point>.EXT`.
     #[arg(long, value_name = "FILE")]
     pub astm: Option<PathBuf>,
     /// The instrument's view angle (deg): the scatter direction in the files,

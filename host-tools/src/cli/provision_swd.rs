@@ -31,7 +31,7 @@ pub struct Args {
     /// probe-rs chip name.
     #[arg(long, default_value = swd::CHIP)]
     pub chip: String,
-    /// Probe selector (VID:PID[:serial]) when several probes are attached.
+    /// Probe selector (`VID:PID[:serial]`) when several probes are attached.
     #[arg(long)]
     pub probe: Option<String>,
     /// Only write the slot image (header + blob) to this file for slot A,

@@ -20,7 +20,7 @@ pub enum Estimator {
     PseudoInverse,
     /// Inverse of a square H (claim 3).
     Inverse,
-    /// Linear interpolation between the LEDs' centre angles ([0004]).
+    /// Linear interpolation between the LEDs' centre angles (the patent's paragraph 0004).
     Interpolation,
     /// Scale-free affine Wiener: shape from readings / their sum, times the sum
     /// (format 2 blob, with the out-of-prior flag data).

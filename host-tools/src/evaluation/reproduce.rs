@@ -11,7 +11,7 @@
 //!    condition 2 (model integrates it), the Wiener estimator (eq. 22; the
 //!    f32 matrix through the device's kernel arithmetic), the noise-free
 //!    Wiener (eq. 20), the pseudo-inverse (claim 4) and linear interpolation
-//!    ([0004]).
+//!    (\[0004\]).
 //! 5. Error: `RMSE = sqrt(mean over patterns and bins of (est - true)^2)` of
 //!    the reflectance factor on the grid; `NRMSE = RMSE / sqrt(mean true^2)`.
 //! 6. Time: the estimation of all test patterns from their readings (the

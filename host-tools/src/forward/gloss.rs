@@ -136,7 +136,7 @@ const W_NODES_DEG: [f64; 15] = [-5.0, -3.0, -2.0, -1.5, -1.0, -0.5, -0.25, 0.0, 
 /// The four linear readings of the definitions in three dimensions (module
 /// docs): `int f_r cos(theta_i) d omega_i` over each window about the
 /// specular direction of the view `wo` (surface frame, unit), trapezoid
-/// rules over [`U_STEP_DEG`] in-plane and [`W_NODES_DEG`] across, plus a
+/// rules over `U_STEP_DEG` in-plane and `W_NODES_DEG` across, plus a
 /// mirror spike's Fresnel reflectance in the windows that hold the
 /// specular direction.
 pub fn model_linear_readings(brdf: &dyn Brdf, wo: &Vector3<f64>) -> [f64; LINEAR] {

@@ -2,8 +2,8 @@
 //! flash as ROM (its flash controller is a stub), so this NOR flash reads the
 //! memory-mapped bytes and refuses every erase and write. Enough for the
 //! bootloader's normal path (boot state Boot: nothing to write, start the
-//! active image); a swap cannot run here (see the README's "Firmware
-//! updates" for what QEMU shows and what it cannot).
+//! active image); a swap cannot run here (see docs/guide/firmware-updates.md
+//! for what QEMU shows and what it cannot).
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash};
 
 /// Why the ROM refused.

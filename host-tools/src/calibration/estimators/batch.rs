@@ -43,7 +43,7 @@ struct Aligned([f32; GROUP * STREAM_MAX_N]);
 pub struct BatchEstimator {
     n: usize,
     m: usize,
-    /// n rounded up to a multiple of [`LANES`].
+    /// n rounded up to a multiple of `LANES`.
     n_pad: usize,
     /// `wt[i * n_pad + j] = W[j][i]`, zero in the padding.
     wt: Vec<f32>,
@@ -83,7 +83,7 @@ impl BatchEstimator {
     /// Estimates `readings.len() / m` points: `readings` is points x m
     /// (row-major), `out` points x n.
     ///
-    /// Blocks of [`LANES`] outputs are accumulated in registers over the m
+    /// Blocks of `LANES` outputs are accumulated in registers over the m
     /// readings (`acc = 0; acc += w * v_i`, i ascending) and stored once.
     ///
     /// # Panics

@@ -1,4 +1,4 @@
-//! Linear interpolation between the measured angles (the patent's [0004]
+//! Linear interpolation between the measured angles (the patent's \[0004\]
 //! baseline).
 //!
 //! Reading i is taken as the reflectance factor at the incidence angle of

@@ -13,7 +13,7 @@
 //! | Wiener, noise-free (eq. 20) | [`wiener`] | `R_pp H^T (H R_pp H^T)^+` |
 //! | inverse (claim 3) | [`inverse`] | `H^-1`, H square and non-singular |
 //! | pseudo-inverse (claim 4) | [`pseudo_inverse`] | `H^+` by SVD |
-//! | interpolation ([0004]) | [`interpolation`] | linear interpolation between the LEDs' centre angles |
+//! | interpolation (\[0004\]) | [`interpolation`] | linear interpolation between the LEDs' centre angles |
 //!
 //! # Predicted uncertainty
 //! For any linear W, prior correlation `R_pp = <rho rho^T>` and noise

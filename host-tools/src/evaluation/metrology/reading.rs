@@ -2,7 +2,7 @@
 //! calibration exactly as the device reads it (`device::reference::
 //! PointEstimator`, bit for bit the firmware's arithmetic: estimate, per-bin
 //! uncertainty, gloss readings with theirs, flags) and by linear
-//! interpolation between the LEDs' centre angles (the patent's [0004]
+//! interpolation between the LEDs' centre angles (the patent's \[0004\]
 //! baseline), whose gloss readings are the definitions applied to its
 //! profile (`forward::gloss::profile_scaled_readings`).
 use crate::calibration::estimators::interpolation;
