@@ -97,7 +97,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("  (restart with --demo {blob} for a calibration trained for the simulated optics, or)");
         println!("  host-tools provision {link} --blob {blob}");
     }
-    println!("  host-tools measure {link} --blob {blob} --lines 4 --scene patent --csv out/m.csv --json out/m.json");
+    // The demo has loaded the scene its calibration was trained for;
+    // otherwise load the one a calibration from the README's tour is for.
+    let scene = if a.demo.is_some() { "" } else { " --scene scenes/handheld.toml" };
+    println!("  host-tools measure {link} --blob {blob} --lines 4{scene} --csv out/m.csv --json out/m.json");
     let st = q.wait()?;
     println!("QEMU stopped ({st}); {}", q.log_text().trim());
     Ok(())

@@ -127,6 +127,10 @@ pub struct CalibrationArgs {
     /// replaces --pixels. Never uses the scene's surface or noise draw.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["instrument", "far_field"])]
     pub scene: Option<PathBuf>,
+    /// With --scene: the scene's line cut to a device of this many pixels
+    /// about its centre (the QEMU instrument has 32), as `qemu --demo` does.
+    #[arg(long, value_name = "P", requires = "scene")]
+    pub device_pixels: Option<usize>,
 }
 
 /// Everything a [`TrainSpec`] borrows, owned: what [`CalibrationArgs`]
@@ -193,9 +197,14 @@ impl CalibrationArgs {
             };
             return patent.setup();
         }
-        let scene = match &self.scene {
-            Some(p) => Some(crate::forward::scene::Scene::load(p)?),
-            None => None,
+        let scene = match (&self.scene, self.device_pixels) {
+            (Some(p), None) => Some(crate::forward::scene::Scene::load(p)?),
+            (Some(p), Some(n)) => Some(
+                crate::forward::scene::Scene::load(p)?
+                    .for_device(n)
+                    .with_context(|| format!("--device-pixels {n} with --scene {}", p.display()))?,
+            ),
+            (None, _) => None,
         };
         if let Some(x) = self.noise
             && (!x.is_finite() || !(0.0..1.0).contains(&x))
@@ -390,6 +399,7 @@ pub(crate) mod tests {
                 false_alarm: 0.05,
                 form: None,
                 patent: false,
+                device_pixels: None,
             },
             sign: None,
         }
@@ -459,6 +469,27 @@ pub(crate) mod tests {
             assert!(e.contains(want), "{e:?} should mention {want:?}");
             assert!(!dir.path().join("out").exists(), "output written despite: {e}");
         }
+    }
+
+    #[test]
+    fn device_pixels_cut_the_scene_to_the_device_as_the_qemu_demo_does() {
+        use clap::Parser;
+        let dir = tempfile::tempdir().unwrap();
+        let blob = dir.path().join("cal.blob");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml");
+        let args = ["host-tools", "train", "--scene", path.to_str().unwrap(), "--device-pixels", "32", "--out"];
+        let cli = crate::cli::Cli::try_parse_from(args.iter().copied().chain([blob.to_str().unwrap()])).unwrap();
+        crate::cli::run(cli).unwrap();
+        let bytes = std::fs::read(&blob).unwrap();
+        let v = brdf_meter::blob::BlobView::parse(&bytes).unwrap();
+        assert_eq!(v.dims().pixels, 32);
+        // The white reference is the cut scene's, pixel for pixel.
+        let cut = crate::forward::scene::Scene::load(&path).unwrap().for_device(32).unwrap();
+        let white = crate::forward::scene::white_reference(&cut).unwrap();
+        assert_eq!(v.white(31, 6), white[31 * 7 + 6]);
+        // Without a scene there is nothing to cut.
+        let e = crate::cli::Cli::try_parse_from(["host-tools", "train", "--device-pixels", "32"]).unwrap_err();
+        assert!(e.to_string().contains("--scene"), "{e}");
     }
 
     #[test]
