@@ -48,23 +48,8 @@ fn bench(c: &mut Criterion) {
     g.bench_function("blob_8_zones", |b| {
         b.iter(|| {
             let zones = uniform_zones(&inst, &grid, 8, 128, false, 0.02).unwrap();
-            train(&TrainSpec {
-                bins_deg: grid.bins_deg(),
-                zones,
-                pixels: 128,
-                view_deg: inst.view_deg,
-                prior: &models,
-                noise_rel: 0.02,
-                estimator: EstimatorKind::Wiener,
-                criterion: host_tools::forward::pairs::Criterion::Plain,
-                false_alarm: 0.05,
-                clusters: None,
-                far_field: false,
-                led_order: None,
-                white: None,
-                root: false,
-            })
-            .unwrap()
+            train(&TrainSpec::new(grid.bins_deg(), zones, 128, inst.view_deg, &models, 0.02, EstimatorKind::Wiener))
+                .unwrap()
         })
     });
     g.finish();

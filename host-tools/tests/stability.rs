@@ -21,7 +21,6 @@ use host_tools::evaluation::stability::solvers::{
 use host_tools::evaluation::stability::{CaseReport, Family, Production, check_case, device_kernel, generate};
 use host_tools::forward::grid::AngleGrid;
 use host_tools::forward::optics::Instrument;
-use host_tools::forward::pairs::Criterion;
 use host_tools::forward::prior::{Prior, PriorSpec};
 use host_tools::forward::prior_models::{PriorModels, PriorSample, SampleModel};
 use host_tools::forward::reading_noise::ReadingNoise;
@@ -233,22 +232,7 @@ fn spec<'a>(
     noise: f64,
     kind: EstimatorKind,
 ) -> TrainSpec<'a> {
-    TrainSpec {
-        bins_deg: bins,
-        zones,
-        pixels: 16,
-        view_deg: 45.0,
-        prior: profiles(prior),
-        noise_rel: noise,
-        estimator: kind,
-        criterion: Criterion::Plain,
-        false_alarm: 0.05,
-        clusters: None,
-        far_field: false,
-        led_order: None,
-        white: None,
-        root: host_tools::calibration::train::Form::default_for(kind) == host_tools::calibration::train::Form::Root,
-    }
+    TrainSpec::new(bins, zones, 16, 45.0, profiles(prior), noise, kind)
 }
 
 #[test]
@@ -378,20 +362,17 @@ fn scene_library_hard_cases_stay_stable() {
         assert!(r.failures.is_empty(), "{}: {:?}", scene.name, r.failures);
         let optics = training_optics(&scene, 2.min(inst.pixels()), Some(noise)).unwrap();
         let spec = TrainSpec {
-            bins_deg: grid.bins_deg(),
-            zones: optics.zones,
-            pixels: optics.pixels,
-            view_deg: inst.view_deg,
-            prior: profiles(&prior),
-            noise_rel: noise,
-            estimator: EstimatorKind::Wiener,
-            criterion: Criterion::Plain,
-            false_alarm: 0.05,
-            clusters: None,
-            far_field: false,
-            led_order: None,
             white: Some(optics.white),
             root: false,
+            ..TrainSpec::new(
+                grid.bins_deg(),
+                optics.zones,
+                optics.pixels,
+                inst.view_deg,
+                profiles(&prior),
+                noise,
+                EstimatorKind::Wiener,
+            )
         };
         match train(&spec) {
             Ok(t) => {

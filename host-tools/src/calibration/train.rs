@@ -75,6 +75,39 @@ pub struct TrainSpec<'a> {
     pub white: Option<Vec<f32>>,
 }
 
+impl<'a> TrainSpec<'a> {
+    /// A specification with the settings a caller rarely changes: the
+    /// plain criterion, a 5 % false-alarm rate, the cluster count by
+    /// cross-validation, the kind's default form, near-field optics, LEDs
+    /// fired in order and a sensor already white-normalised.
+    pub fn new(
+        bins_deg: &'a [f64],
+        zones: Vec<ZoneOptics>,
+        pixels: usize,
+        view_deg: f64,
+        prior: &'a PriorModels,
+        noise_rel: f64,
+        estimator: EstimatorKind,
+    ) -> Self {
+        Self {
+            bins_deg,
+            zones,
+            pixels,
+            view_deg,
+            prior,
+            noise_rel,
+            estimator,
+            criterion: Criterion::Plain,
+            false_alarm: 0.05,
+            clusters: None,
+            root: Form::default_for(estimator) == Form::Root,
+            far_field: false,
+            led_order: None,
+            white: None,
+        }
+    }
+}
+
 /// The form a calibration is trained in (`brdf_meter::blob`'s root form).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Form {
@@ -861,22 +894,7 @@ mod tests {
         let zs = uniform_zones(&inst, grid, zones, pixels, false, 0.02).unwrap();
         let bins: &'static [f64] = Box::leak(grid.bins_deg().to_vec().into_boxed_slice());
         let prior: &'static PriorModels = Box::leak(Box::new(prior.clone()));
-        TrainSpec {
-            bins_deg: bins,
-            zones: zs,
-            pixels,
-            view_deg: inst.view_deg,
-            prior,
-            noise_rel: 0.02,
-            estimator: kind,
-            criterion: Criterion::Plain,
-            false_alarm: 0.05,
-            clusters: None,
-            far_field: false,
-            led_order: None,
-            white: None,
-            root: false,
-        }
+        TrainSpec::new(bins, zs, pixels, inst.view_deg, prior, 0.02, kind)
     }
 
     fn patent_prior(grid: &AngleGrid) -> PriorModels {

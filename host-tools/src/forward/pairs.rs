@@ -87,18 +87,7 @@ impl PixelOptics {
             r.iter_mut().for_each(|x| x.weight /= total);
             rays.push(r);
         }
-        Ok(Self {
-            pixel,
-            theta_o_deg: view.z.clamp(-1.0, 1.0).acos().to_degrees(),
-            view,
-            h,
-            centres_deg,
-            noise,
-            standard: None,
-            rays: (!planar).then_some(rays),
-            bins: grid.bins_deg().to_vec(),
-            step_deg: grid.step_deg(),
-        })
+        Ok(Self { rays: (!planar).then_some(rays), ..Self::from_h(pixel, h, view, centres_deg, noise, grid) })
     }
 
     /// In-plane optics known only by their system matrix `h` (m x n on

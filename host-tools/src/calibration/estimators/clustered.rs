@@ -120,19 +120,7 @@ pub fn kmeans(points: &[Vec<f64>], k: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<u
 impl Clustered {
     /// Trains K clusters from `prior`'s samples for system `h` (m x n) and
     /// relative noise `noise_rel`; `margin` widens each cluster's training set
-    /// (0 = exactly its own samples).
-    pub fn train(
-        prior: &Prior,
-        h: &DMatrix<f64>,
-        noise_rel: f64,
-        k: usize,
-        margin: f64,
-        seed: u64,
-    ) -> anyhow::Result<Self> {
-        Self::train_with(prior, h, noise_rel, k, margin, seed, false)
-    }
-
-    /// [`Clustered::train`], optionally in the affine form: each cluster's
+    /// (0 = exactly its own samples). With `affine`, each cluster's
     /// matrix is the Wiener matrix of the cluster's covariance about its mean
     /// `mu_c` (noise `s^2 diag(H R_pp H^T)` of its non-centred correlation),
     /// and `b_c = mu_c - W_c H mu_c` is added (the linear minimum-MSE
@@ -310,7 +298,7 @@ mod tests {
         }
         let samples = DMatrix::from_fn(n, cols.len(), |j, s| cols[s][j]);
         let prior = Prior::from_samples(samples).unwrap();
-        let c = Clustered::train(&prior, &h, 0.0, 3, 0.0, 7).unwrap();
+        let c = Clustered::train_with(&prior, &h, 0.0, 3, 0.0, 7, false).unwrap();
         assert_eq!(c.k(), 3);
         let fam = |f: usize, a: f32| -> Vec<f32> {
             match f {

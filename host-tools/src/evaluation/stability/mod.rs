@@ -2,7 +2,7 @@
 //! hard-case families ([`families`]), the invariants every case must satisfy
 //! with their stated tolerances ([`invariants`]), the solvers under test
 //! including deliberately broken ones ([`solvers`]), and a runner that
-//! summarises many cases per family ([`run`]).
+//! summarises many cases per family ([`run_observed`]).
 //!
 //! Used by the property tests (`host-tools/tests/stability.rs`, a fixed-seed
 //! subset in the normal test run) and by the long run:
@@ -129,20 +129,8 @@ impl FamilySummary {
 }
 
 /// Runs `cases` cases of each family (seeds `first_seed..first_seed + cases`)
-/// on `threads` threads; calls `each` with every report (e.g. to collect failures).
-pub fn run(
-    families: &[Family],
-    cases: usize,
-    first_seed: u64,
-    solver: &dyn Solver,
-    kernel: DeviceKernel,
-    threads: usize,
-) -> (RunSummary, Vec<CaseReport>) {
-    run_observed(families, cases, first_seed, solver, kernel, threads, &|| {})
-}
-
-/// [`run`], calling `case_done` (from any worker thread) after each case,
-/// so a caller can show progress.
+/// on `threads` threads, calling `case_done` (from any worker thread) after
+/// each case, so a caller can show progress.
 pub fn run_observed(
     families: &[Family],
     cases: usize,

@@ -61,7 +61,7 @@ pub fn run(cfg: &super::Config) -> anyhow::Result<Vec<LedRow>> {
                 time_per_point(k, cfg.block, || b.estimate_into(black_box(&data.readings_f32), black_box(&mut out)));
             rows.push(LedRow { m, id: id.into(), rmse, host_seconds_per_point: t, macs_per_point: Some(n * m) });
         }
-        let c = Clustered::train(&pri.dense, &data.h, cfg.noise_rel, 8, cfg.margin, 1)?;
+        let c = Clustered::train_with(&pri.dense, &data.h, cfg.noise_rel, 8, cfg.margin, 1, false)?;
         c.estimate_into(&data.readings_f32, &mut out);
         let (rmse, _) = errors(&out, &data.truth);
         let t = time_per_point(k, cfg.block, || c.estimate_into(black_box(&data.readings_f32), black_box(&mut out)));
