@@ -212,7 +212,7 @@ struct Session {
 /// content's bytes (without the trailer) and the image's CRC.
 type Finished = (Session, &'static [u8], u32);
 
-/// The two-slot store of content `K`: the slot logic ([`Slots`], the same
+/// The two-slot store of content `K`: the slot logic (`Slots`, the same
 /// code whatever the content, so a firmware with two stores on one kind of
 /// flash carries it once) and what its content parses as.
 pub struct SlotStore<F, K: SlotContent> {

@@ -1,6 +1,6 @@
 //! The inspection recipe: what `host-tools inspect teach` learned from a
 //! reference ("golden") sample and the tolerances the device decides with.
-//! One binary layout, written by the host ([`write`], std) and read in place
+//! One binary layout, written by the host ([`write()`], std) and read in place
 //! on the device ([`RecipeView`]); signed like a calibration (the recipe's
 //! bytes, then [`crate::signed`]'s 80-byte trailer) and stored A/B by
 //! [`crate::store`].

@@ -149,7 +149,7 @@ pub enum Request<'a> {
     RecipeChunk {
         /// Byte offset of `data`.
         offset: u32,
-        /// At most [`MAX_CHUNK`] bytes.
+        /// At most [`MAX_CHUNK`](crate::protocol::MAX_CHUNK) bytes.
         #[serde(borrow)]
         data: &'a [u8],
     },
