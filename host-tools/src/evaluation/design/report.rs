@@ -2,7 +2,7 @@
 //! a plot per candidate (held-out error and specular margin against pixel)
 //! and a summary plot (error against time per line).
 use super::CandidateScore;
-use crate::output::plot::{Figure, render};
+use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
 use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -136,21 +136,10 @@ impl Figure for PixelPlot<'_> {
             let pts: Vec<(f64, f64)> =
                 c.pixel_errors.iter().map(|(px, a, b)| (*px as f64, if interp { b[q] } else { a[q] })).collect();
             let style = ShapeStyle { color: col.mix(if dashed { 0.5 } else { 1.0 }), filled: true, stroke_width: 2 };
-            chart
-                .draw_series(LineSeries::new(pts.clone(), style))
-                .map_err(e)?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
             chart.draw_series(pts.iter().map(|pt| Circle::new(*pt, 3, style))).map_err(e)?;
+            labelled_line(&mut chart, pts, label, style)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 12))
-            .draw()
-            .map_err(e)?;
+        legend_upper_right(&mut chart)?;
         let (lo, hi) = c.coverage.iter().fold((0.0f64, 0.0f64), |a, x| (a.0.min(x.margin_deg), a.1.max(x.margin_deg)));
         let mut cov = ChartBuilder::on(&bottom)
             .margin(12)

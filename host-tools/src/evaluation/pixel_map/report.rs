@@ -3,7 +3,7 @@
 //! against pixel (held-out error beside interpolation's, the black glass's
 //! reading, the tiles' gloss error).
 use super::PixelMap;
-use crate::output::plot::{Figure, render};
+use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
 use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -149,19 +149,9 @@ impl Figure for MapPlot<'_> {
                 .iter()
                 .map(|r| (r.pixel as f64, if interp { r.interpolation[q] } else { r.error[q] }))
                 .collect();
-            let style = ShapeStyle { color: col, filled: true, stroke_width: 2 };
-            c.draw_series(LineSeries::new(pts, style))
-                .map_err(e)?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+            labelled_line(&mut c, pts, label, ShapeStyle { color: col, filled: true, stroke_width: 2 })?;
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 12))
-            .draw()
-            .map_err(e)?;
+        legend_upper_right(&mut c)?;
         // Black glass.
         let finite: Vec<f64> = map.pixels.iter().map(|r| r.black_glass_gu).filter(|x| x.is_finite()).collect();
         let (lo, hi) = finite.iter().fold((99.0f64, 101.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
@@ -206,18 +196,9 @@ impl Figure for MapPlot<'_> {
                 .map(|r| (r.pixel as f64, if q == 0 { r.tiles_mean_abs_gu } else { r.tiles_max_abs_gu }))
                 .filter(|x| x.1.is_finite())
                 .collect();
-            let style = ShapeStyle { color: col.to_rgba(), filled: true, stroke_width: 2 };
-            c.draw_series(LineSeries::new(pts, style))
-                .map_err(e)?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+            labelled_line(&mut c, pts, label, ShapeStyle { color: col.to_rgba(), filled: true, stroke_width: 2 })?;
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .label_font(("sans-serif", 12))
-            .draw()
-            .map_err(e)?;
+        legend_upper_right(&mut c)?;
         Ok(())
     }
 }

@@ -8,6 +8,8 @@ pub mod tradeoff;
 
 use anyhow::{Context, anyhow};
 use plotters::coord::Shift;
+use plotters::coord::cartesian::Cartesian2d;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::PathBuf;
 
@@ -17,6 +19,42 @@ pub trait Figure {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
     where
         DB::ErrorType: 'static;
+}
+
+/// A chart with f64 axes, as every report's panels are.
+pub type XyChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Draws `pts` as a line in `style` with `label` in the legend.
+pub fn labelled_line<'a, DB: DrawingBackend + 'a>(
+    chart: &mut XyChart<'a, DB>,
+    pts: Vec<(f64, f64)>,
+    label: &str,
+    style: ShapeStyle,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .draw_series(LineSeries::new(pts, style))
+        .map_err(|x| anyhow!("{x}"))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+    Ok(())
+}
+
+/// The reports' legend: upper right, on a translucent white box.
+pub fn legend_upper_right<'a, DB: DrawingBackend + 'a>(chart: &mut XyChart<'a, DB>) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 12))
+        .draw()
+        .map_err(|x| anyhow!("{x}"))
 }
 
 /// Renders `fig` at `size` pixels as SVG text and PNG bytes.
