@@ -29,11 +29,10 @@ use brdf_meter::protocol::{self, MAX_FRAME, Response, flags};
 use brdf_meter::shape;
 use brdf_meter::store::SlotInfo;
 use cortex_m_rt::entry;
-use cortex_m_semihosting::debug;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -152,12 +151,7 @@ fn main() -> ! {
             }
         }
     }
-    bench_mark();
-    let mut l = Line::new();
-    l.push(b"DONE");
-    l.end();
-    debug::exit(debug::EXIT_SUCCESS);
-    halt()
+    done()
 }
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {

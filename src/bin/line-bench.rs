@@ -41,11 +41,10 @@ use brdf_meter::protocol::{
 use brdf_meter::shape;
 use brdf_meter::store::SlotInfo;
 use cortex_m_rt::entry;
-use cortex_m_semihosting::debug;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, fail, halt, read_file};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -277,13 +276,7 @@ fn main() -> ! {
         run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, fsb);
         run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
     }
-    // Closes the last segment (each boundary opens one).
-    bench_mark();
-    let mut l = Line::new();
-    l.push(b"DONE");
-    l.end();
-    debug::exit(debug::EXIT_SUCCESS);
-    halt()
+    done()
 }
 
 #[panic_handler]

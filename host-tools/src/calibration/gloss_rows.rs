@@ -221,8 +221,15 @@ pub fn standards() -> PriorModels {
     PriorModels::from_brdfs("gloss standards", out)
 }
 
-/// The black glass's position among [`standards`]' samples (bare, at its own index).
-pub const BLACK_GLASS_STANDARD: usize = 2 * STANDARD_BASE_ALBEDOS.len();
+/// The black glass's position among [`standards`]' samples: its index in
+/// [`STANDARD_INDICES`] over the bare base (the first albedo).
+pub const BLACK_GLASS_STANDARD: usize = {
+    let mut i = 0;
+    while STANDARD_INDICES[i] != BLACK_GLASS_INDEX {
+        i += 1;
+    }
+    i * STANDARD_BASE_ALBEDOS.len()
+};
 
 /// The share of the rows' criterion given to the black glass's own pairs.
 /// Every reading is scaled by the rows' reading of the black glass (as a
@@ -330,7 +337,8 @@ mod tests {
             s.len(),
             STANDARD_INDICES.len() * STANDARD_BASE_ALBEDOS.len() + TILE_ROUGHNESS.len() * TILE_ALBEDOS.len()
         );
-        assert!(s.samples.iter().any(|x| x.name == format!("standard:n={BLACK_GLASS_INDEX},base=0")));
+        // The rows are held to the sample at BLACK_GLASS_STANDARD: it is the bare black glass.
+        assert_eq!(s.samples[BLACK_GLASS_STANDARD].name, format!("standard:n={BLACK_GLASS_INDEX},base=0"));
         // At any view, the black glass's own target is 100 GU.
         let g = AngleGrid::patent();
         for view in [42.0f64, 45.0, 47.5] {
