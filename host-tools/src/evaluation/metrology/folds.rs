@@ -72,8 +72,11 @@ impl HeldOut {
 pub struct Membership {
     /// Prior samples that are this surface.
     pub prior: Vec<usize>,
-    /// Gloss standards that are this surface.
+    /// Gloss standards that are this surface (the black glass left out).
     pub standards: Vec<usize>,
+    /// Whether it is the gloss scale's reference (the black glass): in
+    /// every calibration, never left out.
+    pub reference: bool,
 }
 
 impl Membership {
@@ -141,7 +144,7 @@ mod tests {
 
     #[test]
     fn members_are_read_only_by_folds_that_left_them_out() {
-        let m = |p: &[usize], s: &[usize]| Membership { prior: p.to_vec(), standards: s.to_vec() };
+        let m = |p: &[usize], s: &[usize]| Membership { prior: p.to_vec(), standards: s.to_vec(), reference: false };
         // Family 0: 5 surfaces, 4 in the prior; family 1: 3 standards and one new surface.
         let fams = vec![
             vec![m(&[0], &[]), m(&[1], &[]), m(&[], &[]), m(&[2], &[]), m(&[3], &[])],

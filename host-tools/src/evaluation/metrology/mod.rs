@@ -12,7 +12,10 @@
 //!   the patent's Ward test patterns, GGX lobes and the gloss standards. A
 //!   surface that is also a training sample is read only by calibrations
 //!   trained without it, K-fold ([`folds`]); a family the calibration never
-//!   saw is read by the calibration on everything.
+//!   saw is read by the calibration on everything. The black glass is the
+//!   exception: it sets every calibration's gloss scale, so no calibration
+//!   is trained without it (a fold without it would misread every surface
+//!   by its misreading of the glass).
 //! - Each surface is read from seeded noisy draws of its simulated readings
 //!   on the instrument (near-field, every ray at its exact direction;
 //!   [`reading`]) and compared with its truth by the definitions the
@@ -32,6 +35,7 @@ pub mod reading;
 pub mod report;
 pub mod truth;
 
+use crate::calibration::gloss_rows::BLACK_GLASS_STANDARD;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
@@ -88,14 +92,25 @@ pub fn run(
     let truths: Vec<Vec<Truth>> =
         families.iter().map(|f| f.materials.par_iter().map(|(_, b)| Truth::of(b, inst, grid)).collect()).collect();
     let prior_grid = spec.prior.on_grid(grid, inst.view_deg).samples;
-    let standards_grid = crate::calibration::gloss_rows::standards().on_grid(grid, inst.view_deg).samples;
+    // The standards are told apart by their gloss readings too: the bare
+    // polished dielectrics have one grid vector (no diffuse part, the mirror
+    // spike left out), whatever their index.
+    let standards = TestFamily::gloss_standards();
+    let standards_sig: Vec<_> =
+        standards.materials.par_iter().map(|(_, b)| Truth::of(b, inst, grid).signature()).collect();
+    let standards_sig = nalgebra::DMatrix::from_columns(&standards_sig);
     let membership: Vec<Vec<Membership>> = truths
         .iter()
         .map(|ts| {
             ts.iter()
-                .map(|t| Membership {
-                    prior: matching(&t.as_prior, &prior_grid),
-                    standards: matching(&t.as_prior, &standards_grid),
+                .map(|t| {
+                    let mut standards = matching(&t.signature(), &standards_sig);
+                    // The black glass sets every calibration's gloss scale
+                    // (as every gloss meter is set on it): it is never
+                    // left out, and reads as the reference it is.
+                    let reference = standards.contains(&BLACK_GLASS_STANDARD);
+                    standards.retain(|s| *s != BLACK_GLASS_STANDARD);
+                    Membership { prior: matching(&t.as_prior, &prior_grid), standards, reference }
                 })
                 .collect()
         })
@@ -135,7 +150,8 @@ pub fn run(
             materials.push(MaterialResult::new(&fam.name, name, held.fold, t, e, li));
         }
         let in_training = membership[fi].iter().filter(|m| m.in_training()).count();
-        protocols.push(FamilyProtocol::new(fam, in_training, plan.folds));
+        let references = membership[fi].iter().filter(|m| m.reference && !m.in_training()).count();
+        protocols.push(FamilyProtocol::new(fam, in_training, references, plan.folds));
         rows.push(est.row(&fam.name, "estimator"));
         rows.push(interp.row(&fam.name, "interpolation"));
     }

@@ -23,17 +23,24 @@ pub struct FamilyProtocol {
 }
 
 impl FamilyProtocol {
-    /// The protocol of `fam`, `in_training` of whose surfaces are training samples.
-    pub fn new(fam: &TestFamily, in_training: usize, folds: usize) -> Self {
+    /// The protocol of `fam`, `in_training` of whose surfaces are training
+    /// samples held out by folds and `references` the gloss scale's
+    /// reference (in every calibration).
+    pub fn new(fam: &TestFamily, in_training: usize, references: usize, folds: usize) -> Self {
         let n = fam.materials.len();
-        let protocol = match in_training {
-            0 => "never in training: read by the calibration on the whole prior".to_string(),
-            k if k == n => format!("all in training: {folds}-fold, each read by a calibration trained without it"),
-            k => format!(
-                "{k} in training ({folds}-fold, each read by a calibration trained without it), {} never in training",
-                n - k
+        let mut protocol = match (in_training, n - in_training - references) {
+            (0, _) => "never in training: read by the calibration on the whole prior".to_string(),
+            (k, 0) => format!("{k} in training: {folds}-fold, each read by a calibration trained without it"),
+            (k, rest) => format!(
+                "{k} in training ({folds}-fold, each read by a calibration trained without it), {rest} never in training"
             ),
         };
+        if references > 0 {
+            protocol.push_str(&format!(
+                "; {references} the black glass, the gloss scale's reference: in every calibration (as every gloss \
+                 meter is set on it), read by the one on everything"
+            ));
+        }
         Self { family: fam.name.clone(), source: fam.source.clone(), materials: n, in_training, protocol }
     }
 }

@@ -33,6 +33,16 @@ pub struct Truth {
 }
 
 impl Truth {
+    /// What tells two surfaces apart as training samples: the grid vector
+    /// and the gloss readings (which see the mirror spike the grid vector
+    /// leaves out).
+    pub fn signature(&self) -> DVector<f64> {
+        DVector::from_iterator(
+            self.as_prior.len() + self.readings.len(),
+            self.as_prior.iter().chain(&self.readings).map(|x| if x.is_finite() { *x } else { 0.0 }),
+        )
+    }
+
     /// The truth of `brdf` seen by `inst` on `grid`, at the view the
     /// readings are simulated with (the instrument's, in the surface frame).
     pub fn of(brdf: &std::sync::Arc<dyn Brdf>, inst: &Instrument, grid: &AngleGrid) -> Self {
