@@ -227,14 +227,20 @@ fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
         }
     }
     // MERL held out. Met: gloss and haze within 0.95 +- 0.03 for the
-    // piecewise kind (the default); 0.92 and 0.98 for one scale-free map. Not met, printed and asserted only as a floor
+    // piecewise kind (the default), both ways: a stated uncertainty that
+    // over-covers is as wrong as one that under-covers. 0.92 and 0.98 for
+    // one scale-free map. Not met, printed and asserted only as a floor
     // against regression: distinctness (0.80-0.83 for the scale-free
     // kinds) and Wiener's gloss and distinctness.
     for kind in [EstimatorKind::Wiener, EstimatorKind::ScaleFree, EstimatorKind::ScaleFreePiecewise] {
         let (all, _, _) = merl_held_out(kind);
         for r in [SPECULAR_GU, HAZE_HU] {
-            let floor = if kind == EstimatorKind::ScaleFreePiecewise { REQUIRED - 0.03 } else { 0.9 };
-            assert!(all.coverage(r) >= floor, "{kind:?}: MERL coverage of reading {r}: {:.3}", all.coverage(r));
+            let c = all.coverage(r);
+            if kind == EstimatorKind::ScaleFreePiecewise {
+                assert!((c - REQUIRED).abs() <= 0.03, "{kind:?}: MERL coverage of reading {r}: {c:.3}");
+            } else {
+                assert!(c >= 0.9, "{kind:?}: MERL coverage of reading {r}: {c:.3}");
+            }
         }
         // The linear form's distinctness over the points it gives one for.
         let d =

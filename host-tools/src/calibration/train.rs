@@ -563,7 +563,8 @@ fn gloss_section(
         let Some(target) = gloss_rows::targets(&aug) else { return Ok(None) };
         let aug = gloss_rows::reading_weighted(&aug, &target);
         let first_standard = zone_pairs.prior[z].sample.iter().copied().max().map_or(0, |x| x + 1);
-        let aug = gloss_rows::anchored(&aug, first_standard + gloss_rows::BLACK_GLASS_STANDARD);
+        let glass = first_standard + gloss_rows::BLACK_GLASS_STANDARD;
+        let aug = gloss_rows::anchored(&aug, glass);
         let bg = gloss_rows::black_glass_readings(&zo.centre);
         let Some((mut blocks, s)) =
             gloss_rows_of(tz, &aug, &target, plan, &bg).with_context(|| format!("zone {z}: the gloss rows"))?
@@ -573,12 +574,16 @@ fn gloss_section(
         };
         // The uncertainty's scale factors from held-out samples: each
         // fold's rows fitted on the other folds, read by the device's function.
+        // The black glass is in every fold's fit: it sets the scale, as it
+        // does on the device (a fold without it would misread every sample
+        // by its misreading of the glass and inflate every factor).
         let mut zs = Vec::new();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(z as u64 ^ 0x6105);
         let folds = gloss_rows::HELD_OUT_FOLDS;
+        let fold_of = |k: usize| (aug.sample[k] != glass).then_some(aug.sample[k] % folds);
         for fold in 0..folds {
-            let train_idx: Vec<usize> = (0..aug.len()).filter(|k| aug.sample[*k] % folds != fold).collect();
-            let test_idx: Vec<usize> = (0..aug.len()).filter(|k| aug.sample[*k] % folds == fold).collect();
+            let train_idx: Vec<usize> = (0..aug.len()).filter(|&k| fold_of(k) != Some(fold)).collect();
+            let test_idx: Vec<usize> = (0..aug.len()).filter(|&k| fold_of(k) == Some(fold)).collect();
             if train_idx.is_empty() || test_idx.is_empty() {
                 continue;
             }
