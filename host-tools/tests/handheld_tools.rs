@@ -171,6 +171,17 @@ fn pixel_map_reads_every_pixel() {
         (map.black_glass.mean_range_gu[0] - 100.0).abs() < 3.0
             && (map.black_glass.mean_range_gu[1] - 100.0).abs() < 3.0
     );
+    // Every held-out (material, pixel) has a gloss reading, scored against
+    // the definitions in three dimensions; the extended LEDs read the
+    // materials' gloss closer than interpolation's in-plane profile does.
+    let g = &map.gloss;
+    assert_eq!(g.low_count + g.high_count, 12 * 20);
+    assert_eq!(map.gloss_interpolation.low_count + map.gloss_interpolation.high_count, 12 * 20);
+    assert!(g.low[0] > 0.0 && g.low[0] < map.gloss_interpolation.low[0], "{g:?} {:?}", map.gloss_interpolation);
+    let m = &map.materials[0];
+    assert!(m.gloss_true.iter().zip(&m.gloss).all(|(t, e)| *t > 0.0 && e.is_finite()), "{m:?}");
     host_tools::evaluation::pixel_map::report::write(dir.path(), &map, 4).unwrap();
     assert!(dir.path().join("pixel-map.png").exists());
+    let md = std::fs::read_to_string(dir.path().join("pixel-map.md")).unwrap();
+    assert!(md.contains("| gloss, held out: relative error"), "{md}");
 }

@@ -13,7 +13,13 @@
 //!   a (material, pixel) scores its mean over the lines. Linear
 //!   interpolation between the LEDs' centre angles at the pixel reads the
 //!   same corrected readings beside it.
-//! - **Gloss.** A calibration trained on the whole prior reads the
+//! - **Gloss on held-out materials.** The same points' gloss readings
+//!   (each (material, pixel) its mean over the lines) against the
+//!   material's reading by the definitions in three dimensions at the
+//!   pixel's own view, relative error split at 300 GU of the truth as
+//!   `accuracy` splits it; interpolation's profile read by the in-plane
+//!   definitions beside it.
+//! - **Gloss standards.** A calibration trained on the whole prior reads the
 //!   black-glass standard (mean, spread over lines, the line mean's spread,
 //!   "no reading", saturation) and a set of gloss tiles, dielectrics with
 //!   Ward or GGX roughness from a few to ~95 GU ([`gloss_tiles`], none of
@@ -27,7 +33,7 @@ use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
-use crate::forward::gloss::model_readings;
+use crate::forward::gloss::{model_readings, profile_scaled_readings};
 use crate::forward::pairs::Criterion;
 use crate::forward::prior_models::{PriorModels, SampleModel};
 use crate::forward::scene::pipeline::{Simulator, pixel_view};
@@ -108,6 +114,47 @@ pub struct MaterialRow {
     pub error: Vec<f64>,
     /// Per pixel, interpolation's.
     pub interpolation: Vec<f64>,
+    /// Per pixel, its gloss by the definitions in three dimensions, GU.
+    pub gloss_true: Vec<f64>,
+    /// Per pixel, the device's mean gloss reading over the lines, GU (NaN: no reading).
+    pub gloss: Vec<f64>,
+    /// Per pixel, interpolation's (its profile by the in-plane definitions), GU.
+    pub gloss_interpolation: Vec<f64>,
+}
+
+/// Gloss readings' relative error over every (material, pixel) with a
+/// reading: median and 90th percentile, and how many, split at
+/// [`GLOSS_SPLIT_GU`] of the truth.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct GlossErrors {
+    /// Up to the split: [median, 90th], relative.
+    pub low: [f64; 2],
+    /// Points up to the split.
+    pub low_count: usize,
+    /// Above it.
+    pub high: [f64; 2],
+    /// Points above it.
+    pub high_count: usize,
+}
+
+/// Where the gloss errors are split, GU (as `accuracy` splits them: a
+/// mirror-like material's reading is judged apart from a paint's).
+pub const GLOSS_SPLIT_GU: f64 = 300.0;
+
+impl GlossErrors {
+    /// Over `(truth, reading)` pairs; readings that are not finite are left out.
+    pub fn of(points: impl Iterator<Item = (f64, f64)>) -> Self {
+        let (mut low, mut high) = (Vec::new(), Vec::new());
+        for (t, r) in points.filter(|(t, r)| r.is_finite() && t.is_finite() && *t > 0.0) {
+            let e = (r - t).abs() / t;
+            if t <= GLOSS_SPLIT_GU { low.push(e) } else { high.push(e) }
+        }
+        let q = |v: &[f64]| {
+            let q = quantiles(v);
+            [q[0], q[1]]
+        };
+        Self { low: q(&low), low_count: low.len(), high: q(&high), high_count: high.len() }
+    }
 }
 
 /// The whole map.
@@ -131,6 +178,10 @@ pub struct PixelMap {
     pub error: [f64; 3],
     /// Interpolation's.
     pub interpolation: [f64; 3],
+    /// Gloss readings of the held-out materials.
+    pub gloss: GlossErrors,
+    /// Interpolation's.
+    pub gloss_interpolation: GlossErrors,
     /// The black glass: mean GU range over the pixels [min, max], the
     /// largest per-pixel spread, the line mean's spread, pixels without a
     /// reading, pixels saturated.
@@ -259,7 +310,10 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 let mut err = vec![0.0; p];
                 let mut ierr = vec![0.0; p];
                 let mut fl = vec![(0, 0, 0); p];
+                let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
                 for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
+                    g_true[px] = model_readings(b.as_ref(), &views[px])[brdf_meter::gloss::SPECULAR_GU];
+                    let view_deg = views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
                     let truth = DVector::from_iterator(
                         grid.n(),
                         grid.bins_deg()
@@ -272,14 +326,27 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                         let pt = &line[px];
                         let est = DVector::from_iterator(grid.n(), pt.values.iter().map(|x| f64::from(*x)));
                         let v = DVector::from_iterator(inst.m(), pt.corrected.iter().map(|x| f64::from(*x)));
+                        let profile = &interp[px] * v;
                         *e += rms(&est) / spec.lines as f64;
-                        *ie += rms(&(&interp[px] * v)) / spec.lines as f64;
+                        *ie += rms(&profile) / spec.lines as f64;
+                        g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
+                        let gi =
+                            profile_scaled_readings(&profile, grid.bins_deg(), view_deg).map_or(f64::NAN, |l| l[0]);
+                        g_int[px] += gi / spec.lines as f64;
                         c.0 += usize::from(pt.flags & flags::OUT_OF_PRIOR != 0);
                         c.1 += usize::from(pt.flags & flags::SATURATED != 0);
                         c.2 += 1;
                     }
                 }
-                Ok((MaterialRow { name: s.name.clone(), error: err, interpolation: ierr }, fl))
+                let row = MaterialRow {
+                    name: s.name.clone(),
+                    error: err,
+                    interpolation: ierr,
+                    gloss_true: g_true,
+                    gloss: g_est,
+                    gloss_interpolation: g_int,
+                };
+                Ok((row, fl))
             })
             .collect::<anyhow::Result<_>>()?;
         for (row, fl) in results {
@@ -344,6 +411,11 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     }
     let all_e: Vec<f64> = rows.iter().flat_map(|r| r.error.iter().copied()).collect();
     let all_i: Vec<f64> = rows.iter().flat_map(|r| r.interpolation.iter().copied()).collect();
+    let gloss_of = |f: fn(&MaterialRow) -> &Vec<f64>| {
+        GlossErrors::of(rows.iter().flat_map(|r| r.gloss_true.iter().copied().zip(f(r).iter().copied())))
+    };
+    let gloss = gloss_of(|r| &r.gloss);
+    let gloss_interpolation = gloss_of(|r| &r.gloss_interpolation);
     let line_means: Vec<f64> = bg
         .points
         .iter()
@@ -374,6 +446,8 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         lines: spec.lines,
         error: quantiles(&all_e),
         interpolation: quantiles(&all_i),
+        gloss,
+        gloss_interpolation,
         black_glass,
         tiles: [
             devs.iter().sum::<f64>() / devs.len().max(1) as f64,

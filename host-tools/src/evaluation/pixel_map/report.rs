@@ -24,6 +24,19 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ =
         writeln!(s, "| BRDF error / peak, held out (median / 90th / worst over material x pixel) | {} |", q(map.error));
     let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(map.interpolation));
+    let g = |e: &super::GlossErrors| {
+        let part = |x: [f64; 2], n: usize| {
+            if n == 0 { "- (0)".to_string() } else { format!("{:.1} / {:.1} % ({n})", 100.0 * x[0], 100.0 * x[1]) }
+        };
+        format!("{}; above: {}", part(e.low, e.low_count), part(e.high, e.high_count))
+    };
+    let _ = writeln!(
+        s,
+        "| gloss, held out: relative error median / 90th (material x pixel) up to {} GU | {} |",
+        super::GLOSS_SPLIT_GU,
+        g(&map.gloss)
+    );
+    let _ = writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&map.gloss_interpolation));
     let _ = writeln!(
         s,
         "| black glass: per-pixel mean GU (lowest .. highest) | {:.2} .. {:.2} |",
