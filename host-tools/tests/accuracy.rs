@@ -52,6 +52,17 @@ fn a_flat_surface_is_read_exactly_by_interpolation_against_the_same_truth() {
         // in-plane and three-dimensional readings agree.
         let (g, gi) = (m.readings_true[0], m.readings_interpolation[0]);
         assert!((gi - g).abs() < 0.01 * g, "{}: interpolation {gi} GU, truth {g} GU", m.name);
+        // The draw, one by one: its error is the surface's (one draw), and
+        // the quantities a flag could be built on are there beside it.
+        let [d] = &m.draws[..] else { panic!("{}: one draw, got {}", m.name, m.draws.len()) };
+        assert!((d.error - m.error_estimator).abs() < 1e-12, "{}: {d:?}", m.name);
+        assert!(d.stat.is_finite() && d.stat >= 0.0, "{}: {d:?}", m.name);
+        assert!(
+            d.brightest_share > 1.0 / 7.0 - 1e-9 && d.brightest_share < 0.5,
+            "{}: a diffuser lights every LED: {d:?}",
+            m.name
+        );
+        assert!((0.0..=1.0).contains(&d.bin_coverage), "{}: {d:?}", m.name);
     }
     let i = row(&r, "diffusers", "interpolation");
     assert!(i.error.max < 1e-6 && i.impossible == 0.0);

@@ -146,6 +146,13 @@ pub fn peak_relative_rms(est: &[f64], truth: &Truth) -> f64 {
     (ss / n).sqrt() / truth.peak.max(f64::MIN_POSITIVE)
 }
 
+/// How many bins of `est` lie within [`K`] of their stated uncertainty
+/// `sigma` of the truth, and of how many.
+pub fn bins_within(est: &[f64], truth: &Truth, sigma: &[f64]) -> (usize, usize) {
+    let inside = est.iter().zip(truth.rho.iter()).zip(sigma).filter(|((x, t), u)| (*x - *t).abs() <= K * **u);
+    (inside.count(), sigma.len())
+}
+
 /// Whether a bin of `est` is below [`IMPOSSIBLE`] of its largest |bin|.
 pub fn impossible(est: &[f64]) -> bool {
     let top = est.iter().fold(0.0f64, |a, x| a.max(x.abs()));
@@ -184,10 +191,9 @@ impl Tally {
             }
             if let Some(s) = &r.sigma {
                 let b = self.bins.get_or_insert((0, 0));
-                for ((x, t), u) in r.rho.iter().zip(truth.rho.iter()).zip(s) {
-                    b.0 += usize::from((x - t).abs() <= K * u);
-                    b.1 += 1;
-                }
+                let (inside, all) = bins_within(&r.rho, truth, s);
+                b.0 += inside;
+                b.1 += all;
             }
             if let Some(u) = r.gloss_u {
                 let acc = self.readings.get_or_insert([(0, 0); 3]);

@@ -32,6 +32,18 @@ pub struct Reading {
     pub flagged: Option<bool>,
     /// The specular peak of the estimate.
     pub specular: Peak,
+    /// The out-of-prior statistic (NaN: the method has none).
+    pub stat: f64,
+    /// The largest reading over the readings' sum: near 1 when one LED
+    /// carries all the light, a peak narrower than the LEDs' spacing.
+    pub brightest_share: f64,
+}
+
+/// The largest of the readings `v` over their sum (NaN when they sum to nothing).
+fn brightest_share(v: &[f32]) -> f64 {
+    let sum: f64 = v.iter().map(|x| f64::from(*x)).sum();
+    let max = v.iter().map(|x| f64::from(*x)).fold(f64::NEG_INFINITY, f64::max);
+    if sum > 0.0 { max / sum } else { f64::NAN }
 }
 
 /// `draws` noisy draws of the readings `clean`: each reading times `1 +
@@ -87,11 +99,14 @@ impl<'a> Readers<'a> {
             gloss_u: Some(p.reading_sigma.map(f64::from)),
             flagged: Some(p.flag_bits != 0),
             specular: specular_peak(&self.bins32, &p.rho, &p.sigma, self.view_deg),
+            stat: f64::from(p.stat),
+            brightest_share: brightest_share(v),
         }
     }
 
     /// Linear interpolation's estimate of the same readings.
     pub fn interpolation(&self, v: &[f32]) -> Reading {
+        let share = brightest_share(v);
         let v = DVector::from_iterator(v.len(), v.iter().map(|x| f64::from(*x)));
         let rho = &self.interpolation * v;
         let gloss = profile_scaled_readings(&rho, &self.bins, self.view_deg)
@@ -104,6 +119,8 @@ impl<'a> Readers<'a> {
             gloss,
             gloss_u: None,
             flagged: None,
+            stat: f64::NAN,
+            brightest_share: share,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! figures per family and method, one line per surface, and the tables
 //! printed from them.
 use super::families::TestFamily;
-use super::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, Row, Spread, peak_relative_rms};
+use super::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, Row, Spread, bins_within, peak_relative_rms};
 use super::reading::Reading;
 use super::truth::Truth;
 use serde::Serialize;
@@ -68,6 +68,40 @@ pub struct MaterialResult {
     pub readings_interpolation: [f64; 3],
     /// Share of the draws flagged.
     pub flagged: f64,
+    /// The estimator's draws one by one: what a flag or a per-point
+    /// uncertainty could be built on, beside the error it would predict.
+    pub draws: Vec<DrawResult>,
+}
+
+/// One draw of a surface read by the estimator.
+#[derive(Clone, Debug, Serialize)]
+pub struct DrawResult {
+    /// BRDF error (RMS over the bins / the truth's peak).
+    pub error: f64,
+    /// Share of the bins within k = 2 of the stated uncertainty (NaN: none stated).
+    pub bin_coverage: f64,
+    /// The out-of-prior statistic (NaN: the calibration has none).
+    pub stat: f64,
+    /// The largest reading over the readings' sum.
+    pub brightest_share: f64,
+    /// Whether a flag was raised.
+    pub flagged: bool,
+}
+
+impl DrawResult {
+    fn of(r: &Reading, t: &Truth) -> Self {
+        let bin_coverage = r.sigma.as_ref().map_or(f64::NAN, |s| {
+            let (inside, all) = bins_within(&r.rho, t, s);
+            inside as f64 / all.max(1) as f64
+        });
+        Self {
+            error: peak_relative_rms(&r.rho, t),
+            bin_coverage,
+            stat: r.stat,
+            brightest_share: r.brightest_share,
+            flagged: r.flagged == Some(true),
+        }
+    }
 }
 
 fn rms_over(rs: &[Reading], t: &Truth) -> f64 {
@@ -92,6 +126,7 @@ impl MaterialResult {
             readings_estimator: mean_readings(est),
             readings_interpolation: mean_readings(interp),
             flagged: est.iter().filter(|r| r.flagged == Some(true)).count() as f64 / est.len().max(1) as f64,
+            draws: est.iter().map(|r| DrawResult::of(r, t)).collect(),
         }
     }
 }

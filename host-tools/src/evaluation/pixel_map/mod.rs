@@ -31,6 +31,7 @@ pub mod report;
 use crate::calibration::estimators::interpolation;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
+use crate::evaluation::metrology::metrics::GLOSS_SPLIT_GU;
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -124,7 +125,7 @@ pub struct MaterialRow {
 
 /// Gloss readings' relative error over every (material, pixel) with a
 /// reading: median and 90th percentile, and how many, split at
-/// [`GLOSS_SPLIT_GU`] of the truth.
+/// [`GLOSS_SPLIT_GU`] of the truth as `accuracy` splits them.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct GlossErrors {
     /// Up to the split: [median, 90th], relative.
@@ -136,10 +137,6 @@ pub struct GlossErrors {
     /// Points above it.
     pub high_count: usize,
 }
-
-/// Where the gloss errors are split, GU (as `accuracy` splits them: a
-/// mirror-like material's reading is judged apart from a paint's).
-pub const GLOSS_SPLIT_GU: f64 = 300.0;
 
 impl GlossErrors {
     /// Over `(truth, reading)` pairs; readings that are not finite are left out.

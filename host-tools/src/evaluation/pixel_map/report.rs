@@ -33,7 +33,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(
         s,
         "| gloss, held out: relative error median / 90th (material x pixel) up to {} GU | {} |",
-        super::GLOSS_SPLIT_GU,
+        crate::evaluation::metrology::metrics::GLOSS_SPLIT_GU,
         g(&map.gloss)
     );
     let _ = writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&map.gloss_interpolation));
