@@ -50,6 +50,36 @@ impl<const M: usize, const P: usize> RawLine<M, P> {
             short_taken: [[false; M]; MAX_SHORT_EXPOSURES],
         }
     }
+
+    /// A line from recorded frames, little-endian u16: per exposure level
+    /// (the long one, then `shorter` of the shorter ones, every frame of
+    /// which counts as taken) the dark frame, then one frame per reading,
+    /// each `P` values. How the benchmarks replay lines the host recorded.
+    ///
+    /// # Panics
+    /// If `shorter > MAX_SHORT_EXPOSURES` or `frames` holds fewer than
+    /// `2 P (M + 1) (1 + shorter)` bytes.
+    pub fn from_le_frames(frames: &[u8], shorter: usize) -> Self {
+        assert!(shorter <= MAX_SHORT_EXPOSURES, "at most {MAX_SHORT_EXPOSURES} shorter exposures");
+        assert!(frames.len() >= 2 * P * (M + 1) * (1 + shorter), "too few bytes for the line's frames");
+        let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
+        let mut raw = Self::new();
+        for p in 0..P {
+            raw.dark[p] = px(0, p);
+            for i in 0..M {
+                raw.lit[i][p] = px(1 + i, p);
+            }
+            for l in 0..shorter {
+                let base = (l + 1) * (M + 1);
+                raw.short_dark[l][p] = px(base, p);
+                for i in 0..M {
+                    raw.short[l][i][p] = px(base + 1 + i, p);
+                    raw.short_taken[l][i] = true;
+                }
+            }
+        }
+        raw
+    }
 }
 
 /// One point at a shorter exposure: the dark frame's value, the ratio of
@@ -278,6 +308,23 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recorded_frames_replay_as_the_line_they_were() {
+        // Two readings, three pixels, one shorter exposure: value = 100 f + p.
+        let mut bytes = [0u8; 2 * 3 * 3 * 2];
+        for f in 0..6 {
+            for p in 0..3 {
+                bytes[2 * (f * 3 + p)..][..2].copy_from_slice(&((100 * f + p) as u16).to_le_bytes());
+            }
+        }
+        let raw = RawLine::<2, 3>::from_le_frames(&bytes, 1);
+        assert_eq!((raw.dark, raw.lit), ([0, 1, 2], [[100, 101, 102], [200, 201, 202]]));
+        assert_eq!((raw.short_dark[0], raw.short[0]), ([300, 301, 302], [[400, 401, 402], [500, 501, 502]]));
+        assert_eq!(raw.short_taken, [[true, true], [false, false]]);
+        let long_only = RawLine::<2, 3>::from_le_frames(&bytes[..2 * 3 * 3], 0);
+        assert_eq!((long_only.lit, long_only.short_taken), (raw.lit, [[false; 2]; MAX_SHORT_EXPOSURES]));
+    }
 
     #[test]
     fn corrects_and_flags() {

@@ -66,28 +66,6 @@ fn u32_at(d: &[u8], at: usize) -> usize {
 /// Bytes of one line in the data: every exposure level's dark and LED frames.
 const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
 
-/// One line's frames, the shorter exposures as taken (the correction reads
-/// them only where the long one saturated, as on the device).
-fn raw_line(frames: &[u8]) -> RawLine<M, P> {
-    let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
-    let mut raw = RawLine::<M, P>::new();
-    for p in 0..P {
-        raw.dark[p] = px(0, p);
-        for i in 0..M {
-            raw.lit[i][p] = px(1 + i, p);
-        }
-        for l in 0..MAX_SHORT_EXPOSURES {
-            let base = (l + 1) * (M + 1);
-            raw.short_dark[l][p] = px(base, p);
-            for i in 0..M {
-                raw.short[l][i][p] = px(base + 1 + i, p);
-                raw.short_taken[l][i] = true;
-            }
-        }
-    }
-    raw
-}
-
 #[entry]
 fn main() -> ! {
     // SAFETY: single-threaded firmware, no interrupts use these statics.
@@ -122,7 +100,7 @@ fn main() -> ! {
     let lines = frames.len() / LINE_BYTES;
     for marking in [false, true] {
         for l in 0..lines {
-            let raw = raw_line(&frames[l * LINE_BYTES..]);
+            let raw = RawLine::<M, P>::from_le_frames(&frames[l * LINE_BYTES..], MAX_SHORT_EXPOSURES);
             let mut v = [SVector::<f32, M>::zeros(); P];
             let mut fl = [0u8; P];
             at(marking, l, b"correct");

@@ -226,18 +226,6 @@ fn build_at(d: &'static [u8], at: usize) -> (usize, u16, &'static [u8], &'static
     (pixels, full_scale, &d[blob_at..blob_at + blob_len], &d[frames_at..frames_at + frames_len], frames_at + frames_len)
 }
 
-fn raw_line<const P: usize>(frames: &[u8]) -> RawLine<M, P> {
-    let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
-    let mut raw = RawLine::<M, P>::new();
-    for p in 0..P {
-        raw.dark[p] = px(0, p);
-        for i in 0..M {
-            raw.lit[i][p] = px(1 + i, p);
-        }
-    }
-    raw
-}
-
 fn load<const P: usize>(ram: &'static mut [ZoneMatrix<N, M>], blob: &'static [u8]) -> Calibration<N, M, P> {
     let view = BlobView::parse(blob).unwrap_or_else(|_| fail(b"line-bench: bad blob"));
     let slot = SlotInfo { slot: 0, sequence: 1, blob_len: blob.len() as u32, blob_crc: 0 };
@@ -270,8 +258,8 @@ fn main() -> ! {
     }
     let cal_b = load::<BOARD_P>(ram_board, blob_b);
     let cal_q = load::<QEMU_P>(ram_qemu, blob_q);
-    let raw_b = raw_line::<BOARD_P>(frames_b);
-    let raw_q = raw_line::<QEMU_P>(frames_q);
+    let raw_b = RawLine::<M, BOARD_P>::from_le_frames(frames_b, 0);
+    let raw_q = RawLine::<M, QEMU_P>::from_le_frames(frames_q, 0);
     for marking in [false, true] {
         run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, fsb);
         run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
