@@ -172,3 +172,32 @@ fn every_fold_keeps_the_black_glass_so_the_polished_standards_read_on_its_scale(
         }
     }
 }
+
+#[test]
+fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_never_saw() {
+    // The default calibration's stated k = 2 band against the truth, bin by
+    // bin, on each family held out. Training calibrates the band on folds
+    // that hold out whole kinds of material (the prior grouped by the shape
+    // of its readings); with random folds, which leave a near twin of every
+    // held-out material in training, it covered 58 % of the Ward surfaces'
+    // bins and 81 % of the GGX lobes'.
+    let set = host_tools::forward::brdf::NbrdfSet::merl();
+    let spectral = host_tools::forward::optics::Instrument::patent_profile().spectral_weights;
+    let fams = vec![
+        TestFamily::measured("merl", &set, spectral),
+        TestFamily::ward(),
+        TestFamily::ggx(),
+        TestFamily::gloss_standards(),
+    ];
+    let r = evaluate(&[], &fams, 0.02);
+    let coverage = |family: &str| row(&r, family, "estimator").bin_coverage.unwrap();
+    // The target, 92-98 %, met by the measured materials and the standards.
+    for family in ["measured", "gloss standards"] {
+        let c = coverage(family);
+        assert!((0.92..=0.98).contains(&c), "{family}: {c}\n{}", r.tables());
+    }
+    // Short of it, but no longer by half: Ward's grazing tails rise as no
+    // measured material does, and the GGX lobes are over-covered.
+    assert!(coverage("ward") > 0.85, "{}", r.tables());
+    assert!(coverage("ggx") > 0.92, "{}", r.tables());
+}

@@ -36,6 +36,15 @@
 //! `COVERAGE` of the held-out values fall within `COVERAGE_K` of the
 //! point's stated uncertainty (`root_uncertainty`); the linear form keeps
 //! the in-sample posterior.
+//!
+//! The folds of that uncertainty hold out whole *kinds* of material
+//! (`shape_folds`: the prior's samples grouped by the shape of their
+//! readings), not random samples. A material the instrument reads in the
+//! field is often unlike anything in the prior, and a fold of random
+//! samples almost always leaves a near twin of each held-out sample in
+//! training, so the uncertainty it learns holds only for materials the
+//! prior already has. Holding out a whole group makes the fit extrapolate
+//! as it must for a new kind of surface, still from training data alone.
 use crate::calibration::estimators::clustered::kmeans;
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
@@ -328,6 +337,46 @@ fn folds(pairs: &Pairs, seed: u64) -> Vec<usize> {
     pairs.sample.iter().map(|&s| of_sample[s]).collect()
 }
 
+/// Folds that each hold out one kind of material: the prior's samples
+/// grouped into [`FOLDS`] groups by k-means on the shape of their
+/// noise-free readings (`v / sum v`, what the device's clusters and the
+/// out-of-prior statistic see), one group per fold, each sample's pairs
+/// together. Falls back to [`folds`] for a prior too small to group
+/// (fewer than two samples per fold) or whose groups collapse into one.
+fn shape_folds(pairs: &Pairs, seed: u64) -> Vec<usize> {
+    let samples = pairs.sample.iter().copied().max().map_or(0, |x| x + 1);
+    let mut shape: Vec<Option<Vec<f64>>> = vec![None; samples];
+    for (k, &s) in pairs.sample.iter().enumerate() {
+        let v = pairs.readings.column(k);
+        let sum: f64 = v.iter().sum();
+        if shape[s].is_none() && sum > 0.0 {
+            shape[s] = Some(v.iter().map(|x| x / sum).collect());
+        }
+    }
+    let present: Vec<usize> = (0..samples).filter(|s| shape[*s].is_some()).collect();
+    if present.len() < 2 * FOLDS {
+        return folds(pairs, seed);
+    }
+    let points: Vec<Vec<f64>> = present.iter().filter_map(|s| shape[*s].clone()).collect();
+    let (_, labels) = kmeans(&points, FOLDS, seed);
+    // Numbered 0.. in order of first appearance, so no fold is empty.
+    let mut seen: Vec<usize> = Vec::new();
+    for l in &labels {
+        if !seen.contains(l) {
+            seen.push(*l);
+        }
+    }
+    if seen.len() < 2 {
+        return folds(pairs, seed);
+    }
+    let mut of_sample = vec![usize::MAX; samples];
+    for (s, l) in present.iter().zip(&labels) {
+        of_sample[*s] = seen.iter().position(|x| x == l).unwrap_or(0);
+    }
+    // A sample without light in any pair (none in practice) joins group 0.
+    pairs.sample.iter().map(|&s| if of_sample[s] == usize::MAX { 0 } else { of_sample[s] }).collect()
+}
+
 /// One noisy draw of noise-free readings `v` with variances `var` (a
 /// reading cannot go below 0 on a real sensor's dark-corrected signal for
 /// long: clamped, as the device's readings of a dark pixel are).
@@ -588,7 +637,8 @@ pub fn train_with(
     let mut fitted = fit(&nz, &all, opts.seed, ridge, clusters, opts.root)?;
     let cv = CrossValidation::new(pairs, opts.seed);
     if opts.root {
-        held_out_uncertainty(pairs, &nz, &cv, opts, ridge, clusters, &mut fitted)?;
+        let by_shape = CrossValidation { readings: cv.readings.clone(), fold: shape_folds(pairs, opts.seed) };
+        held_out_uncertainty(pairs, &nz, &by_shape, opts, ridge, clusters, &mut fitted)?;
     }
     // Out-of-prior: held-out statistics -> threshold.
     let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
@@ -622,7 +672,8 @@ type HeldOutRoot = (usize, f64, DVector<f64>, DVector<f64>, DVector<f64>, f64);
 
 /// The root form's uncertainty per unit scale (module doc): per cluster of
 /// `fitted` and bin, the RMS of the held-out roots' errors (each pair read
-/// by its fold's fit, every noise draw, the prior's own weights), then one
+/// by its fold's fit, `cv`'s folds being [`shape_folds`], every noise
+/// draw, the prior's own weights), then one
 /// factor on all of them so that `COVERAGE` of the held-out values lie
 /// within `COVERAGE_K` of the point's stated uncertainty.
 fn held_out_uncertainty(
@@ -738,6 +789,32 @@ mod tests {
             col *= 10f64.powi(c as i32 % 4 - 1);
         }
         (h, WeightedSamples::equal(s))
+    }
+
+    #[test]
+    fn the_uncertaintys_folds_hold_out_each_kind_of_material_whole() {
+        let (h, prior) = setup();
+        let k = prior.samples.ncols();
+        // Every sample twice, the copy eight times brighter: one shape.
+        let samples = DMatrix::from_fn(prior.samples.nrows(), 2 * k, |j, c| {
+            prior.samples[(j, c % k)] * if c < k { 1.0 } else { 8.0 }
+        });
+        let noise = ReadingNoise::relative(0.02, h.nrows());
+        let pairs = Pairs::in_plane(&h, &samples, &vec![1.0 / (2 * k) as f64; 2 * k], &noise);
+        let fold = shape_folds(&pairs, 7);
+        let nf = fold.iter().max().unwrap() + 1;
+        assert!((2..=FOLDS).contains(&nf), "{fold:?}");
+        assert!((0..nf).all(|f| fold.contains(&f)), "no fold empty: {fold:?}");
+        for c in 0..k {
+            assert_eq!(fold[c], fold[c + k], "sample {c} and its brighter copy: {fold:?}");
+        }
+        // Random folds split most such pairs, so the copy would be in
+        // training when its twin is held out.
+        let random = folds(&pairs, 7);
+        assert!((0..k).filter(|c| random[*c] != random[c + k]).count() > k / 2, "{random:?}");
+        // Too few samples to group: the random folds.
+        let few = Pairs::in_plane(&h, &samples.columns(0, 6).into_owned(), &[1.0 / 6.0; 6], &noise);
+        assert_eq!(shape_folds(&few, 7), folds(&few, 7));
     }
 
     #[test]

@@ -25,13 +25,17 @@
 //!   Ward or GGX roughness from a few to ~95 GU ([`gloss_tiles`], none of
 //!   them in any prior), against their readings by the definition at each
 //!   pixel's own view.
+//! - **Stated uncertainty on held-out materials.** The share of those
+//!   points' bins within k = 2 of the uncertainty the frame states for them
+//!   (`BlobView::point_uncertainty`, what `measure` writes), per (material,
+//!   pixel) and over all.
 //! - **Flags and saturation** per pixel over the held-out materials.
 pub mod report;
 
 use crate::calibration::estimators::interpolation;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::metrics::GLOSS_SPLIT_GU;
+use crate::evaluation::metrology::metrics::{GLOSS_SPLIT_GU, K};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -121,6 +125,9 @@ pub struct MaterialRow {
     pub gloss: Vec<f64>,
     /// Per pixel, interpolation's (its profile by the in-plane definitions), GU.
     pub gloss_interpolation: Vec<f64>,
+    /// Per pixel, the share of the bins (over the lines) within k = 2 of
+    /// their stated uncertainty.
+    pub bin_coverage: Vec<f64>,
 }
 
 /// Gloss readings' relative error over every (material, pixel) with a
@@ -179,6 +186,8 @@ pub struct PixelMap {
     pub gloss: GlossErrors,
     /// Interpolation's.
     pub gloss_interpolation: GlossErrors,
+    /// Share of every held-out bin within k = 2 of its stated uncertainty.
+    pub bin_coverage: f64,
     /// The black glass: mean GU range over the pixels [min, max], the
     /// largest per-pixel spread, the line mean's spread, pixels without a
     /// reading, pixels saturated.
@@ -308,6 +317,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 let mut ierr = vec![0.0; p];
                 let mut fl = vec![(0, 0, 0); p];
                 let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
+                let mut covered = vec![0.0; p];
                 for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
                     g_true[px] = model_readings(b.as_ref(), &views[px])[brdf_meter::gloss::SPECULAR_GU];
                     let view_deg = views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
@@ -325,6 +335,22 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                         let v = DVector::from_iterator(inst.m(), pt.corrected.iter().map(|x| f64::from(*x)));
                         let profile = &interp[px] * v;
                         *e += rms(&est) / spec.lines as f64;
+                        let inside = est
+                            .iter()
+                            .zip(truth.iter())
+                            .enumerate()
+                            .filter(|(j, (x, t))| {
+                                let u = blob.point_uncertainty(
+                                    pt.zone as usize,
+                                    pt.cluster as usize,
+                                    *j,
+                                    **x as f32,
+                                    pt.sigma_scale,
+                                );
+                                (*x - *t).abs() <= K * f64::from(u)
+                            })
+                            .count();
+                        covered[px] += inside as f64 / (grid.n() as u64 * spec.lines) as f64;
                         *ie += rms(&profile) / spec.lines as f64;
                         g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
                         let gi =
@@ -342,6 +368,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                     gloss_true: g_true,
                     gloss: g_est,
                     gloss_interpolation: g_int,
+                    bin_coverage: covered,
                 };
                 Ok((row, fl))
             })
@@ -413,6 +440,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     };
     let gloss = gloss_of(|r| &r.gloss);
     let gloss_interpolation = gloss_of(|r| &r.gloss_interpolation);
+    let bin_coverage = rows.iter().flat_map(|r| r.bin_coverage.iter()).sum::<f64>() / (rows.len() * p).max(1) as f64;
     let line_means: Vec<f64> = bg
         .points
         .iter()
@@ -445,6 +473,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         interpolation: quantiles(&all_i),
         gloss,
         gloss_interpolation,
+        bin_coverage,
         black_glass,
         tiles: [
             devs.iter().sum::<f64>() / devs.len().max(1) as f64,

@@ -37,6 +37,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         g(&map.gloss)
     );
     let _ = writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&map.gloss_interpolation));
+    let _ =
+        writeln!(s, "| held-out bins within k = 2 of their stated uncertainty | {:.1} % |", 100.0 * map.bin_coverage);
     let _ = writeln!(
         s,
         "| black glass: per-pixel mean GU (lowest .. highest) | {:.2} .. {:.2} |",
