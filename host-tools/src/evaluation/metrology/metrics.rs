@@ -87,6 +87,10 @@ pub struct Row {
     pub no_reading: usize,
     /// Share of bins within k = 2 of their stated uncertainty.
     pub bin_coverage: Option<f64>,
+    /// How wide that band is: per estimate, the RMS over the bins of the
+    /// stated uncertainty over the truth's peak (the error's own scale, so a
+    /// band that is right has its median near the error's).
+    pub band: Option<Spread>,
     /// The same for gloss, haze and distinctness.
     pub reading_coverage: Option<[f64; 3]>,
     /// Estimates worse than [`BAD_ERROR`].
@@ -118,6 +122,7 @@ pub struct Tally {
     distinctness: Vec<f64>,
     no_reading: usize,
     bins: Option<(usize, usize)>,
+    band: Vec<f64>,
     readings: Option<[(usize, usize); 3]>,
     bad: (usize, usize),
     good: (usize, usize),
@@ -194,6 +199,8 @@ impl Tally {
                 let (inside, all) = bins_within(&r.rho, truth, s);
                 b.0 += inside;
                 b.1 += all;
+                let ms = s.iter().map(|u| u * u).sum::<f64>() / s.len().max(1) as f64;
+                self.band.push(ms.sqrt() / truth.peak.max(f64::MIN_POSITIVE));
             }
             if let Some(u) = r.gloss_u {
                 let acc = self.readings.get_or_insert([(0, 0); 3]);
@@ -254,6 +261,7 @@ impl Tally {
             distinctness_abs: Spread::of(&self.distinctness),
             no_reading: self.no_reading,
             bin_coverage: self.bins.and_then(share),
+            band: (!self.band.is_empty()).then(|| Spread::of(&self.band)),
             reading_coverage: self.readings.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
             bad: self.bad.1,
             flag_caught: if self.flags { share(self.bad) } else { None },

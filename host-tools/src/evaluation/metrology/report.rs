@@ -187,13 +187,13 @@ impl Report {
         }
         s += &format!(
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
-             coverage = |est - truth| <= 2 u; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest)\n\n"
+             coverage = |est - truth| <= 2 u; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest)\n\n"
         );
-        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 | FWHM err. p50 / p90 (deg) |\n";
-        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 | FWHM err. p50 / p90 (deg) |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for r in &self.rows {
             s += &format!(
-                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} ({}) | {} | {} | {} |\n",
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} | {} |\n",
                 r.family,
                 r.method,
                 r.materials,
@@ -203,6 +203,7 @@ impl Report {
                 r.worst_material,
                 pct(r.impossible),
                 opt_pct(r.bin_coverage),
+                r.band.map_or("-".into(), |b| format!("{:.4}", b.median)),
                 opt_pct(r.flag_caught),
                 r.bad,
                 opt_pct(r.flag_false),
