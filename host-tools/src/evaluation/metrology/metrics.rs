@@ -105,6 +105,8 @@ pub struct Row {
     pub peak_width_abs_deg: Spread,
     /// Share of peak heights within k = 2 of their stated uncertainty.
     pub peak_height_coverage: Option<f64>,
+    /// Share of peak widths within k = 2 of theirs.
+    pub peak_width_coverage: Option<f64>,
     /// Estimates without a peak where the truth has one.
     pub peak_missed: usize,
 }
@@ -130,6 +132,7 @@ pub struct Tally {
     height: Vec<f64>,
     width: Vec<f64>,
     height_cov: Option<(usize, usize)>,
+    width_cov: Option<(usize, usize)>,
     peak_missed: usize,
 }
 
@@ -228,6 +231,9 @@ impl Tally {
                 }
                 if tp.width_deg.is_finite() && ep.width_deg.is_finite() {
                     self.width.push((ep.width_deg - tp.width_deg).abs());
+                    if ep.u_width_deg.is_finite() && r.sigma.is_some() {
+                        count(&mut self.width_cov, (ep.width_deg - tp.width_deg).abs() <= K * ep.u_width_deg);
+                    }
                 }
             }
         }
@@ -269,6 +275,7 @@ impl Tally {
             peak_height_rel: Spread::of(&self.height),
             peak_width_abs_deg: Spread::of(&self.width),
             peak_height_coverage: self.height_cov.and_then(share),
+            peak_width_coverage: self.width_cov.and_then(share),
             peak_missed: self.peak_missed,
         }
     }

@@ -189,11 +189,11 @@ impl Report {
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
              coverage = |est - truth| <= 2 u; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest)\n\n"
         );
-        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 | FWHM err. p50 / p90 (deg) |\n";
+        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) |\n";
         s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for r in &self.rows {
             s += &format!(
-                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} | {} |\n",
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} ({}) | {} ({}) |\n",
                 r.family,
                 r.method,
                 r.materials,
@@ -208,7 +208,9 @@ impl Report {
                 r.bad,
                 opt_pct(r.flag_false),
                 pair_pct(&r.peak_height_rel),
+                opt_pct(r.peak_height_coverage),
                 pair(&r.peak_width_abs_deg, 2),
+                opt_pct(r.peak_width_coverage),
             );
         }
         s += &format!(
