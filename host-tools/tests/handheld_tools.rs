@@ -180,8 +180,18 @@ fn pixel_map_reads_every_pixel() {
     assert!(g.low[0] > 0.0 && g.low[0] < map.gloss_interpolation.low[0], "{g:?} {:?}", map.gloss_interpolation);
     let m = &map.materials[0];
     assert!(m.gloss_true.iter().zip(&m.gloss).all(|(t, e)| *t > 0.0 && e.is_finite()), "{m:?}");
+    // The frames' stated uncertainty is scored on the held-out materials
+    // and on the tiles, surfaces of families no prior holds, whose BRDF is
+    // read beside interpolation's.
+    assert_eq!(m.bin_coverage.len(), 12);
+    assert!((0.5..=1.0).contains(&map.bin_coverage), "{}", map.bin_coverage);
+    let t = &map.tiles_brdf;
+    assert_eq!(t.per_tile.len(), host_tools::evaluation::pixel_map::gloss_tiles().len());
+    assert!(t.error[0] > 0.0 && t.interpolation[0] > 0.0 && t.error[1] <= t.error[2], "{t:?}");
+    assert!((0.5..=1.0).contains(&t.bin_coverage) && (0.0..=1.0).contains(&t.out_of_prior), "{t:?}");
     host_tools::evaluation::pixel_map::report::write(dir.path(), &map, 4).unwrap();
     assert!(dir.path().join("pixel-map.png").exists());
     let md = std::fs::read_to_string(dir.path().join("pixel-map.md")).unwrap();
     assert!(md.contains("| gloss, held out: relative error"), "{md}");
+    assert!(md.contains("| gloss tiles' BRDF error / peak") && md.contains("stated uncertainty"), "{md}");
 }

@@ -194,8 +194,26 @@ pub struct PixelMap {
     pub black_glass: BlackGlassSummary,
     /// The tiles: mean and worst |delta GU| over every (tile, pixel).
     pub tiles: [f64; 2],
+    /// The tiles' BRDF estimates: surfaces of families no prior holds.
+    pub tiles_brdf: TilesBrdf,
     /// The tiles' truths at the line's centre pixel, GU.
     pub tile_gu: Vec<(String, f64)>,
+}
+
+/// The gloss tiles' BRDF estimates, over every (tile, pixel), each its
+/// mean over the tile's lines.
+#[derive(Clone, Debug, Serialize)]
+pub struct TilesBrdf {
+    /// BRDF error / peak: median, 90th percentile, worst.
+    pub error: [f64; 3],
+    /// Linear interpolation's on the same readings.
+    pub interpolation: [f64; 3],
+    /// Share of the bins within k = 2 of their stated uncertainty.
+    pub bin_coverage: f64,
+    /// Share of the points flagged out of prior.
+    pub out_of_prior: f64,
+    /// Per tile, its error over the pixels: median, 90th percentile, worst.
+    pub per_tile: Vec<(String, [f64; 3])>,
 }
 
 /// The black glass over the line.
@@ -260,6 +278,67 @@ fn read_surface(
     Ok(Read { points })
 }
 
+/// A surface's truth at a pixel's view: its binned reflectance factor on the grid.
+fn truth_at(b: &dyn Brdf, view: &nalgebra::Vector3<f64>, grid: &crate::forward::grid::AngleGrid) -> DVector<f64> {
+    DVector::from_iterator(
+        grid.n(),
+        grid.bins_deg().iter().map(|t| binned_reflectance_at(b, *t, view, grid.step_deg())),
+    )
+}
+
+/// One point read against its truth.
+struct PointScore {
+    /// The estimate's BRDF error: RMS over the bins / the truth's peak.
+    error: f64,
+    /// Linear interpolation's, on the same corrected readings.
+    interpolation: f64,
+    /// Share of the bins within k = 2 of the uncertainty the frame states
+    /// (`BlobView::point_uncertainty`, what `measure` writes).
+    covered: f64,
+    /// Interpolation's profile (its gloss is read from it).
+    profile: DVector<f64>,
+}
+
+impl PointScore {
+    fn of(
+        blob: &BlobView<'_>,
+        truth: &DVector<f64>,
+        pt: &crate::device::reference::ExpectedPoint,
+        interp: &nalgebra::DMatrix<f64>,
+    ) -> Self {
+        let n = truth.len();
+        let peak = truth.amax().max(f64::MIN_POSITIVE);
+        let rms = |x: &DVector<f64>| ((x - truth).norm_squared() / n as f64).sqrt() / peak;
+        let est = DVector::from_iterator(n, pt.values.iter().map(|x| f64::from(*x)));
+        let profile = interp * DVector::from_iterator(pt.corrected.len(), pt.corrected.iter().map(|x| f64::from(*x)));
+        let inside = (0..n)
+            .filter(|&j| {
+                let u = blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale);
+                (est[j] - truth[j]).abs() <= K * f64::from(u)
+            })
+            .count();
+        Self { error: rms(&est), interpolation: rms(&profile), covered: inside as f64 / n.max(1) as f64, profile }
+    }
+}
+
+/// A gloss tile read over its lines by the calibration on the whole prior.
+struct TileRead {
+    read: Read,
+    /// Per pixel, its gloss by the definitions in three dimensions, GU.
+    gloss_truth: Vec<Option<f64>>,
+    /// Per pixel, its BRDF scores (each the mean over the lines).
+    brdf: Vec<TilePixel>,
+}
+
+/// One tile's BRDF at one pixel, each figure its mean over the lines.
+#[derive(Clone, Copy, Debug, Default)]
+struct TilePixel {
+    error: f64,
+    interpolation: f64,
+    covered: f64,
+    out_of_prior: f64,
+}
+
 /// Per pixel: points flagged out of prior, points flagged saturated, points.
 type FlagCounts = (usize, usize, usize);
 
@@ -321,40 +400,16 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
                     g_true[px] = model_readings(b.as_ref(), &views[px])[brdf_meter::gloss::SPECULAR_GU];
                     let view_deg = views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
-                    let truth = DVector::from_iterator(
-                        grid.n(),
-                        grid.bins_deg()
-                            .iter()
-                            .map(|t| binned_reflectance_at(b.as_ref(), *t, &views[px], grid.step_deg())),
-                    );
-                    let peak = truth.amax().max(f64::MIN_POSITIVE);
-                    let rms = |x: &DVector<f64>| ((x - &truth).norm_squared() / grid.n() as f64).sqrt() / peak;
+                    let truth = truth_at(b.as_ref(), &views[px], &grid);
                     for line in &read.points {
                         let pt = &line[px];
-                        let est = DVector::from_iterator(grid.n(), pt.values.iter().map(|x| f64::from(*x)));
-                        let v = DVector::from_iterator(inst.m(), pt.corrected.iter().map(|x| f64::from(*x)));
-                        let profile = &interp[px] * v;
-                        *e += rms(&est) / spec.lines as f64;
-                        let inside = est
-                            .iter()
-                            .zip(truth.iter())
-                            .enumerate()
-                            .filter(|(j, (x, t))| {
-                                let u = blob.point_uncertainty(
-                                    pt.zone as usize,
-                                    pt.cluster as usize,
-                                    *j,
-                                    **x as f32,
-                                    pt.sigma_scale,
-                                );
-                                (*x - *t).abs() <= K * f64::from(u)
-                            })
-                            .count();
-                        covered[px] += inside as f64 / (grid.n() as u64 * spec.lines) as f64;
-                        *ie += rms(&profile) / spec.lines as f64;
+                        let score = PointScore::of(&blob, &truth, pt, &interp[px]);
+                        *e += score.error / spec.lines as f64;
+                        *ie += score.interpolation / spec.lines as f64;
+                        covered[px] += score.covered / spec.lines as f64;
                         g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
-                        let gi =
-                            profile_scaled_readings(&profile, grid.bins_deg(), view_deg).map_or(f64::NAN, |l| l[0]);
+                        let gi = profile_scaled_readings(&score.profile, grid.bins_deg(), view_deg)
+                            .map_or(f64::NAN, |l| l[0]);
                         g_int[px] += gi / spec.lines as f64;
                         c.0 += usize::from(pt.flags & flags::OUT_OF_PRIOR != 0);
                         c.1 += usize::from(pt.flags & flags::SATURATED != 0);
@@ -389,15 +444,43 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let blob = BlobView::parse(&full.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let bg = read_surface(spec, Arc::new(SmoothDielectric::black_glass()), &blob, spec.gloss_lines, 1_000_003)?;
     let tiles = gloss_tiles();
-    let tile_reads: Vec<(Read, Vec<Option<f64>>)> = tiles
+    let tile_reads: Vec<TileRead> = tiles
         .par_iter()
         .enumerate()
         .map(|(i, (_, b))| {
             let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
-            let truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
-            Ok((read, truth))
+            let gloss_truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
+            let brdf = (0..p)
+                .map(|px| {
+                    let t = truth_at(b.as_ref(), &views[px], &grid);
+                    let lines = read.points.len().max(1) as f64;
+                    let mut acc = TilePixel::default();
+                    for line in &read.points {
+                        let sc = PointScore::of(&blob, &t, &line[px], &interp[px]);
+                        acc.error += sc.error / lines;
+                        acc.interpolation += sc.interpolation / lines;
+                        acc.covered += sc.covered / lines;
+                        acc.out_of_prior += f64::from(u8::from(line[px].flags & flags::OUT_OF_PRIOR != 0)) / lines;
+                    }
+                    acc
+                })
+                .collect();
+            Ok(TileRead { read, gloss_truth, brdf })
         })
         .collect::<anyhow::Result<_>>()?;
+    let all_tiles = || tile_reads.iter().flat_map(|t| t.brdf.iter());
+    let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let tiles_brdf = TilesBrdf {
+        error: quantiles(&all_tiles().map(|x| x.error).collect::<Vec<_>>()),
+        interpolation: quantiles(&all_tiles().map(|x| x.interpolation).collect::<Vec<_>>()),
+        bin_coverage: mean(all_tiles().map(|x| x.covered).collect()),
+        out_of_prior: mean(all_tiles().map(|x| x.out_of_prior).collect()),
+        per_tile: tiles
+            .iter()
+            .zip(&tile_reads)
+            .map(|((n, _), t)| (n.clone(), quantiles(&t.brdf.iter().map(|x| x.error).collect::<Vec<_>>())))
+            .collect(),
+    };
     let mean_sd = |xs: &[f64]| {
         let n = xs.len() as f64;
         let m = xs.iter().sum::<f64>() / n;
@@ -411,7 +494,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         let bgv: Vec<f64> = bg.points.iter().map(|l| gu(&l[px])).collect();
         let (bm, bsd) = mean_sd(&bgv);
         let mut dev = Vec::new();
-        for (read, truth) in &tile_reads {
+        for TileRead { read, gloss_truth: truth, .. } in &tile_reads {
             let r: Vec<f64> = read.points.iter().map(|l| gu(&l[px])).collect();
             if let Some(t) = truth[px] {
                 dev.push((mean_sd(&r).0 - t).abs());
@@ -461,8 +544,11 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         saturated: pixels.iter().filter(|r| r.black_glass_saturated).count(),
     };
     let devs: Vec<f64> = pixels.iter().map(|r| r.tiles_mean_abs_gu).filter(|x| x.is_finite()).collect();
-    let tile_gu =
-        tiles.iter().zip(&tile_reads).map(|((n, _), (_, t))| (n.clone(), t[p / 2].unwrap_or(f64::NAN))).collect();
+    let tile_gu = tiles
+        .iter()
+        .zip(&tile_reads)
+        .map(|((n, _), t)| (n.clone(), t.gloss_truth[p / 2].unwrap_or(f64::NAN)))
+        .collect();
     Ok(PixelMap {
         scene: scene.name.clone(),
         kind: crate::calibration::estimators::kind_name(spec.kind).into(),
@@ -480,6 +566,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             pixels.iter().map(|r| r.tiles_max_abs_gu).filter(|x| x.is_finite()).fold(0.0, f64::max),
         ],
         tile_gu,
+        tiles_brdf,
         pixels,
         materials: rows,
     })

@@ -54,6 +54,16 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let tiles: Vec<String> = map.tile_gu.iter().map(|(_, g)| format!("{g:.1}")).collect();
     let _ = writeln!(s, "| gloss tiles' GU at the centre pixel | {} |", tiles.join(", "));
+    let tb = &map.tiles_brdf;
+    let _ =
+        writeln!(s, "| gloss tiles' BRDF error / peak (median / 90th / worst over tile x pixel) | {} |", q(tb.error));
+    let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(tb.interpolation));
+    let _ = writeln!(
+        s,
+        "| gloss tiles' bins within k = 2 of their stated uncertainty; points flagged out of prior | {:.1} %; {:.1} % |",
+        100.0 * tb.bin_coverage,
+        100.0 * tb.out_of_prior
+    );
     let _ = writeln!(s);
     let _ = writeln!(
         s,
