@@ -24,11 +24,11 @@
 //!   "no reading", saturation) and a set of gloss tiles, dielectrics with
 //!   Ward or GGX roughness from a few to ~95 GU ([`gloss_tiles`], none of
 //!   them in any prior), against their readings by the definition at each
-//!   pixel's own view.
-//! - **Stated uncertainty on held-out materials.** The share of those
-//!   points' bins within k = 2 of the uncertainty the frame states for them
-//!   (`BlobView::point_uncertainty`, what `measure` writes), per (material,
-//!   pixel) and over all.
+//!   pixel's own view; the tiles' BRDF too, beside interpolation's: the
+//!   map's surfaces of families no prior holds.
+//! - **Stated uncertainty.** The share of the held-out materials' and the
+//!   tiles' bins within k = 2 of the uncertainty the frame states for them
+//!   (`BlobView::point_uncertainty`, what `measure` writes).
 //! - **Flags and saturation** per pixel over the held-out materials.
 pub mod report;
 
