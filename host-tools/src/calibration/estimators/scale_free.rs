@@ -339,42 +339,32 @@ fn folds(pairs: &Pairs, seed: u64) -> Vec<usize> {
 
 /// Folds that each hold out one kind of material: the prior's samples
 /// grouped into [`FOLDS`] groups by k-means on the shape of their
-/// noise-free readings (`v / sum v`, what the device's clusters and the
-/// out-of-prior statistic see), one group per fold, each sample's pairs
+/// noise-free readings (`nz.u`, `v / sum v`: what the device's clusters and
+/// the out-of-prior statistic see), one group per fold, each sample's pairs
 /// together. Falls back to [`folds`] for a prior too small to group
 /// (fewer than two samples per fold) or whose groups collapse into one.
-fn shape_folds(pairs: &Pairs, seed: u64) -> Vec<usize> {
-    let samples = pairs.sample.iter().copied().max().map_or(0, |x| x + 1);
-    let mut shape: Vec<Option<Vec<f64>>> = vec![None; samples];
+fn shape_folds(pairs: &Pairs, nz: &Normalised, seed: u64) -> Vec<usize> {
+    // Each sample by its first pair (sample ids may have gaps: a prior
+    // with some samples held out).
+    let mut first: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
     for (k, &s) in pairs.sample.iter().enumerate() {
-        let v = pairs.readings.column(k);
-        let sum: f64 = v.iter().sum();
-        if shape[s].is_none() && sum > 0.0 {
-            shape[s] = Some(v.iter().map(|x| x / sum).collect());
-        }
+        first.entry(s).or_insert(k);
     }
-    let present: Vec<usize> = (0..samples).filter(|s| shape[*s].is_some()).collect();
-    if present.len() < 2 * FOLDS {
+    if first.len() < 2 * FOLDS {
         return folds(pairs, seed);
     }
-    let points: Vec<Vec<f64>> = present.iter().filter_map(|s| shape[*s].clone()).collect();
+    let points: Vec<Vec<f64>> = first.values().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let (_, labels) = kmeans(&points, FOLDS, seed);
-    // Numbered 0.. in order of first appearance, so no fold is empty.
-    let mut seen: Vec<usize> = Vec::new();
-    for l in &labels {
-        if !seen.contains(l) {
-            seen.push(*l);
-        }
-    }
-    if seen.len() < 2 {
+    // Numbered 0.. without gaps, so no fold is empty.
+    let mut used = labels.clone();
+    used.sort_unstable();
+    used.dedup();
+    if used.len() < 2 {
         return folds(pairs, seed);
     }
-    let mut of_sample = vec![usize::MAX; samples];
-    for (s, l) in present.iter().zip(&labels) {
-        of_sample[*s] = seen.iter().position(|x| x == l).unwrap_or(0);
-    }
-    // A sample without light in any pair (none in practice) joins group 0.
-    pairs.sample.iter().map(|&s| if of_sample[s] == usize::MAX { 0 } else { of_sample[s] }).collect()
+    let of_sample: std::collections::BTreeMap<usize, usize> =
+        first.keys().zip(&labels).map(|(s, l)| (*s, used.binary_search(l).unwrap_or(0))).collect();
+    pairs.sample.iter().map(|s| of_sample[s]).collect()
 }
 
 /// One noisy draw of noise-free readings `v` with variances `var` (a
@@ -637,8 +627,8 @@ pub fn train_with(
     let mut fitted = fit(&nz, &all, opts.seed, ridge, clusters, opts.root)?;
     let cv = CrossValidation::new(pairs, opts.seed);
     if opts.root {
-        let by_shape = CrossValidation { readings: cv.readings.clone(), fold: shape_folds(pairs, opts.seed) };
-        held_out_uncertainty(pairs, &nz, &by_shape, opts, ridge, clusters, &mut fitted)?;
+        let by_shape = shape_folds(pairs, &nz, opts.seed);
+        held_out_uncertainty(pairs, &nz, (&cv.readings, &by_shape), opts.seed, ridge, clusters, &mut fitted)?;
     }
     // Out-of-prior: held-out statistics -> threshold.
     let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
@@ -672,29 +662,29 @@ type HeldOutRoot = (usize, f64, DVector<f64>, DVector<f64>, DVector<f64>, f64);
 
 /// The root form's uncertainty per unit scale (module doc): per cluster of
 /// `fitted` and bin, the RMS of the held-out roots' errors (each pair read
-/// by its fold's fit, `cv`'s folds being [`shape_folds`], every noise
-/// draw, the prior's own weights), then one
+/// by the fit without its fold, `fold` being [`shape_folds`], every noise
+/// draw of `readings`, the prior's own weights), then one
 /// factor on all of them so that `COVERAGE` of the held-out values lie
 /// within `COVERAGE_K` of the point's stated uncertainty.
 fn held_out_uncertainty(
     pairs: &Pairs,
     nz: &Normalised,
-    cv: &CrossValidation,
-    opts: &ScaleFreeOptions,
+    (readings, fold): (&[Vec<DVector<f64>>], &[usize]),
+    seed: u64,
     ridge: f64,
     clusters: usize,
     fitted: &mut Fitted,
 ) -> anyhow::Result<()> {
     let n = pairs.n();
     let k_maps = fitted.maps.len();
-    let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
+    let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
     for f in 0..nf {
-        let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
-        let fold_fit = fit(nz, &train_idx, opts.seed, ridge, clusters, true)?;
-        for k in (0..pairs.len()).filter(|k| cv.fold[*k] == f) {
+        let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| fold[*k] != f).collect();
+        let fold_fit = fit(nz, &train_idx, seed, ridge, clusters, true)?;
+        for k in (0..pairs.len()).filter(|k| fold[*k] == f) {
             let truth = pairs.truth.column(k).into_owned();
-            for v in &cv.readings[k] {
+            for v in &readings[k] {
                 let s: f64 = v.iter().sum();
                 if s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                     continue;
@@ -801,7 +791,8 @@ mod tests {
         });
         let noise = ReadingNoise::relative(0.02, h.nrows());
         let pairs = Pairs::in_plane(&h, &samples, &vec![1.0 / (2 * k) as f64; 2 * k], &noise);
-        let fold = shape_folds(&pairs, 7);
+        let nz = normalise_truth(&pairs, &ScaleFreeOptions::default()).unwrap();
+        let fold = shape_folds(&pairs, &nz, 7);
         let nf = fold.iter().max().unwrap() + 1;
         assert!((2..=FOLDS).contains(&nf), "{fold:?}");
         assert!((0..nf).all(|f| fold.contains(&f)), "no fold empty: {fold:?}");
@@ -814,7 +805,8 @@ mod tests {
         assert!((0..k).filter(|c| random[*c] != random[c + k]).count() > k / 2, "{random:?}");
         // Too few samples to group: the random folds.
         let few = Pairs::in_plane(&h, &samples.columns(0, 6).into_owned(), &[1.0 / 6.0; 6], &noise);
-        assert_eq!(shape_folds(&few, 7), folds(&few, 7));
+        let nz_few = normalise_truth(&few, &ScaleFreeOptions::default()).unwrap();
+        assert_eq!(shape_folds(&few, &nz_few, 7), folds(&few, 7));
     }
 
     #[test]

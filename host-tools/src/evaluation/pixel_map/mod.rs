@@ -33,6 +33,7 @@
 pub mod report;
 
 use crate::calibration::estimators::interpolation;
+use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
 use crate::evaluation::metrology::metrics::{GLOSS_SPLIT_GU, K};
@@ -307,8 +308,6 @@ impl PointScore {
         interp: &nalgebra::DMatrix<f64>,
     ) -> Self {
         let n = truth.len();
-        let peak = truth.amax().max(f64::MIN_POSITIVE);
-        let rms = |x: &DVector<f64>| ((x - truth).norm_squared() / n as f64).sqrt() / peak;
         let est = DVector::from_iterator(n, pt.values.iter().map(|x| f64::from(*x)));
         let profile = interp * DVector::from_iterator(pt.corrected.len(), pt.corrected.iter().map(|x| f64::from(*x)));
         let inside = (0..n)
@@ -317,7 +316,12 @@ impl PointScore {
                 (est[j] - truth[j]).abs() <= K * f64::from(u)
             })
             .count();
-        Self { error: rms(&est), interpolation: rms(&profile), covered: inside as f64 / n.max(1) as f64, profile }
+        Self {
+            error: peak_error(&est, truth),
+            interpolation: peak_error(&profile, truth),
+            covered: inside as f64 / n.max(1) as f64,
+            profile,
+        }
     }
 }
 
