@@ -4,14 +4,15 @@
 //! ```toml
 //! [[candidate]]
 //! name = "11 LEDs, 4 mm dies"
-//! leds = { count = 11, first_deg = 33.0, last_deg = 57.0, die_mm = 4.0 }
+//! leds = { count = 11, first_deg = 33.0, last_deg = 57.0, die_mm = 4.0, die_height_mm = 10.5 }
 //! gain = 2400.0          # counts of a perfect diffuser (instrument.sensor.gain)
 //! short_exposure = [16, 80]  # exposures 1/16 and 1/80 as long for a saturated frame
 //! ```
 //!
 //! Every field but `name` is optional: what a candidate leaves out is the
 //! base scene's. `leds` replaces the base's LEDs with `count` extended dies
-//! of `die_mm` x `die_mm`, centre rays evenly spread from `first_deg` to
+//! of `die_mm` in the plane of incidence x `die_height_mm` across it
+//! (`die_mm` when absent: a square die), centre rays evenly spread from `first_deg` to
 //! `last_deg` (or at `angles_deg`), `distance_cm` away (the base's first
 //! LED's distance by default), sampled every [`DIE_SAMPLE_PITCH_MM`] or
 //! finer, with the base's first LED's emission profile.
@@ -66,8 +67,13 @@ pub struct LedRing {
     /// Or the centre-ray incidences one by one, degrees.
     #[serde(default)]
     pub angles_deg: Option<Vec<f64>>,
-    /// Side of the square die (or diffuser), mm.
+    /// Side of the die (or diffuser) in the plane of incidence, mm.
     pub die_mm: f64,
+    /// Its extent across the plane of incidence, mm (`die_mm` when absent).
+    /// A slit as wide across as the gloss geometry's receptor (10 deg)
+    /// reads a lobe's flux through the gloss window as it reads a mirror's.
+    #[serde(default)]
+    pub die_height_mm: Option<f64>,
     /// Distance from the line's centre, cm.
     #[serde(default)]
     pub distance_cm: Option<f64>,
@@ -110,6 +116,9 @@ impl Validate for CandidateFile {
             if let Some(l) = &c.leds {
                 let at2 = |e: FieldError| at(e.within("leds"));
                 check_range("die_mm", l.die_mm, 0.0, 50.0, "mm").map_err(at2)?;
+                if let Some(h) = l.die_height_mm {
+                    check_range("die_height_mm", h, 0.0, 50.0, "mm").map_err(at2)?;
+                }
                 if let Some(d) = l.distance_cm {
                     check_positive("distance_cm", d, "cm").map_err(at2)?;
                 }
@@ -149,7 +158,8 @@ impl Candidate {
             let first = base.instrument.leds.first();
             let distance = ring.distance_cm.or(first.map(|l| l.distance_cm)).unwrap_or(6.0);
             let die_cm = ring.die_mm / 10.0;
-            let samples = ((ring.die_mm / DIE_SAMPLE_PITCH_MM).ceil() as usize).clamp(1, 99);
+            let height_mm = ring.die_height_mm.unwrap_or(ring.die_mm);
+            let samples_of = |mm: f64| ((mm / DIE_SAMPLE_PITCH_MM).ceil() as usize).clamp(1, 99);
             s.instrument.leds = ring
                 .angles()
                 .iter()
@@ -161,10 +171,10 @@ impl Candidate {
                     azimuth_deg: 0.0,
                     cluster: None,
                     sources: None,
-                    extended: (die_cm > 0.0).then_some(ExtendedSpec {
+                    extended: (die_cm > 0.0 && height_mm > 0.0).then_some(ExtendedSpec {
                         width_cm: die_cm,
-                        height_cm: die_cm,
-                        samples: [samples, samples],
+                        height_cm: height_mm / 10.0,
+                        samples: [samples_of(ring.die_mm), samples_of(height_mm)],
                     }),
                     intensity: 1.0,
                     emission: first.and_then(|l| l.emission.clone()),
@@ -204,6 +214,7 @@ pub fn builtin(base: &Scene) -> Vec<Candidate> {
                         last_deg: Some(57.0),
                         angles_deg: None,
                         die_mm: die,
+                        die_height_mm: None,
                         distance_cm: None,
                     }),
                     gain,

@@ -71,8 +71,10 @@ pub struct CandidateScore {
     pub m: usize,
     /// Their centre angles at the line's centre, degrees.
     pub centres_deg: Vec<f64>,
-    /// Die side, mm (0 for point sources).
+    /// Die side in the plane of incidence, mm (0 for point sources).
     pub die_mm: f64,
+    /// Its extent across the plane, mm.
+    pub die_height_mm: f64,
     /// Sensor gain.
     pub gain: f64,
     /// Ratios of the shorter exposures taken of a saturated frame (empty: none).
@@ -146,12 +148,14 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
     let per_frame = acq.line_us / (m + 1) as f64;
     let shorter: f64 = ratios.iter().map(|r| (m + 1) as f64 * (per_frame - acq.exposure_us * (1.0 - 1.0 / r))).sum();
     let n = inst.grid()?.n();
-    let die_mm = inst.leds[0].extended.as_ref().map_or(0.0, |e| e.width_cm * 10.0);
+    let die = inst.leds[0].extended.as_ref();
+    let (die_mm, die_height_mm) = (die.map_or(0.0, |e| e.width_cm * 10.0), die.map_or(0.0, |e| e.height_cm * 10.0));
     Ok(CandidateScore {
         name: c.name.clone(),
         m,
         centres_deg: inst.centre_angles_deg(),
         die_mm,
+        die_height_mm,
         gain: inst.sensor.gain,
         short_exposure: ratios.clone(),
         pixel_errors,

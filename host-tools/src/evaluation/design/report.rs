@@ -14,16 +14,17 @@ pub fn table(scores: &[CandidateScore], estimator: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| candidate | m | die mm | gain | short | {estimator} median / 90th / worst | interpolation median / 90th / worst | uncovered px | min margin deg | black glass sat. long/short | metal sat. long/short | line ms (worst) | estimation ms |"
+        "| candidate | m | die mm (in-plane x across) | gain | short | {estimator} median / 90th / worst | interpolation median / 90th / worst | uncovered px | min margin deg | black glass sat. long/short | metal sat. long/short | line ms (worst) | estimation ms |"
     );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for c in scores {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} | {:.0} | {} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {} | {:+.2} | {} / {} | {} / {} | {:.1} ({:.1}) | {:.2} |",
+            "| {} | {} | {:.1} x {:.1} | {:.0} | {} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {} | {:+.2} | {} / {} | {} / {} | {:.1} ({:.1}) | {:.2} |",
             c.name,
             c.m,
             c.die_mm,
+            c.die_height_mm,
             c.gain,
             if c.short_exposure.is_empty() {
                 "-".into()
@@ -57,6 +58,7 @@ pub fn csv(scores: &[CandidateScore]) -> anyhow::Result<Vec<u8>> {
         "candidate",
         "m",
         "die_mm",
+        "die_height_mm",
         "gain",
         "short_exposures",
         "error_median",
@@ -81,6 +83,7 @@ pub fn csv(scores: &[CandidateScore]) -> anyhow::Result<Vec<u8>> {
             c.name.clone(),
             c.m.to_string(),
             f(c.die_mm),
+            f(c.die_height_mm),
             f(c.gain),
             c.short_exposure.iter().map(|r| format!("{r}")).collect::<Vec<_>>().join(" "),
             f(c.error[0]),
