@@ -195,9 +195,16 @@ fn pixel_map_reads_every_pixel() {
     assert_eq!(t.per_tile.len(), host_tools::evaluation::pixel_map::gloss_tiles().len());
     assert!(t.error[0] > 0.0 && t.interpolation[0] > 0.0 && t.error[1] <= t.error[2], "{t:?}");
     assert!((0.5..=1.0).contains(&t.bin_coverage) && (0.0..=1.0).contains(&t.out_of_prior), "{t:?}");
+    // Whether the flag predicts error is scored on every point read: each
+    // line of each pixel of each held-out material, and of each tile.
+    let f = &map.flag;
+    assert_eq!(f.bad + f.good, 12 * 20, "{f:?}");
+    assert!(f.bad_flagged <= f.bad && f.good_flagged <= f.good, "{f:?}");
+    assert_eq!(t.flag.bad + t.flag.good, 12 * t.per_tile.len() * 3, "{:?}", t.flag);
     host_tools::evaluation::pixel_map::report::write(dir.path(), &map, 4).unwrap();
     assert!(dir.path().join("pixel-map.png").exists());
     let md = std::fs::read_to_string(dir.path().join("pixel-map.md")).unwrap();
     assert!(md.contains("| gloss, held out: relative error"), "{md}");
     assert!(md.contains("| gloss tiles' BRDF error / peak") && md.contains("stated uncertainty"), "{md}");
+    assert!(md.contains("| out-of-prior flag, held out: of points worse than 0.10"), "{md}");
 }

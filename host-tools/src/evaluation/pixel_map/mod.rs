@@ -29,14 +29,18 @@
 //! - **Stated uncertainty.** The share of the held-out materials' and the
 //!   tiles' bins within k = 2 of the uncertainty the frame states for them
 //!   (`BlobView::point_uncertainty`, what `measure` writes).
-//! - **Flags and saturation** per pixel over the held-out materials.
+//! - **Flags and saturation** per pixel over the held-out materials, and
+//!   whether the out-of-prior flag predicts error ([`FlagScore`]): of the
+//!   points (each line of each pixel) worse than `BAD_ERROR` of their peak,
+//!   the share flagged, and of the rest, on the held-out materials and on
+//!   the tiles.
 pub mod report;
 
 use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::metrics::{GLOSS_SPLIT_GU, K};
+use crate::evaluation::metrology::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, K};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -189,6 +193,8 @@ pub struct PixelMap {
     pub gloss_interpolation: GlossErrors,
     /// Share of every held-out bin within k = 2 of its stated uncertainty.
     pub bin_coverage: f64,
+    /// Whether the out-of-prior flag predicts the held-out points' error.
+    pub flag: FlagScore,
     /// The black glass: mean GU range over the pixels [min, max], the
     /// largest per-pixel spread, the line mean's spread, pixels without a
     /// reading, pixels saturated.
@@ -213,6 +219,8 @@ pub struct TilesBrdf {
     pub bin_coverage: f64,
     /// Share of the points flagged out of prior.
     pub out_of_prior: f64,
+    /// Whether the flag predicts their error.
+    pub flag: FlagScore,
     /// Per tile, its error over the pixels: median, 90th percentile, worst.
     pub per_tile: Vec<(String, [f64; 3])>,
 }
@@ -341,10 +349,58 @@ struct TilePixel {
     interpolation: f64,
     covered: f64,
     out_of_prior: f64,
+    flag: FlagScore,
 }
 
 /// Per pixel: points flagged out of prior, points flagged saturated, points.
 type FlagCounts = (usize, usize, usize);
+
+/// Whether the out-of-prior flag predicts error: points worse than
+/// `BAD_ERROR` of their peak and the rest, and how many of each are flagged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FlagScore {
+    /// Points worse than `BAD_ERROR`.
+    pub bad: usize,
+    /// Of them, flagged out of prior.
+    pub bad_flagged: usize,
+    /// The other points.
+    pub good: usize,
+    /// Of them, flagged out of prior (false alarms).
+    pub good_flagged: usize,
+}
+
+impl FlagScore {
+    /// Counts one point of BRDF error `error` (over its truth's peak).
+    pub fn add(&mut self, error: f64, flagged: bool) {
+        if error > BAD_ERROR {
+            self.bad += 1;
+            self.bad_flagged += usize::from(flagged);
+        } else {
+            self.good += 1;
+            self.good_flagged += usize::from(flagged);
+        }
+    }
+
+    /// Both counts summed.
+    pub fn merged(self, o: Self) -> Self {
+        Self {
+            bad: self.bad + o.bad,
+            bad_flagged: self.bad_flagged + o.bad_flagged,
+            good: self.good + o.good,
+            good_flagged: self.good_flagged + o.good_flagged,
+        }
+    }
+
+    /// Share of the bad points flagged (NaN with none).
+    pub fn caught(&self) -> f64 {
+        if self.bad == 0 { f64::NAN } else { self.bad_flagged as f64 / self.bad as f64 }
+    }
+
+    /// Share of the other points flagged (NaN with none).
+    pub fn false_alarms(&self) -> f64 {
+        if self.good == 0 { f64::NAN } else { self.good_flagged as f64 / self.good as f64 }
+    }
+}
 
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
@@ -385,12 +441,13 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         .collect::<anyhow::Result<_>>()?;
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
+    let mut held_out_flag = FlagScore::default();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
         progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
         let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
         let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let results: Vec<(MaterialRow, Vec<FlagCounts>)> = held
+        let results: Vec<(MaterialRow, Vec<FlagCounts>, FlagScore)> = held
             .par_iter()
             .map(|&k| {
                 let s = &spec.prior.samples[k];
@@ -401,6 +458,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 let mut fl = vec![(0, 0, 0); p];
                 let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
                 let mut covered = vec![0.0; p];
+                let mut flag = FlagScore::default();
                 for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
                     g_true[px] = model_readings(b.as_ref(), &views[px])[brdf_meter::gloss::SPECULAR_GU];
                     let view_deg = views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
@@ -415,7 +473,9 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                         let gi = profile_scaled_readings(&score.profile, grid.bins_deg(), view_deg)
                             .map_or(f64::NAN, |l| l[0]);
                         g_int[px] += gi / spec.lines as f64;
-                        c.0 += usize::from(pt.flags & flags::OUT_OF_PRIOR != 0);
+                        let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
+                        c.0 += usize::from(flagged);
+                        flag.add(score.error, flagged);
                         c.1 += usize::from(pt.flags & flags::SATURATED != 0);
                         c.2 += 1;
                     }
@@ -429,10 +489,11 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                     gloss_interpolation: g_int,
                     bin_coverage: covered,
                 };
-                Ok((row, fl))
+                Ok((row, fl, flag))
             })
             .collect::<anyhow::Result<_>>()?;
-        for (row, fl) in results {
+        for (row, fl, f) in results {
+            held_out_flag = held_out_flag.merged(f);
             for (acc, x) in flag_counts.iter_mut().zip(fl) {
                 acc.0 += x.0;
                 acc.1 += x.1;
@@ -464,7 +525,9 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                         acc.error += sc.error / lines;
                         acc.interpolation += sc.interpolation / lines;
                         acc.covered += sc.covered / lines;
-                        acc.out_of_prior += f64::from(u8::from(line[px].flags & flags::OUT_OF_PRIOR != 0)) / lines;
+                        let flagged = line[px].flags & flags::OUT_OF_PRIOR != 0;
+                        acc.out_of_prior += f64::from(u8::from(flagged)) / lines;
+                        acc.flag.add(sc.error, flagged);
                     }
                     acc
                 })
@@ -479,6 +542,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         interpolation: quantiles(&all_tiles().map(|x| x.interpolation).collect::<Vec<_>>()),
         bin_coverage: mean(all_tiles().map(|x| x.covered).collect()),
         out_of_prior: mean(all_tiles().map(|x| x.out_of_prior).collect()),
+        flag: all_tiles().fold(FlagScore::default(), |a, x| a.merged(x.flag)),
         per_tile: tiles
             .iter()
             .zip(&tile_reads)
@@ -564,6 +628,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         gloss,
         gloss_interpolation,
         bin_coverage,
+        flag: held_out_flag,
         black_glass,
         tiles: [
             devs.iter().sum::<f64>() / devs.len().max(1) as f64,
@@ -574,4 +639,23 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         pixels,
         materials: rows,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_flag_score_counts_bad_and_good_points_apart() {
+        let mut a = FlagScore::default();
+        for (e, f) in [(0.2, true), (0.3, false), (0.05, true), (0.01, false), (0.02, false), (BAD_ERROR, false)] {
+            a.add(e, f);
+        }
+        // An error of exactly BAD_ERROR is not worse than it.
+        assert_eq!(a, FlagScore { bad: 2, bad_flagged: 1, good: 4, good_flagged: 1 });
+        assert_eq!((a.caught(), a.false_alarms()), (0.5, 0.25));
+        let b = a.merged(FlagScore { bad: 2, bad_flagged: 2, good: 0, good_flagged: 0 });
+        assert_eq!((b.caught(), b.false_alarms()), (0.75, 0.25));
+        assert!(FlagScore::default().caught().is_nan() && FlagScore::default().false_alarms().is_nan());
+    }
 }

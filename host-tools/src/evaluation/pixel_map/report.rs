@@ -2,13 +2,20 @@
 //! per pixel), JSON (everything, each material's errors too) and a plot
 //! against pixel (held-out error beside interpolation's, the black glass's
 //! reading, the tiles' gloss error).
-use super::PixelMap;
+use super::{FlagScore, PixelMap};
+use crate::evaluation::metrology::metrics::BAD_ERROR;
 use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
 use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
+
+/// `caught % (n bad) / false %`, a dash where there is nothing to share.
+fn flag_cell(f: &FlagScore) -> String {
+    let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() };
+    format!("{} ({}) / {}", pct(f.caught()), f.bad, pct(f.false_alarms()))
+}
 
 /// The summary and the per-pixel table (every `stride`-th pixel and the last).
 pub fn markdown(map: &PixelMap, stride: usize) -> String {
@@ -41,6 +48,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         writeln!(s, "| held-out bins within k = 2 of their stated uncertainty | {:.1} % |", 100.0 * map.bin_coverage);
     let _ = writeln!(
         s,
+        "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
+        flag_cell(&map.flag)
+    );
+    let _ = writeln!(
+        s,
         "| black glass: per-pixel mean GU (lowest .. highest) | {:.2} .. {:.2} |",
         bg.mean_range_gu[0], bg.mean_range_gu[1]
     );
@@ -63,6 +75,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         "| gloss tiles' bins within k = 2 of their stated uncertainty; points flagged out of prior | {:.1} %; {:.1} % |",
         100.0 * tb.bin_coverage,
         100.0 * tb.out_of_prior
+    );
+    let _ = writeln!(
+        s,
+        "| gloss tiles' out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
+        flag_cell(&tb.flag)
     );
     let _ = writeln!(s);
     let _ = writeln!(
