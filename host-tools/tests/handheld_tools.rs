@@ -139,6 +139,11 @@ short_exposure = [16.0, 80.0]
     // A die's extent across the plane is its own (a slit), the other's square.
     let dims = |k: usize| (j[k]["die_mm"].as_f64().unwrap(), j[k]["die_height_mm"].as_f64().unwrap());
     assert_eq!((dims(0), dims(1)), ((3.0, 3.0), (4.0, 10.5)));
+    // The gloss reading's predicted error: slits as wide as the gloss
+    // window across the plane read it within a few per cent; square dies
+    // with gaps do not.
+    let gloss = |k: usize| j[k]["gloss"][1].as_f64().unwrap();
+    assert!(gloss(1) < 0.15 && gloss(1) < gloss(0), "{} {}", gloss(0), gloss(1));
     for f in ["design.md", "design.csv", "summary.svg", "summary.png", "candidate-7-about-specular-4-mm-slits.png"] {
         assert!(out.join(f).exists(), "{f}");
     }

@@ -1,6 +1,7 @@
 //! `host-tools design`: scores candidate LED layouts of an instrument by the
-//! predicted per-pixel error over the prior (held out), specular coverage,
-//! saturation and time per line. See `host_tools::evaluation::design`.
+//! predicted per-pixel BRDF and gloss errors over the prior (held out),
+//! specular coverage, saturation and time per line. See
+//! `host_tools::evaluation::design`.
 use crate::calibration::estimators::kind_name;
 use crate::evaluation::design::{self, CandidateFile, DesignSpec, report};
 use crate::evaluation::pixel_error::HeldOutSpec;
@@ -10,7 +11,7 @@ use anyhow::{Context, ensure};
 use brdf_meter::blob::EstimatorKind;
 use std::path::PathBuf;
 
-/// Score candidate LED layouts (count, angles, die size, gain, short exposure).
+/// Score candidate LED layouts (count, angles, die width and height, gain, short exposure): BRDF and gloss error, coverage, time.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The instrument the candidates vary (its sensor, view, effects and noise).

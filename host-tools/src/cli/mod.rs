@@ -43,7 +43,7 @@ pub enum Command {
     Reproduce(reproduce::Args),
     /// Simulate a scene's readings (CSV, JSON and a plot), truth beside them.
     Simulate(simulate::Args),
-    /// Score candidate LED layouts: held-out error per pixel, specular coverage, saturation, time per line.
+    /// Score candidate LED layouts: held-out BRDF and gloss error per pixel, specular coverage, saturation, time per line.
     Design(design::Args),
     /// Train the estimator matrices (one per zone) and write the calibration blob.
     Train(train::Args),

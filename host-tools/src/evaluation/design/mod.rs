@@ -6,6 +6,8 @@
 //!   out of the estimator that reads it (`crate::evaluation::pixel_error`:
 //!   sample pairs at the pixel through the candidate's own optics and noise),
 //!   at a spread of pixels, beside linear interpolation's;
+//! - the predicted gloss reading's error at the same pixels, every sample
+//!   held out of the rows that read it (`gloss`), beside interpolation's;
 //! - every pixel's specular coverage: how far inside an LED's die its mirror
 //!   direction falls (negative: between LEDs), and the raw counts of the
 //!   black-glass standard and of polished metals against the converter's
@@ -19,6 +21,7 @@
 //! once per pixel, and held-out fits are m x m solves.
 pub mod candidate;
 pub mod coverage;
+pub mod gloss;
 pub mod report;
 
 use crate::evaluation::pixel_error::{HeldOutSpec, held_out_errors, quantiles};
@@ -86,6 +89,11 @@ pub struct CandidateScore {
     pub error: [f64; 3],
     /// The same for linear interpolation.
     pub interpolation: [f64; 3],
+    /// The gloss reading's relative error over every evaluated pixel and
+    /// sample (`gloss`): median, 90th, worst (NaN: no pixel reads gloss).
+    pub gloss: [f64; 3],
+    /// Interpolation's.
+    pub gloss_interpolation: [f64; 3],
     /// Every pixel's coverage.
     pub coverage: Vec<PixelCoverage>,
     /// Pixels whose specular direction falls between LEDs.
@@ -126,6 +134,7 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
     let pixels: Vec<_> = per_pixel.zones.into_iter().map(|z| z.centre).collect();
     let mut pixel_errors = Vec::new();
     let (mut all_e, mut all_i) = (Vec::new(), Vec::new());
+    let (mut all_g, mut all_gi) = (Vec::new(), Vec::new());
     for &px in spec.pixels.iter().filter(|px| **px < p) {
         let po = &pixels[px];
         let pairs = Pairs::build(std::slice::from_ref(po), &spec.prior);
@@ -133,6 +142,13 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
         pixel_errors.push((px, quantiles(&e.estimator), quantiles(&e.interpolation)));
         all_e.extend(e.estimator);
         all_i.extend(e.interpolation);
+        let h = &spec.held_out;
+        if let Some(g) = gloss::held_out_gloss(po, &spec.prior, h.folds, h.draws, h.seed)
+            .with_context(|| format!("pixel {px}: gloss"))?
+        {
+            all_g.extend(g.estimator);
+            all_gi.extend(g.interpolation);
+        }
     }
     let cov = coverage::coverage(&scene, &optics, &sim, &pixels);
     let fs = inst.sensor.full_scale;
@@ -161,6 +177,8 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
         pixel_errors,
         error: quantiles(&all_e),
         interpolation: quantiles(&all_i),
+        gloss: quantiles(&all_g),
+        gloss_interpolation: quantiles(&all_gi),
         uncovered: cov.iter().filter(|c| c.margin_deg < 0.0).count(),
         min_margin_deg: cov.iter().map(|c| c.margin_deg).fold(f64::INFINITY, f64::min),
         black_glass_saturated: count(&|c| c.black_glass_counts),

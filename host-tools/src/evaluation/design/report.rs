@@ -14,13 +14,13 @@ pub fn table(scores: &[CandidateScore], estimator: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| candidate | m | die mm (in-plane x across) | gain | short | {estimator} median / 90th / worst | interpolation median / 90th / worst | uncovered px | min margin deg | black glass sat. long/short | metal sat. long/short | line ms (worst) | estimation ms |"
+        "| candidate | m | die mm (in-plane x across) | gain | short | {estimator} median / 90th / worst | interpolation median / 90th / worst | gloss rel. error median / 90th (interpolation) | uncovered px | min margin deg | black glass sat. long/short | metal sat. long/short | line ms (worst) | estimation ms |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for c in scores {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} x {:.1} | {:.0} | {} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {} | {:+.2} | {} / {} | {} / {} | {:.1} ({:.1}) | {:.2} |",
+            "| {} | {} | {:.1} x {:.1} | {:.0} | {} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {:.1} / {:.1} % ({:.1} / {:.1} %) | {} | {:+.2} | {} / {} | {} / {} | {:.1} ({:.1}) | {:.2} |",
             c.name,
             c.m,
             c.die_mm,
@@ -37,6 +37,10 @@ pub fn table(scores: &[CandidateScore], estimator: &str) -> String {
             c.interpolation[0],
             c.interpolation[1],
             c.interpolation[2],
+            100.0 * c.gloss[0],
+            100.0 * c.gloss[1],
+            100.0 * c.gloss_interpolation[0],
+            100.0 * c.gloss_interpolation[1],
             c.uncovered,
             c.min_margin_deg,
             c.black_glass_saturated[0],
@@ -67,6 +71,11 @@ pub fn csv(scores: &[CandidateScore]) -> anyhow::Result<Vec<u8>> {
         "interpolation_median",
         "interpolation_p90",
         "interpolation_worst",
+        "gloss_rel_median",
+        "gloss_rel_p90",
+        "gloss_rel_worst",
+        "gloss_interpolation_rel_median",
+        "gloss_interpolation_rel_p90",
         "uncovered_pixels",
         "min_margin_deg",
         "black_glass_saturated_long",
@@ -92,6 +101,11 @@ pub fn csv(scores: &[CandidateScore]) -> anyhow::Result<Vec<u8>> {
             f(c.interpolation[0]),
             f(c.interpolation[1]),
             f(c.interpolation[2]),
+            f(c.gloss[0]),
+            f(c.gloss[1]),
+            f(c.gloss[2]),
+            f(c.gloss_interpolation[0]),
+            f(c.gloss_interpolation[1]),
             c.uncovered.to_string(),
             f(c.min_margin_deg),
             c.black_glass_saturated[0].to_string(),
