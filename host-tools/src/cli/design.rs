@@ -19,7 +19,8 @@ pub struct Args {
     pub scene: PathBuf,
     /// Candidates (TOML, `[[candidate]]` tables; see the module docs of
     /// `evaluation::design::candidate`). Default: the built-in grid of 7..13
-    /// LEDs with 3..5 mm dies, at the scene's gain and at 8x with a 1/64 short exposure.
+    /// LEDs with 3..5 mm dies, square and as slits as wide across as the
+    /// gloss window, at the scene's gain and at 8x with 1/16 and 1/80 short exposures.
     #[arg(long, value_name = "PATH")]
     pub candidates: Option<PathBuf>,
     /// The prior the error is predicted over (as `train --prior`).

@@ -195,33 +195,61 @@ impl Candidate {
 }
 
 /// The built-in candidates: 7, 9, 11 and 13 LEDs from 33 to 57 deg with
-/// 3, 4 and 5 mm dies at the base's gain, and the same at eight times the
-/// gain with shorter exposures of 1/16 and 1/80 for saturated frames.
+/// 3, 4 and 5 mm dies, square and as slits as wide across the plane as the
+/// gloss window ([`slit_height_mm`]), at the base's gain, and the same at
+/// eight times the gain with shorter exposures of 1/16 and 1/80 for
+/// saturated frames.
 pub fn builtin(base: &Scene) -> Vec<Candidate> {
     let mut out = Vec::new();
     let g = base.instrument.sensor.gain;
+    let distance = base.instrument.leds.first().map_or(6.0, |l| l.distance_cm);
     for (gain, short) in [(None, None), (Some(8.0 * g), Some(vec![16.0, 80.0]))] {
         for count in [7, 9, 11, 13] {
             for die in [3.0, 4.0, 5.0] {
-                out.push(Candidate {
-                    name: format!(
-                        "{count} x {die} mm{}",
-                        if gain.is_some() { ", gain x8, short 1/16 1/80" } else { "" }
-                    ),
-                    leds: Some(LedRing {
-                        count: Some(count),
-                        first_deg: Some(33.0),
-                        last_deg: Some(57.0),
-                        angles_deg: None,
-                        die_mm: die,
-                        die_height_mm: None,
-                        distance_cm: None,
-                    }),
-                    gain,
-                    short_exposure: short.clone(),
-                });
+                for height in [None, Some(slit_height_mm(distance))] {
+                    out.push(Candidate {
+                        name: format!(
+                            "{count} x {die}{} mm{}",
+                            height.map_or(String::new(), |h| format!(" x {h:.1}")),
+                            if gain.is_some() { ", gain x8, short 1/16 1/80" } else { "" }
+                        ),
+                        leds: Some(LedRing {
+                            count: Some(count),
+                            first_deg: Some(33.0),
+                            last_deg: Some(57.0),
+                            angles_deg: None,
+                            die_mm: die,
+                            die_height_mm: height,
+                            distance_cm: None,
+                        }),
+                        gain,
+                        short_exposure: short.clone(),
+                    });
+                }
             }
         }
     }
     out
+}
+
+/// The height across the plane, mm, of a slit `distance_cm` away that spans
+/// the 45 deg gloss geometry's receptor across the plane
+/// (`forward::brdf::GLOSS_APERTURE_ACROSS_DEG`, 10 deg): by reciprocity an
+/// LED's extent plays the receptor's part, so its readings carry a lobe's
+/// flux through the gloss window as they carry a mirror's.
+pub fn slit_height_mm(distance_cm: f64) -> f64 {
+    let half = (crate::forward::brdf::GLOSS_APERTURE_ACROSS_DEG / 2.0).to_radians();
+    20.0 * distance_cm * half.tan()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_slit_spans_the_gloss_window_at_the_leds_distance() {
+        // The handheld's: 10.5 mm at 6 cm.
+        assert!((slit_height_mm(6.0) - 10.5).abs() < 0.01, "{}", slit_height_mm(6.0));
+        assert!((slit_height_mm(12.0) - 2.0 * slit_height_mm(6.0)).abs() < 1e-12);
+    }
 }
