@@ -101,13 +101,13 @@ pub fn held_out_gloss(
         let first_standard = aug.sample[..train.len()].iter().copied().max().map_or(0, |x| x + 1);
         let fitted = gloss_rows::anchored(&weighted, first_standard + gloss_rows::BLACK_GLASS_STANDARD);
         let row = fit_row(&fitted, t.row(0).iter().copied().collect::<Vec<_>>().as_slice())?;
-        let s = row.dot(&glass);
-        if s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        let glass_reading = row.dot(&glass);
+        if glass_reading.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             // No LED in the pixel's mirror direction: the standard reads
             // nothing, no gloss scale can be set, as on the device.
             return Ok(None);
         }
-        let q = ASSIGNED_GU / s;
+        let q = ASSIGNED_GU / glass_reading;
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (f as u64).wrapping_mul(0x9E37_79B9));
         for s in (0..k).filter(|s| fold_of[*s] == f) {
             let g = target[(0, s)];
