@@ -12,10 +12,11 @@
 //! Every field but `name` is optional: what a candidate leaves out is the
 //! base scene's. `leds` replaces the base's LEDs with `count` extended dies
 //! of `die_mm` in the plane of incidence x `die_height_mm` across it
-//! (`die_mm` when absent: a square die), centre rays evenly spread from `first_deg` to
-//! `last_deg` (or at `angles_deg`), `distance_cm` away (the base's first
-//! LED's distance by default), sampled every [`DIE_SAMPLE_PITCH_MM`] or
-//! finer, with the base's first LED's emission profile.
+//! (`die_mm` when absent: a square die), centre rays evenly spread from
+//! `first_deg` to `last_deg` (or at `angles_deg`), `distance_cm` away (the
+//! base's first LED's distance by default), sampled every
+//! [`DIE_SAMPLE_PITCH_MM`] or finer, with the base's first LED's emission
+//! profile.
 use crate::forward::optics::{ExtendedSpec, LedSpec};
 use crate::forward::scene::{EffectSpec, Scene};
 use crate::output::config::{FieldError, Validate, check_positive, check_range};

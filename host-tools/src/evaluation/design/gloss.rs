@@ -6,10 +6,11 @@
 //! (`calibration::gloss_rows`): the prior's pairs at the pixel mixed with
 //! the gloss standards' ([`gloss_rows::STANDARDS_WEIGHT`]), each pair
 //! weighted by its reading's size ([`gloss_rows::reading_weighted`]), the
-//! black glass holding half the criterion ([`gloss_rows::anchored`]), the
-//! readings' noise in the normal equations; then scaled so the black glass
-//! as the pixel measures it reads its assigned 100 GU, as the device's
-//! per-pixel reference does. One linear row per pixel, where the product
+//! black glass holding half the criterion ([`gloss_rows::anchored`]),
+//! fitted by the pairs' Wiener map (`pairs_wiener::linear_map`, the
+//! readings' noise included, as training fits the linear kinds' rows);
+//! then scaled so the black glass as the pixel measures it reads its
+//! assigned 100 GU, as the device's per-pixel reference does. One linear row per pixel, where the product
 //! has one per zone and cluster in the root form: a predictor that ranks
 //! layouts by what their readings can say about gloss, not the product's
 //! figure (`pixel-map` measures that).
@@ -18,21 +19,17 @@
 //! readings, `|G_est - G| / G` against its gloss by the definitions in
 //! three dimensions at the pixel's view; linear interpolation's profile
 //! read by the in-plane definitions (as `pixel-map` reads it) beside it.
-use crate::calibration::estimators::interpolation;
+use crate::calibration::estimators::{interpolation, pairs_wiener};
 use crate::calibration::gloss_rows;
 use crate::forward::gloss::{ASSIGNED_GU, profile_scaled_readings};
 use crate::forward::pairs::{Pairs, PixelOptics};
 use crate::forward::prior_models::PriorModels;
 use anyhow::Context;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-
-/// Relative ridge on the rows' normal equations (of their trace over m):
-/// only against a singular system, far below the readings' noise.
-const RIDGE: f64 = 1e-9;
 
 /// Per prior sample (its position in the prior): the rows' relative gloss
 /// error and interpolation's (NaN where the sample has no gloss).
@@ -42,27 +39,6 @@ pub struct GlossSampleErrors {
     pub estimator: Vec<f64>,
     /// Linear interpolation's.
     pub interpolation: Vec<f64>,
-}
-
-/// The weighted least-squares row `a` minimising `sum_k w_k (a^T v_k - g_k)^2`
-/// plus each pair's noise `a^T diag(var_k) a`.
-fn fit_row(pairs: &Pairs, g: &[f64]) -> anyhow::Result<DVector<f64>> {
-    let m = pairs.m();
-    let mut a = DMatrix::<f64>::zeros(m, m);
-    let mut b = DVector::<f64>::zeros(m);
-    for (k, w) in pairs.weights.iter().enumerate() {
-        let v = pairs.readings.column(k);
-        a += (v * v.transpose()) * *w;
-        for i in 0..m {
-            a[(i, i)] += w * pairs.noise_var[(i, k)];
-        }
-        b += v * (w * g[k]);
-    }
-    let ridge = RIDGE * a.trace() / m as f64;
-    for i in 0..m {
-        a[(i, i)] += ridge;
-    }
-    a.cholesky().map(|c| c.solve(&b)).context("the gloss row's normal equations are not positive definite")
 }
 
 /// The held-out gloss errors at pixel `px` of every sample of `prior`
@@ -100,7 +76,8 @@ pub fn held_out_gloss(
         // The standards' samples are numbered after the training folds' (`joined`).
         let first_standard = aug.sample[..train.len()].iter().copied().max().map_or(0, |x| x + 1);
         let fitted = gloss_rows::anchored(&weighted, first_standard + gloss_rows::BLACK_GLASS_STANDARD);
-        let row = fit_row(&fitted, t.row(0).iter().copied().collect::<Vec<_>>().as_slice())?;
+        // The calibration's own fit of a linear row (training's for the linear kinds).
+        let row: DVector<f64> = pairs_wiener::linear_map(&fitted, &t.rows(0, 1).into_owned())?.g.row(0).transpose();
         let glass_reading = row.dot(&glass);
         if glass_reading.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             // No LED in the pixel's mirror direction: the standard reads
@@ -129,28 +106,4 @@ pub fn held_out_gloss(
         }
     }
     Ok(Some(out))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_row_is_the_weighted_least_squares_fit_with_the_readings_noise() {
-        // Two readings, three pairs on g = 2 v0 + 3 v1 exactly: without
-        // noise the row is recovered; with noise it shrinks towards 0.
-        let readings = DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 1.0, 0.0, 1.0, 2.0]);
-        let g = [2.0, 3.0, 8.0];
-        let mut pairs = Pairs::in_plane(
-            &DMatrix::identity(2, 2),
-            &readings,
-            &[1.0, 1.0, 1.0],
-            &crate::forward::reading_noise::ReadingNoise::relative(0.0, 2),
-        );
-        let row = fit_row(&pairs, &g).unwrap();
-        assert!((row[0] - 2.0).abs() < 1e-6 && (row[1] - 3.0).abs() < 1e-6, "{row}");
-        pairs.noise_var.fill(0.5);
-        let noisy = fit_row(&pairs, &g).unwrap();
-        assert!(noisy.norm() < row.norm(), "{noisy} {row}");
-    }
 }

@@ -111,6 +111,53 @@ pub struct Row {
     pub peak_missed: usize,
 }
 
+/// Whether a flag predicts error: estimates worse than [`BAD_ERROR`] of
+/// their truth's peak and the rest, and how many of each are flagged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FlagScore {
+    /// Estimates worse than [`BAD_ERROR`].
+    pub bad: usize,
+    /// Of them, flagged out of prior.
+    pub bad_flagged: usize,
+    /// The other estimates.
+    pub good: usize,
+    /// Of them, flagged out of prior (false alarms).
+    pub good_flagged: usize,
+}
+
+impl FlagScore {
+    /// Counts one estimate of BRDF error `error` (over its truth's peak).
+    pub fn add(&mut self, error: f64, flagged: bool) {
+        if error > BAD_ERROR {
+            self.bad += 1;
+            self.bad_flagged += usize::from(flagged);
+        } else {
+            self.good += 1;
+            self.good_flagged += usize::from(flagged);
+        }
+    }
+
+    /// Both counts summed.
+    pub fn merged(self, o: Self) -> Self {
+        Self {
+            bad: self.bad + o.bad,
+            bad_flagged: self.bad_flagged + o.bad_flagged,
+            good: self.good + o.good,
+            good_flagged: self.good_flagged + o.good_flagged,
+        }
+    }
+
+    /// Share of the bad estimates flagged (NaN with none).
+    pub fn caught(&self) -> f64 {
+        if self.bad == 0 { f64::NAN } else { self.bad_flagged as f64 / self.bad as f64 }
+    }
+
+    /// Share of the other estimates flagged (NaN with none).
+    pub fn false_alarms(&self) -> f64 {
+        if self.good == 0 { f64::NAN } else { self.good_flagged as f64 / self.good as f64 }
+    }
+}
+
 /// The running tally of one family and method.
 #[derive(Debug, Default)]
 pub struct Tally {
@@ -126,8 +173,7 @@ pub struct Tally {
     bins: Option<(usize, usize)>,
     band: Vec<f64>,
     readings: Option<[(usize, usize); 3]>,
-    bad: (usize, usize),
-    good: (usize, usize),
+    flag: FlagScore,
     flags: bool,
     height: Vec<f64>,
     width: Vec<f64>,
@@ -215,9 +261,7 @@ impl Tally {
                     }
                 }
             }
-            let side = if e > BAD_ERROR { &mut self.bad } else { &mut self.good };
-            side.0 += usize::from(r.flagged == Some(true));
-            side.1 += 1;
+            self.flag.add(e, r.flagged == Some(true));
             self.flags |= r.flagged.is_some();
             let (tp, ep) = (truth.specular, r.specular);
             if tp.rf.is_finite() {
@@ -269,9 +313,9 @@ impl Tally {
             bin_coverage: self.bins.and_then(share),
             band: (!self.band.is_empty()).then(|| Spread::of(&self.band)),
             reading_coverage: self.readings.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
-            bad: self.bad.1,
-            flag_caught: if self.flags { share(self.bad) } else { None },
-            flag_false: if self.flags { share(self.good) } else { None },
+            bad: self.flag.bad,
+            flag_caught: if self.flags { share((self.flag.bad_flagged, self.flag.bad)) } else { None },
+            flag_false: if self.flags { share((self.flag.good_flagged, self.flag.good)) } else { None },
             peak_height_rel: Spread::of(&self.height),
             peak_width_abs_deg: Spread::of(&self.width),
             peak_height_coverage: self.height_cov.and_then(share),
@@ -284,6 +328,20 @@ impl Tally {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_flag_score_counts_bad_and_good_points_apart() {
+        let mut a = FlagScore::default();
+        for (e, f) in [(0.2, true), (0.3, false), (0.05, true), (0.01, false), (0.02, false), (BAD_ERROR, false)] {
+            a.add(e, f);
+        }
+        // An error of exactly BAD_ERROR is not worse than it.
+        assert_eq!(a, FlagScore { bad: 2, bad_flagged: 1, good: 4, good_flagged: 1 });
+        assert_eq!((a.caught(), a.false_alarms()), (0.5, 0.25));
+        let b = a.merged(FlagScore { bad: 2, bad_flagged: 2, good: 0, good_flagged: 0 });
+        assert_eq!((b.caught(), b.false_alarms()), (0.75, 0.25));
+        assert!(FlagScore::default().caught().is_nan() && FlagScore::default().false_alarms().is_nan());
+    }
 
     #[test]
     fn impossible_is_relative_to_the_estimates_own_peak() {

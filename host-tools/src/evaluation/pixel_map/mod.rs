@@ -31,7 +31,7 @@
 //!   (`BlobView::point_uncertainty`, what `measure` writes).
 //! - **Flags and saturation** per pixel over the held-out materials, and
 //!   whether the out-of-prior flag predicts error ([`FlagScore`]): of the
-//!   points (each line of each pixel) worse than `BAD_ERROR` of their peak,
+//!   points (each line of each pixel) worse than 0.10 of their peak,
 //!   the share flagged, and of the rest, on the held-out materials and on
 //!   the tiles.
 pub mod report;
@@ -40,7 +40,7 @@ use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, K};
+use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -355,53 +355,6 @@ struct TilePixel {
 /// Per pixel: points flagged out of prior, points flagged saturated, points.
 type FlagCounts = (usize, usize, usize);
 
-/// Whether the out-of-prior flag predicts error: points worse than
-/// `BAD_ERROR` of their peak and the rest, and how many of each are flagged.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct FlagScore {
-    /// Points worse than `BAD_ERROR`.
-    pub bad: usize,
-    /// Of them, flagged out of prior.
-    pub bad_flagged: usize,
-    /// The other points.
-    pub good: usize,
-    /// Of them, flagged out of prior (false alarms).
-    pub good_flagged: usize,
-}
-
-impl FlagScore {
-    /// Counts one point of BRDF error `error` (over its truth's peak).
-    pub fn add(&mut self, error: f64, flagged: bool) {
-        if error > BAD_ERROR {
-            self.bad += 1;
-            self.bad_flagged += usize::from(flagged);
-        } else {
-            self.good += 1;
-            self.good_flagged += usize::from(flagged);
-        }
-    }
-
-    /// Both counts summed.
-    pub fn merged(self, o: Self) -> Self {
-        Self {
-            bad: self.bad + o.bad,
-            bad_flagged: self.bad_flagged + o.bad_flagged,
-            good: self.good + o.good,
-            good_flagged: self.good_flagged + o.good_flagged,
-        }
-    }
-
-    /// Share of the bad points flagged (NaN with none).
-    pub fn caught(&self) -> f64 {
-        if self.bad == 0 { f64::NAN } else { self.bad_flagged as f64 / self.bad as f64 }
-    }
-
-    /// Share of the other points flagged (NaN with none).
-    pub fn false_alarms(&self) -> f64 {
-        if self.good == 0 { f64::NAN } else { self.good_flagged as f64 / self.good as f64 }
-    }
-}
-
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
     let scene = &spec.scene;
@@ -639,23 +592,4 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         pixels,
         materials: rows,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_flag_score_counts_bad_and_good_points_apart() {
-        let mut a = FlagScore::default();
-        for (e, f) in [(0.2, true), (0.3, false), (0.05, true), (0.01, false), (0.02, false), (BAD_ERROR, false)] {
-            a.add(e, f);
-        }
-        // An error of exactly BAD_ERROR is not worse than it.
-        assert_eq!(a, FlagScore { bad: 2, bad_flagged: 1, good: 4, good_flagged: 1 });
-        assert_eq!((a.caught(), a.false_alarms()), (0.5, 0.25));
-        let b = a.merged(FlagScore { bad: 2, bad_flagged: 2, good: 0, good_flagged: 0 });
-        assert_eq!((b.caught(), b.false_alarms()), (0.75, 0.25));
-        assert!(FlagScore::default().caught().is_nan() && FlagScore::default().false_alarms().is_nan());
-    }
 }
