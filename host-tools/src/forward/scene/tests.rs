@@ -140,6 +140,15 @@ fn patent_profile_scene_is_the_original_optics() {
 }
 
 #[test]
+fn the_far_field_scene_is_the_handheld_instrument_without_effects() {
+    // What far field costs and buys is measured against the handheld, so
+    // when the handheld's optics change the idealisation must follow.
+    let (far, hand) = (load("far-field.toml"), load("handheld.toml"));
+    assert_eq!(far.instrument, hand.instrument);
+    assert!(far.effects.is_empty());
+}
+
+#[test]
 fn far_field_gives_every_ray_the_centre_angle_and_builds_no_sources() {
     let s = load("far-field.toml");
     let optics = Optics::new(&s.instrument, s.ray_model());
