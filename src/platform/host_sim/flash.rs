@@ -3,7 +3,8 @@
 //! written or pages erased) the flash stops - the byte in progress is not
 //! written, a page erase in progress leaves the page half erased - and every
 //! later operation fails, as on a dead device. `reboot()` gives a fresh handle
-//! on a copy of the memory, as after power returns.
+//! on a copy of the memory, as after power returns; `restore()` powers the
+//! same memory back on with given contents.
 use crate::platform::nor_fake::{FlashOp, NorFake, NorFault, NorStorage};
 use crate::shape::FLASH_PAGE;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -125,6 +126,22 @@ impl SimFlash {
     /// cut pending (a copy, so the caller can retry the same cut elsewhere).
     pub fn reboot(&self) -> Self {
         Self::with_contents(self.contents())
+    }
+
+    /// Power back on with `contents` (the whole memory) written in place,
+    /// as a debugger restoring an image: unlike [`Self::reboot`], every
+    /// handle sees them, so a store holding one carries on over them. No cut
+    /// is pending, and the step count and the log start again.
+    pub fn restore(&self, contents: &[u8]) {
+        let inner = self.inner();
+        assert_eq!(contents.len(), inner.len, "a restore writes the whole memory");
+        // SAFETY: in bounds; like a write, done while no mapped slice of this
+        // memory is in use (see the NorStorage impl).
+        unsafe { core::ptr::copy_nonoverlapping(contents.as_ptr(), inner.mem, inner.len) };
+        inner.steps.store(0, Ordering::SeqCst);
+        inner.cut_at.store(usize::MAX, Ordering::SeqCst);
+        inner.dead.store(false, Ordering::SeqCst);
+        inner.log.lock().unwrap().clear();
     }
 
     /// The whole memory, copied.
