@@ -9,13 +9,14 @@
 //!   within 1 GU), none without a reading, none saturated: its mirror
 //!   reflection meets an LED die from every pixel, and its saturating frames
 //!   are read from the shorter exposures.
-//! - A matt white tile's readings stay unflagged and its BRDF within 6 % of
-//!   its peak at every pixel and line (median 2 %, 90th percentile 3 %; the
-//!   worst are the line's ends, where the slits' rays across the plane
-//!   meet the tile farthest from the normal).
+//! - A matt white tile's readings stay unflagged and its BRDF within 5 % of
+//!   its peak at every pixel and line (measured: median 2.1 %, 90th
+//!   percentile 3.0 %, worst 4.2 % at pixel 4; the worst are near the line's
+//!   ends, where the facets' rays across the plane meet the tile farthest
+//!   from the normal).
 //!
-//! Prints every 16th pixel: `cargo test --release -p host-tools --test
-//! gloss_handheld -- --nocapture`.
+//! Prints every 16th pixel's black glass and the white tile's error:
+//! `cargo test --release -p host-tools --test gloss_handheld -- --nocapture`.
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::gloss::SPECULAR_GU;
 use brdf_meter::platform::timing::ACQUISITION;
@@ -76,6 +77,7 @@ fn every_pixel_reads_the_black_glass_and_a_white_tile_true() {
     let white: Arc<dyn Brdf> = Arc::new(Lambertian::new(0.9).unwrap());
     let wt = read(&sc, &blob, white.clone());
     let grid = sc.instrument.grid().unwrap();
+    let mut errors = Vec::new();
     for px in 0..128 {
         let view = pixel_view(&sc, px);
         let truth: Vec<f64> =
@@ -87,7 +89,18 @@ fn every_pixel_reads_the_black_glass_and_a_white_tile_true() {
             let rms = (p.values.iter().zip(&truth).map(|(e, t)| (f64::from(*e) - t).powi(2)).sum::<f64>()
                 / truth.len() as f64)
                 .sqrt();
-            assert!(rms < 0.06 * peak, "pixel {px}: white tile error {:.3} of its peak", rms / peak);
+            assert!(rms < 0.05 * peak, "pixel {px}: white tile error {:.3} of its peak", rms / peak);
+            errors.push((rms / peak, px));
         }
     }
+    errors.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let at = |q: f64| errors[((errors.len() - 1) as f64 * q).round() as usize];
+    println!(
+        "white tile, BRDF error / peak over {} points: median {:.4}, 90th {:.4}, worst {:.4} (pixel {})",
+        errors.len(),
+        at(0.5).0,
+        at(0.9).0,
+        at(1.0).0,
+        at(1.0).1
+    );
 }

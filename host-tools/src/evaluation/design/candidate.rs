@@ -15,16 +15,29 @@
 //! (`die_mm` when absent: a square die), centre rays evenly spread from
 //! `first_deg` to `last_deg` (or at `angles_deg`), `distance_cm` away (the
 //! base's first LED's distance by default), sampled every
-//! [`DIE_SAMPLE_PITCH_MM`] or finer, with the base's first LED's emission
-//! profile.
+//! [`IN_PLANE_SAMPLE_PITCH_MM`] or finer in the plane of incidence and every
+//! [`DIE_SAMPLE_PITCH_MM`] or finer across it, with the base's first LED's
+//! emission profile.
 use crate::forward::optics::{ExtendedSpec, LedSpec};
 use crate::forward::scene::{EffectSpec, Scene};
 use crate::output::config::{FieldError, Validate, check_positive, check_range};
 use serde::{Deserialize, Serialize};
 
-/// Largest spacing of a die's sample points, mm: finer than the sharpest
-/// lobe the prior holds is wide at the LEDs' distance (about 1 deg at 6 cm).
+/// Largest spacing of a die's sample points across the plane of incidence,
+/// mm: finer than the sharpest lobe the prior holds is wide at the LEDs'
+/// distance (about 1 deg at 6 cm).
 pub const DIE_SAMPLE_PITCH_MM: f64 = 0.6;
+
+/// Largest spacing in the plane of incidence, mm: half the pitch across.
+/// Along the line each pixel's specular direction moves over the dies in
+/// this plane (about 0.1 deg per pixel on the handheld), so a sharp lobe's
+/// reading steps from one sample column to the next: at 0.6 mm (0.55 deg,
+/// six pixels) the MERL metals' gloss swung by +-20 % with that period, a
+/// sampling artefact no real, continuous die has; at 0.3 mm the swing is
+/// gone (docs/handheld.md, "Facets edge to edge, finely sampled"). Across the
+/// plane every pixel sees the dies alike, so the coarser pitch costs no
+/// such swing.
+pub const IN_PLANE_SAMPLE_PITCH_MM: f64 = 0.3;
 
 /// A candidates file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -160,7 +173,7 @@ impl Candidate {
             let distance = ring.distance_cm.or(first.map(|l| l.distance_cm)).unwrap_or(6.0);
             let die_cm = ring.die_mm / 10.0;
             let height_mm = ring.die_height_mm.unwrap_or(ring.die_mm);
-            let samples_of = |mm: f64| ((mm / DIE_SAMPLE_PITCH_MM).ceil() as usize).clamp(1, 99);
+            let samples_of = |mm: f64, pitch: f64| ((mm / pitch).ceil() as usize).clamp(1, 99);
             s.instrument.leds = ring
                 .angles()
                 .iter()
@@ -175,7 +188,10 @@ impl Candidate {
                     extended: (die_cm > 0.0 && height_mm > 0.0).then_some(ExtendedSpec {
                         width_cm: die_cm,
                         height_cm: height_mm / 10.0,
-                        samples: [samples_of(ring.die_mm), samples_of(height_mm)],
+                        samples: [
+                            samples_of(ring.die_mm, IN_PLANE_SAMPLE_PITCH_MM),
+                            samples_of(height_mm, DIE_SAMPLE_PITCH_MM),
+                        ],
                     }),
                     intensity: 1.0,
                     emission: first.and_then(|l| l.emission.clone()),
