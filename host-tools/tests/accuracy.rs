@@ -201,13 +201,18 @@ fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_neve
         assert!((0.92..=0.98).contains(&c), "{family}: {c}\n{}", r.tables());
     }
     // Short of it, but no longer by half: Ward's grazing tails rise as no
-    // measured material does, and the GGX lobes are over-covered.
-    assert!(coverage("ward") > 0.85, "{}", r.tables());
+    // measured material does, and the GGX lobes are over-covered. (Each
+    // bin's band is its own held-out errors' 95 % quantile: with their RMS
+    // scaled to cover all bins together, Ward's was 88.9 %.)
+    assert!(coverage("ward") > 0.90, "{}", r.tables());
     assert!(coverage("ggx") > 0.92, "{}", r.tables());
     // The specular peak's stated height follows on the smooth lobes (it was
     // 56 % on Ward); on mirror-like lobes it does not (docs/guide/real-materials.md).
     let peak = |family: &str| row(&r, family, "estimator").peak_height_coverage.unwrap();
     assert!(peak("ward") > 0.85 && peak("ggx") > 0.85, "{}", r.tables());
+    // The gloss standards' peaks, polished lobes, are covered far more often
+    // than with the RMS band (37.5 %), if still not enough.
+    assert!(peak("gloss standards") > 0.55, "{}", r.tables());
     // Not bought with a band of no use: at most a few times the error it
     // covers (Ward's is the widest, about 4x: wide at the peak, where the
     // held-out kinds of gloss disagree most, and narrow in the tails).
