@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -54,7 +54,7 @@
 //! | size | field |
 //! |---|---|
 //! | 4ZKm (piecewise only) | centroids per zone, K x m, in `v / sum|v|` space |
-//! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of `u' = v'/s` (m-1), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
+//! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of the statistic's coordinates (m-1; `u' = v'/s`, or with bit 4 the centred log shares), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
 //!
 //! before the CRC. A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
@@ -127,6 +127,7 @@
 //! - Reserved bytes and flag bits are zero in version 1 so that a later version
 //!   can give them meaning without ambiguity.
 
+use crate::kernel::scale_free::OutOfPriorForm;
 use core::fmt;
 
 /// First four bytes of every blob.
@@ -155,6 +156,10 @@ const FLAG_FAR_FIELD: u16 = 1;
 const FLAG_OUT_OF_PRIOR: u16 = 2;
 const FLAG_GLOSS: u16 = 4;
 const FLAG_ROOT: u16 = 8;
+/// The out-of-prior model is for the log-ratio statistic (with
+/// `FLAG_OUT_OF_PRIOR` only). Firmware from before it rejects such a blob
+/// as having a reserved flag set, and keeps its last good calibration.
+const FLAG_LOG_RATIO: u16 = 16;
 /// Values of the gloss section before the per-zone data: the assigned value
 /// and the refractive index.
 const GLOSS_HEAD: usize = 2;
@@ -501,8 +506,10 @@ impl GlossData<'_> {
 /// The out-of-prior data of a blob.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutOfPriorData<'a> {
-    /// Threshold on the statistic (`crate::kernel::scale_free::out_of_prior_stat`).
+    /// Threshold on the statistic (`crate::kernel::scale_free`).
     pub threshold: f32,
+    /// Which statistic the model is for.
+    pub form: OutOfPriorForm,
     /// Per zone, [`out_of_prior_len`] values: mean, then packed G.
     pub data: &'a [f32],
 }
@@ -673,7 +680,11 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     put_u16(out, 14, d.pixels as u16);
     put_f32(out, 16, c.noise_rel);
     put_u16(out, 20, c.estimator as u16);
-    let oop_flag = if ex.out_of_prior { FLAG_OUT_OF_PRIOR } else { 0 };
+    let oop_flag = match extras.out_of_prior {
+        Some(OutOfPriorData { form: OutOfPriorForm::LogRatio, .. }) => FLAG_OUT_OF_PRIOR | FLAG_LOG_RATIO,
+        Some(_) => FLAG_OUT_OF_PRIOR,
+        None => 0,
+    };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
     put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag | root_flag);
@@ -805,8 +816,8 @@ impl<'a> BlobView<'a> {
             bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
         } else {
             bytes[50..52].iter().chain(&bytes[56..64]).all(|b| *b == 0)
-                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT) == 0
-                && (ex.out_of_prior || get_u32(bytes, 52) == 0)
+                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT | FLAG_LOG_RATIO) == 0
+                && (ex.out_of_prior || (get_u32(bytes, 52) == 0 && flags & FLAG_LOG_RATIO == 0))
         };
         if !reserved_ok {
             return Err(BlobError::ReservedNotZero);
@@ -1155,6 +1166,16 @@ impl<'a> BlobView<'a> {
     pub fn out_of_prior_threshold(&self) -> Option<f32> {
         (get_u16(self.bytes, 22) & FLAG_OUT_OF_PRIOR != 0).then(|| get_f32(self.bytes, 52))
     }
+    /// Which statistic the out-of-prior section is for, when the blob
+    /// carries one.
+    pub fn out_of_prior_form(&self) -> Option<OutOfPriorForm> {
+        let flags = get_u16(self.bytes, 22);
+        (flags & FLAG_OUT_OF_PRIOR != 0).then_some(if flags & FLAG_LOG_RATIO != 0 {
+            OutOfPriorForm::LogRatio
+        } else {
+            OutOfPriorForm::Linear
+        })
+    }
     /// Copies zone `z`'s out-of-prior mean (m-1) and packed whitening matrix
     /// (m(m-1)/2); false when the blob carries no such section.
     pub fn copy_out_of_prior(&self, z: usize, mean: &mut [f32], g: &mut [f32]) -> bool {
@@ -1340,7 +1361,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 12.5, data: &oop }),
+            out_of_prior: Some(OutOfPriorData { threshold: 12.5, form: OutOfPriorForm::Linear, data: &oop }),
             gloss: None,
             root_form: false,
         };
@@ -1373,6 +1394,48 @@ mod tests {
         let v = BlobView::parse(&buf).unwrap();
         assert_eq!((v.version(), v.clusters(), v.out_of_prior_threshold()), (2, 1, None));
         assert!(!v.copy_out_of_prior(0, &mut mean, &mut g));
+        assert_eq!(v.out_of_prior_form(), None);
+    }
+
+    #[test]
+    fn the_log_ratio_form_is_flag_bit_4_and_only_with_the_section() {
+        let o = sample(6, 4, 2, 5);
+        let (unc, mats, cents, oop) = v2_extras(&o, 3);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let with = |form| BlobExtras {
+            clusters: 3,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop }),
+            gloss: None,
+            root_form: false,
+        };
+        let write = |ex: &BlobExtras<'_>| {
+            let mut buf = vec![0u8; o.dims.blob_len_with(ex)];
+            assert_eq!(write_blob_with(&c, ex, &mut buf), Ok(buf.len()));
+            buf
+        };
+        let linear = write(&with(OutOfPriorForm::Linear));
+        let log_ratio = write(&with(OutOfPriorForm::LogRatio));
+        // The same bytes but the flag (and so the CRC).
+        let differ: Vec<usize> = (0..linear.len()).filter(|i| linear[*i] != log_ratio[*i]).collect();
+        assert!(differ.iter().all(|i| *i == 22 || *i >= linear.len() - 4), "{differ:?}");
+        assert_eq!(get_u16(&log_ratio, 22) & !get_u16(&linear, 22), FLAG_LOG_RATIO);
+        assert_eq!(BlobView::parse(&linear).unwrap().out_of_prior_form(), Some(OutOfPriorForm::Linear));
+        assert_eq!(BlobView::parse(&log_ratio).unwrap().out_of_prior_form(), Some(OutOfPriorForm::LogRatio));
+        // The form bit without the section is refused, with a good CRC.
+        let mut bare = vec![0u8; o.dims.blob_len()];
+        let mut cs = contents(&o);
+        cs.estimator = EstimatorKind::ScaleFree;
+        write_blob(&cs, &mut bare).unwrap();
+        let flags = get_u16(&bare, 22) | FLAG_LOG_RATIO;
+        put_u16(&mut bare, 22, flags);
+        let at = bare.len() - 4;
+        let crc = CRC32.checksum(&bare[..at]);
+        put_u32(&mut bare, at, crc);
+        assert_eq!(BlobView::parse(&bare).map(|_| ()), Err(BlobError::ReservedNotZero));
     }
 
     #[test]
@@ -1403,7 +1466,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 1,
             centroids: &[],
-            out_of_prior: Some(OutOfPriorData { threshold: 0.0, data: &oop }),
+            out_of_prior: Some(OutOfPriorData { threshold: 0.0, form: OutOfPriorForm::Linear, data: &oop }),
             gloss: None,
             root_form: false,
         };
@@ -1414,7 +1477,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 1,
             centroids: &[],
-            out_of_prior: Some(OutOfPriorData { threshold: 3.0, data: &oop[1..] }),
+            out_of_prior: Some(OutOfPriorData { threshold: 3.0, form: OutOfPriorForm::Linear, data: &oop[1..] }),
             gloss: None,
             root_form: false,
         };
@@ -1441,7 +1504,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 2,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
+            out_of_prior: Some(OutOfPriorData { threshold: 2.0, form: OutOfPriorForm::Linear, data: &oop }),
             gloss: Some(g),
             root_form: false,
         };
@@ -1605,7 +1668,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 2.0, data: &oop }),
+            out_of_prior: Some(OutOfPriorData { threshold: 2.0, form: OutOfPriorForm::Linear, data: &oop }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
             root_form: false,
         };

@@ -16,7 +16,7 @@
 //! and the host simulation copy to RAM (and the host simulation tests the
 //! in-place case too, with a small budget).
 use crate::blob::{BlobView, EstimatorKind, GlossData};
-use crate::kernel::scale_free::{out_of_prior_stat, scale, whitening_len};
+use crate::kernel::scale_free::{OutOfPriorForm, scale, whitening_len};
 use crate::protocol::{CalInfo, DeviceError, SizeField};
 use crate::store::SlotInfo;
 use nalgebra::{SMatrix, SMatrixView, SVector};
@@ -60,6 +60,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     /// packed whitening), with its threshold; empty when it has none.
     out_of_prior: &'static [f32],
     out_of_prior_threshold: f32,
+    /// Which statistic the out-of-prior data is for.
+    out_of_prior_form: OutOfPriorForm,
     /// The blob's per-bin uncertainties in flash, Z x K x n (what the
     /// Sigma16 stream encoding scales its steps by).
     uncertainty: &'static [f32],
@@ -166,6 +168,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(t) => (view.out_of_prior_in_place().ok_or(DeviceError::Storage)?, t),
             None => (&[], f32::INFINITY),
         };
+        let out_of_prior_form = view.out_of_prior_form().unwrap_or(OutOfPriorForm::Linear);
         let uncertainty = view.uncertainty_in_place().ok_or(DeviceError::Storage)?;
         let gloss = if view.has_gloss() { Some(view.gloss_in_place().ok_or(DeviceError::Storage)?) } else { None };
         let mut white = [[0.0f32; M]; P];
@@ -204,6 +207,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             centroids,
             out_of_prior,
             out_of_prior_threshold,
+            out_of_prior_form,
             uncertainty,
             gloss,
             gloss_q,
@@ -342,7 +346,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         if !a.out_of_prior.is_empty() {
             let per = M - 1 + whitening_len(M);
             let data = &a.out_of_prior[z * per..(z + 1) * per];
-            let stat = out_of_prior_stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
+            let stat = a.out_of_prior_form.stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
             flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
         }
         let (readings, reading_sigma) = match &a.gloss {

@@ -18,6 +18,7 @@
 //!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test golden_bytes
 use brdf_meter::blob::{BlobExtras, EstimatorKind, OutOfPriorData, Section, write_blob_with};
 use brdf_meter::hw::SensorError;
+use brdf_meter::kernel::scale_free::OutOfPriorForm;
 use brdf_meter::protocol::{
     BinRange, BlobFault, CalInfo, DeviceError, DeviceInfo, DeviceStatus, Encoding, FrameError, LeBytes, MAX_FRAME,
     PointFrame, PointIn, PointMetaWire, PointsBlock, Request, Response, SizeField, StreamFormat, encode, flags,
@@ -218,7 +219,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let ex = BlobExtras {
         clusters: k,
         centroids: &centroids,
-        out_of_prior: Some(OutOfPriorData { threshold: 9.5, data: &oop }),
+        out_of_prior: Some(OutOfPriorData { threshold: 9.5, form: OutOfPriorForm::Linear, data: &oop }),
         gloss: None,
         root_form: false,
     };
@@ -226,6 +227,15 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
     b2.truncate(n);
     out.push(("blob.v2".into(), b2));
+    // The same with the log-ratio out-of-prior statistic (flag bit 4).
+    let ex = BlobExtras {
+        out_of_prior: Some(OutOfPriorData { threshold: 1.0, form: OutOfPriorForm::LogRatio, data: &oop }),
+        ..ex
+    };
+    let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
+    let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
+    b2.truncate(n);
+    out.push(("blob.v2.log-ratio".into(), b2));
     // Format 3: a Wiener blob with the gloss section.
     let p3 = TestBlobParts::new(9, 3, 2, 6, 0.75);
     let reference = [84.5f32, 91.25];

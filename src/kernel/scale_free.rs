@@ -22,15 +22,30 @@
 //!   bit for bit when c is a power of two).
 //!
 //! # Out-of-prior statistic
-//! How typical the normalised readings are for the prior: the squared
-//! Mahalanobis distance `d2 = |G (u' - mu')|^2` of `u'` under the prior's
-//! predictive covariance `C' = cov(u') + noise` (singular direction already
-//! removed), `G = chol(C')^-1` lower triangular, (m-1) x (m-1), stored packed
-//! row by row (row k holds k+1 entries). Training sets the threshold from
-//! cross-validated prior samples at a stated false-alarm rate; a point above
-//! it is flagged. Readings whose sum is not positive and finite give `+inf`.
-//! Cost: one division, m-1 multiplies and subtracts, (m-1)m/2 multiply-adds
-//! and m-1 squares accumulated.
+//! How typical the readings' shape is for the prior: a squared Mahalanobis
+//! distance `d2 = |G (x - mu)|^2` under the prior's covariance of `x`
+//! (noise included), `G = chol(C)^-1` lower triangular, (m-1) x (m-1),
+//! stored packed row by row (row k holds k+1 entries). Two forms of `x`:
+//!
+//! - **log-ratio** ([`out_of_prior_stat_log_ratio`], what training writes):
+//!   the centred logarithms of the shares `u_i = v_i / s` (floored at
+//!   [`LOG_RATIO_FLOOR`]), the last dropped since they sum to zero. Why the
+//!   logarithm: the shares of glossy and matte materials differ by orders
+//!   of magnitude, so the prior's cloud of `u` is far from Gaussian, and a
+//!   distance in `u` measures mostly how bright the brightest LED is. In
+//!   the logarithm a material's shape is a ratio of readings, the cloud is
+//!   near Gaussian and the distance sees a dark LED that is wrong as well
+//!   as a bright one (measured on held-out materials in
+//!   `docs/handheld.md`). Cost: m `logf` (about 25 f32 operations each)
+//!   on top of the linear form's.
+//! - **linear** ([`out_of_prior_stat`], calibrations written before):
+//!   `x = u'`, the first m-1 shares. Cost: one division, m-1 multiplies
+//!   and subtracts.
+//!
+//! Both then take (m-1)m/2 multiply-adds and m-1 squares accumulated.
+//! Training sets the threshold from cross-validated prior samples at a
+//! stated false-alarm rate; a point above it is flagged. Readings whose sum
+//! is not positive and finite give `+inf`.
 
 /// The scale of the readings: `s = sum_i v_i`, summed in index order.
 #[inline]
@@ -112,7 +127,8 @@ pub const fn whitening_len(m: usize) -> usize {
 }
 
 /// The out-of-prior statistic `d2 = |G (v'/s - mean)|^2` (see the module
-/// docs). `g` is packed lower triangular (m-1) x (m-1)
+/// docs): the linear form, which calibrations written before the log-ratio
+/// form carry. `g` is packed lower triangular (m-1) x (m-1)
 /// ([`whitening_len`]), `mean` the prior's mean of `u'` (m-1 values), `s`
 /// the readings' scale ([`scale`]; [`estimate_scale_free`] returns it).
 /// Not positive or not finite `s`: `+inf`.
@@ -131,7 +147,6 @@ pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
     // The centred normalised readings, computed once into a small buffer
     // (zeroing a larger one costs the device more than the statistic); more
     // readings than it holds are recomputed per use, with the same bits.
-    const HELD: usize = 16;
     let mut held = [0.0f32; HELD];
     let fits = m - 1 <= HELD;
     if fits {
@@ -139,10 +154,95 @@ pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
             held[i] = v[i] * inv - mean[i];
         }
     }
-    let x = |i: usize| if fits { held[i] } else { v[i] * inv - mean[i] };
+    whitened_norm2(g, m - 1, |i| if fits { held[i] } else { v[i] * inv - mean[i] })
+}
+
+/// Readings' shares below this are read as this before their logarithm
+/// ([`out_of_prior_stat_log_ratio`]): a share that small is the sensor's
+/// noise, and the logarithm of noise around zero would be the statistic.
+pub const LOG_RATIO_FLOOR: f32 = 1.0e-3;
+
+/// `ln(max(x / s, LOG_RATIO_FLOOR))` with `inv = 1 / s`: libm's `logf`,
+/// plain f32 operations, so the same bits on the device and the host.
+#[inline]
+fn log_share(x: f32, inv: f32) -> f32 {
+    let u = x * inv;
+    libm::logf(if u > LOG_RATIO_FLOOR { u } else { LOG_RATIO_FLOOR })
+}
+
+/// The out-of-prior statistic of the log-ratio form (`crate::blob`'s flag
+/// bit 4; see the module docs): `d2 = |G (l' - mean)|^2` where `l_i =
+/// ln(max(v_i / s, LOG_RATIO_FLOOR)) - (1/m) sum_k ln(max(v_k / s, ...))`
+/// (the centred log shares, whose last is redundant and dropped). `g`,
+/// `mean` and `s` as for [`out_of_prior_stat`], with the prior's moments
+/// of `l'`. Not positive or not finite `s`: `+inf`.
+///
+/// # Panics
+/// If `mean.len() + 1 != v.len()` or `g.len() != whitening_len(v.len())`.
+#[inline]
+pub fn out_of_prior_stat_log_ratio(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
+    let m = v.len();
+    assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
+    if !s.is_finite() || s <= 0.0 || s.is_nan() {
+        return f32::INFINITY;
+    }
+    let inv = 1.0 / s;
+    // The logarithms are the statistic's cost: computed once into the
+    // buffer when they fit, recomputed per use (same bits) when not.
+    let mut held = [0.0f32; HELD];
+    let fits = m <= HELD;
+    let mut sum = 0.0f32;
+    for (i, x) in v.iter().enumerate() {
+        let l = log_share(*x, inv);
+        if fits {
+            held[i] = l;
+        }
+        sum += l;
+    }
+    let centre = sum / m as f32;
+    whitened_norm2(g, m - 1, |i| (if fits { held[i] } else { log_share(v[i], inv) }) - centre - mean[i])
+}
+
+/// Which out-of-prior statistic a calibration's model is for (`crate::blob`
+/// records it in flag bit 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum OutOfPriorForm {
+    /// [`out_of_prior_stat`]: the shares themselves.
+    Linear,
+    /// [`out_of_prior_stat_log_ratio`]: their centred logarithms.
+    LogRatio,
+}
+
+impl OutOfPriorForm {
+    /// Its name in reports and files: `linear` or `log-ratio`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::LogRatio => "log-ratio",
+        }
+    }
+
+    /// This form's statistic of readings `v` with scale `s`.
+    #[inline]
+    pub fn stat(self, g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
+        match self {
+            Self::Linear => out_of_prior_stat(g, mean, v, s),
+            Self::LogRatio => out_of_prior_stat_log_ratio(g, mean, v, s),
+        }
+    }
+}
+
+/// Readings the statistics hold in a stack buffer (more are recomputed).
+const HELD: usize = 16;
+
+/// `|G x|^2` for packed lower-triangular `g` ((m1 (m1 + 1)) / 2 entries,
+/// row by row) and `x(i)`, i < m1, accumulated row by row in index order.
+#[inline(always)]
+fn whitened_norm2(g: &[f32], m1: usize, x: impl Fn(usize) -> f32) -> f32 {
     let mut d2 = 0.0f32;
     let mut off = 0;
-    for k in 0..m - 1 {
+    for k in 0..m1 {
         let mut y = 0.0f32;
         for i in 0..=k {
             y += g[off + i] * x(i);
@@ -279,6 +379,67 @@ mod tests {
         assert_eq!(out_of_prior_stat(&g, &mean, &[0.0; 3], 0.0), f32::INFINITY);
         assert_eq!(out_of_prior_stat(&g, &mean, &[1.0, -2.0, 0.5], -0.5), f32::INFINITY);
         assert_eq!(out_of_prior_stat(&g, &mean, &[f32::NAN, 0.0, 0.0], f32::NAN), f32::INFINITY);
+    }
+
+    #[test]
+    fn log_ratio_statistic_is_the_whitened_distance_of_centred_log_shares() {
+        // G = I, mean 0: d2 = |l'|^2 with l the centred log shares.
+        let g = [1.0f32, 0.0, 1.0];
+        let v = [2.0f32, 1.0, 1.0];
+        let s = scale(&v);
+        let l = [0.5f32.ln(), 0.25f32.ln(), 0.25f32.ln()];
+        let c = (l[0] + l[1] + l[2]) / 3.0;
+        let want = (l[0] - c).powi(2) + (l[1] - c).powi(2);
+        let d2 = out_of_prior_stat_log_ratio(&g, &[0.0; 2], &v, s);
+        assert!((d2 - want).abs() <= 1e-6 * want, "{d2} {want}");
+        // Scale-free: a power of two, bit for bit.
+        let v8 = v.map(|x| x * 8.0);
+        assert_eq!(out_of_prior_stat_log_ratio(&g, &[0.0; 2], &v8, scale(&v8)).to_bits(), d2.to_bits());
+        // At the mean: zero. Equal shares have l' = 0.
+        assert_eq!(out_of_prior_stat_log_ratio(&g, &[0.0; 2], &[3.0; 3], 9.0), 0.0);
+        // A dark or negative reading is the floor, not -inf or NaN.
+        // (The same scale passed for both, so only the dark shares differ.)
+        let dark = out_of_prior_stat_log_ratio(&g, &[0.0; 2], &[1.0, 0.0, -0.25], 1.0);
+        let floored = out_of_prior_stat_log_ratio(&g, &[0.0; 2], &[1.0, 1e-4, 1e-6], 1.0);
+        assert!(dark.is_finite() && dark == floored, "{dark} {floored}");
+        // Readings whose sum is not positive and finite: +inf.
+        assert_eq!(out_of_prior_stat_log_ratio(&g, &[0.0; 2], &[0.0; 3], 0.0), f32::INFINITY);
+        assert_eq!(out_of_prior_stat_log_ratio(&g, &[0.0; 2], &[f32::NAN, 0.0, 0.0], f32::NAN), f32::INFINITY);
+        // The form's dispatch gives each function's bits.
+        assert_eq!(OutOfPriorForm::LogRatio.stat(&g, &[0.0; 2], &v, s).to_bits(), d2.to_bits());
+        let lin = out_of_prior_stat(&g, &[0.0; 2], &v, s);
+        assert_eq!(OutOfPriorForm::Linear.stat(&g, &[0.0; 2], &v, s).to_bits(), lin.to_bits());
+    }
+
+    /// More readings than the buffer holds: the recomputed logarithms give
+    /// the same bits as the buffered ones would.
+    #[test]
+    fn the_log_ratio_statistic_is_the_same_for_many_readings() {
+        for m in [7usize, 16, 17, 24] {
+            let v: [f32; 24] = core::array::from_fn(|i| 0.5 + ((i * 7) % 5) as f32 * 0.25);
+            let mean: [f32; 23] = core::array::from_fn(|i| 0.03 + (i % 3) as f32 * 0.01);
+            let g: [f32; 276] = core::array::from_fn(|k| ((k * 13 % 7) as f32 - 3.0) * 0.5);
+            let (v, mean, g) = (&v[..m], &mean[..m - 1], &g[..whitening_len(m)]);
+            let s = scale(v);
+            let inv = 1.0 / s;
+            let l: [f32; 24] = core::array::from_fn(|i| if i < m { log_share(v[i], inv) } else { 0.0 });
+            let mut sum = 0.0f32;
+            for x in &l[..m] {
+                sum += *x;
+            }
+            let centre = sum / m as f32;
+            let (mut want, mut off) = (0.0f32, 0);
+            for k in 0..m - 1 {
+                let mut y = 0.0f32;
+                for i in 0..=k {
+                    y += g[off + i] * (l[i] - centre - mean[i]);
+                }
+                off += k + 1;
+                want += y * y;
+            }
+            assert_eq!(out_of_prior_stat_log_ratio(g, mean, v, s).to_bits(), want.to_bits(), "m = {m}");
+            assert!(want > 0.0);
+        }
     }
 
     #[test]

@@ -31,6 +31,7 @@ use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::{
     BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, OutOfPriorData, TrainingSummary, write_blob_with,
 };
+use brdf_meter::kernel::scale_free::OutOfPriorForm;
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use serde::Serialize;
@@ -301,8 +302,8 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
     }
     let threshold = zones
         .iter()
-        .filter_map(|z| z.scale_free().map(|s| s.out_of_prior.threshold))
-        .fold(None, |a: Option<f32>, t| Some(a.map_or(t, |a| a.max(t))));
+        .filter_map(|z| z.scale_free().map(|s| (s.out_of_prior.threshold, s.out_of_prior.form)))
+        .fold(None, |a: Option<(f32, OutOfPriorForm)>, t| Some(a.map_or(t, |a| (a.0.max(t.0), t.1))));
     let contents = BlobContents {
         dims,
         noise_rel: spec.noise_rel as f32,
@@ -320,7 +321,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
     let extras = BlobExtras {
         clusters,
         centroids: &centroids,
-        out_of_prior: threshold.map(|threshold| OutOfPriorData { threshold, data: &oop }),
+        out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop }),
         gloss: gloss.as_ref().map(GlossSection::data),
         root_form: spec.root,
     };
@@ -338,7 +339,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         summary,
         f32_rel_error,
         f32_exponents,
-        out_of_prior_threshold: threshold,
+        out_of_prior_threshold: threshold.map(|t| t.0),
         blob,
     })
 }
@@ -425,7 +426,7 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
             sum(*a).total_cmp(&sum(*b))
         })
         .expect("at least one cluster count");
-    let trained: Vec<ScaleFreeZone> = pairs
+    let mut trained: Vec<ScaleFreeZone> = pairs
         .par_iter()
         .zip(&cv)
         .enumerate()
@@ -434,6 +435,12 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
                 .with_context(|| format!("zone {z}: training the scale-free estimator"))
         })
         .collect::<anyhow::Result<_>>()?;
+    // The blob holds one out-of-prior form: the one that caught more of the
+    // badly estimated held-out readings over all zones.
+    let form = crate::calibration::estimators::out_of_prior::choose_form(trained.iter().map(|z| &z.out_of_prior_forms));
+    for z in &mut trained {
+        z.use_out_of_prior_form(form);
+    }
     Ok(spec
         .zones
         .iter()
@@ -792,9 +799,12 @@ pub struct ScaleFreeZoneJson {
     pub sigma_unit: Vec<Vec<f64>>,
     /// Centroids (K x m), empty unless piecewise.
     pub centroids: Vec<f32>,
-    /// Mean of `u'`.
+    /// The out-of-prior statistic's form: "linear" (the shares) or
+    /// "log-ratio" (their centred logarithms).
+    pub out_of_prior_form: &'static str,
+    /// Mean of the statistic's coordinates (m-1).
     pub out_of_prior_mean: Vec<f32>,
-    /// Packed whitening G.
+    /// Packed whitening G, the zone's threshold folded in (threshold 1).
     pub out_of_prior_g: Vec<f32>,
     /// Ridge chosen by cross-validation.
     pub ridge: f64,
@@ -862,6 +872,7 @@ impl Trained {
                             matrices: z.maps.iter().map(|mp| rows(&mp.w)).collect(),
                             sigma_unit: z.maps.iter().map(|mp| mp.sigma_unit.iter().copied().collect()).collect(),
                             centroids: z.centroids.clone(),
+                            out_of_prior_form: z.out_of_prior.form.name(),
                             out_of_prior_mean: z.out_of_prior.mean.clone(),
                             out_of_prior_g: z.out_of_prior.g.clone(),
                             ridge: z.ridge,

@@ -313,10 +313,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => {
             let z0 = trained.zones[0].scale_free().expect("a scale-free calibration");
             println!(
-                "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior threshold {:.2} at {:.0} % false alarms on held-out samples; f32 vs f64 {:.1e}",
+                "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior flag: the {} statistic, each zone's threshold at {:.0} % false alarms on held-out samples; f32 vs f64 {:.1e}",
                 z0.ridge,
                 z0.cv_error,
-                trained.out_of_prior_threshold.unwrap_or(f32::INFINITY),
+                z0.out_of_prior.form.name(),
                 100.0 * a.cal.false_alarm,
                 trained.f32_rel_error
             );

@@ -15,7 +15,7 @@ use brdf_meter::acquire::{AcqConfig, Shorter, correct_point_into};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
 use brdf_meter::kernel::scale_free::{
-    estimate_scale_free, estimate_scale_free_root, out_of_prior_stat, root_uncertainty, scale, scaled_uncertainty,
+    OutOfPriorForm, estimate_scale_free, estimate_scale_free_root, root_uncertainty, scale, scaled_uncertainty,
     whitening_len,
 };
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
@@ -72,7 +72,7 @@ pub struct PointEstimator<'a> {
     mats: Vec<Vec<f32>>,
     sigma: Vec<Vec<f32>>,
     centroids: Vec<f32>,
-    out_of_prior: Option<(Vec<f32>, Vec<f32>, f32)>,
+    out_of_prior: Option<(Vec<f32>, Vec<f32>, f32, OutOfPriorForm)>,
     /// Per cluster the gloss block, and the standard's assigned value.
     gloss: Option<(Vec<Vec<f32>>, f32)>,
 }
@@ -101,10 +101,10 @@ impl<'a> PointEstimator<'a> {
             centroids = vec![0.0f32; k * d.m];
             view.copy_centroids(zone, &mut centroids);
         }
-        let out_of_prior = view.out_of_prior_threshold().map(|t| {
+        let out_of_prior = view.out_of_prior_threshold().zip(view.out_of_prior_form()).map(|(t, form)| {
             let (mut mean, mut g) = (vec![0.0f32; d.m - 1], vec![0.0f32; whitening_len(d.m)]);
             view.copy_out_of_prior(zone, &mut mean, &mut g);
-            (mean, g, t)
+            (mean, g, t, form)
         });
         let gloss = view.has_gloss().then(|| {
             let mut assigned = 0.0f32;
@@ -174,8 +174,8 @@ impl<'a> PointEstimator<'a> {
             }
         };
         let mut stat = f32::NAN;
-        if let Some((mean, g, t)) = &self.out_of_prior {
-            stat = out_of_prior_stat(g, mean, v, s);
+        if let Some((mean, g, t, form)) = &self.out_of_prior {
+            stat = form.stat(g, mean, v, s);
             bits |= out_of_prior_flag(stat, *t);
         }
         bits |= guard_estimate(&mut rho);

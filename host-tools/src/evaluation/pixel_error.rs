@@ -54,7 +54,7 @@ pub struct SampleErrors {
 /// A trained estimator of one fold, as a function of the readings.
 enum FoldEstimator {
     Linear(DMatrix<f64>),
-    ScaleFree(scale_free::ScaleFreeZone),
+    ScaleFree(Box<scale_free::ScaleFreeZone>),
 }
 
 impl FoldEstimator {
@@ -80,7 +80,7 @@ fn train_fold(pairs: &Pairs, spec: &HeldOutSpec) -> anyhow::Result<FoldEstimator
                 seed: spec.seed,
                 ..Default::default()
             };
-            FoldEstimator::ScaleFree(scale_free::train_pairs(&weighted, &opts)?)
+            FoldEstimator::ScaleFree(Box::new(scale_free::train_pairs(&weighted, &opts)?))
         }
         k => anyhow::bail!("{k:?}: the held-out error is drawn for the Wiener and scale-free kinds"),
     })

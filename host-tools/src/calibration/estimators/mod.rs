@@ -15,6 +15,9 @@
 //! | pseudo-inverse (claim 4) | [`pseudo_inverse`] | `H^+` by SVD |
 //! | interpolation (\[0004\]) | [`interpolation`] | linear interpolation between the LEDs' centre angles |
 //!
+//! The scale-free kinds ([`scale_free`]) carry an out-of-prior flag, trained
+//! in [`out_of_prior`].
+//!
 //! # Predicted uncertainty
 //! For any linear W, prior correlation `R_pp = <rho rho^T>` and noise
 //! covariance `R_nn` (noise uncorrelated with rho), the error `e = rho - W v`
@@ -56,6 +59,7 @@ pub mod fixed_point;
 pub mod interpolation;
 pub mod inverse;
 pub mod log_wiener;
+pub mod out_of_prior;
 pub mod pairs_wiener;
 pub mod pseudo_inverse;
 pub mod scale_free;

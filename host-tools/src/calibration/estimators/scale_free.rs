@@ -17,9 +17,14 @@
 //!   `W' = S_y S_u'^T (C' + lambda tr(C')/(m-1) I)^-1`, `b = mu_y - W' mu'`;
 //!   the blob's matrix is `[W' | b]`.
 //! - Uncertainty per unit scale: `sqrt(diag(S_y S_y^T - W' S_u' S_y^T))`.
-//! - Out-of-prior: `G = chol(C')^-1`, the statistic `|G (u' - mu')|^2`;
-//!   threshold: the `1 - alpha` quantile of the statistic of held-out prior
-//!   samples (k-fold, each scored by a model without it, with noise draws).
+//! - Out-of-prior ([`out_of_prior`]): two forms, each a `G = chol(C)^-1`
+//!   and a mean. Linear: `C = C'`, the predictive covariance of `u'` above,
+//!   statistic `|G (u' - mu')|^2`. Log-ratio: the covariance of the centred
+//!   log shares of the prior's noisy readings. Each zone's threshold is the
+//!   `1 - alpha` quantile of the statistic of held-out prior samples (the
+//!   cross-validation's folds, each scored by a model without it, with
+//!   noise draws), folded into G; training keeps the form whose flagged
+//!   held-out estimates are the worse.
 //! - lambda (and the piecewise estimator's cluster count) is chosen by k-fold
 //!   cross-validation inside the prior, on the error normalised by each
 //!   sample's peak: never on a material the evaluation holds out.
@@ -52,11 +57,12 @@
 //! prior already has. Holding out a whole group makes the fit extrapolate
 //! as it must for a new kind of surface, still from training data alone.
 use crate::calibration::estimators::clustered::kmeans;
+use crate::calibration::estimators::out_of_prior;
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
 use brdf_meter::kernel::scale_free::{
-    estimate_scale_free, estimate_scale_free_root, out_of_prior_stat, root_uncertainty, scale, whitening_len,
+    OutOfPriorForm, estimate_scale_free, estimate_scale_free_root, root_uncertainty, whitening_len,
 };
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
@@ -131,25 +137,7 @@ impl ScaleFreeMap {
     }
 }
 
-/// The out-of-prior model: mean of `u'` and packed whitening G.
-#[derive(Clone, Debug)]
-pub struct OutOfPrior {
-    /// Mean of `u'` (m-1).
-    pub mean: Vec<f32>,
-    /// Packed lower-triangular G (m(m-1)/2).
-    pub g: Vec<f32>,
-    /// Threshold on the statistic.
-    pub threshold: f32,
-    /// False-alarm rate the threshold was set for.
-    pub false_alarm: f64,
-}
-
-impl OutOfPrior {
-    /// The statistic for readings `v` (the device's function).
-    pub fn stat(&self, v: &[f32]) -> f32 {
-        out_of_prior_stat(&self.g, &self.mean, v, scale(v))
-    }
-}
+pub use crate::calibration::estimators::out_of_prior::OutOfPrior;
 
 /// A trained scale-free estimator for one zone.
 #[derive(Clone, Debug)]
@@ -158,8 +146,12 @@ pub struct ScaleFreeZone {
     pub maps: Vec<ScaleFreeMap>,
     /// K x m centroids, f32 (piecewise only; empty otherwise).
     pub centroids: Vec<f32>,
-    /// The out-of-prior model.
+    /// The out-of-prior model the zone flags with (one of
+    /// `out_of_prior_forms`).
     pub out_of_prior: OutOfPrior,
+    /// Both forms' models, linear then log-ratio, with their held-out
+    /// evidence (`out_of_prior::choose_form`).
+    pub out_of_prior_forms: [OutOfPrior; 2],
     /// Relative ridge chosen by cross-validation.
     pub ridge: f64,
     /// Cross-validated mean peak-normalised error of the chosen setting.
@@ -188,7 +180,14 @@ impl ScaleFreeZone {
             brdf_meter::kernel::scale_free::scaled_uncertainty(&unit, s, &mut sigma);
             s
         };
-        (out, sigma, out_of_prior_stat(&self.out_of_prior.g, &self.out_of_prior.mean, v, s), c)
+        let o = &self.out_of_prior;
+        (out, sigma, o.form.stat(&o.g, &o.mean, v, s), c)
+    }
+
+    /// Flags with `form`'s model (a calibration's zones share one form).
+    pub fn use_out_of_prior_form(&mut self, form: OutOfPriorForm) {
+        let i = usize::from(form == OutOfPriorForm::LogRatio);
+        self.out_of_prior = self.out_of_prior_forms[i].clone();
     }
 }
 
@@ -311,7 +310,8 @@ fn fit_map(mo: &Moments, ridge: f64) -> anyhow::Result<ScaleFreeMap> {
     Ok(ScaleFreeMap { w, sigma_unit, err_unit: err })
 }
 
-/// Packed `chol(C')^-1` (lower triangular) of the predictive covariance.
+/// Packed `chol(C')^-1` (lower triangular) of the predictive covariance of
+/// `u'` (the linear out-of-prior form's model).
 fn whitening(mo: &Moments) -> anyhow::Result<Vec<f32>> {
     let m1 = mo.mu_u.len();
     let c = &mo.su * mo.su.transpose() + &mo.r_noise;
@@ -636,32 +636,42 @@ pub fn train_with(
         let by_shape = shape_folds(pairs, &nz, opts.seed);
         held_out_uncertainty(pairs, &nz, (&cv.readings, &by_shape), opts.seed, ridge, clusters, &mut fitted)?;
     }
-    // Out-of-prior: held-out statistics -> threshold.
+    // Out-of-prior: both forms' models and thresholds from held-out
+    // readings, and how badly the readings each flags are estimated.
     let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
-    let mut stats: Vec<(f64, f64)> = Vec::with_capacity(pairs.len() * DRAWS);
+    let mut error = vec![Vec::new(); pairs.len()];
     for f in 0..nf {
         let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
-        let mo = moments(&nz, &train_idx);
-        let g = whitening(&mo)?;
-        let mean: Vec<f32> = mo.mu_u.iter().map(|x| *x as f32).collect();
+        let fold_fit = fit(&nz, &train_idx, opts.seed, ridge, clusters, opts.root)?;
         for k in (0..pairs.len()).filter(|k| cv.fold[*k] == f) {
-            for v in &cv.readings[k] {
-                let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-                let stat = out_of_prior_stat(&g, &mean, &v32, scale(&v32));
-                stats.push((f64::from(stat), pairs.base[k] / DRAWS as f64));
-            }
+            let truth = pairs.truth.column(k).into_owned();
+            error[k] = cv.readings[k].iter().map(|v| peak_error(&fold_fit.estimate(v), &truth)).collect();
         }
     }
-    // The statistics are f32 values, so the quantile is one exactly.
-    let threshold = weighted_quantile(&mut stats, 1.0 - opts.false_alarm) as f32;
-    let mo = moments(&nz, &all);
-    let out_of_prior = OutOfPrior {
-        mean: mo.mu_u.iter().map(|x| *x as f32).collect(),
-        g: whitening(&mo)?,
-        threshold: if threshold.is_finite() && threshold > 0.0 { threshold } else { f32::MAX },
-        false_alarm: opts.false_alarm,
+    let weight: Vec<f64> = pairs.base.iter().map(|b| b / DRAWS as f64).collect();
+    let linear_model = |idx: &[usize]| {
+        let mo = moments(&nz, idx);
+        Ok((mo.mu_u.iter().map(|x| *x as f32).collect(), whitening(&mo)?))
     };
-    Ok(ScaleFreeZone { maps: fitted.maps, centroids: fitted.centroids, out_of_prior, ridge, cv_error, root: opts.root })
+    let held = out_of_prior::HeldOut {
+        readings: &cv.readings,
+        weight: &weight,
+        fold: &cv.fold,
+        error: &error,
+        linear_model: &linear_model,
+    };
+    let out_of_prior_forms = out_of_prior::train(&held, opts.false_alarm)?;
+    let mut zone = ScaleFreeZone {
+        maps: fitted.maps,
+        centroids: fitted.centroids,
+        out_of_prior: out_of_prior_forms[1].clone(),
+        out_of_prior_forms,
+        ridge,
+        cv_error,
+        root: opts.root,
+    };
+    zone.use_out_of_prior_form(out_of_prior::choose_form([&zone.out_of_prior_forms]));
+    Ok(zone)
 }
 
 /// One held-out pair's reading: (cluster, weight, estimate, root errors per
@@ -765,7 +775,7 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
 /// The weighted `q` quantile of `xs` (value, weight): the first value, in
 /// ascending order, at which the weights reach `q` of their total
 /// (`f64::MAX` when there is none).
-fn weighted_quantile(xs: &mut [(f64, f64)], q: f64) -> f64 {
+pub(crate) fn weighted_quantile(xs: &mut [(f64, f64)], q: f64) -> f64 {
     xs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let total: f64 = xs.iter().map(|x| x.1).sum();
     let mut acc = 0.0;

@@ -1,0 +1,326 @@
+//! Training of the out-of-prior flag (the device's statistic is
+//! `brdf_meter::kernel::scale_free`, its two forms `OutOfPriorForm`).
+//!
+//! Each form is a Gaussian model of a point's coordinates (the linear form:
+//! the readings' shares `u'`; the log-ratio form: their centred logarithms
+//! `l'`) fitted to the prior's noisy readings, so the noise is in its
+//! covariance: mean and packed `chol(C)^-1`. A zone's threshold is the
+//! `1 - alpha` quantile of the statistic of held-out prior readings (k-fold,
+//! each scored by a model fitted without its fold), folded into G so that
+//! every zone's threshold is [`FOLDED_THRESHOLD`] (the blob holds one).
+//!
+//! Which form a calibration flags with is decided by what the flag is for:
+//! the same held-out readings, each estimated by the calibration's fit
+//! without its fold, tell which form's flag catches more of the estimates
+//! worse than [`BAD_ERROR`] of their peak at the stated false-alarm rate.
+//! Neither wins everywhere: on the handheld's extended LEDs the prior's
+//! shares span decades and the log-ratio form sees what the linear form
+//! cannot, while on the patent profile's compact LEDs the points read badly
+//! are the most specular, whose one bright share the linear form measures
+//! directly (`docs/guide/real-materials.md`, `docs/handheld.md`). The choice
+//! uses training data only, never an evaluation's held-out materials.
+use anyhow::{Context, ensure};
+use brdf_meter::kernel::scale_free::{LOG_RATIO_FLOOR, OutOfPriorForm, scale, whitening_len};
+use nalgebra::{DMatrix, DVector};
+
+/// Every zone's out-of-prior threshold once its own is folded into its G.
+pub const FOLDED_THRESHOLD: f32 = 1.0;
+
+/// An estimate worse than this (RMS over the bins / the truth's peak) is
+/// what the flag should catch.
+pub const BAD_ERROR: f64 = 0.10;
+
+/// One zone's out-of-prior model in one form.
+#[derive(Clone, Debug)]
+pub struct OutOfPrior {
+    /// Which statistic.
+    pub form: OutOfPriorForm,
+    /// Mean of the form's coordinates (m-1).
+    pub mean: Vec<f32>,
+    /// Packed lower-triangular G (m(m-1)/2), the zone's threshold folded in.
+    pub g: Vec<f32>,
+    /// Threshold on the statistic: [`FOLDED_THRESHOLD`].
+    pub threshold: f32,
+    /// False-alarm rate the threshold was set for.
+    pub false_alarm: f64,
+    /// Held-out evidence for choosing the form: the prior's weight of the
+    /// held-out readings this form's flag raised.
+    pub held_out_flagged: f64,
+    /// ... and the same weights times those readings' estimates' errors.
+    pub held_out_flagged_error: f64,
+}
+
+impl OutOfPrior {
+    /// The statistic for readings `v` (the device's function).
+    pub fn stat(&self, v: &[f32]) -> f32 {
+        self.form.stat(&self.g, &self.mean, v, scale(v))
+    }
+
+    /// Whether readings `v` are flagged.
+    pub fn flags(&self, v: &[f32]) -> bool {
+        self.stat(v) > self.threshold
+    }
+}
+
+/// A form's model of some of the prior's pairs: (mean, packed G).
+pub type ModelOf<'a> = dyn Fn(&[usize]) -> anyhow::Result<(Vec<f32>, Vec<f32>)> + Sync + 'a;
+
+/// The prior's noisy readings the models are fitted on and scored with.
+pub struct HeldOut<'a> {
+    /// Per pair, its noise draws.
+    pub readings: &'a [Vec<DVector<f64>>],
+    /// Per pair, its weight in the prior (per draw).
+    pub weight: &'a [f64],
+    /// Per pair, its fold.
+    pub fold: &'a [usize],
+    /// Per pair and draw, the peak-normalised error of its estimate by the
+    /// calibration's fit without its fold.
+    pub error: &'a [Vec<f64>],
+    /// The linear form's model of pairs `idx` (mean, packed G): the
+    /// estimator's own predictive covariance of `u'` (`scale_free`), with
+    /// its weights.
+    pub linear_model: &'a ModelOf<'a>,
+}
+
+/// Both forms' models for one zone, each with its threshold set at
+/// `false_alarm` on the held-out readings and its held-out evidence.
+pub fn train(held: &HeldOut<'_>, false_alarm: f64) -> anyhow::Result<[OutOfPrior; 2]> {
+    Ok([
+        train_form(held, false_alarm, OutOfPriorForm::Linear)?,
+        train_form(held, false_alarm, OutOfPriorForm::LogRatio)?,
+    ])
+}
+
+/// Each held-out reading's statistic (a model fitted without its fold)
+/// with its pair: (statistic, pair, draw).
+fn held_out_stats(
+    held: &HeldOut<'_>,
+    fold: &[usize],
+    form: OutOfPriorForm,
+) -> anyhow::Result<Vec<(f64, usize, usize)>> {
+    let pairs = held.readings.len();
+    let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
+    let mut out = Vec::with_capacity(pairs * 2);
+    for f in 0..nf {
+        let train_idx: Vec<usize> = (0..pairs).filter(|k| fold[*k] != f).collect();
+        let (mean, g) = model(held, &train_idx, form)?;
+        for k in (0..pairs).filter(|k| fold[*k] == f) {
+            for (d, v) in held.readings[k].iter().enumerate() {
+                let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
+                out.push((f64::from(form.stat(&g, &mean, &v32, scale(&v32))), k, d));
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn train_form(held: &HeldOut<'_>, false_alarm: f64, form: OutOfPriorForm) -> anyhow::Result<OutOfPrior> {
+    let scored = held_out_stats(held, held.fold, form)?;
+    let mut stats: Vec<(f64, f64)> = scored.iter().map(|&(s, k, _)| (s, held.weight[k])).collect();
+    let threshold = crate::calibration::estimators::scale_free::weighted_quantile(&mut stats, 1.0 - false_alarm);
+    // The evidence: how bad the flagged held-out estimates are.
+    let flagged = scored.iter().filter(|x| x.0 > threshold);
+    let (weight, error) =
+        flagged.fold((0.0, 0.0), |(w, e), &(_, k, d)| (w + held.weight[k], e + held.weight[k] * held.error[k][d]));
+    let all: Vec<usize> = (0..held.readings.len()).collect();
+    let (mean, mut g) = model(held, &all, form)?;
+    // |G x|^2 / t = |(G / sqrt t) x|^2. A zone whose held-out statistics
+    // are all zero or not finite has no usable model: it never flags.
+    let fold = if threshold.is_finite() && threshold > 0.0 { 1.0 / threshold.sqrt() } else { 0.0 };
+    for x in &mut g {
+        *x = (f64::from(*x) * fold) as f32;
+    }
+    Ok(OutOfPrior {
+        form,
+        mean,
+        g,
+        threshold: FOLDED_THRESHOLD,
+        false_alarm,
+        held_out_flagged: weight,
+        held_out_flagged_error: error,
+    })
+}
+
+/// The form whose flag raised on the worse estimates: the larger mean
+/// error of the held-out readings it flagged, over all of `zones` (each
+/// zone's [`train`] result); the log-ratio form on a tie (also when
+/// neither flagged anything).
+pub fn choose_form<'a>(zones: impl IntoIterator<Item = &'a [OutOfPrior; 2]>) -> OutOfPriorForm {
+    let (mut weight, mut error) = ([0.0f64; 2], [0.0f64; 2]);
+    for z in zones {
+        for (i, o) in z.iter().enumerate() {
+            weight[i] += o.held_out_flagged;
+            error[i] += o.held_out_flagged_error;
+        }
+    }
+    let mean = |i: usize| if weight[i] > 0.0 { error[i] / weight[i] } else { 0.0 };
+    if mean(0) > mean(1) { OutOfPriorForm::Linear } else { OutOfPriorForm::LogRatio }
+}
+
+/// A point's coordinates in `form` (m-1 values), in f64: the device's
+/// transform. `None` when the readings' sum is not positive and finite.
+fn coordinates(v: &DVector<f64>, form: OutOfPriorForm) -> Option<DVector<f64>> {
+    let s: f64 = v.iter().sum();
+    if !(s.is_finite() && s > 0.0) {
+        return None;
+    }
+    let m1 = v.len() - 1;
+    Some(match form {
+        OutOfPriorForm::Linear => v.rows(0, m1) / s,
+        OutOfPriorForm::LogRatio => {
+            let l = v.map(|x| (x / s).max(f64::from(LOG_RATIO_FLOOR)).ln());
+            let centre = l.mean();
+            l.rows(0, m1).map(|x| x - centre)
+        }
+    })
+}
+
+/// The model of pairs `idx` in `form`. The log-ratio form: the weighted
+/// mean of their noisy readings' coordinates and the packed `chol(C)^-1` of
+/// their covariance (noise included, since the readings are noisy; the
+/// logarithm has no closed-form noise term). The linear form: the
+/// estimator's predictive covariance ([`HeldOut::linear_model`]).
+fn model(held: &HeldOut<'_>, idx: &[usize], form: OutOfPriorForm) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    if form == OutOfPriorForm::Linear {
+        return (held.linear_model)(idx);
+    }
+    let xs: Vec<(DVector<f64>, f64)> = idx
+        .iter()
+        .flat_map(|&k| held.readings[k].iter().filter_map(move |v| coordinates(v, form).map(|x| (x, held.weight[k]))))
+        .collect();
+    ensure!(!xs.is_empty(), "no readings with a positive sum to fit the out-of-prior model on");
+    let m1 = xs[0].0.len();
+    let total: f64 = xs.iter().map(|x| x.1).sum();
+    ensure!(total > 0.0, "the out-of-prior model's readings all have zero weight");
+    let mean = xs.iter().fold(DVector::zeros(m1), |a, (x, w)| a + x * (w / total));
+    let mut c = DMatrix::zeros(m1, m1);
+    for (x, w) in &xs {
+        let d = x - &mean;
+        c += &d * d.transpose() * (w / total);
+    }
+    let jitter = 1e-9 * (c.trace() / m1 as f64).max(f64::MIN_POSITIVE);
+    let l = (c + DMatrix::identity(m1, m1) * jitter)
+        .cholesky()
+        .context("the covariance of the prior's readings is singular")?
+        .l();
+    let g = l.solve_lower_triangular(&DMatrix::identity(m1, m1)).context("whitening")?;
+    let mut packed = Vec::with_capacity(whitening_len(m1 + 1));
+    for k in 0..m1 {
+        for i in 0..=k {
+            packed.push(g[(k, i)] as f32);
+        }
+    }
+    Ok((mean.iter().map(|x| *x as f32).collect(), packed))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn zone(weight: [f64; 2], error: [f64; 2]) -> [OutOfPrior; 2] {
+        let one = |i: usize, form| OutOfPrior {
+            form,
+            mean: vec![],
+            g: vec![],
+            threshold: FOLDED_THRESHOLD,
+            false_alarm: 0.05,
+            held_out_flagged: weight[i],
+            held_out_flagged_error: error[i],
+        };
+        [one(0, OutOfPriorForm::Linear), one(1, OutOfPriorForm::LogRatio)]
+    }
+
+    #[test]
+    fn the_form_that_flags_worse_estimates_over_all_zones_is_chosen() {
+        // Zone by zone they disagree; over both, the linear form's flagged
+        // estimates err by 0.5 on average, the log-ratio form's by 0.4.
+        let zones = [zone([8.0, 8.0], [5.0, 2.0]), zone([2.0, 2.0], [0.0, 2.0])];
+        assert_eq!(choose_form(&zones), OutOfPriorForm::Linear);
+        let zones = [zone([8.0, 8.0], [2.0, 5.0]), zone([2.0, 2.0], [2.0, 0.0])];
+        assert_eq!(choose_form(&zones), OutOfPriorForm::LogRatio);
+        // A tie, or nothing bad: the log-ratio form.
+        assert_eq!(choose_form(&[zone([1.0, 1.0], [1.0, 1.0])]), OutOfPriorForm::LogRatio);
+        assert_eq!(choose_form(&[zone([0.0, 0.0], [0.0, 0.0])]), OutOfPriorForm::LogRatio);
+    }
+
+    /// A prior of matte and glossy materials, and glossy readings whose
+    /// dark LEDs' ratio is swapped: in the shares the swap is a thousandth
+    /// against a spread of tenths (the matte ones'), in their logarithms it
+    /// is as large as the step from glossy to matte. The log-ratio form
+    /// flags them, the linear form hardly does, and when they are the
+    /// badly estimated ones the choice falls on the log-ratio form.
+    #[test]
+    fn the_log_ratio_form_sees_dark_ratios_and_is_chosen_when_they_matter() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let nd = Normal::new(0.0, 1.0).unwrap();
+        // 10 % log-normal spread on each share.
+        let mut reading = |kind: usize| {
+            let base = [[0.3, 0.3, 0.2, 0.2], [0.9, 0.09, 0.009, 0.001], [0.9, 0.09, 0.001, 0.009]][kind];
+            DVector::from_fn(4, |i, _| base[i] * (0.1f64 * nd.sample(&mut rng)).exp())
+        };
+        let (pairs, draws) = (200, 2);
+        // One pair in forty is odd (fewer than the false-alarm rate, as
+        // the prior's own oddities are), spread over the folds.
+        let odd = |k: usize| k % 40 == 3;
+        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
+        let readings: Vec<Vec<DVector<f64>>> =
+            (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
+        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
+        let fold: Vec<usize> = (0..pairs).map(|k| k % 5).collect();
+        // The odd pairs are the badly estimated ones.
+        let error: Vec<Vec<f64>> = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
+        // The linear form's model: the shares' own Gaussian.
+        let shares: Vec<Vec<DVector<f64>>> = readings.iter().map(|r| r.iter().map(|v| v / v.sum()).collect()).collect();
+        let linear_model = |idx: &[usize]| {
+            let xs: Vec<DVector<f64>> =
+                idx.iter().flat_map(|&k| shares[k].iter().map(|u| u.rows(0, 3).into_owned())).collect();
+            let mu = xs.iter().fold(DVector::zeros(3), |a, x| a + x) / xs.len() as f64;
+            let c =
+                xs.iter().fold(DMatrix::zeros(3, 3), |a, x| a + (x - &mu) * (x - &mu).transpose()) / xs.len() as f64;
+            let g = c.cholesky().unwrap().l().solve_lower_triangular(&DMatrix::identity(3, 3)).unwrap();
+            let packed = (0..3).flat_map(|k| (0..=k).map(move |i| (k, i))).map(|(k, i)| g[(k, i)] as f32).collect();
+            Ok((mu.iter().map(|x| *x as f32).collect(), packed))
+        };
+        let held =
+            HeldOut { readings: &readings, weight: &weight, fold: &fold, error: &error, linear_model: &linear_model };
+        let [linear, log_ratio] = train(&held, 0.05).unwrap();
+        assert_eq!((linear.threshold, log_ratio.threshold), (FOLDED_THRESHOLD, FOLDED_THRESHOLD));
+        // Fresh readings of each kind.
+        let rate = |o: &OutOfPrior, kinds: &[usize], rng_reading: &mut dyn FnMut(usize) -> DVector<f64>| {
+            let n = 400;
+            let hits = (0..n)
+                .filter(|i| {
+                    let v32: Vec<f32> = rng_reading(kinds[i % kinds.len()]).iter().map(|x| *x as f32).collect();
+                    o.flags(&v32)
+                })
+                .count();
+            hits as f64 / n as f64
+        };
+        let (lr_odd, lr_good) = (rate(&log_ratio, &[2], &mut reading), rate(&log_ratio, &[0, 1], &mut reading));
+        let (lin_odd, lin_good) = (rate(&linear, &[2], &mut reading), rate(&linear, &[0, 1], &mut reading));
+        assert!(lr_odd > 0.8 && lr_good < 0.1, "log-ratio: {lr_odd} of the odd, {lr_good} of the rest");
+        assert!(lin_odd < 0.5 * lr_odd && lin_good < 0.1, "linear: {lin_odd} of the odd ({lin_good} of the rest)");
+        assert_eq!(choose_form([&[linear, log_ratio]]), OutOfPriorForm::LogRatio);
+    }
+
+    #[test]
+    fn coordinates_are_the_devices_transform() {
+        let v = DVector::from_vec(vec![2.0, 1.0, 1.0, 0.0]);
+        let lin = coordinates(&v, OutOfPriorForm::Linear).unwrap();
+        assert_eq!(lin.as_slice(), &[0.5, 0.25, 0.25]);
+        let lr = coordinates(&v, OutOfPriorForm::LogRatio).unwrap();
+        let l = [0.5f64.ln(), 0.25f64.ln(), 0.25f64.ln(), f64::from(LOG_RATIO_FLOOR).ln()];
+        let c = l.iter().sum::<f64>() / 4.0;
+        for i in 0..3 {
+            assert!((lr[i] - (l[i] - c)).abs() < 1e-12);
+        }
+        // The device's f32 statistic with G = I and mean 0 is |l'|^2.
+        let g = [1.0f32, 0.0, 1.0, 0.0, 0.0, 1.0];
+        let v32 = [2.0f32, 1.0, 1.0, 0.0];
+        let d2 = OutOfPriorForm::LogRatio.stat(&g, &[0.0; 3], &v32, scale(&v32));
+        assert!((f64::from(d2) - lr.norm_squared()).abs() < 1e-5 * lr.norm_squared());
+        assert!(coordinates(&DVector::from_vec(vec![0.0, 0.0]), OutOfPriorForm::LogRatio).is_none());
+    }
+}
