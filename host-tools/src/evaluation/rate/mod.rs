@@ -8,8 +8,10 @@
 //!   postcard serialisation, CRC, COBS, the copy to the outgoing frame),
 //!   turned into cycles with the Cortex-M4 timings of the kernel bench
 //!   (`tradeoff::kernel_bench`) and into time at 80 MHz. Its data: a blob
-//!   trained for the build's scene and one line of that scene's raw frames
-//!   from the scene simulator.
+//!   of the kind `train` ships (scale-free piecewise on the measured
+//!   prior, root form, the out-of-prior flag and the gloss readings)
+//!   trained for the build's scene, and one line of that scene's raw
+//!   frames from the scene simulator.
 //! - Acquisition per line: derived from the firmware's settings and the
 //!   sensor's timing ([`acquisition`]).
 //! - The link: bytes and USB packets per line of the frames the device
@@ -27,7 +29,7 @@ pub mod frames;
 pub mod link;
 pub mod report;
 
-use crate::calibration::demo::train_for_scene;
+use crate::calibration::demo::train_scale_free_for_scene;
 use crate::evaluation::tradeoff::kernel_bench::Segment;
 use crate::forward::scene::Scene;
 use crate::forward::scene::frames::{patent_scene, scene_frames};
@@ -56,13 +58,20 @@ pub struct BuildInput {
     pub acquisition: acquisition::LineAcquisition,
     /// Where the scene came from.
     pub scene: String,
+    /// What the calibration is.
+    pub calibration: String,
 }
 
-/// Trains the two builds' calibrations and simulates a line of each:
-/// the handheld scene (`scenes/handheld.toml`, P = 128, `board_zones` zones,
-/// at most the board's RAM budget of 8) and the QEMU demo's patent-profile
-/// scene (P = 32, 4 zones). The per-point instruction counts do not depend on
-/// the number of zones (the zone only picks a matrix).
+/// The calibration both builds are measured with: what `train` writes by
+/// default, so the line budget is the shipped instrument's.
+const CALIBRATION: &str = "scale-free piecewise, MERL prior, root form, out-of-prior flag, gloss readings";
+
+/// Trains the two builds' calibrations (the kind `train` ships) and
+/// simulates a line of each: the handheld scene (`scenes/handheld.toml`,
+/// P = 128, `board_zones` zones, at most the board's RAM budget of 8) and
+/// the patent-profile scene (P = 32, 1 zone, as the QEMU demo's kind fits
+/// its slot). The per-point instruction counts do not depend on the number
+/// of zones (the zone only picks the matrices).
 pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput>> {
     ensure!(
         (1..=brdf_meter::shape::board::RAM_ZONES).contains(&board_zones),
@@ -76,7 +85,7 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
         name: "board",
         pixels: handheld.instrument.sensor.pixels,
         zones: board_zones,
-        blob: train_for_scene(&handheld, board_zones, 0.02)?.blob,
+        blob: train_scale_free_for_scene(&handheld, board_zones, 0.02, true)?.blob,
         frames: long_exposure(scene_frames(&handheld, 1)?.remove(0)),
         full_scale: handheld.instrument.sensor.full_scale as u16,
         acquisition: acquisition::board(
@@ -85,19 +94,21 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
             frames_per_line,
         ),
         scene: "scenes/handheld.toml".into(),
+        calibration: CALIBRATION.into(),
     };
     ensure!(board.pixels == brdf_meter::shape::board::PIXELS, "the handheld scene is not the board's P");
     let qemu_scene = patent_scene(brdf_meter::shape::qemu::PIXELS);
-    let qemu_zones = brdf_meter::shape::qemu::RAM_ZONES;
+    let qemu_zones = 1;
     let qemu = BuildInput {
         name: "qemu",
         pixels: brdf_meter::shape::qemu::PIXELS,
         zones: qemu_zones,
-        blob: train_for_scene(&qemu_scene, qemu_zones, 0.02)?.blob,
+        blob: train_scale_free_for_scene(&qemu_scene, qemu_zones, 0.02, true)?.blob,
         frames: long_exposure(scene_frames(&qemu_scene, 1)?.remove(0)),
         full_scale: brdf_meter::shape::qemu::FULL_SCALE,
         acquisition: acquisition::qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, frames_per_line),
-        scene: "patent profile (the QEMU demo's)".into(),
+        scene: "patent profile".into(),
+        calibration: CALIBRATION.into(),
     };
     Ok(vec![board, qemu])
 }
@@ -246,6 +257,8 @@ pub struct BuildBudget {
     pub zones: usize,
     /// The scene its line came from.
     pub scene: String,
+    /// What the calibration is.
+    pub calibration: String,
     /// Acquisition time per line.
     pub acquisition: acquisition::LineAcquisition,
     /// Per encoding.
@@ -315,6 +328,7 @@ pub fn budget(
                 pixels: b.pixels,
                 zones: b.zones,
                 scene: b.scene.clone(),
+                calibration: b.calibration.clone(),
                 acquisition: b.acquisition.clone(),
                 encodings,
                 sigma16: frames::sigma16_error(&view, &b.blob, &b.frames, b.full_scale)?,

@@ -11,9 +11,16 @@ fn ms(us: f64) -> String {
 /// The markdown tables.
 pub fn markdown(builds: &[BuildBudget], practical: f64) -> String {
     let mut s = String::new();
+    for b in builds {
+        let _ = writeln!(
+            s,
+            "{} (P = {}): a line of {}, read with a calibration of {} zone(s): {}",
+            b.name, b.pixels, b.scene, b.zones, b.calibration
+        );
+    }
     let _ = writeln!(
         s,
-        "## Line budget per stage (instructions exact from QEMU; cycles: Cortex-M4 timings; ms at 80 MHz)\n"
+        "\n## Line budget per stage (instructions exact from QEMU; cycles: Cortex-M4 timings; ms at 80 MHz)\n"
     );
     let _ = writeln!(
         s,
