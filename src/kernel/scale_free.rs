@@ -25,22 +25,21 @@
 //! How typical the readings' shape is for the prior: a squared Mahalanobis
 //! distance `d2 = |G (x - mu)|^2` under the prior's covariance of `x`
 //! (noise included), `G = chol(C)^-1` lower triangular, (m-1) x (m-1),
-//! stored packed row by row (row k holds k+1 entries). Two forms of `x`:
+//! stored packed row by row (row k holds k+1 entries). Two forms of `x`
+//! (training fits both and keeps the one whose flag lands on the worse
+//! estimates; the blob records which):
 //!
-//! - **log-ratio** ([`out_of_prior_stat_log_ratio`], what training writes):
-//!   the centred logarithms of the shares `u_i = v_i / s` (floored at
+//! - **log-ratio** ([`out_of_prior_stat_log_ratio`]): the centred
+//!   logarithms of the shares `u_i = v_i / s` (floored at
 //!   [`LOG_RATIO_FLOOR`]), the last dropped since they sum to zero. Why the
 //!   logarithm: the shares of glossy and matte materials differ by orders
-//!   of magnitude, so the prior's cloud of `u` is far from Gaussian, and a
-//!   distance in `u` measures mostly how bright the brightest LED is. In
-//!   the logarithm a material's shape is a ratio of readings, the cloud is
-//!   near Gaussian and the distance sees a dark LED that is wrong as well
-//!   as a bright one (measured on held-out materials in
-//!   `docs/handheld.md`). Cost: m `logf` (about 25 f32 operations each)
-//!   on top of the linear form's.
-//! - **linear** ([`out_of_prior_stat`], calibrations written before):
-//!   `x = u'`, the first m-1 shares. Cost: one division, m-1 multiplies
-//!   and subtracts.
+//!   of magnitude, so a distance in `u` measures mostly how bright the
+//!   brightest LED is; in the logarithm a dark LED's ratio counts as much
+//!   as a bright one's (on the handheld this is what tells a bad estimate:
+//!   `docs/handheld.md`). Cost: m `logf` on top of the linear form's (373
+//!   instructions per point for m = 7 on the M4, QEMU's count).
+//! - **linear** ([`out_of_prior_stat`]): `x = u'`, the first m-1 shares.
+//!   Cost: one division, m-1 multiplies and subtracts.
 //!
 //! Both then take (m-1)m/2 multiply-adds and m-1 squares accumulated.
 //! Training sets the threshold from cross-validated prior samples at a
@@ -127,8 +126,7 @@ pub const fn whitening_len(m: usize) -> usize {
 }
 
 /// The out-of-prior statistic `d2 = |G (v'/s - mean)|^2` (see the module
-/// docs): the linear form, which calibrations written before the log-ratio
-/// form carry. `g` is packed lower triangular (m-1) x (m-1)
+/// docs), the linear form. `g` is packed lower triangular (m-1) x (m-1)
 /// ([`whitening_len`]), `mean` the prior's mean of `u'` (m-1 values), `s`
 /// the readings' scale ([`scale`]; [`estimate_scale_free`] returns it).
 /// Not positive or not finite `s`: `+inf`.

@@ -435,8 +435,8 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
                 .with_context(|| format!("zone {z}: training the scale-free estimator"))
         })
         .collect::<anyhow::Result<_>>()?;
-    // The blob holds one out-of-prior form: the one that caught more of the
-    // badly estimated held-out readings over all zones.
+    // The blob holds one out-of-prior form: the one whose flagged held-out
+    // readings were the worse estimated, over all zones.
     let form = crate::calibration::estimators::out_of_prior::choose_form(trained.iter().map(|z| &z.out_of_prior_forms));
     for z in &mut trained {
         z.use_out_of_prior_form(form);
