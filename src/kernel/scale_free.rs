@@ -136,12 +136,9 @@ pub const fn whitening_len(m: usize) -> usize {
 #[inline]
 pub fn out_of_prior_stat(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
     let m = v.len();
-    assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
-    // NaN is neither positive nor finite: caught here too.
-    if !s.is_finite() || s <= 0.0 || s.is_nan() {
+    let Some(inv) = inverse_scale(g, mean, v, s) else {
         return f32::INFINITY;
-    }
-    let inv = 1.0 / s;
+    };
     // The centred normalised readings, computed once into a small buffer
     // (zeroing a larger one costs the device more than the statistic); more
     // readings than it holds are recomputed per use, with the same bits.
@@ -180,11 +177,9 @@ fn log_share(x: f32, inv: f32) -> f32 {
 #[inline]
 pub fn out_of_prior_stat_log_ratio(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> f32 {
     let m = v.len();
-    assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
-    if !s.is_finite() || s <= 0.0 || s.is_nan() {
+    let Some(inv) = inverse_scale(g, mean, v, s) else {
         return f32::INFINITY;
-    }
-    let inv = 1.0 / s;
+    };
     // The logarithms are the statistic's cost: computed once into the
     // buffer when they fit, recomputed per use (same bits) when not.
     let mut held = [0.0f32; HELD];
@@ -229,6 +224,19 @@ impl OutOfPriorForm {
             Self::LogRatio => out_of_prior_stat_log_ratio(g, mean, v, s),
         }
     }
+}
+
+/// Both statistics' checks: `1 / s`, or `None` when `s` is not positive
+/// and finite (the statistic is then `+inf`).
+///
+/// # Panics
+/// If `mean.len() + 1 != v.len()` or `g.len() != whitening_len(v.len())`.
+#[inline(always)]
+fn inverse_scale(g: &[f32], mean: &[f32], v: &[f32], s: f32) -> Option<f32> {
+    let m = v.len();
+    assert!(m >= 2 && mean.len() == m - 1 && g.len() == whitening_len(m), "g, mean and v disagree");
+    // NaN is neither positive nor finite: caught here too.
+    (s.is_finite() && s > 0.0).then(|| 1.0 / s)
 }
 
 /// Readings the statistics hold in a stack buffer (more are recomputed).
