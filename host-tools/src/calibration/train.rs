@@ -31,7 +31,6 @@ use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::{
     BlobContents, BlobExtras, BlobView, Dims, EstimatorKind, OutOfPriorData, TrainingSummary, write_blob_with,
 };
-use brdf_meter::kernel::scale_free::OutOfPriorForm;
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use serde::Serialize;
@@ -300,10 +299,10 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
             }
         }
     }
-    let threshold = zones
-        .iter()
-        .filter_map(|z| z.scale_free().map(|s| (s.out_of_prior.threshold, s.out_of_prior.form)))
-        .fold(None, |a: Option<(f32, OutOfPriorForm)>, t| Some(a.map_or(t, |a| (a.0.max(t.0), t.1))));
+    // Every zone flags in one form with its threshold folded into its G
+    // (`scale_free_zones`), so the first zone's threshold and form are all
+    // zones'.
+    let threshold = zones.iter().find_map(|z| z.scale_free()).map(|s| (s.out_of_prior.threshold, s.out_of_prior.form));
     let contents = BlobContents {
         dims,
         noise_rel: spec.noise_rel as f32,

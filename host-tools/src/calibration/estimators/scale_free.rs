@@ -548,19 +548,41 @@ impl CrossValidation {
         ridge: f64,
         clusters: usize,
     ) -> Option<f64> {
+        let errors = self.held_out_errors(pairs, nz, opts, ridge, clusters).ok()?;
+        // Summed fold by fold, in the order the folds are fitted.
         let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
         let mut err = 0.0;
         for f in 0..nf {
-            let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| self.fold[*k] != f).collect();
-            let fitted = fit(nz, &train_idx, opts.seed, ridge, clusters, opts.root).ok()?;
             for k in (0..pairs.len()).filter(|k| self.fold[*k] == f) {
-                let truth = pairs.truth.column(k).into_owned();
-                for v in &self.readings[k] {
-                    err += pairs.base[k] * peak_error(&fitted.estimate(v), &truth) / DRAWS as f64;
+                for e in &errors[k] {
+                    err += pairs.base[k] * e / DRAWS as f64;
                 }
             }
         }
         Some(err)
+    }
+
+    /// Per pair and noise draw, the peak-normalised error of its reading
+    /// estimated by the fit without its fold.
+    fn held_out_errors(
+        &self,
+        pairs: &Pairs,
+        nz: &Normalised,
+        opts: &ScaleFreeOptions,
+        ridge: f64,
+        clusters: usize,
+    ) -> anyhow::Result<Vec<Vec<f64>>> {
+        let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
+        let mut errors = vec![Vec::new(); pairs.len()];
+        for f in 0..nf {
+            let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| self.fold[*k] != f).collect();
+            let fitted = fit(nz, &train_idx, opts.seed, ridge, clusters, opts.root)?;
+            for k in (0..pairs.len()).filter(|k| self.fold[*k] == f) {
+                let truth = pairs.truth.column(k).into_owned();
+                errors[k] = self.readings[k].iter().map(|v| peak_error(&fitted.estimate(v), &truth)).collect();
+            }
+        }
+        Ok(errors)
     }
 }
 
@@ -638,16 +660,7 @@ pub fn train_with(
     }
     // Out-of-prior: both forms' models and thresholds from held-out
     // readings, and how badly the readings each flags are estimated.
-    let nf = cv.fold.iter().copied().max().map_or(0, |x| x + 1);
-    let mut error = vec![Vec::new(); pairs.len()];
-    for f in 0..nf {
-        let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| cv.fold[*k] != f).collect();
-        let fold_fit = fit(&nz, &train_idx, opts.seed, ridge, clusters, opts.root)?;
-        for k in (0..pairs.len()).filter(|k| cv.fold[*k] == f) {
-            let truth = pairs.truth.column(k).into_owned();
-            error[k] = cv.readings[k].iter().map(|v| peak_error(&fold_fit.estimate(v), &truth)).collect();
-        }
-    }
+    let error = cv.held_out_errors(pairs, &nz, opts, ridge, clusters)?;
     let weight: Vec<f64> = pairs.base.iter().map(|b| b / DRAWS as f64).collect();
     let linear_model = |idx: &[usize]| {
         let mo = moments(&nz, idx);

@@ -62,9 +62,18 @@ pub struct BuildInput {
     pub calibration: String,
 }
 
-/// The calibration both builds are measured with: what `train` writes by
-/// default, so the line budget is the shipped instrument's.
-const CALIBRATION: &str = "scale-free piecewise, MERL prior, root form, out-of-prior flag, gloss readings";
+/// What a bench blob is, read from it (the prior is `train`'s default,
+/// the measured one, which the blob does not record).
+fn describe(blob: &[u8]) -> anyhow::Result<String> {
+    let view = brdf_meter::blob::BlobView::parse(blob).map_err(|e| anyhow::anyhow!("the bench's blob: {e}"))?;
+    Ok(format!(
+        "{} on the MERL prior, {} form, {} out-of-prior flag, {}",
+        crate::calibration::estimators::kind_name(view.estimator()),
+        if view.root_form() { "root" } else { "linear" },
+        view.out_of_prior_form().map_or("no", |f| f.name()),
+        if view.has_gloss() { "gloss readings" } else { "no gloss readings" }
+    ))
+}
 
 /// Trains the two builds' calibrations (the kind `train` ships) and
 /// simulates a line of each: the handheld scene (`scenes/handheld.toml`,
@@ -81,11 +90,13 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
     let frames_per_line = brdf_meter::shape::FRAMES_PER_LINE;
     let path = root.join("scenes/handheld.toml");
     let handheld = Scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
+    let board_blob = train_scale_free_for_scene(&handheld, board_zones, 0.02, true)?.blob;
     let board = BuildInput {
         name: "board",
         pixels: handheld.instrument.sensor.pixels,
         zones: board_zones,
-        blob: train_scale_free_for_scene(&handheld, board_zones, 0.02, true)?.blob,
+        calibration: describe(&board_blob)?,
+        blob: board_blob,
         frames: long_exposure(scene_frames(&handheld, 1)?.remove(0)),
         full_scale: handheld.instrument.sensor.full_scale as u16,
         acquisition: acquisition::board(
@@ -94,21 +105,21 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
             frames_per_line,
         ),
         scene: "scenes/handheld.toml".into(),
-        calibration: CALIBRATION.into(),
     };
     ensure!(board.pixels == brdf_meter::shape::board::PIXELS, "the handheld scene is not the board's P");
     let qemu_scene = patent_scene(brdf_meter::shape::qemu::PIXELS);
     let qemu_zones = 1;
+    let qemu_blob = train_scale_free_for_scene(&qemu_scene, qemu_zones, 0.02, true)?.blob;
     let qemu = BuildInput {
         name: "qemu",
         pixels: brdf_meter::shape::qemu::PIXELS,
         zones: qemu_zones,
-        blob: train_scale_free_for_scene(&qemu_scene, qemu_zones, 0.02, true)?.blob,
+        calibration: describe(&qemu_blob)?,
+        blob: qemu_blob,
         frames: long_exposure(scene_frames(&qemu_scene, 1)?.remove(0)),
         full_scale: brdf_meter::shape::qemu::FULL_SCALE,
         acquisition: acquisition::qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, frames_per_line),
         scene: "patent profile".into(),
-        calibration: CALIBRATION.into(),
     };
     Ok(vec![board, qemu])
 }
