@@ -24,7 +24,7 @@ use crate::calibration::estimators::{
 use crate::calibration::f32_gate::scale_free_gate;
 pub use crate::calibration::f32_gate::{F32_TOLERANCE, F32Plan, F32Refusal, f32_gate};
 use crate::calibration::gloss_rows::{self, GlossSection};
-use crate::forward::pairs::{Criterion, Pairs};
+use crate::forward::pairs::{Criterion, Pairs, PixelOptics};
 use crate::forward::prior_models::PriorModels;
 use crate::forward::zone_optics::ZoneOptics;
 use anyhow::{Context, bail, ensure};
@@ -123,12 +123,15 @@ impl Form {
     /// The form a kind is trained in unless asked otherwise: root for the
     /// scale-free kinds, linear for the others (the patent's estimators).
     pub fn default_for(kind: EstimatorKind) -> Self {
-        if matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
-            Self::Root
-        } else {
-            Self::Linear
-        }
+        if scale_free_kind(kind) { Self::Root } else { Self::Linear }
     }
+}
+
+/// Whether `kind` is one of the scale-free kinds (trained on the readings
+/// the instrument takes, in the root form by default) rather than one of
+/// the patent's estimators (defined by H).
+fn scale_free_kind(kind: EstimatorKind) -> bool {
+    matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
 }
 
 /// One zone's trained estimator.
@@ -207,12 +210,24 @@ pub struct ZonePairs {
 }
 
 impl ZonePairs {
-    /// The pairs of `spec`'s zones and prior.
+    /// The pairs of `spec`'s zones and prior. The scale-free kinds' pairs
+    /// are what the instrument reads (a reflection model by its rays); the
+    /// patent's estimators are defined by H, so where H describes the
+    /// optics (in-plane) their pairs are `H rho` and give the patent's
+    /// eq. 20/22 (`crate::forward::pairs`).
     pub fn build(spec: &TrainSpec<'_>) -> Self {
         let standards = gloss_rows::standards();
+        let pixels = |zo: &ZoneOptics| -> Vec<PixelOptics> {
+            if scale_free_kind(spec.estimator) {
+                zo.pixels.clone()
+            } else {
+                zo.pixels.iter().map(PixelOptics::read_by_h_in_plane).collect()
+            }
+        };
+        let pixels: Vec<Vec<PixelOptics>> = spec.zones.iter().map(pixels).collect();
         Self {
-            prior: spec.zones.iter().map(|zo| Pairs::build_with_gloss(&zo.pixels, spec.prior)).collect(),
-            standards: spec.zones.iter().map(|zo| Pairs::build_with_gloss(&zo.pixels, &standards)).collect(),
+            prior: pixels.iter().map(|px| Pairs::build_with_gloss(px, spec.prior)).collect(),
+            standards: pixels.iter().map(|px| Pairs::build_with_gloss(px, &standards)).collect(),
         }
     }
 
@@ -261,7 +276,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         }
     }
     ensure!(
-        !spec.root || matches!(spec.estimator, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise),
+        !spec.root || scale_free_kind(spec.estimator),
         "the root form is for the scale-free kinds; train the {} estimator in the linear form (--form linear)",
         kind_name(spec.estimator)
     );

@@ -1,7 +1,9 @@
 //! Training of the scale-free estimators and of the out-of-prior statistic
 //! (the device side, which the host also runs, is `brdf_meter::kernel::scale_free`).
 //!
-//! For each prior sample rho_k (weight w_k): readings `v = H rho`, scale
+//! For each prior sample rho_k (weight w_k): readings `v` (its pair's,
+//! `crate::forward::pairs`: a reflection model's by its rays, a profile's
+//! `H rho`), scale
 //! `s = sum v`, normalised readings `u = v / s`, shape `y = rho / s`. The
 //! prior is factored from its samples, `C = S S^T` with `S = [sqrt(w_k)
 //! (x_k - mean)]` (L = S / sqrt(K) for equal weights), never from an
