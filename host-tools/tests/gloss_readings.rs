@@ -226,12 +226,13 @@ fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
             }
         }
     }
-    // MERL held out. Met: gloss and haze within 0.95 +- 0.03 for the
-    // piecewise kind (the default), both ways: a stated uncertainty that
-    // over-covers is as wrong as one that under-covers. 0.92 and 0.98 for
-    // one scale-free map. Not met, printed and asserted only as a floor
-    // against regression: distinctness (0.80-0.83 for the scale-free
-    // kinds) and Wiener's gloss and distinctness.
+    // MERL held out. Met: gloss, haze and distinctness within 0.95 +- 0.03
+    // for the piecewise kind (the default), both ways: a stated uncertainty
+    // that over-covers is as wrong as one that under-covers (distinctness
+    // was 0.80-0.83 until the maps trained on the rays and each cluster's
+    // readings had their own scale factors). Not met, printed and asserted
+    // only as a floor against regression: one scale-free map's gloss (over,
+    // 0.998) and Wiener's gloss and distinctness.
     for kind in [EstimatorKind::Wiener, EstimatorKind::ScaleFree, EstimatorKind::ScaleFreePiecewise] {
         let (all, _, _) = merl_held_out(kind);
         for r in [SPECULAR_GU, HAZE_HU] {
@@ -245,6 +246,9 @@ fn readings_of_the_library_and_of_measured_materials_against_the_truth() {
         // The linear form's distinctness over the points it gives one for.
         let d =
             if kind == EstimatorKind::Wiener { all.coverage_defined(DISTINCTNESS) } else { all.coverage(DISTINCTNESS) };
+        if kind == EstimatorKind::ScaleFreePiecewise {
+            assert!((d - REQUIRED).abs() <= 0.03, "{kind:?}: MERL distinctness {d:.3}");
+        }
         assert!(d >= 0.65, "{kind:?}: MERL distinctness {d:.3}");
     }
 }

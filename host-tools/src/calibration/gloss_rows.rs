@@ -33,9 +33,10 @@
 //! reading inherits through `q`. Training holds the prior's samples out in
 //! [`HELD_OUT_FOLDS`] folds, fits each fold's rows (and their reading of
 //! the standard) on the others, reads the held-out samples by the device's
-//! function and scales the covariance per reading so that [`COVERAGE`] of
-//! them fall within [`COVERAGE_K`] u ([`uncertainty_factors`],
-//! [`scale_block`]). Training data only: the test set never enters it.
+//! function and scales each cluster's covariance per reading so that
+//! [`COVERAGE`] of the held-out points it selected fall within
+//! [`COVERAGE_K`] u ([`cluster_uncertainty_factors`], [`scale_block`]).
+//! Training data only: the test set never enters it.
 use crate::forward::brdf::smooth_dielectric::BLACK_GLASS_INDEX;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric};
 use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
@@ -309,6 +310,25 @@ pub fn uncertainty_factors(z: &[[f64; 3]]) -> [f64; 3] {
     })
 }
 
+/// Cluster `c`'s factors ([`uncertainty_factors`]) from the held-out
+/// points `z` (cluster, standardised errors) it selected: each cluster's
+/// readings are then covered on their own, not by a factor that a few
+/// clusters' errors (the mirror-like materials') set for all. A cluster
+/// with fewer than [`MIN_CLUSTER_POINTS`] held-out points takes the
+/// factors of all of them.
+pub fn cluster_uncertainty_factors(z: &[(usize, [f64; 3])], c: usize) -> [f64; 3] {
+    let own: Vec<[f64; 3]> = z.iter().filter(|p| p.0 == c).map(|p| p.1).collect();
+    if own.len() >= MIN_CLUSTER_POINTS {
+        uncertainty_factors(&own)
+    } else {
+        uncertainty_factors(&z.iter().map(|p| p.1).collect::<Vec<_>>())
+    }
+}
+
+/// Fewest held-out points a cluster's own uncertainty factors are set
+/// from: the 95th percentile of 40 points is the third largest.
+pub const MIN_CLUSTER_POINTS: usize = 40;
+
 /// Scales a block's covariance and standard deviations by the factors
 /// `f` (gloss, haze, distinctness: the distinctness factor on both the peak
 /// and the shoulders), so the device's stated `u` is `f u`.
@@ -360,6 +380,23 @@ mod tests {
             let t = targets(&pairs).unwrap();
             assert!((t[(0, 0)] - 100.0).abs() < 1e-9, "view {view}: {}", t[(0, 0)]);
         }
+    }
+
+    #[test]
+    fn each_cluster_with_enough_points_sets_its_own_factors() {
+        // Cluster 0: |z| 0.1..4.0 (40 points); cluster 1: |z| 1..40 (40);
+        // cluster 2: 39 points, too few, so the pooled factors.
+        let mut z: Vec<(usize, [f64; 3])> = Vec::new();
+        for i in 1..=40 {
+            z.push((0, [f64::from(i) / 10.0; 3]));
+            z.push((1, [f64::from(i); 3]));
+        }
+        z.extend((1..=39).map(|i| (2, [f64::from(i) / 10.0; 3])));
+        assert_eq!(cluster_uncertainty_factors(&z, 0), [3.8 / COVERAGE_K; 3]);
+        assert_eq!(cluster_uncertainty_factors(&z, 1), [38.0 / COVERAGE_K; 3]);
+        let pooled = uncertainty_factors(&z.iter().map(|p| p.1).collect::<Vec<_>>());
+        assert_eq!(cluster_uncertainty_factors(&z, 2), pooled);
+        assert!(pooled[0] > 3.8 / COVERAGE_K && pooled[0] < 38.0 / COVERAGE_K);
     }
 
     #[test]

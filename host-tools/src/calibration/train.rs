@@ -621,13 +621,12 @@ fn gloss_section(
                 for _ in 0..gloss_rows::HELD_OUT_DRAWS {
                     let noisy = noisy(&v, &var, &mut rng);
                     let (c, x, sc) = kernel_input(tz, plan, &noisy);
-                    zs.push(gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz)));
+                    zs.push((c, gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz))));
                 }
             }
         }
-        let f = gloss_rows::uncertainty_factors(&zs);
-        for b in &mut blocks {
-            gloss_rows::scale_block(b, m, f);
+        for (c, b) in blocks.iter_mut().enumerate() {
+            gloss_rows::scale_block(b, m, gloss_rows::cluster_uncertainty_factors(&zs, c));
         }
         // Each pixel's own reading of the standard through its zone's rows
         // (the centre's where a pixel cannot see it), so the black glass
