@@ -20,8 +20,10 @@
 //!   read 0.18 of the peak high on average, the peak height 60 % off at the
 //!   90th percentile; 0.00 and 14 % with the rays);
 //! - `H rho` for a profile, known only in-plane on the grid at the nominal
-//!   view (the patent's Table 5 prior: so its pairs give the H-based W), and
-//!   for optics known only by their H.
+//!   view, for optics known only by their H, and for in-plane optics
+//!   training asks to read by H ([`PixelOptics::read_by_h_in_plane`]: the
+//!   patent's estimators, defined by H, whose pairs then give eq. 20/22 on
+//!   the Table 5 prior).
 //!
 //! The truth is the sample's binned reflectance factor at the pixel's own
 //! view (a mirror spike projected onto its bins): what the user gets.

@@ -65,7 +65,7 @@
 //! as it must for a new kind of surface, still from training data alone.
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
-use crate::calibration::gloss_rows::COVERAGE_K;
+use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
@@ -753,7 +753,7 @@ fn held_out_uncertainty(
     let quantile = |c: Option<usize>, j: usize| -> Option<f64> {
         let mut xs: Vec<(f64, f64)> =
             held.iter().filter(|h| c.is_none_or(|c| h.0 == c)).map(|h| (h.2[j], h.1)).collect();
-        (!xs.is_empty()).then(|| weighted_quantile(&mut xs, crate::calibration::gloss_rows::COVERAGE))
+        (!xs.is_empty()).then(|| weighted_quantile(&mut xs, COVERAGE))
     };
     let pooled = DVector::from_fn(n, |j, _| quantile(None, j).unwrap_or(0.0));
     for (c, map) in fitted.maps.iter_mut().enumerate() {
