@@ -41,11 +41,12 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
-//! | 56 | 8 | reserved, 0 |
+//! | 56 | 4 | out-of-prior band factor (f32, finite, >= 1, with bit 5 only; else 0) |
+//! | 60 | 4 | reserved, 0 |
 //!
 //! and sections sized by K: the uncertainty is Z x K x n (for the scale-free
 //! kinds per unit scale: the device multiplies by the point's scale), the
@@ -160,6 +161,10 @@ const FLAG_ROOT: u16 = 8;
 /// `FLAG_OUT_OF_PRIOR` only). Firmware from before it rejects such a blob
 /// as having a reserved flag set, and keeps its last good calibration.
 const FLAG_LOG_RATIO: u16 = 16;
+/// The header holds the out-of-prior band factor at offset 56 (with
+/// `FLAG_OUT_OF_PRIOR` only). Firmware from before it rejects such a blob
+/// as having a reserved flag set, and keeps its last good calibration.
+const FLAG_BAND_FACTOR: u16 = 32;
 /// Values of the gloss section before the per-zone data: the assigned value
 /// and the refractive index.
 const GLOSS_HEAD: usize = 2;
@@ -512,6 +517,10 @@ pub struct OutOfPriorData<'a> {
     pub form: OutOfPriorForm,
     /// Per zone, [`out_of_prior_len`] values: mean, then packed G.
     pub data: &'a [f32],
+    /// What a flagged point's per-bin unit uncertainty is multiplied by
+    /// (finite, >= 1; 1 writes nothing: the blob is byte for byte as
+    /// before).
+    pub band_factor: f32,
 }
 
 /// What format version 2 adds to [`BlobContents`]; [`BlobExtras::NONE`]
@@ -684,6 +693,9 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         Some(OutOfPriorData { form: OutOfPriorForm::LogRatio, .. }) => FLAG_OUT_OF_PRIOR | FLAG_LOG_RATIO,
         Some(_) => FLAG_OUT_OF_PRIOR,
         None => 0,
+    } | match extras.out_of_prior {
+        Some(o) if o.band_factor != 1.0 => FLAG_BAND_FACTOR,
+        _ => 0,
     };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
@@ -691,6 +703,9 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     if v2 {
         put_u16(out, 48, k as u16);
         put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
+        if let Some(o) = extras.out_of_prior.filter(|o| o.band_factor != 1.0) {
+            put_f32(out, 56, o.band_factor);
+        }
     }
     put_u32(out, 24, c.summary.prior_samples);
     put_f32(out, 28, c.summary.condition);
@@ -815,9 +830,13 @@ impl<'a> BlobView<'a> {
         let reserved_ok = if version == FORMAT_VERSION_1 {
             bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
         } else {
-            bytes[50..52].iter().chain(&bytes[56..64]).all(|b| *b == 0)
-                && flags & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT | FLAG_LOG_RATIO) == 0
-                && (ex.out_of_prior || (get_u32(bytes, 52) == 0 && flags & FLAG_LOG_RATIO == 0))
+            let band = flags & FLAG_BAND_FACTOR != 0;
+            bytes[50..52].iter().chain(&bytes[60..64]).all(|b| *b == 0)
+                && (band || get_u32(bytes, 56) == 0)
+                && flags
+                    & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT | FLAG_LOG_RATIO | FLAG_BAND_FACTOR)
+                    == 0
+                && (ex.out_of_prior || (get_u32(bytes, 52) == 0 && flags & (FLAG_LOG_RATIO | FLAG_BAND_FACTOR) == 0))
         };
         if !reserved_ok {
             return Err(BlobError::ReservedNotZero);
@@ -830,6 +849,13 @@ impl<'a> BlobView<'a> {
             }
             if t <= 0.0 {
                 return Err(BlobError::OutOfRange { section: Section::OutOfPrior, index: 0 });
+            }
+            let f = view.out_of_prior_band_factor();
+            if !f.is_finite() {
+                return Err(BlobError::NonFinite { section: Section::Header, index: 56 });
+            }
+            if f < 1.0 {
+                return Err(BlobError::OutOfRange { section: Section::Header, index: 56 });
             }
         }
         let noise = view.noise_rel();
@@ -1166,6 +1192,14 @@ impl<'a> BlobView<'a> {
     pub fn out_of_prior_threshold(&self) -> Option<f32> {
         (get_u16(self.bytes, 22) & FLAG_OUT_OF_PRIOR != 0).then(|| get_f32(self.bytes, 52))
     }
+    /// What a flagged point's per-bin unit uncertainty is multiplied by
+    /// (header offset 56 with flag bit 5; 1 without): the band of a point
+    /// the out-of-prior flag raised, as training measured it on held-out
+    /// kinds of material the flag raised
+    /// ([`crate::kernel::scale_free::flagged_sigma_scale`]).
+    pub fn out_of_prior_band_factor(&self) -> f32 {
+        if get_u16(self.bytes, 22) & FLAG_BAND_FACTOR != 0 { get_f32(self.bytes, 56) } else { 1.0 }
+    }
     /// Which statistic the out-of-prior section is for, when the blob
     /// carries one.
     pub fn out_of_prior_form(&self) -> Option<OutOfPriorForm> {
@@ -1361,7 +1395,12 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 12.5, form: OutOfPriorForm::Linear, data: &oop }),
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 12.5,
+                form: OutOfPriorForm::Linear,
+                data: &oop,
+                band_factor: 1.0,
+            }),
             gloss: None,
             root_form: false,
         };
@@ -1408,7 +1447,7 @@ mod tests {
         let with = |form| BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop }),
+            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop, band_factor: 1.0 }),
             gloss: None,
             root_form: false,
         };
@@ -1439,6 +1478,63 @@ mod tests {
     }
 
     #[test]
+    fn the_band_factor_is_flag_bit_5_at_offset_56_and_only_with_the_section() {
+        let o = sample(6, 4, 2, 5);
+        let (unc, mats, cents, oop) = v2_extras(&o, 3);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let with = |band_factor| BlobExtras {
+            clusters: 3,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 1.0,
+                form: OutOfPriorForm::LogRatio,
+                data: &oop,
+                band_factor,
+            }),
+            gloss: None,
+            root_form: false,
+        };
+        let write = |ex: &BlobExtras<'_>| {
+            let mut buf = vec![0u8; o.dims.blob_len_with(ex)];
+            assert_eq!(write_blob_with(&c, ex, &mut buf), Ok(buf.len()));
+            buf
+        };
+        let none = write(&with(1.0));
+        let wide = write(&with(2.5));
+        // A factor of 1 writes the blob as before: no flag, offset 56 zero.
+        assert_eq!((get_u16(&none, 22) & FLAG_BAND_FACTOR, get_u32(&none, 56)), (0, 0));
+        assert_eq!(BlobView::parse(&none).unwrap().out_of_prior_band_factor(), 1.0);
+        // Otherwise the flag and the value, and nothing else but the CRC.
+        let differ: Vec<usize> = (0..none.len()).filter(|i| none[*i] != wide[*i]).collect();
+        assert!(differ.iter().all(|i| *i == 22 || (56..60).contains(i) || *i >= none.len() - 4), "{differ:?}");
+        assert_eq!(get_u16(&wide, 22) & !get_u16(&none, 22), FLAG_BAND_FACTOR);
+        assert_eq!(BlobView::parse(&wide).unwrap().out_of_prior_band_factor(), 2.5);
+        let resealed = |mut b: Vec<u8>, edit: &dyn Fn(&mut Vec<u8>)| {
+            edit(&mut b);
+            let at = b.len() - 4;
+            let crc = CRC32.checksum(&b[..at]);
+            put_u32(&mut b, at, crc);
+            BlobView::parse(&b).map(|_| ())
+        };
+        // A factor below 1 or not finite is refused, with a good CRC.
+        let bad = |x: f32| resealed(wide.clone(), &|b| put_f32(b, 56, x));
+        assert_eq!(bad(0.5), Err(BlobError::OutOfRange { section: Section::Header, index: 56 }));
+        assert_eq!(bad(f32::NAN), Err(BlobError::NonFinite { section: Section::Header, index: 56 }));
+        assert_eq!(bad(1.0), Ok(()));
+        // A value without the flag, or the flag without the section, is refused.
+        assert_eq!(resealed(none.clone(), &|b| put_f32(b, 56, 2.0)), Err(BlobError::ReservedNotZero));
+        let mut bare = vec![0u8; o.dims.blob_len()];
+        let mut cs = contents(&o);
+        cs.estimator = EstimatorKind::ScaleFree;
+        write_blob(&cs, &mut bare).unwrap();
+        let flags = get_u16(&bare, 22) | FLAG_BAND_FACTOR;
+        assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
+    }
+
+    #[test]
     fn version_1_is_still_written_and_read_as_before_and_v2_rules_hold() {
         let o = sample(6, 4, 2, 5);
         let buf = encode(&o);
@@ -1466,7 +1562,12 @@ mod tests {
         let ex = BlobExtras {
             clusters: 1,
             centroids: &[],
-            out_of_prior: Some(OutOfPriorData { threshold: 0.0, form: OutOfPriorForm::Linear, data: &oop }),
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 0.0,
+                form: OutOfPriorForm::Linear,
+                data: &oop,
+                band_factor: 1.0,
+            }),
             gloss: None,
             root_form: false,
         };
@@ -1477,7 +1578,12 @@ mod tests {
         let ex = BlobExtras {
             clusters: 1,
             centroids: &[],
-            out_of_prior: Some(OutOfPriorData { threshold: 3.0, form: OutOfPriorForm::Linear, data: &oop[1..] }),
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 3.0,
+                form: OutOfPriorForm::Linear,
+                data: &oop[1..],
+                band_factor: 1.0,
+            }),
             gloss: None,
             root_form: false,
         };
@@ -1504,7 +1610,12 @@ mod tests {
         let ex = BlobExtras {
             clusters: 2,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 2.0, form: OutOfPriorForm::Linear, data: &oop }),
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 2.0,
+                form: OutOfPriorForm::Linear,
+                data: &oop,
+                band_factor: 1.0,
+            }),
             gloss: Some(g),
             root_form: false,
         };
@@ -1668,7 +1779,12 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 2.0, form: OutOfPriorForm::Linear, data: &oop }),
+            out_of_prior: Some(OutOfPriorData {
+                threshold: 2.0,
+                form: OutOfPriorForm::Linear,
+                data: &oop,
+                band_factor: 1.0,
+            }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
             root_form: false,
         };

@@ -60,6 +60,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     /// packed whitening), with its threshold; empty when it has none.
     out_of_prior: &'static [f32],
     out_of_prior_threshold: f32,
+    /// What a flagged point's unit uncertainty is multiplied by (1 without).
+    band_factor: f32,
     /// Which statistic the out-of-prior data is for.
     out_of_prior_form: OutOfPriorForm,
     /// The blob's per-bin uncertainties in flash, Z x K x n (what the
@@ -207,6 +209,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             centroids,
             out_of_prior,
             out_of_prior_threshold,
+            band_factor: view.out_of_prior_band_factor(),
             out_of_prior_form,
             uncertainty,
             gloss,
@@ -361,6 +364,11 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             }
             None => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),
         };
+        // A flagged point's band is wider (the readings' own uncertainties
+        // are calibrated per cluster on their own and keep theirs).
+        if flags & crate::protocol::flags::OUT_OF_PRIOR != 0 && a.band_factor != 1.0 {
+            sigma_scale = crate::kernel::scale_free::flagged_sigma_scale(sigma_scale, a.band_factor, a.root);
+        }
         PointMeta { zone: z as u16, cluster, flags, sigma_scale, readings, reading_sigma }
     }
 }

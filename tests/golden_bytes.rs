@@ -219,7 +219,12 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let ex = BlobExtras {
         clusters: k,
         centroids: &centroids,
-        out_of_prior: Some(OutOfPriorData { threshold: 9.5, form: OutOfPriorForm::Linear, data: &oop }),
+        out_of_prior: Some(OutOfPriorData {
+            threshold: 9.5,
+            form: OutOfPriorForm::Linear,
+            data: &oop,
+            band_factor: 1.0,
+        }),
         gloss: None,
         root_form: false,
     };
@@ -229,7 +234,12 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     out.push(("blob.v2".into(), b2));
     // The same with the log-ratio out-of-prior statistic (flag bit 4).
     let ex = BlobExtras {
-        out_of_prior: Some(OutOfPriorData { threshold: 1.0, form: OutOfPriorForm::LogRatio, data: &oop }),
+        out_of_prior: Some(OutOfPriorData {
+            threshold: 1.0,
+            form: OutOfPriorForm::LogRatio,
+            data: &oop,
+            band_factor: 1.0,
+        }),
         ..ex
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];

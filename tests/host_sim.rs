@@ -406,7 +406,42 @@ fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_pri
         check_points(&t.blob, &odd, &pts, 1);
         let flagged = pts.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
         assert!(flagged > 0, "no synthetic point flagged out-of-prior (piecewise {piecewise})");
+
+        // The same calibration with band factors 1 and 1.5: the flagged
+        // points' scale carries the factor, bit for bit as the host's
+        // reference, and the rest are the same bits.
+        let mut with = |f: f32| {
+            let b = with_band_factor(&t.blob, f);
+            c.provision(&brdf_meter::test_blobs::sign_for_tests(&b), |_, _| {}).unwrap();
+            c.load_scene(&odd).unwrap();
+            let pts = c.measure(1).unwrap();
+            check_points(&b, &odd, &pts, 1);
+            pts
+        };
+        let (pts, again) = (with(1.0), with(1.5));
+        for (a, b) in pts.iter().zip(&again) {
+            let want = if a.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0 {
+                brdf_meter::kernel::scale_free::flagged_sigma_scale(a.sigma_scale, 1.5, view.root_form())
+            } else {
+                a.sigma_scale
+            };
+            assert_eq!((b.sigma_scale.to_bits(), b.flags), (want.to_bits(), a.flags));
+        }
     }
+}
+
+/// `blob` with the out-of-prior band factor `f` in its header (flag bit 5,
+/// offset 56, `brdf_meter::blob`), resealed.
+fn with_band_factor(blob: &[u8], f: f32) -> Vec<u8> {
+    let mut b = blob.to_vec();
+    let flags = u16::from_le_bytes([b[22], b[23]]) | 32;
+    b[22..24].copy_from_slice(&flags.to_le_bytes());
+    b[56..60].copy_from_slice(&f.to_le_bytes());
+    let at = b.len() - 4;
+    let crc = brdf_meter::blob::CRC32.checksum(&b[..at]);
+    b[at..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(BlobView::parse(&b).unwrap().out_of_prior_band_factor(), f);
+    b
 }
 
 /// A calibration with a zone that cannot read the gloss standard (its

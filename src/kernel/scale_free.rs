@@ -283,9 +283,30 @@ pub fn root_uncertainty(sigma: f32, rho: f32, s: f32) -> f32 {
     sigma * (2.0 * crate::kernel::sqrt0(rho * s) + core::f32::consts::SQRT_2 * s * sigma)
 }
 
+/// A point's `sigma_scale` (the frame's, what its per-bin uncertainties
+/// are computed with): its scale `s`, and for a point the out-of-prior flag
+/// raised, the calibration's band factor `f` applied to the unit
+/// uncertainty through it: `f^2 s` in the root form (exactly,
+/// `root_uncertainty(sigma, rho, f^2 s)` is `root_uncertainty(f sigma,
+/// rho, s)`), `f s` in the linear form.
+#[inline]
+pub fn flagged_sigma_scale(s: f32, f: f32, root: bool) -> f32 {
+    if root { s * (f * f) } else { s * f }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_flagged_points_scale_widens_its_unit_uncertainty_by_the_factor() {
+        let (sigma, rho, s, f) = (0.03f32, 0.7f32, 2.5f32, 1.75f32);
+        let wide = root_uncertainty(sigma, rho, flagged_sigma_scale(s, f, true));
+        let want = root_uncertainty(f * sigma, rho, s);
+        assert!((wide - want).abs() <= 4.0 * f32::EPSILON * want, "{wide} {want}");
+        assert_eq!(flagged_sigma_scale(s, f, false), s * f);
+        assert_eq!(flagged_sigma_scale(s, 1.0, true), s);
+    }
 
     /// More readings than the statistic's buffer holds: the recomputed path
     /// gives the same bits as the straightforward definition.

@@ -499,7 +499,9 @@ pub struct PointFrame<'a> {
     /// What the calibration's per-bin standard uncertainty is multiplied by
     /// for this point: the readings' scale for the scale-free estimators (the
     /// estimate scales with the point, and so does its uncertainty), 1 for
-    /// the linear ones.
+    /// the linear ones; for a point flagged out of prior, widened by the
+    /// calibration's band factor
+    /// ([`crate::kernel::scale_free::flagged_sigma_scale`]).
     pub sigma_scale: f32,
     /// The point's gloss readings, in the order of `crate::gloss`
     /// (specular gloss in GU, haze in HU, distinctness in %). NaN means "no
@@ -507,8 +509,10 @@ pub struct PointFrame<'a> {
     /// estimate was not finite (then [`flags::NON_FINITE`] is set too).
     pub readings: [f32; crate::shape::READINGS],
     /// The standard uncertainty (k = 1) of each reading, from the
-    /// calibration's error covariance, already multiplied by
-    /// `sigma_scale` where it applies; NaN with the reading.
+    /// calibration's error covariance, already multiplied by the readings'
+    /// scale where it applies (never widened by the band factor: the
+    /// readings' uncertainties are calibrated on their own); NaN with the
+    /// reading.
     pub reading_sigma: [f32; crate::shape::READINGS],
     /// The n estimated values, f32 little-endian.
     #[serde(borrow)]

@@ -193,6 +193,8 @@ pub struct Trained {
     pub f32_exponents: Vec<Vec<i32>>,
     /// The out-of-prior threshold (scale-free kinds), or `None`.
     pub out_of_prior_threshold: Option<f32>,
+    /// What a flagged point's band is widened by (with the threshold).
+    pub band_factor: Option<f32>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
 }
@@ -318,6 +320,11 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
     // (`scale_free_zones`), so the first zone's threshold and form are all
     // zones'.
     let threshold = zones.iter().find_map(|z| z.scale_free()).map(|s| (s.out_of_prior.threshold, s.out_of_prior.form));
+    // One band factor for every zone, from all their held-out evidence (a
+    // zone holds too few flagged readings for its own).
+    let band_factor = crate::calibration::estimators::out_of_prior::band_factor(
+        zones.iter().filter_map(|z| z.scale_free()).map(|s| &s.out_of_prior),
+    ) as f32;
     let contents = BlobContents {
         dims,
         noise_rel: spec.noise_rel as f32,
@@ -335,7 +342,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
     let extras = BlobExtras {
         clusters,
         centroids: &centroids,
-        out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop }),
+        out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop, band_factor }),
         gloss: gloss.as_ref().map(GlossSection::data),
         root_form: spec.root,
     };
@@ -354,6 +361,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         f32_rel_error,
         f32_exponents,
         out_of_prior_threshold: threshold.map(|t| t.0),
+        band_factor: threshold.map(|_| band_factor),
         blob,
     })
 }

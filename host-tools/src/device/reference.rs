@@ -15,8 +15,8 @@ use brdf_meter::acquire::{AcqConfig, Shorter, correct_point_into};
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
 use brdf_meter::kernel::scale_free::{
-    OutOfPriorForm, estimate_scale_free, estimate_scale_free_root, root_uncertainty, scale, scaled_uncertainty,
-    whitening_len,
+    OutOfPriorForm, estimate_scale_free, estimate_scale_free_root, flagged_sigma_scale, root_uncertainty, scale,
+    scaled_uncertainty, whitening_len,
 };
 use brdf_meter::kernel::{mat_vec_f32_slice, select_cluster};
 use brdf_meter::protocol::flags;
@@ -195,6 +195,21 @@ impl<'a> PointEstimator<'a> {
                 brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, sigma_scale)
             };
         }
+        // A flagged point's band is wider, as the device states it.
+        let band_factor = self.view.out_of_prior_band_factor();
+        let sigma_scale = if bits & flags::OUT_OF_PRIOR != 0 && band_factor != 1.0 {
+            let wide = flagged_sigma_scale(sigma_scale, band_factor, root);
+            for (j, o) in sigma.iter_mut().enumerate() {
+                *o = if root {
+                    root_uncertainty(self.sigma[cluster as usize][j], rho[j], wide)
+                } else {
+                    self.sigma[cluster as usize][j] * wide.abs()
+                };
+            }
+            wide
+        } else {
+            sigma_scale
+        };
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);
             sigma.fill(0.0);

@@ -50,6 +50,14 @@ pub struct OutOfPrior {
     pub held_out_flagged: f64,
     /// ... and the same weights times those readings' estimates' errors.
     pub held_out_flagged_error: f64,
+    /// The threshold on the statistic before it was folded into G: what a
+    /// model fitted on part of the prior is compared with.
+    pub unfolded_threshold: f64,
+    /// Held-out evidence for a flagged point's band ([`band_factor`]):
+    /// (ratio, weight) per bin of each held-out reading of a kind left out
+    /// of training that this form's flag raised, the ratio of the smallest
+    /// unit uncertainty that covers its error to the band's.
+    pub band_ratios: Vec<(f64, f64)>,
 }
 
 impl OutOfPrior {
@@ -136,7 +144,35 @@ fn train_form(held: &HeldOut<'_>, false_alarm: f64, form: OutOfPriorForm) -> any
         false_alarm,
         held_out_flagged: weight,
         held_out_flagged_error: error,
+        unfolded_threshold: threshold,
+        band_ratios: Vec::new(),
     })
+}
+
+/// The held-out readings (pair, draw) that `o`'s flag raises when each is
+/// scored by `o`'s form fitted without its fold (`held.fold`), against
+/// `o`'s threshold: how a kind of material the prior lacks is flagged (a
+/// statistic that is not a number flags, as on the device).
+pub fn held_out_flagged(held: &HeldOut<'_>, o: &OutOfPrior) -> anyhow::Result<Vec<(usize, usize)>> {
+    Ok(held_out_stats(held, o.form)?
+        .into_iter()
+        .filter(|(s, _, _)| s.is_nan() || *s > o.unfolded_threshold)
+        .map(|(_, k, d)| (k, d))
+        .collect())
+}
+
+/// What a flagged point's unit uncertainty is multiplied by: the
+/// `COVERAGE` quantile of `zones`' pooled [`OutOfPrior::band_ratios`], so
+/// that the held-out readings of left-out kinds the flag raised are
+/// covered as the band covers all of them; never below 1 (a flag does not
+/// narrow a band), and 1 without evidence.
+pub fn band_factor<'a>(zones: impl IntoIterator<Item = &'a OutOfPrior>) -> f64 {
+    let mut xs: Vec<(f64, f64)> = zones.into_iter().flat_map(|o| o.band_ratios.iter().copied()).collect();
+    if xs.iter().all(|x| x.1 <= 0.0) {
+        return 1.0;
+    }
+    crate::calibration::estimators::scale_free::weighted_quantile(&mut xs, crate::calibration::gloss_rows::COVERAGE)
+        .max(1.0)
 }
 
 /// The form whose flag raised on the worse estimates: the larger mean
@@ -224,8 +260,32 @@ mod tests {
             false_alarm: 0.05,
             held_out_flagged: weight[i],
             held_out_flagged_error: error[i],
+            unfolded_threshold: 1.0,
+            band_ratios: Vec::new(),
         };
         [one(0, OutOfPriorForm::Linear), one(1, OutOfPriorForm::LogRatio)]
+    }
+
+    #[test]
+    fn the_band_factor_covers_the_flagged_held_out_readings_and_never_narrows() {
+        let with = |ratios: Vec<(f64, f64)>| {
+            let mut z = zone([1.0, 1.0], [0.0, 0.0]);
+            z[1].band_ratios = ratios;
+            z
+        };
+        // Two zones pooled: 100 ratios 0.01..1.00 and 100 of 1.01..2.00,
+        // equal weights; 95 % of them are covered at 1.90.
+        let a = with((1..=100).map(|i| (f64::from(i) / 100.0, 1.0)).collect());
+        let b = with((101..=200).map(|i| (f64::from(i) / 100.0, 1.0)).collect());
+        assert_eq!(band_factor([&a[1], &b[1]]), 1.90);
+        // Weights count: the wide ones weigh nothing, the band is enough.
+        let light = with((101..=200).map(|i| (f64::from(i) / 100.0, 0.0)).collect());
+        assert_eq!(band_factor([&a[1], &light[1]]), 1.0);
+        // Flagged readings the band already covers do not narrow it, and
+        // no evidence leaves it as it is.
+        let covered = with(vec![(0.3, 1.0); 10]);
+        assert_eq!(band_factor([&covered[1]]), 1.0);
+        assert_eq!(band_factor([&a[0]]), 1.0);
     }
 
     #[test]

@@ -63,6 +63,16 @@
 //! training, so the uncertainty it learns holds only for materials the
 //! prior already has. Holding out a whole group makes the fit extrapolate
 //! as it must for a new kind of surface, still from training data alone.
+//!
+//! A point the out-of-prior flag raises may be read worse than the band
+//! says, so the same held-out kinds are each scored by the flag's model
+//! fitted without them, and those it raises say how much wider a flagged
+//! point's band must be to cover them as the band covers all
+//! (`out_of_prior::band_factor`, one factor per calibration, at least 1;
+//! the device applies it through the point's `sigma_scale`,
+//! `brdf_meter::kernel::scale_free::flagged_sigma_scale`). On the MERL
+//! prior the flagged held-out kinds are covered as the rest are (factor
+//! 1.00 on the patent profile); on the handheld they are not (1.08).
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
 use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
@@ -662,10 +672,6 @@ pub fn train_with(
     let all: Vec<usize> = (0..pairs.len()).collect();
     let mut fitted = fit(&nz, &all, opts.seed, ridge, clusters, opts.root)?;
     let cv = CrossValidation::new(pairs, opts.seed);
-    if opts.root {
-        let by_shape = shape_folds(pairs, &nz, opts.seed);
-        held_out_uncertainty(pairs, &nz, (&cv.readings, &by_shape), opts.seed, ridge, clusters, &mut fitted)?;
-    }
     // Out-of-prior: both forms' models and thresholds from held-out
     // readings, and how badly the readings each flags are estimated.
     let error = cv.held_out_errors(pairs, &nz, opts, ridge, clusters)?;
@@ -681,7 +687,30 @@ pub fn train_with(
         error: &error,
         linear_model: &linear_model,
     };
-    let out_of_prior_forms = out_of_prior::train(&held, opts.false_alarm)?;
+    let mut out_of_prior_forms = out_of_prior::train(&held, opts.false_alarm)?;
+    if opts.root {
+        // The band and what a flag adds to it, both from kinds of material
+        // held out whole, each flagged as a kind the prior lacks would be.
+        let by_shape = shape_folds(pairs, &nz, opts.seed);
+        let by_kind = out_of_prior::HeldOut { fold: &by_shape, ..held };
+        let flagged = [
+            out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[0])?,
+            out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[1])?,
+        ];
+        let ratios = held_out_uncertainty(
+            pairs,
+            &nz,
+            (&cv.readings, &by_shape),
+            opts.seed,
+            ridge,
+            clusters,
+            &mut fitted,
+            &flagged,
+        )?;
+        for (o, r) in out_of_prior_forms.iter_mut().zip(ratios) {
+            o.band_ratios = r;
+        }
+    }
     let mut zone = ScaleFreeZone {
         maps: fitted.maps,
         centroids: fitted.centroids,
@@ -696,8 +725,8 @@ pub fn train_with(
 }
 
 /// One held-out reading: (cluster, weight, per bin the smallest unit
-/// uncertainty that covers its error, [`covering_unit`]).
-type HeldOutRoot = (usize, f64, DVector<f64>);
+/// uncertainty that covers its error, [`covering_unit`], its pair and draw).
+type HeldOutRoot = (usize, f64, DVector<f64>, (usize, usize));
 
 /// The smallest uncertainty per unit scale `sigma` whose stated
 /// uncertainty `root_uncertainty(sigma, est, s)` covers the error `e` at
@@ -716,6 +745,12 @@ fn covering_unit(est: f64, e: f64, s: f64) -> f64 {
 /// [`shape_folds`], every noise draw of `readings`, the prior's own
 /// weights). Each bin's stated uncertainty then covers `COVERAGE` of its
 /// held-out errors, in the reflectance factor where coverage is judged.
+///
+/// Returns, per out-of-prior form, the evidence for a flagged point's
+/// band (`out_of_prior::band_factor`): for each held-out reading in that
+/// form's `flagged` (pair, draw), per bin, its covering unit over the
+/// band's, with its weight shared over the bins.
+#[allow(clippy::too_many_arguments)]
 fn held_out_uncertainty(
     pairs: &Pairs,
     nz: &Normalised,
@@ -724,7 +759,8 @@ fn held_out_uncertainty(
     ridge: f64,
     clusters: usize,
     fitted: &mut Fitted,
-) -> anyhow::Result<()> {
+    flagged: &[Vec<(usize, usize)>; 2],
+) -> anyhow::Result<[Vec<(f64, f64)>; 2]> {
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
@@ -733,14 +769,14 @@ fn held_out_uncertainty(
         let fold_fit = fit(nz, &train_idx, seed, ridge, clusters, true)?;
         for k in (0..pairs.len()).filter(|k| fold[*k] == f) {
             let truth = pairs.truth.column(k);
-            for v in &readings[k] {
+            for (d, v) in readings[k].iter().enumerate() {
                 let s: f64 = v.iter().sum();
                 if s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                     continue;
                 }
                 let est = fold_fit.estimate(v);
                 let unit = DVector::from_fn(n, |j, _| covering_unit(est[j], (est[j] - truth[j]).abs(), s));
-                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit));
+                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d)));
             }
         }
     }
@@ -763,7 +799,19 @@ fn held_out_uncertainty(
             .collect::<Option<Vec<f64>>>()
             .map_or(pooled.clone(), DVector::from_vec);
     }
-    Ok(())
+    // A bin whose band is zero cannot be widened by a factor: it gives no
+    // evidence for one.
+    let ratios = |flagged: &[(usize, usize)]| -> Vec<(f64, f64)> {
+        let flagged: std::collections::HashSet<(usize, usize)> = flagged.iter().copied().collect();
+        held.iter()
+            .filter(|h| flagged.contains(&h.3))
+            .flat_map(|h| {
+                let band = &fitted.maps[h.0].sigma_unit;
+                (0..n).filter(|&j| band[j] > 0.0).map(move |j| (h.2[j] / band[j], h.1 / n as f64))
+            })
+            .collect()
+    };
+    Ok([ratios(&flagged[0]), ratios(&flagged[1])])
 }
 
 /// Trains one zone of in-plane optics `h` on samples on the grid (the
