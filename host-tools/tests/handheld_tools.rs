@@ -170,6 +170,7 @@ fn pixel_map_reads_every_pixel() {
         gloss_lines: 3,
         acq: brdf_meter::platform::timing::ACQUISITION,
         seed: 1,
+        unseen: Some(unseen_set()),
     };
     let map = host_tools::evaluation::pixel_map::run(&spec, &|_| {}).unwrap();
     assert_eq!((map.pixels.len(), map.materials.len()), (12, 20));
@@ -212,4 +213,31 @@ fn pixel_map_reads_every_pixel() {
     assert!(md.contains("| gloss, held out: relative error"), "{md}");
     assert!(md.contains("| gloss tiles' BRDF error / peak") && md.contains("stated uncertainty"), "{md}");
     assert!(md.contains("| out-of-prior flag, held out: of points worse than 0.10"), "{md}");
+    // The unseen set: the two surfaces the truncated prior lacks are read
+    // at every pixel beside interpolation; the prior sample among them is
+    // left out and named.
+    let u = map.unseen.as_ref().expect("asked for");
+    let vendored =
+        host_tools::evaluation::metrology::families::TestFamily::measured_files("merl", [1.0 / 3.0; 3]).unwrap();
+    assert_eq!(u.in_prior, vec![vendored.materials[0].0.clone()]);
+    assert_eq!(u.materials.iter().map(|m| m.name.as_str()).collect::<Vec<_>>(), ["unseen-a", "unseen-b"]);
+    assert_eq!(u.materials[0].error.len(), 12);
+    assert!(u.summary.error[0] > 0.0 && u.summary.interpolation[0] > 0.0, "{:?}", u.summary);
+    assert_eq!(u.summary.gloss.low_count + u.summary.gloss.high_count, 12 * 2);
+    assert_eq!(u.flag.bad + u.flag.good, 12 * 2, "{:?}", u.flag);
+    assert!(md.contains("| unseen set `test set` (2 surfaces; 1 left out as prior samples"), "{md}");
+}
+
+/// Two of the vendored materials the truncated prior lacks (renamed) and
+/// one it holds.
+fn unseen_set() -> host_tools::evaluation::pixel_map::unseen::UnseenSpec {
+    let spectral = handheld().instrument.spectral_weights;
+    let all = host_tools::evaluation::metrology::families::TestFamily::measured_files("merl", spectral).unwrap();
+    let m = &all.materials;
+    let materials = vec![
+        ("unseen-a".to_string(), m[40].1.clone()),
+        (m[0].0.clone(), m[0].1.clone()),
+        ("unseen-b".to_string(), m[41].1.clone()),
+    ];
+    host_tools::evaluation::pixel_map::unseen::UnseenSpec { source: "test set".into(), materials }
 }

@@ -18,11 +18,12 @@ pub struct Args {
     /// The calibration evaluated: exactly `train`'s flags and defaults.
     #[command(flatten)]
     pub cal: CalibrationArgs,
-    /// Measured surfaces: an NBRDF JSON file (the vendored set's format);
+    /// Measured surfaces: an NBRDF JSON set (the vendored set's format), a
+    /// MERL .binary table, or a directory or comma-separated list of them;
     /// default: the vendored MERL set. Surfaces that are also prior samples
     /// are read K-fold by calibrations trained without them.
-    #[arg(long, value_name = "PATH")]
-    pub set: Option<PathBuf>,
+    #[arg(long, value_name = "FILE|DIR|LIST")]
+    pub set: Option<String>,
     /// Folds over the surfaces that are training samples.
     #[arg(long, default_value_t = 5)]
     pub folds: usize,
@@ -61,7 +62,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let setup = a.cal.setup()?;
     let spectral = setup.inst.spectral_weights;
     let measured = match &a.set {
-        Some(p) => TestFamily::measured(&p.display().to_string(), &NbrdfSet::load(p)?, spectral),
+        Some(arg) => TestFamily::measured_files(arg, spectral)?,
         None => TestFamily::measured("the vendored MERL set", &NbrdfSet::merl(), spectral),
     };
     let mut families = vec![measured, TestFamily::ward(), TestFamily::ggx(), TestFamily::gloss_standards()];

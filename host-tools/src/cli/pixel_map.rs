@@ -30,6 +30,12 @@ pub struct Args {
     /// Prior (as `train --prior`); its reflection models are the held-out materials.
     #[arg(long, default_value = "merl")]
     pub prior: String,
+    /// Measured surfaces of your own, read at every pixel by the calibration
+    /// on the whole prior beside the held-out figures: NBRDF .json sets,
+    /// MERL .binary tables, or a directory or comma list of them (as
+    /// `accuracy --set`); surfaces that are prior samples are left out.
+    #[arg(long, value_name = "FILE|DIR|LIST")]
+    pub set: Option<String>,
     /// Folds over the prior's samples (its size: leave one material out).
     #[arg(long, default_value_t = 10)]
     pub folds: usize,
@@ -55,6 +61,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
     let prior = PriorMix::parse(&a.prior)?.models(&grid, inst.view_deg, inst.spectral_weights)?;
+    let unseen = match &a.set {
+        Some(arg) => {
+            let f = crate::evaluation::metrology::families::TestFamily::measured_files(arg, inst.spectral_weights)?;
+            Some(pixel_map::unseen::UnseenSpec { source: arg.clone(), materials: f.materials })
+        }
+        None => None,
+    };
     let spec = MapSpec {
         scene,
         zones: a.zones,
@@ -67,6 +80,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         gloss_lines: a.gloss_lines,
         acq: brdf_meter::platform::timing::ACQUISITION,
         seed: 17,
+        unseen,
     };
     let spinner = crate::output::progress::spinner("pixel map");
     let map = pixel_map::run(&spec, &|what| spinner.set_message(what.to_string()))?;

@@ -4,8 +4,11 @@
 //!
 //! Every family is deterministic (no random draw chooses a material), so
 //! two runs and two calibrations are scored on the very same surfaces.
+use crate::forward::brdf::merl_binary::MerlTable;
 use crate::forward::brdf::{Brdf, Ggx, NbrdfSet, Ward};
 use crate::forward::prior::{PATENT_TEST_ALPHA, PATENT_TEST_RHO_D};
+use crate::forward::prior_measured::{Family, PriorMix};
+use anyhow::{bail, ensure};
 use std::sync::Arc;
 
 /// Diffuse albedos of the GGX family (between Table 4's extremes).
@@ -35,6 +38,54 @@ impl TestFamily {
             })
             .collect();
         Self { name: "measured".into(), source: source.into(), materials }
+    }
+
+    /// The measured surfaces named by `arg` (`accuracy --set`), seen
+    /// through `spectral`: `merl` (the vendored set), an NBRDF `.json` set
+    /// (every material in it, by its name), a MERL `.binary` table (named
+    /// by its file), or a directory or comma-separated list of them, as
+    /// `--prior` names measured files. A profile known only in-plane
+    /// (`.csv`, `.astm`) is refused: a surface is read through the
+    /// instrument's every ray and its gloss readings are defined in three
+    /// dimensions, which take the whole BRDF.
+    pub fn measured_files(arg: &str, spectral: [f64; 3]) -> anyhow::Result<Self> {
+        let mix = PriorMix::parse(arg)?;
+        ensure!(mix.families.len() == 1, "--set {arg:?}: one set of surfaces, not a mixture");
+        let files = match &mix.families[0].1 {
+            Family::Merl => return Ok(Self::measured("the vendored MERL set", &NbrdfSet::merl(), spectral)),
+            Family::Files(files) => files,
+            Family::Patent | Family::Toml(_) => bail!(
+                "--set {arg:?}: the surfaces are measured files (NBRDF .json sets, MERL .binary tables, a directory \
+                 or a comma list of them) or `merl`; a prior of models is `--prior`'s"
+            ),
+        };
+        let mut materials: Vec<(String, Arc<dyn Brdf>)> = Vec::new();
+        for f in files {
+            ensure!(f.is_file(), "{}: no such file (--set {arg:?})", f.display());
+            match f.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+                Some("json") => {
+                    let set = NbrdfSet::load(f)?;
+                    for i in 0..set.len() {
+                        let m = set.material(i, spectral);
+                        materials.push((m.name().to_string(), Arc::new(m)));
+                    }
+                }
+                Some("binary") => {
+                    let mut t = MerlTable::load(f)?;
+                    t.channel_weights = spectral;
+                    let name = f.file_stem().map_or_else(|| f.display().to_string(), |s| s.to_string_lossy().into());
+                    materials.push((name, Arc::new(t)));
+                }
+                _ => bail!(
+                    "{}: an in-plane profile is not a surface the instrument can be simulated on (its rays and the \
+                     three-dimensional gloss readings take the whole BRDF); give NBRDF .json or MERL .binary files, \
+                     and use profiles in a prior (`--prior`)",
+                    f.display()
+                ),
+            }
+        }
+        ensure!(!materials.is_empty(), "--set {arg:?}: no surfaces in it");
+        Ok(Self { name: "measured".into(), source: arg.into(), materials })
     }
 
     /// The patent's 120 test patterns (Table 4): Ward, `rho_s = 1 - rho_d`.
@@ -97,6 +148,45 @@ impl TestFamily {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::forward::brdf::nbrdf::LUMINANCE;
+
+    /// Two of the vendored set's networks as a set of their own, a MERL
+    /// table and a profile, in a directory.
+    #[test]
+    fn measured_surfaces_come_from_nbrdf_sets_merl_tables_directories_and_lists() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/data/merl-nbrdf.json")).unwrap();
+        let all: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let mut two = all.clone();
+        let keep: Vec<String> = all["materials"].as_object().unwrap().keys().take(2).cloned().collect();
+        two["materials"].as_object_mut().unwrap().retain(|k, _| keep.contains(k));
+        let json = dir.path().join("two.json");
+        std::fs::write(&json, serde_json::to_string(&two).unwrap()).unwrap();
+        let t = MerlTable { dims: [4, 4, 8], values: vec![1500.0; 3 * 128], channel_weights: LUMINANCE };
+        let binary = dir.path().join("grey.binary");
+        t.save(&binary).unwrap();
+
+        let names = |f: &TestFamily| f.materials.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+        let from_dir = TestFamily::measured_files(&dir.path().display().to_string(), LUMINANCE).unwrap();
+        assert_eq!(names(&from_dir), vec!["grey".to_string(), keep[0].clone(), keep[1].clone()]);
+        assert_eq!(from_dir.name, "measured");
+        let list = format!("{},{}", json.display(), binary.display());
+        assert_eq!(TestFamily::measured_files(&list, LUMINANCE).unwrap().materials.len(), 3);
+        assert_eq!(TestFamily::measured_files("merl", LUMINANCE).unwrap().materials.len(), 100);
+
+        // A profile, a prior of models and a mixture are refused, naming why.
+        let csv = dir.path().join("profile.csv");
+        std::fs::write(&csv, "20,1.0\n70,2.0\n").unwrap();
+        let e = format!("{:#}", TestFamily::measured_files(&dir.path().display().to_string(), LUMINANCE).unwrap_err());
+        assert!(e.contains("profile.csv") && e.contains("in-plane profile") && e.contains("--prior"), "{e}");
+        let e = format!("{:#}", TestFamily::measured_files("patent", LUMINANCE).unwrap_err());
+        assert!(e.contains("measured files"), "{e}");
+        let e = format!(
+            "{:#}",
+            TestFamily::measured_files(&format!("merl@0.5+{}@0.5", json.display()), LUMINANCE).unwrap_err()
+        );
+        assert!(e.contains("not a mixture"), "{e}");
+    }
 
     #[test]
     fn the_families_have_their_documented_sizes_and_reduce_evenly() {

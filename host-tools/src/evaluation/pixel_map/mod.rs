@@ -35,6 +35,7 @@
 //!   the share flagged, and of the rest, on the held-out materials and on
 //!   the tiles.
 pub mod report;
+pub mod unseen;
 
 use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
@@ -84,6 +85,9 @@ pub struct MapSpec {
     pub acq: AcqConfig,
     /// Seed of the fold split.
     pub seed: u64,
+    /// Surfaces of the user's own, read by the calibration on the whole
+    /// prior ([`unseen`]).
+    pub unseen: Option<unseen::UnseenSpec>,
 }
 
 /// One pixel's row of the map.
@@ -166,6 +170,40 @@ impl GlossErrors {
     }
 }
 
+/// A set of materials read on the whole line: over every (material,
+/// pixel), each its mean over the lines.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LineSummary {
+    /// BRDF error / peak: median, 90th percentile, worst.
+    pub error: [f64; 3],
+    /// Linear interpolation's.
+    pub interpolation: [f64; 3],
+    /// Gloss readings' relative error.
+    pub gloss: GlossErrors,
+    /// Interpolation's.
+    pub gloss_interpolation: GlossErrors,
+    /// Share of the bins within k = 2 of their stated uncertainty.
+    pub bin_coverage: f64,
+}
+
+impl LineSummary {
+    /// Over `rows`.
+    pub fn of(rows: &[MaterialRow]) -> Self {
+        let all = |f: fn(&MaterialRow) -> &Vec<f64>| rows.iter().flat_map(|r| f(r).iter().copied()).collect::<Vec<_>>();
+        let gloss_of = |f: fn(&MaterialRow) -> &Vec<f64>| {
+            GlossErrors::of(rows.iter().flat_map(|r| r.gloss_true.iter().copied().zip(f(r).iter().copied())))
+        };
+        let covered = all(|r| &r.bin_coverage);
+        Self {
+            error: quantiles(&all(|r| &r.error)),
+            interpolation: quantiles(&all(|r| &r.interpolation)),
+            gloss: gloss_of(|r| &r.gloss),
+            gloss_interpolation: gloss_of(|r| &r.gloss_interpolation),
+            bin_coverage: covered.iter().sum::<f64>() / covered.len().max(1) as f64,
+        }
+    }
+}
+
 /// The whole map.
 #[derive(Clone, Debug, Serialize)]
 pub struct PixelMap {
@@ -205,6 +243,8 @@ pub struct PixelMap {
     pub tiles_brdf: TilesBrdf,
     /// The tiles' truths at the line's centre pixel, GU.
     pub tile_gu: Vec<(String, f64)>,
+    /// The unseen set, when asked for.
+    pub unseen: Option<unseen::UnseenSet>,
 }
 
 /// The gloss tiles' BRDF estimates, over every (tile, pixel), each its
@@ -355,6 +395,65 @@ struct TilePixel {
 /// Per pixel: points flagged out of prior, points flagged saturated, points.
 type FlagCounts = (usize, usize, usize);
 
+/// Per pixel of the line: its view, and linear interpolation's weights
+/// between the LEDs' centre angles there; the scene's grid.
+struct LineGeometry {
+    views: Vec<nalgebra::Vector3<f64>>,
+    interp: Vec<nalgebra::DMatrix<f64>>,
+    grid: crate::forward::grid::AngleGrid,
+}
+
+/// Material `b` (named `name`) read on the whole line by `blob` for the
+/// spec's lines (noise seed `seed`): its row, per pixel its flag counts,
+/// and the flag's score over its points.
+fn read_material(
+    spec: &MapSpec,
+    geo: &LineGeometry,
+    name: &str,
+    b: &Arc<dyn Brdf>,
+    blob: &BlobView<'_>,
+    seed: u64,
+) -> anyhow::Result<(MaterialRow, Vec<FlagCounts>, FlagScore)> {
+    let p = geo.views.len();
+    let read = read_surface(spec, b.clone(), blob, spec.lines, seed)?;
+    let mut err = vec![0.0; p];
+    let mut ierr = vec![0.0; p];
+    let mut fl = vec![(0, 0, 0); p];
+    let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
+    let mut covered = vec![0.0; p];
+    let mut flag = FlagScore::default();
+    for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
+        g_true[px] = model_readings(b.as_ref(), &geo.views[px])[brdf_meter::gloss::SPECULAR_GU];
+        let view_deg = geo.views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
+        let truth = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
+        for line in &read.points {
+            let pt = &line[px];
+            let score = PointScore::of(blob, &truth, pt, &geo.interp[px]);
+            *e += score.error / spec.lines as f64;
+            *ie += score.interpolation / spec.lines as f64;
+            covered[px] += score.covered / spec.lines as f64;
+            g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
+            let gi = profile_scaled_readings(&score.profile, geo.grid.bins_deg(), view_deg).map_or(f64::NAN, |l| l[0]);
+            g_int[px] += gi / spec.lines as f64;
+            let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
+            c.0 += usize::from(flagged);
+            flag.add(score.error, flagged);
+            c.1 += usize::from(pt.flags & flags::SATURATED != 0);
+            c.2 += 1;
+        }
+    }
+    let row = MaterialRow {
+        name: name.to_string(),
+        error: err,
+        interpolation: ierr,
+        gloss_true: g_true,
+        gloss: g_est,
+        gloss_interpolation: g_int,
+        bin_coverage: covered,
+    };
+    Ok((row, fl, flag))
+}
+
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
     let scene = &spec.scene;
@@ -392,6 +491,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             interpolation::weights(grid.bins_deg(), &c).map_err(|e| anyhow::anyhow!("{e}"))
         })
         .collect::<anyhow::Result<_>>()?;
+    let geo = LineGeometry { views, interp, grid: grid.clone() };
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
     let mut held_out_flag = FlagScore::default();
@@ -405,44 +505,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             .map(|&k| {
                 let s = &spec.prior.samples[k];
                 let SampleModel::Brdf(b) = &s.model else { unreachable!("only models are held out") };
-                let read = read_surface(spec, b.clone(), &blob, spec.lines, k as u64)?;
-                let mut err = vec![0.0; p];
-                let mut ierr = vec![0.0; p];
-                let mut fl = vec![(0, 0, 0); p];
-                let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
-                let mut covered = vec![0.0; p];
-                let mut flag = FlagScore::default();
-                for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
-                    g_true[px] = model_readings(b.as_ref(), &views[px])[brdf_meter::gloss::SPECULAR_GU];
-                    let view_deg = views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
-                    let truth = truth_at(b.as_ref(), &views[px], &grid);
-                    for line in &read.points {
-                        let pt = &line[px];
-                        let score = PointScore::of(&blob, &truth, pt, &interp[px]);
-                        *e += score.error / spec.lines as f64;
-                        *ie += score.interpolation / spec.lines as f64;
-                        covered[px] += score.covered / spec.lines as f64;
-                        g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
-                        let gi = profile_scaled_readings(&score.profile, grid.bins_deg(), view_deg)
-                            .map_or(f64::NAN, |l| l[0]);
-                        g_int[px] += gi / spec.lines as f64;
-                        let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
-                        c.0 += usize::from(flagged);
-                        flag.add(score.error, flagged);
-                        c.1 += usize::from(pt.flags & flags::SATURATED != 0);
-                        c.2 += 1;
-                    }
-                }
-                let row = MaterialRow {
-                    name: s.name.clone(),
-                    error: err,
-                    interpolation: ierr,
-                    gloss_true: g_true,
-                    gloss: g_est,
-                    gloss_interpolation: g_int,
-                    bin_coverage: covered,
-                };
-                Ok((row, fl, flag))
+                read_material(spec, &geo, &s.name, b, &blob, k as u64)
             })
             .collect::<anyhow::Result<_>>()?;
         for (row, fl, f) in results {
@@ -461,20 +524,27 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let full = train_on(&train_spec, &all_pairs)?;
     let blob = BlobView::parse(&full.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let bg = read_surface(spec, Arc::new(SmoothDielectric::black_glass()), &blob, spec.gloss_lines, 1_000_003)?;
+    let unseen = match &spec.unseen {
+        Some(set) => {
+            progress(&format!("reading the {} surface(s) of {}", set.materials.len(), set.source));
+            Some(unseen::read(spec, &geo, set, &blob)?)
+        }
+        None => None,
+    };
     let tiles = gloss_tiles();
     let tile_reads: Vec<TileRead> = tiles
         .par_iter()
         .enumerate()
         .map(|(i, (_, b))| {
             let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
-            let gloss_truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &views[px])[0])).collect();
+            let gloss_truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &geo.views[px])[0])).collect();
             let brdf = (0..p)
                 .map(|px| {
-                    let t = truth_at(b.as_ref(), &views[px], &grid);
+                    let t = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
                     let lines = read.points.len().max(1) as f64;
                     let mut acc = TilePixel::default();
                     for line in &read.points {
-                        let sc = PointScore::of(&blob, &t, &line[px], &interp[px]);
+                        let sc = PointScore::of(&blob, &t, &line[px], &geo.interp[px]);
                         acc.error += sc.error / lines;
                         acc.interpolation += sc.interpolation / lines;
                         acc.covered += sc.covered / lines;
@@ -524,7 +594,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         let (oop, sat, total) = flag_counts[px];
         pixels.push(PixelRow {
             pixel: px,
-            view_deg: views[px].z.acos().to_degrees(),
+            view_deg: geo.views[px].z.acos().to_degrees(),
             zone: blob.zone_of_pixel(px),
             error: quantiles(&e),
             interpolation: quantiles(&i),
@@ -537,14 +607,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             tiles_max_abs_gu: dev.iter().copied().fold(f64::NAN, f64::max),
         });
     }
-    let all_e: Vec<f64> = rows.iter().flat_map(|r| r.error.iter().copied()).collect();
-    let all_i: Vec<f64> = rows.iter().flat_map(|r| r.interpolation.iter().copied()).collect();
-    let gloss_of = |f: fn(&MaterialRow) -> &Vec<f64>| {
-        GlossErrors::of(rows.iter().flat_map(|r| r.gloss_true.iter().copied().zip(f(r).iter().copied())))
-    };
-    let gloss = gloss_of(|r| &r.gloss);
-    let gloss_interpolation = gloss_of(|r| &r.gloss_interpolation);
-    let bin_coverage = rows.iter().flat_map(|r| r.bin_coverage.iter()).sum::<f64>() / (rows.len() * p).max(1) as f64;
+    let held_out = LineSummary::of(&rows);
     let line_means: Vec<f64> = bg
         .points
         .iter()
@@ -576,12 +639,13 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         zones: spec.zones,
         folds,
         lines: spec.lines,
-        error: quantiles(&all_e),
-        interpolation: quantiles(&all_i),
-        gloss,
-        gloss_interpolation,
-        bin_coverage,
+        error: held_out.error,
+        interpolation: held_out.interpolation,
+        gloss: held_out.gloss,
+        gloss_interpolation: held_out.gloss_interpolation,
+        bin_coverage: held_out.bin_coverage,
         flag: held_out_flag,
+        unseen,
         black_glass,
         tiles: [
             devs.iter().sum::<f64>() / devs.len().max(1) as f64,

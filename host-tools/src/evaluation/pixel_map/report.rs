@@ -81,6 +81,39 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         "| gloss tiles' out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
         flag_cell(&tb.flag)
     );
+    if let Some(u) = &map.unseen {
+        let left = if u.in_prior.is_empty() {
+            String::new()
+        } else {
+            format!("; {} left out as prior samples: {}", u.in_prior.len(), u.in_prior.join(", "))
+        };
+        let _ = writeln!(
+            s,
+            "| unseen set `{}` ({} surfaces{left}), by the calibration on the whole prior: BRDF error / peak (median / 90th / worst over surface x pixel) | {} |",
+            u.source,
+            u.materials.len(),
+            q(u.summary.error)
+        );
+        let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(u.summary.interpolation));
+        let _ = writeln!(
+            s,
+            "| unseen set's gloss: relative error median / 90th up to {} GU | {} |",
+            crate::evaluation::metrology::metrics::GLOSS_SPLIT_GU,
+            g(&u.summary.gloss)
+        );
+        let _ =
+            writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&u.summary.gloss_interpolation));
+        let _ = writeln!(
+            s,
+            "| unseen set's bins within k = 2 of their stated uncertainty | {:.1} % |",
+            100.0 * u.summary.bin_coverage
+        );
+        let _ = writeln!(
+            s,
+            "| unseen set's out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
+            flag_cell(&u.flag)
+        );
+    }
     let _ = writeln!(s);
     let _ = writeln!(
         s,

@@ -1,0 +1,73 @@
+//! The map's unseen set (`pixel-map --set`): measured surfaces of the
+//! user's own, each read on the whole line by the calibration trained on
+//! the whole prior (what `train` writes for the scene), with the figures
+//! the held-out materials get, beside linear interpolation's. A surface
+//! that is also a prior sample is left out and named: the calibration has
+//! seen it, and the held-out figures already read it without.
+use super::{FlagCounts, LineGeometry, LineSummary, MapSpec, MaterialRow, read_material};
+use crate::evaluation::metrology::metrics::FlagScore;
+use crate::forward::brdf::Brdf;
+use crate::forward::prior_models::SampleModel;
+use brdf_meter::blob::BlobView;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::Arc;
+
+/// Surfaces to read: where they come from (for the report) and (name, model).
+#[derive(Clone, Debug)]
+pub struct UnseenSpec {
+    /// The `--set` argument.
+    pub source: String,
+    /// The surfaces.
+    pub materials: Vec<(String, Arc<dyn Brdf>)>,
+}
+
+/// The unseen set's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct UnseenSet {
+    /// The `--set` argument.
+    pub source: String,
+    /// Surfaces left out because they are prior samples.
+    pub in_prior: Vec<String>,
+    /// Over every (surface, pixel) of the rest.
+    pub summary: LineSummary,
+    /// Whether the out-of-prior flag predicts their points' error.
+    pub flag: FlagScore,
+    /// Per surface.
+    pub materials: Vec<MaterialRow>,
+}
+
+/// Whether `a` and `b` are the same profile (to a relative 1e-9 of the larger).
+fn same_profile(a: &nalgebra::DVector<f64>, b: &nalgebra::DVector<f64>) -> bool {
+    let top = a.amax().max(b.amax());
+    a.len() == b.len() && (a - b).amax() <= 1e-9 * top
+}
+
+/// Reads `set` with `blob` (the calibration on the whole prior).
+pub(super) fn read(
+    spec: &MapSpec,
+    geo: &LineGeometry,
+    set: &UnseenSpec,
+    blob: &BlobView<'_>,
+) -> anyhow::Result<UnseenSet> {
+    let view_deg = spec.scene.instrument.view_deg;
+    let prior: Vec<nalgebra::DVector<f64>> =
+        spec.prior.samples.iter().map(|s| s.model.on_grid(&geo.grid, view_deg)).collect();
+    let (seen, unseen): (Vec<_>, Vec<_>) = set.materials.iter().enumerate().partition(|(_, (_, b))| {
+        let v = SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg);
+        prior.iter().any(|p| same_profile(p, &v))
+    });
+    let reads: Vec<(MaterialRow, Vec<FlagCounts>, FlagScore)> = unseen
+        .par_iter()
+        .map(|(i, (name, b))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
+        .collect::<anyhow::Result<_>>()?;
+    let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.2));
+    let materials: Vec<MaterialRow> = reads.into_iter().map(|r| r.0).collect();
+    Ok(UnseenSet {
+        source: set.source.clone(),
+        in_prior: seen.into_iter().map(|(_, (n, _))| n.clone()).collect(),
+        summary: LineSummary::of(&materials),
+        flag,
+        materials,
+    })
+}
