@@ -193,8 +193,6 @@ pub struct Trained {
     pub f32_exponents: Vec<Vec<i32>>,
     /// The out-of-prior threshold (scale-free kinds), or `None`.
     pub out_of_prior_threshold: Option<f32>,
-    /// What a flagged point's band is widened by (with the threshold).
-    pub band_factor: Option<f32>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
 }
@@ -361,7 +359,6 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
         f32_rel_error,
         f32_exponents,
         out_of_prior_threshold: threshold.map(|t| t.0),
-        band_factor: threshold.map(|_| band_factor),
         blob,
     })
 }
