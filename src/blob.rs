@@ -1375,6 +1375,46 @@ mod tests {
         assert_eq!(w, &o.mats[56..112]);
     }
 
+    /// `b` edited by `edit`, its CRC set again, parsed.
+    fn resealed(mut b: Vec<u8>, edit: &dyn Fn(&mut Vec<u8>)) -> Result<(), BlobError> {
+        edit(&mut b);
+        let at = b.len() - 4;
+        let crc = CRC32.checksum(&b[..at]);
+        put_u32(&mut b, at, crc);
+        BlobView::parse(&b).map(|_| ())
+    }
+
+    /// A piecewise blob (K = 3) with the out-of-prior section in `form`
+    /// and `band_factor`.
+    fn out_of_prior_blob(form: OutOfPriorForm, band_factor: f32) -> Vec<u8> {
+        let o = sample(6, 4, 2, 5);
+        let (unc, mats, cents, oop) = v2_extras(&o, 3);
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let ex = BlobExtras {
+            clusters: 3,
+            centroids: &cents,
+            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop, band_factor }),
+            gloss: None,
+            root_form: false,
+        };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        buf
+    }
+
+    /// The same sample as [`out_of_prior_blob`], scale-free without the section.
+    fn bare_scale_free_blob() -> Vec<u8> {
+        let o = sample(6, 4, 2, 5);
+        let mut bare = vec![0u8; o.dims.blob_len()];
+        let mut cs = contents(&o);
+        cs.estimator = EstimatorKind::ScaleFree;
+        write_blob(&cs, &mut bare).unwrap();
+        bare
+    }
+
     fn v2_extras(o: &Owned, k: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>) {
         let d = o.dims;
         let unc = (0..d.zones * k * d.n).map(|x| 0.001 * x as f32).collect();
@@ -1438,26 +1478,8 @@ mod tests {
 
     #[test]
     fn the_log_ratio_form_is_flag_bit_4_and_only_with_the_section() {
-        let o = sample(6, 4, 2, 5);
-        let (unc, mats, cents, oop) = v2_extras(&o, 3);
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
-        c.uncertainty = &unc;
-        c.matrices = &mats;
-        let with = |form| BlobExtras {
-            clusters: 3,
-            centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop, band_factor: 1.0 }),
-            gloss: None,
-            root_form: false,
-        };
-        let write = |ex: &BlobExtras<'_>| {
-            let mut buf = vec![0u8; o.dims.blob_len_with(ex)];
-            assert_eq!(write_blob_with(&c, ex, &mut buf), Ok(buf.len()));
-            buf
-        };
-        let linear = write(&with(OutOfPriorForm::Linear));
-        let log_ratio = write(&with(OutOfPriorForm::LogRatio));
+        let linear = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
+        let log_ratio = out_of_prior_blob(OutOfPriorForm::LogRatio, 1.0);
         // The same bytes but the flag (and so the CRC).
         let differ: Vec<usize> = (0..linear.len()).filter(|i| linear[*i] != log_ratio[*i]).collect();
         assert!(differ.iter().all(|i| *i == 22 || *i >= linear.len() - 4), "{differ:?}");
@@ -1465,45 +1487,15 @@ mod tests {
         assert_eq!(BlobView::parse(&linear).unwrap().out_of_prior_form(), Some(OutOfPriorForm::Linear));
         assert_eq!(BlobView::parse(&log_ratio).unwrap().out_of_prior_form(), Some(OutOfPriorForm::LogRatio));
         // The form bit without the section is refused, with a good CRC.
-        let mut bare = vec![0u8; o.dims.blob_len()];
-        let mut cs = contents(&o);
-        cs.estimator = EstimatorKind::ScaleFree;
-        write_blob(&cs, &mut bare).unwrap();
+        let bare = bare_scale_free_blob();
         let flags = get_u16(&bare, 22) | FLAG_LOG_RATIO;
-        put_u16(&mut bare, 22, flags);
-        let at = bare.len() - 4;
-        let crc = CRC32.checksum(&bare[..at]);
-        put_u32(&mut bare, at, crc);
-        assert_eq!(BlobView::parse(&bare).map(|_| ()), Err(BlobError::ReservedNotZero));
+        assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
     }
 
     #[test]
     fn the_band_factor_is_flag_bit_5_at_offset_56_and_only_with_the_section() {
-        let o = sample(6, 4, 2, 5);
-        let (unc, mats, cents, oop) = v2_extras(&o, 3);
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
-        c.uncertainty = &unc;
-        c.matrices = &mats;
-        let with = |band_factor| BlobExtras {
-            clusters: 3,
-            centroids: &cents,
-            out_of_prior: Some(OutOfPriorData {
-                threshold: 1.0,
-                form: OutOfPriorForm::LogRatio,
-                data: &oop,
-                band_factor,
-            }),
-            gloss: None,
-            root_form: false,
-        };
-        let write = |ex: &BlobExtras<'_>| {
-            let mut buf = vec![0u8; o.dims.blob_len_with(ex)];
-            assert_eq!(write_blob_with(&c, ex, &mut buf), Ok(buf.len()));
-            buf
-        };
-        let none = write(&with(1.0));
-        let wide = write(&with(2.5));
+        let none = out_of_prior_blob(OutOfPriorForm::LogRatio, 1.0);
+        let wide = out_of_prior_blob(OutOfPriorForm::LogRatio, 2.5);
         // A factor of 1 writes the blob as before: no flag, offset 56 zero.
         assert_eq!((get_u16(&none, 22) & FLAG_BAND_FACTOR, get_u32(&none, 56)), (0, 0));
         assert_eq!(BlobView::parse(&none).unwrap().out_of_prior_band_factor(), 1.0);
@@ -1512,24 +1504,14 @@ mod tests {
         assert!(differ.iter().all(|i| *i == 22 || (56..60).contains(i) || *i >= none.len() - 4), "{differ:?}");
         assert_eq!(get_u16(&wide, 22) & !get_u16(&none, 22), FLAG_BAND_FACTOR);
         assert_eq!(BlobView::parse(&wide).unwrap().out_of_prior_band_factor(), 2.5);
-        let resealed = |mut b: Vec<u8>, edit: &dyn Fn(&mut Vec<u8>)| {
-            edit(&mut b);
-            let at = b.len() - 4;
-            let crc = CRC32.checksum(&b[..at]);
-            put_u32(&mut b, at, crc);
-            BlobView::parse(&b).map(|_| ())
-        };
         // A factor below 1 or not finite is refused, with a good CRC.
         let bad = |x: f32| resealed(wide.clone(), &|b| put_f32(b, 56, x));
         assert_eq!(bad(0.5), Err(BlobError::OutOfRange { section: Section::Header, index: 56 }));
         assert_eq!(bad(f32::NAN), Err(BlobError::NonFinite { section: Section::Header, index: 56 }));
         assert_eq!(bad(1.0), Ok(()));
         // A value without the flag, or the flag without the section, is refused.
-        assert_eq!(resealed(none.clone(), &|b| put_f32(b, 56, 2.0)), Err(BlobError::ReservedNotZero));
-        let mut bare = vec![0u8; o.dims.blob_len()];
-        let mut cs = contents(&o);
-        cs.estimator = EstimatorKind::ScaleFree;
-        write_blob(&cs, &mut bare).unwrap();
+        assert_eq!(resealed(none, &|b| put_f32(b, 56, 2.0)), Err(BlobError::ReservedNotZero));
+        let bare = bare_scale_free_blob();
         let flags = get_u16(&bare, 22) | FLAG_BAND_FACTOR;
         assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
     }
@@ -1737,13 +1719,6 @@ mod tests {
         let vo = BlobView::parse(&old).unwrap();
         assert_eq!((vo.version(), vo.has_gloss(), vo.copy_gloss(0, 0, &mut block)), (1, false, None));
         // The flag bit and the version go together, with a good CRC.
-        let resealed = |mut b: Vec<u8>, f: &dyn Fn(&mut Vec<u8>)| {
-            f(&mut b);
-            let at = b.len() - 4;
-            let crc = CRC32.checksum(&b[..at]);
-            put_u32(&mut b, at, crc);
-            BlobView::parse(&b).map(|_| ())
-        };
         assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 2)), Err(BlobError::ReservedNotZero));
         assert_eq!(resealed(old.clone(), &|b| put_u16(b, 22, 4)), Err(BlobError::ReservedNotZero));
         assert_eq!(resealed(buf.clone(), &|b| put_u16(b, 4, 5)), Err(BlobError::UnsupportedVersion(5)));
