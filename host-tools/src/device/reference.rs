@@ -143,7 +143,6 @@ impl<'a> PointEstimator<'a> {
         let n = self.view.dims().n;
         assert_eq!(v.len(), self.m());
         let mut rho = vec![0.0f32; n];
-        let mut sigma = vec![0.0f32; n];
         let mut bits = 0u8;
         if v.iter().any(|x| !x.is_finite()) {
             bits |= flags::NON_FINITE;
@@ -156,20 +155,14 @@ impl<'a> PointEstimator<'a> {
                 let s = if root {
                     let (s, r) = estimate_scale_free_root(&self.mats[c], v, &mut rho);
                     sqrt_s = r;
-                    for (j, o) in sigma.iter_mut().enumerate() {
-                        *o = root_uncertainty(self.sigma[c][j], rho[j], s);
-                    }
                     s
                 } else {
-                    let s = estimate_scale_free(&self.mats[c], v, &mut rho);
-                    scaled_uncertainty(&self.sigma[c], s, &mut sigma);
-                    s
+                    estimate_scale_free(&self.mats[c], v, &mut rho)
                 };
                 (s, s, c as u8)
             }
             _ => {
                 mat_vec_f32_slice(&self.mats[0], v, &mut rho);
-                sigma.copy_from_slice(&self.sigma[0]);
                 (scale(v), 1.0, 0)
             }
         };
@@ -177,6 +170,25 @@ impl<'a> PointEstimator<'a> {
         if let Some((mean, g, t, form)) = &self.out_of_prior {
             stat = form.stat(g, mean, v, s);
             bits |= out_of_prior_flag(stat, *t);
+        }
+        // The per-bin uncertainty the frame states: from the point's scale,
+        // which a flagged point's band factor widens, as the device does
+        // (the gloss readings' own uncertainties keep the readings' scale).
+        let band_factor = self.view.out_of_prior_band_factor();
+        let readings_scale = sigma_scale;
+        let sigma_scale = if bits & flags::OUT_OF_PRIOR != 0 && band_factor != 1.0 {
+            flagged_sigma_scale(sigma_scale, band_factor, root)
+        } else {
+            sigma_scale
+        };
+        let unit = &self.sigma[cluster as usize];
+        let mut sigma = vec![0.0f32; n];
+        if root {
+            for (j, o) in sigma.iter_mut().enumerate() {
+                *o = root_uncertainty(unit[j], rho[j], sigma_scale);
+            }
+        } else {
+            scaled_uncertainty(unit, sigma_scale, &mut sigma);
         }
         bits |= guard_estimate(&mut rho);
         let (mut readings, mut reading_sigma) = (brdf_meter::gloss::NO_READINGS, brdf_meter::gloss::NO_READINGS);
@@ -192,24 +204,9 @@ impl<'a> PointEstimator<'a> {
                 brdf_meter::kernel::scale_input(&mut x, brdf_meter::kernel::root_scales(s).1);
                 brdf_meter::gloss::readings_root(&blocks[cluster as usize], &x, q, sqrt_s)
             } else {
-                brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, sigma_scale)
+                brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, readings_scale)
             };
         }
-        // A flagged point's band is wider, as the device states it.
-        let band_factor = self.view.out_of_prior_band_factor();
-        let sigma_scale = if bits & flags::OUT_OF_PRIOR != 0 && band_factor != 1.0 {
-            let wide = flagged_sigma_scale(sigma_scale, band_factor, root);
-            for (j, o) in sigma.iter_mut().enumerate() {
-                *o = if root {
-                    root_uncertainty(self.sigma[cluster as usize][j], rho[j], wide)
-                } else {
-                    self.sigma[cluster as usize][j] * wide.abs()
-                };
-            }
-            wide
-        } else {
-            sigma_scale
-        };
         if bits & flags::NON_FINITE != 0 {
             rho.fill(0.0);
             sigma.fill(0.0);
