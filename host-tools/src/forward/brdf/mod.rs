@@ -14,6 +14,7 @@ mod ggx;
 mod lambert;
 pub mod merl_binary;
 pub mod nbrdf;
+pub mod roughened;
 pub mod smooth_dielectric;
 mod tabulated;
 mod ward;
