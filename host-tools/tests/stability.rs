@@ -217,7 +217,7 @@ fn profiles(prior: &Prior) -> &'static PriorModels {
             model: SampleModel::Profile(c.into_owned()),
         })
         .collect();
-    Box::leak(Box::new(PriorModels { samples }))
+    Box::leak(Box::new(PriorModels { samples, ..Default::default() }))
 }
 
 /// A zone of in-plane optics `h` with relative noise `noise`.

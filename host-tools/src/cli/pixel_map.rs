@@ -30,6 +30,11 @@ pub struct Args {
     /// Prior (as `train --prior`); its reflection models are the held-out materials.
     #[arg(long, default_value = "merl")]
     pub prior: String,
+    /// Rougher finishes each prior material also trains at, as `train
+    /// --finishes` on a scene: none unless given (each finish multiplies the
+    /// prior's evaluations on every pixel).
+    #[arg(long, value_name = "DEG,...|none")]
+    pub finishes: Option<String>,
     /// Measured surfaces of your own, read at every pixel by the calibration
     /// on the whole prior beside the held-out figures: NBRDF .json sets,
     /// MERL .binary tables, or a directory or comma list of them (as
@@ -60,7 +65,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let scene = Scene::load(&a.scene)?;
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
-    let prior = PriorMix::parse(&a.prior)?.models(&grid, inst.view_deg, inst.spectral_weights)?;
+    let prior = PriorMix::parse(&a.prior)?
+        .models(&grid, inst.view_deg, inst.spectral_weights)?
+        .with_finishes(&crate::cli::train::finishes_deg(a.finishes.as_deref(), true)?);
     let unseen = match &a.set {
         Some(arg) => {
             let f = crate::evaluation::metrology::families::TestFamily::measured_files(arg, inst.spectral_weights)?;

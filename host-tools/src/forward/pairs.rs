@@ -260,17 +260,22 @@ impl Pairs {
         let np = pixels.len();
         type Col =
             (DVector<f64>, DVector<f64>, DVector<f64>, f64, usize, usize, Option<[f64; brdf_meter::gloss::LINEAR]>);
-        let cols: Vec<Col> = (0..np * prior.len())
+        // Each sample's variants (itself, and its rougher finishes when the
+        // prior has them): pairs of one sample, sharing its weight.
+        let variants: Vec<Vec<(SampleModel, f64)>> = (0..prior.len()).map(|k| prior.finishes(k)).collect();
+        let jobs: Vec<(usize, usize, usize)> = (0..np)
+            .flat_map(|p| variants.iter().enumerate().flat_map(move |(k, v)| (0..v.len()).map(move |j| (p, k, j))))
+            .collect();
+        let cols: Vec<Col> = jobs
             .into_par_iter()
-            .map(|i| {
-                let (p, k) = (i / prior.len(), i % prior.len());
+            .map(|(p, k, j)| {
                 let po = &pixels[p];
-                let s = &prior.samples[k];
-                let t = po.truth(&s.model);
-                let v = po.readings(&s.model, &t);
+                let (model, share) = &variants[k][j];
+                let t = po.truth(model);
+                let v = po.readings(model, &t);
                 let var = DVector::from_iterator(v.len(), v.iter().enumerate().map(|(j, x)| po.noise.variance(j, *x)));
-                let g = if gloss { po.gloss_target(&s.model, &t) } else { None };
-                (t, v, var, s.weight / np as f64, k, p, g)
+                let g = if gloss { po.gloss_target(model, &t) } else { None };
+                (t, v, var, prior.samples[k].weight * share / np as f64, k, p, g)
             })
             .collect();
         let gloss = if gloss && cols.iter().all(|c| c.6.is_some()) {
@@ -483,6 +488,30 @@ mod tests {
         let (p0, p1) = (pairs.truth.column(0).amax(), pairs.truth.column(1).amax());
         assert!((pr.weights[0] / pr.weights[1] - (p1 * p1) / (p0 * p0)).abs() < 1e-9);
         assert_eq!(pairs.weighted(Criterion::Plain).weights, pairs.weights);
+    }
+
+    #[test]
+    fn a_materials_finishes_are_pairs_of_the_same_sample_sharing_its_weight() {
+        let px = patent_pixel();
+        let prior = PriorModels::from_brdfs(
+            "w",
+            vec![
+                ("glossy".into(), Arc::new(Ward::patent(0.1, 0.01)) as Arc<dyn Brdf>),
+                ("glass".into(), Arc::new(crate::forward::brdf::SmoothDielectric::black_glass()) as Arc<dyn Brdf>),
+            ],
+        )
+        .with_finishes(&[0.5, 2.0]);
+        let pairs = Pairs::build(std::slice::from_ref(&px), &prior);
+        // The glossy lobe as it is and at two finishes; the polished glass,
+        // whose reflection is a mirror spike, only as it is.
+        assert_eq!(pairs.sample, vec![0, 0, 0, 1]);
+        let w: Vec<f64> = pairs.base.clone();
+        assert!((w[0] - 0.25).abs() < 1e-12 && (w[1] - 0.125).abs() < 1e-12 && (w[3] - 0.5).abs() < 1e-12, "{w:?}");
+        // The rougher the finish, the lower and wider its peak.
+        let peak = |k: usize| pairs.truth.column(k).amax();
+        assert!(peak(0) > 2.0 * peak(1) && peak(1) > 2.0 * peak(2), "{} {} {}", peak(0), peak(1), peak(2));
+        // Holding the material out holds out its finishes with it.
+        assert_eq!(pairs.of_samples(|s| s != 0).len(), 1);
     }
 
     #[test]

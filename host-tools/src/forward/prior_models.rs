@@ -58,11 +58,25 @@ pub struct PriorSample {
     pub model: SampleModel,
 }
 
+/// The share of a material's weight its own model keeps when it also
+/// trains at rougher finishes ([`PriorModels::finishes`]): half. What was
+/// measured stays what the prior is mostly made of; the finishes, a
+/// construction from it, fill the gaps between its lobes. (Equal shares,
+/// a quarter each at three finishes, let the constructed lobes outweigh
+/// the measured ones: the measured set's held-out median error went from
+/// 0.0213 to 0.0246 and its false flags from 5 to 15 %, `host-tools
+/// accuracy`.)
+pub const MEASURED_SHARE: f64 = 0.5;
+
 /// The samples of a prior, as models.
 #[derive(Clone, Debug, Default)]
 pub struct PriorModels {
     /// The samples, weights summing to 1.
     pub samples: Vec<PriorSample>,
+    /// Rougher finishes each rough reflection model also trains at: the
+    /// standard deviations of a further spread of facet tilts, degrees
+    /// ([`Self::finishes`]). Empty: the samples as they are.
+    pub finishes_deg: Vec<f64>,
 }
 
 impl PriorModels {
@@ -84,6 +98,7 @@ impl PriorModels {
                 .into_iter()
                 .map(|(name, b)| PriorSample { name, family: family.into(), weight: w, model: SampleModel::Brdf(b) })
                 .collect(),
+            finishes_deg: Vec::new(),
         }
     }
 
@@ -113,6 +128,7 @@ impl PriorModels {
                     s
                 })
                 .collect(),
+            finishes_deg: self.finishes_deg.clone(),
         }
     }
 
@@ -123,7 +139,40 @@ impl PriorModels {
             let total: f64 = p.samples.iter().map(|s| s.weight).sum();
             p.samples.iter().map(move |s| PriorSample { weight: s.weight / total * f, ..s.clone() })
         }
-        Self { samples: scaled(self, 1.0 - w).chain(scaled(other, w)).collect() }
+        Self {
+            samples: scaled(self, 1.0 - w).chain(scaled(other, w)).collect(),
+            finishes_deg: self.finishes_deg.clone(),
+        }
+    }
+
+    /// This prior with every rough reflection model also at rougher
+    /// finishes, `sigma_deg` the tilt spreads (each > 0).
+    pub fn with_finishes(mut self, sigma_deg: &[f64]) -> Self {
+        self.finishes_deg = sigma_deg.to_vec();
+        self
+    }
+
+    /// Sample `k`'s variants that training reads, each with its share of
+    /// the sample's weight: the model as it is, and, for a reflection
+    /// model without a mirror spike (a measured material or a rough model:
+    /// a polished standard's Fresnel spike is no lobe to spread), each of
+    /// [`Self::finishes_deg`] as `crate::forward::brdf::roughened::Roughened`.
+    /// The material as it is keeps [`MEASURED_SHARE`] of the weight and its
+    /// finishes share the rest equally. They stay one sample (one fold, one prior index), so nothing held out of
+    /// training leaves a rougher twin behind in it.
+    pub fn finishes(&self, k: usize) -> Vec<(SampleModel, f64)> {
+        let model = &self.samples[k].model;
+        let rough = match model {
+            SampleModel::Brdf(b) if !self.finishes_deg.is_empty() && b.mirror_reflectance(45.0) == 0.0 => b,
+            _ => return vec![(model.clone(), 1.0)],
+        };
+        let share = (1.0 - MEASURED_SHARE) / self.finishes_deg.len() as f64;
+        std::iter::once((model.clone(), MEASURED_SHARE))
+            .chain(self.finishes_deg.iter().map(|&s| {
+                let r = crate::forward::brdf::roughened::Roughened::new(rough.clone(), s);
+                (SampleModel::Brdf(Arc::new(r)), share)
+            }))
+            .collect()
     }
 }
 
@@ -131,6 +180,43 @@ impl PriorModels {
 mod tests {
     use super::*;
     use crate::forward::brdf::{Lambertian, Ward};
+
+    #[test]
+    fn rough_models_train_at_their_finishes_and_what_has_no_lobe_to_spread_as_it_is() {
+        let p = PriorModels {
+            samples: vec![
+                PriorSample {
+                    name: "w".into(),
+                    family: "a".into(),
+                    weight: 0.5,
+                    model: SampleModel::Brdf(Arc::new(Ward::patent(0.3, 0.05))),
+                },
+                PriorSample {
+                    name: "g".into(),
+                    family: "a".into(),
+                    weight: 0.25,
+                    model: SampleModel::Brdf(Arc::new(crate::forward::brdf::SmoothDielectric::black_glass())),
+                },
+                PriorSample {
+                    name: "p".into(),
+                    family: "b".into(),
+                    weight: 0.25,
+                    model: SampleModel::Profile(DVector::from_element(81, 0.2)),
+                },
+            ],
+            ..Default::default()
+        };
+        assert_eq!(p.finishes(0).len(), 1, "no finishes unless asked for");
+        let p = p.with_finishes(&[0.5, 1.0, 2.0]);
+        let shares = |k: usize| p.finishes(k).iter().map(|v| v.1).collect::<Vec<_>>();
+        let third = (1.0 - MEASURED_SHARE) / 3.0;
+        assert_eq!(shares(0), vec![MEASURED_SHARE, third, third, third]);
+        assert_eq!(shares(1), vec![1.0], "a mirror spike has no lobe to spread");
+        assert_eq!(shares(2), vec![1.0], "a profile is known in-plane only");
+        // Kept through a subset and a mixture.
+        assert_eq!(p.subset(&[0]).finishes_deg, vec![0.5, 1.0, 2.0]);
+        assert_eq!(p.mixed_with(&p.subset(&[2]), 0.5).finishes(0).len(), 4);
+    }
 
     #[test]
     fn models_sample_the_grid_and_mix_with_the_stated_weights() {
@@ -153,6 +239,7 @@ mod tests {
                 weight: 1.0,
                 model: SampleModel::Profile(DVector::from_element(81, 0.2)),
             }],
+            ..Default::default()
         };
         let m = a.mixed_with(&p, 0.25);
         assert_eq!(m.samples.iter().map(|s| s.weight).collect::<Vec<_>>(), vec![0.375, 0.375, 0.25]);
