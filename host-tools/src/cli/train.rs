@@ -98,7 +98,7 @@ pub struct CalibrationArgs {
     /// lobes between. Default: 0.5,1,2 (from the patent profile's source
     /// spacing to its LED spacing, in tilt) on the built-in instrument or
     /// --instrument; none with --scene (each finish is an integral over
-    /// the material: about 40x the evaluations, on every pixel).
+    /// the material, 12 to 32 evaluations of it per ray, on every pixel).
     #[arg(long, value_name = "DEG,...|none")]
     pub finishes: Option<String>,
     /// The error training minimises: relative to each sample's peak (what

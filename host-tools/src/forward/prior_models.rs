@@ -162,6 +162,7 @@ impl PriorModels {
     /// training leaves a rougher twin behind in it.
     pub fn finishes(&self, k: usize) -> Vec<(SampleModel, f64)> {
         let model = &self.samples[k].model;
+        // A model with a mirror spike has it at every incidence; 45 deg is any.
         let rough = match model {
             SampleModel::Brdf(b) if !self.finishes_deg.is_empty() && b.mirror_reflectance(45.0) == 0.0 => b,
             _ => return vec![(model.clone(), 1.0)],
