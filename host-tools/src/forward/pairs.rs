@@ -234,7 +234,8 @@ pub struct Pairs {
     /// The prior's own weights (summing to 1), whatever the criterion: the
     /// ensemble an error over the prior is averaged with.
     pub base: Vec<f64>,
-    /// The prior sample of each pair.
+    /// The prior sample of each pair (a sample's finishes are pairs of it:
+    /// what holds a sample out holds them out too).
     pub sample: Vec<usize>,
     /// The pixel of each pair (index into the pixels it was built over).
     pub pixel: Vec<usize>,
@@ -245,7 +246,9 @@ pub struct Pairs {
 
 impl Pairs {
     /// Every sample of `prior` at every pixel of `pixels`, each pixel's
-    /// pairs sharing the prior's weights equally.
+    /// pairs sharing the prior's weights equally; a sample with rougher
+    /// finishes (`PriorModels::finishes`) is one pair per finish, all of
+    /// that sample, sharing its weight.
     pub fn build(pixels: &[PixelOptics], prior: &PriorModels) -> Self {
         Self::build_inner(pixels, prior, false)
     }
