@@ -126,8 +126,9 @@ fn smooth_lobes_come_out_smooth_at_the_exact_specular_bin() {
     // round tops a few degrees wide their own evidence: without them Ward
     // lobes of alpha 0.04-0.06 (8-11 deg wide at half height) dipped 6-10 %
     // of the peak (`--finishes none`). The narrowest of Table 4 (alpha
-    // 0.03) still dips with the four clusters cross-validation picks (14 %;
-    // 1.6 % with six): docs/guide/real-materials.md.
+    // 0.03), which did not dip, now does with the four clusters
+    // cross-validation picks (11-14 %; 1.6 % with six):
+    // docs/guide/real-materials.md.
     use host_tools::device::reference::PointEstimator;
     use host_tools::forward::brdf::Ward;
     use host_tools::forward::optics::simulate_readings;
