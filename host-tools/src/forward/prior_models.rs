@@ -9,7 +9,9 @@
 //! an in-plane profile at the instrument's nominal view (a goniometric CSV,
 //! an ASTM E1392 table's profile) cannot: [`SampleModel::Profile`], whose
 //! readings are the in-plane model's `H rho` and whose truth stays the
-//! profile at every pixel.
+//! profile at every pixel. A prior may also train every rough reflection
+//! model at rougher finishes of itself ([`PriorModels::finishes`]): pairs of
+//! the same sample, so what holds a sample out holds them out too.
 use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::Brdf;
 use crate::forward::grid::AngleGrid;
@@ -158,8 +160,9 @@ impl PriorModels {
     /// a polished standard's Fresnel spike is no lobe to spread), each of
     /// [`Self::finishes_deg`] as `crate::forward::brdf::roughened::Roughened`.
     /// The material as it is keeps [`MEASURED_SHARE`] of the weight and its
-    /// finishes share the rest equally. They stay one sample (one fold, one prior index), so nothing held out of
-    /// training leaves a rougher twin behind in it.
+    /// finishes share the rest equally. They stay one sample (one fold, one
+    /// prior index), so nothing held out of training leaves a rougher twin
+    /// behind in it.
     pub fn finishes(&self, k: usize) -> Vec<(SampleModel, f64)> {
         let model = &self.samples[k].model;
         // A model with a mirror spike has it at every incidence; 45 deg is any.
