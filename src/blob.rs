@@ -1396,7 +1396,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 1.0, form, data: &oop, band_factor }),
+            out_of_prior: Some(OutOfPriorData { threshold: 12.5, form, data: &oop, band_factor }),
             gloss: None,
             root_form: false,
         };
@@ -1428,24 +1428,7 @@ mod tests {
     fn version_2_round_trips_piecewise_matrices_centroids_and_out_of_prior_data() {
         let o = sample(6, 4, 2, 5);
         let (unc, mats, cents, oop) = v2_extras(&o, 3);
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
-        c.uncertainty = &unc;
-        c.matrices = &mats;
-        let ex = BlobExtras {
-            clusters: 3,
-            centroids: &cents,
-            out_of_prior: Some(OutOfPriorData {
-                threshold: 12.5,
-                form: OutOfPriorForm::Linear,
-                data: &oop,
-                band_factor: 1.0,
-            }),
-            gloss: None,
-            root_form: false,
-        };
-        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
-        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        let buf = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
         let v = BlobView::parse(&buf).unwrap();
         assert_eq!((v.version(), v.clusters(), v.estimator()), (2, 3, EstimatorKind::ScaleFreePiecewise));
         assert_eq!(v.out_of_prior_threshold(), Some(12.5));
@@ -1466,10 +1449,7 @@ mod tests {
             assert!(BlobView::parse(&bad).is_err(), "corruption at byte {pos} accepted");
         }
         // Scale-free with one matrix per zone and no out-of-prior data.
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFree;
-        let mut buf = vec![0u8; o.dims.blob_len()];
-        write_blob(&c, &mut buf).unwrap();
+        let buf = bare_scale_free_blob();
         let v = BlobView::parse(&buf).unwrap();
         assert_eq!((v.version(), v.clusters(), v.out_of_prior_threshold()), (2, 1, None));
         assert!(!v.copy_out_of_prior(0, &mut mean, &mut g));
