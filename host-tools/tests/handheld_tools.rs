@@ -164,6 +164,7 @@ fn pixel_map_reads_every_pixel() {
         kind: EstimatorKind::ScaleFree,
         criterion: Criterion::PeakRelative,
         clusters: None,
+        false_alarm: host_tools::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM,
         prior,
         folds: 4,
         lines: 1,

@@ -30,6 +30,11 @@ pub struct Args {
     /// Prior (as `train --prior`); its reflection models are the held-out materials.
     #[arg(long, default_value = "merl")]
     pub prior: String,
+    /// The out-of-prior flag's false-alarm rate on held-out prior samples,
+    /// as `train --false-alarm`: what the flag rows' trade between points
+    /// caught and points flagged needlessly is measured at.
+    #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
+    pub false_alarm: f64,
     /// Rougher finishes each prior material also trains at, as `train
     /// --finishes` on a scene: none unless given (each finish multiplies the
     /// prior's evaluations on every pixel).
@@ -62,6 +67,11 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     ensure!(a.lines >= 1 && a.gloss_lines >= 2, "--lines >= 1 and --gloss-lines >= 2");
     ensure!(a.folds >= 2, "--folds {}: at least 2", a.folds);
+    ensure!(
+        a.false_alarm > 0.0 && a.false_alarm < 1.0,
+        "--false-alarm {}: a rate in (0, 1), such as the default 0.05",
+        a.false_alarm
+    );
     let scene = Scene::load(&a.scene)?;
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
@@ -81,6 +91,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         kind: a.estimator.into(),
         criterion: a.criterion.into(),
         clusters: a.clusters,
+        false_alarm: a.false_alarm,
         prior,
         folds: a.folds,
         lines: a.lines,

@@ -73,6 +73,9 @@ pub struct MapSpec {
     pub criterion: Criterion,
     /// The piecewise kind's cluster count (`None`: by cross-validation).
     pub clusters: Option<usize>,
+    /// The out-of-prior flag's false-alarm rate on held-out prior samples
+    /// (as `train --false-alarm`).
+    pub false_alarm: f64,
     /// The prior (its reflection models are the held-out materials).
     pub prior: PriorModels,
     /// Folds over the prior's samples.
@@ -470,7 +473,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         noise_rel: optics.noise_level.max(1e-6),
         estimator: spec.kind,
         criterion: spec.criterion,
-        false_alarm: 0.05,
+        false_alarm: spec.false_alarm,
         clusters: spec.clusters,
         root: crate::calibration::train::Form::default_for(spec.kind) == crate::calibration::train::Form::Root,
         far_field: !scene.has("near-field"),
