@@ -175,6 +175,27 @@ fn smooth_lobes_come_out_smooth_at_the_exact_specular_bin() {
 }
 
 #[test]
+fn the_cluster_count_chosen_is_one_the_devices_slot_takes() {
+    // The default calibration on the patent profile takes six clusters
+    // (guarded by kinds of material held out); a device whose slot is a
+    // byte too small for that blob gets fewer, chosen again among fewer,
+    // and one that fits. A count fixed by hand is trained as asked
+    // (provisioning refuses what does not fit).
+    use host_tools::calibration::train::{TrainSpec, board_blob_capacity, train};
+    let s = setup(&[]);
+    let spec = s.spec();
+    assert_eq!(spec.max_blob_len, board_blob_capacity());
+    let full = train(&spec).unwrap();
+    assert_eq!(full.clusters, 6, "the default's count on the patent profile");
+    let room = full.blob.len() - 1;
+    let fitted = train(&TrainSpec { max_blob_len: room, ..s.spec() }).unwrap();
+    assert!(fitted.clusters < full.clusters && fitted.clusters >= 2, "{} clusters", fitted.clusters);
+    assert!(fitted.blob.len() <= room, "{} bytes for {room}", fitted.blob.len());
+    let fixed = train(&TrainSpec { max_blob_len: room, clusters: Some(6), ..s.spec() }).unwrap();
+    assert_eq!((fixed.clusters, fixed.blob.len()), (6, full.blob.len()));
+}
+
+#[test]
 fn every_fold_keeps_the_black_glass_so_the_polished_standards_read_on_its_scale() {
     // The bare polished dielectrics have one grid vector (the mirror spike
     // is no part of it): told apart by their gloss readings, each is held

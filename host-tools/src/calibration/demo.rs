@@ -1,7 +1,7 @@
 //! A calibration trained for a simulated scene: what the QEMU instrument's
 //! demo loads and the system tests provision, trained by the same path as
 //! `host-tools train --scene` (the link only carries the blob; it never trains).
-use crate::calibration::train::{TrainSpec, Trained, train};
+use crate::calibration::train::{TrainSpec, Trained, board_blob_capacity, train};
 use crate::forward::pairs::Criterion;
 use crate::forward::prior_measured::PriorMix;
 use crate::forward::prior_models::PriorModels;
@@ -21,6 +21,21 @@ pub fn train_scene(
     prior: &PriorModels,
     criterion: Criterion,
 ) -> anyhow::Result<Trained> {
+    train_scene_for_slot(scene, zones, noise_rel, kind, prior, criterion, board_blob_capacity())
+}
+
+/// [`train_scene`] for a device whose calibration slot takes at most
+/// `max_blob_len` bytes of blob (the piecewise kind's cluster count is
+/// chosen among those whose blob fits).
+pub fn train_scene_for_slot(
+    scene: &Scene,
+    zones: usize,
+    noise_rel: f64,
+    kind: EstimatorKind,
+    prior: &PriorModels,
+    criterion: Criterion,
+    max_blob_len: usize,
+) -> anyhow::Result<Trained> {
     let inst = &scene.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
     let optics = training_optics(scene, zones, Some(noise_rel))?;
@@ -39,6 +54,7 @@ pub fn train_scene(
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white),
+        max_blob_len,
     })
 }
 

@@ -73,6 +73,18 @@ pub struct TrainSpec<'a> {
     /// White reference, P x m; `None` = 1.0 everywhere (a simulated sensor
     /// that is already white-normalised).
     pub white: Option<Vec<f32>>,
+    /// The most bytes of blob the device's calibration slot takes: a
+    /// cluster count chosen in training (`clusters` `None`) is taken only if
+    /// its blob fits, else the choice is made again among fewer. A fixed
+    /// count is not checked here (provisioning refuses a blob too large).
+    /// The product's board: [`board_blob_capacity`].
+    pub max_blob_len: usize,
+}
+
+/// The most bytes of (unsigned) blob one of the board's calibration slots
+/// holds: the slot less its header and the signature's trailer.
+pub fn board_blob_capacity() -> usize {
+    brdf_meter::shape::board::SLOT_LEN as usize - brdf_meter::store::SLOT_HEADER_LEN - brdf_meter::signed::TRAILER_LEN
 }
 
 impl<'a> TrainSpec<'a> {
@@ -104,6 +116,7 @@ impl<'a> TrainSpec<'a> {
             far_field: false,
             led_order: None,
             white: None,
+            max_blob_len: board_blob_capacity(),
         }
     }
 }
@@ -248,6 +261,22 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
 /// [`train`] on pairs already built for `spec`'s zones (the prior's may
 /// be a subset of `spec.prior`'s samples).
 pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<Trained> {
+    let mut most = usize::MAX;
+    loop {
+        let t = train_counts(spec, zone_pairs, most)?;
+        // A count chosen here whose blob the slot does not take: chosen
+        // again among fewer (the pairs are kept; only the maps are fitted
+        // again).
+        let chosen = spec.clusters.is_none() && spec.estimator == EstimatorKind::ScaleFreePiecewise;
+        if t.blob.len() <= spec.max_blob_len || !chosen || t.clusters <= 2 {
+            return Ok(t);
+        }
+        most = t.clusters - 1;
+    }
+}
+
+/// [`train_on`] choosing the piecewise kind's count among those up to `most`.
+fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> anyhow::Result<Trained> {
     let n = spec.bins_deg.len();
     ensure!(!spec.zones.is_empty(), "no zones to train");
     ensure!(!spec.prior.is_empty(), "the prior has no samples");
@@ -282,7 +311,7 @@ pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<
     );
     let pairs: Vec<Pairs> = raw.iter().map(|p| p.weighted(spec.criterion)).collect();
     let zones = match spec.estimator {
-        EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => scale_free_zones(spec, &pairs)?,
+        EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise => scale_free_zones(spec, &pairs, most)?,
         kind => linear_zones(spec, kind, &pairs)?,
     };
     let clusters = match &zones[0].estimator {
@@ -403,7 +432,7 @@ fn linear_zones(spec: &TrainSpec<'_>, kind: EstimatorKind, pairs: &[Pairs]) -> a
     Ok(out)
 }
 
-fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec<TrainedZone>> {
+fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs], most: usize) -> anyhow::Result<Vec<TrainedZone>> {
     ensure!(spec.noise_rel > 0.0, "scale-free training needs a noise level > 0 (got {})", spec.noise_rel);
     ensure!(
         spec.false_alarm > 0.0 && spec.false_alarm < 1.0,
@@ -423,7 +452,7 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs]) -> anyhow::Result<Vec
             );
             vec![k]
         }
-        (true, None) => scale_free::CLUSTER_COUNTS.to_vec(),
+        (true, None) => scale_free::CLUSTER_COUNTS.iter().copied().filter(|k| *k <= most.max(2)).collect(),
     };
     use rayon::prelude::*;
     let cv: Vec<Vec<(f64, f64)>> = pairs

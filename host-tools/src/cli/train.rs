@@ -189,6 +189,7 @@ impl Setup {
             far_field,
             led_order: None,
             white,
+            max_blob_len: crate::calibration::train::board_blob_capacity(),
         }
     }
 }

@@ -2,8 +2,9 @@
 //! optics (the handheld's line cut to the device's pixels, or the
 //! patent-profile scene at the device's pixel count), provisioned, and a
 //! 4-line scene loaded, so `measure` works at once.
-use crate::calibration::demo::{train_for_scene, train_scale_free_for_scene};
+use crate::calibration::demo::{scene_prior, train_for_scene, train_scale_free_for_scene, train_scene_for_slot};
 use crate::device::link::{Client, SerialTransport, TcpTransport, Transport};
+use crate::forward::pairs::Criterion;
 use crate::forward::scene::Scene;
 use crate::forward::scene::frames::{patent_scene, scene_frames};
 use anyhow::Context;
@@ -52,9 +53,9 @@ pub enum DemoEstimator {
     Wiener,
     /// Scale-free on the MERL prior with the out-of-prior flag, 4 zones.
     ScaleFree,
-    /// Scale-free piecewise on the MERL prior with the flag, 1 zone (its K
-    /// matrices must fit the QEMU build's 16 KiB slot): what `train` gives
-    /// by default, so the demo shows the instrument as shipped.
+    /// Scale-free piecewise on the MERL prior with the flag, 1 zone, as
+    /// many clusters as the QEMU build's 16 KiB slot takes: what `train`
+    /// gives by default, so the demo shows the instrument as shipped.
     #[default]
     ScaleFreePiecewise,
 }
@@ -74,7 +75,13 @@ pub fn set_up<T: Transport>(
     let blob = match kind {
         DemoEstimator::Wiener => train_for_scene(&scene, 4, 0.02)?.blob,
         DemoEstimator::ScaleFree => train_scale_free_for_scene(&scene, 4, 0.02, false)?.blob,
-        DemoEstimator::ScaleFreePiecewise => train_scale_free_for_scene(&scene, 1, 0.02, true)?.blob,
+        DemoEstimator::ScaleFreePiecewise => {
+            // As many clusters as the device's slot takes with the signature.
+            let room = (info.max_blob as usize).saturating_sub(brdf_meter::signed::TRAILER_LEN);
+            let prior = scene_prior(&scene, "merl")?;
+            let kind = brdf_meter::blob::EstimatorKind::ScaleFreePiecewise;
+            train_scene_for_slot(&scene, 1, 0.02, kind, &prior, Criterion::PeakRelative, room)?.blob
+        }
     };
     let signed = crate::calibration::signing::sign_with_dev_key(&blob);
     crate::output::io::write_atomic(blob_path, &signed)?;
