@@ -161,6 +161,35 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
 }
 
 #[test]
+fn qemu_demo_provisions_what_train_writes_and_reads_its_scene_with_few_flags() {
+    // What `host-tools qemu --demo` sets up by default: the kind `train`
+    // writes (scale-free piecewise on the measured prior), one zone and as
+    // many clusters as the QEMU build's slot takes, on the handheld's line
+    // cut to the device's pixels. It must provision (a count chosen for
+    // the board's slot alone came out 2 KB too large for it) and read its
+    // own scene as a plausible estimate: no value below zero, every gloss
+    // reading a number, few points flagged out of prior.
+    use host_tools::device::qemu_demo::{DemoEstimator, DemoScene, set_up};
+    let q = start(Duration::from_secs(240));
+    let mut c = connect(&q);
+    let info = c.info().unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    let dir = tempfile::tempdir().unwrap();
+    let (signed, cal) = set_up(&mut c, &dir.path().join("demo.blob"), DemoEstimator::default(), DemoScene::default())
+        .unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
+    assert!(signed.len() <= info.max_blob as usize, "{} bytes for a slot of {}", signed.len(), info.max_blob);
+    assert_eq!(cal.zones, 1);
+    let blob = &signed[..signed.len() - brdf_meter::signed::TRAILER_LEN];
+    let view = BlobView::parse(blob).unwrap();
+    assert!(view.clusters() >= 2, "piecewise: {} clusters", view.clusters());
+    let points = c.measure(4).unwrap();
+    assert_eq!(points.len(), 4 * PIXELS);
+    assert!(points.iter().all(|p| p.values.iter().all(|v| *v >= 0.0)), "a negative value");
+    assert!(points.iter().all(|p| p.readings[0].is_finite()), "a gloss reading not a number");
+    let flagged = points.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
+    assert!(flagged * 10 <= points.len(), "{flagged} of {} points flagged out of prior", points.len());
+}
+
+#[test]
 fn qemu_refuses_bad_blobs_and_frames_and_keeps_measuring_with_its_calibration() {
     let q = start(Duration::from_secs(240));
     let mut c = connect(&q);
