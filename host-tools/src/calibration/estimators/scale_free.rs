@@ -89,10 +89,11 @@ use rand_distr::{Distribution, Normal};
 
 /// Relative ridges tried by cross-validation.
 pub const RIDGES: [f64; 7] = [1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1];
-/// Cluster counts tried for the piecewise form: up to the most whose
-/// matrices the product's calibration slot holds for its 16 zones (6: 273
-/// KB of the 320 KiB slot on the handheld; 7 would leave no margin).
-/// Which one a calibration takes: [`guarded_count`].
+/// Cluster counts tried for the piecewise form: up to 6, which the product's
+/// calibration slot holds for the handheld's 16 zones with room to spare
+/// (273 KB of the 320 KiB; 7 would take about 318 KB). Which one a
+/// calibration takes: [`guarded_count`], among those whose blob the device's
+/// slot takes (`calibration::train::TrainSpec::max_blob_len`).
 pub const CLUSTER_COUNTS: [usize; 5] = [2, 3, 4, 5, 6];
 
 /// Default false-alarm rate of the out-of-prior flag on held-out prior samples.
