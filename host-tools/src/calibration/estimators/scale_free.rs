@@ -628,7 +628,7 @@ pub fn cross_validate(pairs: &Pairs, opts: &ScaleFreeOptions, clusters: usize) -
 
 /// The mean peak-normalised error, over the prior's own weights, of every
 /// pair read by a fit (at `ridge` and `clusters`) without its kind of
-/// material: the folds of [`shape_folds`], each holding out one group of
+/// material: the folds of `shape_folds`, each holding out one group of
 /// samples alike in the shape of their readings. What guards the cluster
 /// count ([`guarded_count`]).
 pub fn kind_held_out_error(pairs: &Pairs, opts: &ScaleFreeOptions, ridge: f64, clusters: usize) -> anyhow::Result<f64> {
