@@ -191,6 +191,8 @@ fn the_cluster_count_chosen_is_one_the_devices_slot_takes() {
     let fitted = train(&TrainSpec { max_blob_len: room, ..s.spec() }).unwrap();
     assert!(fitted.clusters < full.clusters && fitted.clusters >= 2, "{} clusters", fitted.clusters);
     assert!(fitted.blob.len() <= room, "{} bytes for {room}", fitted.blob.len());
+    assert!(full.slot_refused.is_empty());
+    assert_eq!(fitted.slot_refused.first(), Some(&(6, full.blob.len())), "the count the slot refused, said");
     let fixed = train(&TrainSpec { max_blob_len: room, clusters: Some(6), ..s.spec() }).unwrap();
     assert_eq!((fixed.clusters, fixed.blob.len()), (6, full.blob.len()));
 }

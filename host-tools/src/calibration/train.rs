@@ -208,6 +208,10 @@ pub struct Trained {
     pub out_of_prior_threshold: Option<f32>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
+    /// Cluster counts chosen first whose blob the slot would not take
+    /// (`TrainSpec::max_blob_len`), with their blob's length in bytes: the
+    /// count was chosen again among fewer.
+    pub slot_refused: Vec<(usize, usize)>,
 }
 
 /// Every zone's sample pairs: of the prior, and of the gloss standards the
@@ -262,15 +266,18 @@ pub fn train(spec: &TrainSpec<'_>) -> anyhow::Result<Trained> {
 /// be a subset of `spec.prior`'s samples).
 pub fn train_on(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs) -> anyhow::Result<Trained> {
     let mut most = usize::MAX;
+    let mut refused = Vec::new();
     loop {
-        let t = train_counts(spec, zone_pairs, most)?;
+        let mut t = train_counts(spec, zone_pairs, most)?;
         // A count chosen here whose blob the slot does not take: chosen
         // again among fewer (the pairs are kept; only the maps are fitted
         // again).
         let chosen = spec.clusters.is_none() && spec.estimator == EstimatorKind::ScaleFreePiecewise;
         if t.blob.len() <= spec.max_blob_len || !chosen || t.clusters <= 2 {
+            t.slot_refused = refused;
             return Ok(t);
         }
+        refused.push((t.clusters, t.blob.len()));
         most = t.clusters - 1;
     }
 }
@@ -389,6 +396,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         f32_exponents,
         out_of_prior_threshold: threshold.map(|t| t.0),
         blob,
+        slot_refused: Vec::new(),
     })
 }
 

@@ -365,6 +365,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
+    for (k, len) in &trained.slot_refused {
+        println!(
+            "{k} clusters would make a blob of {len} bytes, more than the board's calibration slot takes ({} bytes): the count was chosen among fewer",
+            crate::calibration::train::board_blob_capacity()
+        );
+    }
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
     } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {
