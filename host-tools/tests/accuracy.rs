@@ -97,6 +97,7 @@ fn measured_materials_in_the_prior_are_read_by_calibrations_trained_without_them
     let fams = vec![TestFamily::measured("merl", &set, spectral).at_most(6)];
     let r = evaluate(&["--estimator", "scale-free", "--prior", "merl", "--form", "linear"], &fams, 0.02);
     assert_eq!((r.folds, r.trainings), (5, 5), "every surface a prior sample: folds only");
+    assert_eq!(r.clusters, vec![1; 5], "each calibration's matrices per zone, reported (one: not piecewise)");
     assert_eq!(r.families[0].in_training, 6);
     assert!(r.materials.iter().all(|m| m.fold.is_some()));
 }
@@ -206,6 +207,7 @@ fn every_fold_keeps_the_black_glass_so_the_polished_standards_read_on_its_scale(
     // misreading of the glass (the polished standards by about half).
     let fams = vec![TestFamily::gloss_standards()];
     let r = evaluate(&[], &fams, 0.02);
+    assert!(r.clusters.iter().all(|k| (2..=6).contains(k)), "piecewise, each its own count: {:?}", r.clusters);
     let n = fams[0].materials.len();
     assert_eq!(r.families[0].in_training, n - 1, "{}", r.families[0].protocol);
     assert!(r.families[0].protocol.contains("black glass"), "{}", r.families[0].protocol);

@@ -118,10 +118,11 @@ pub fn run(
     let plan = plan(&membership, cfg.folds, cfg.seed);
     progress("sample pairs of the prior and the standards");
     let all = ZonePairs::build(spec);
-    let mut blobs = Vec::with_capacity(plan.calibrations.len());
+    let (mut blobs, mut clusters) = (Vec::with_capacity(plan.calibrations.len()), Vec::new());
     for held in &plan.calibrations {
         progress(&format!("training {}", held.label(plan.folds)));
         let t = train_on(spec, &held.pairs(&all)).with_context(|| format!("training {}", held.label(plan.folds)))?;
+        clusters.push(t.clusters);
         blobs.push(t.blob);
     }
     let centres = inst.centre_angles_deg();
@@ -162,6 +163,7 @@ pub fn run(
         folds: plan.folds,
         seed: cfg.seed,
         trainings: plan.calibrations.len(),
+        clusters,
         families: protocols,
         rows,
         materials,

@@ -146,6 +146,9 @@ pub struct Report {
     pub seed: u64,
     /// Calibrations trained.
     pub trainings: usize,
+    /// Each calibration's matrices per zone (the piecewise kind's cluster
+    /// count, chosen in each training; 1 for the other kinds).
+    pub clusters: Vec<usize>,
     /// How each family was held out.
     pub families: Vec<FamilyProtocol>,
     /// Per family, the estimator's row then interpolation's.
@@ -175,12 +178,13 @@ impl Report {
     pub fn tables(&self) -> String {
         let mut s = String::new();
         s += &format!(
-            "Calibration: {}\nReadings: patent-profile optics, {} % proportional noise, {} draw(s) per surface, seed {}; {} calibration(s) trained\n\n",
+            "Calibration: {}\nReadings: patent-profile optics, {} % proportional noise, {} draw(s) per surface, seed {}; {} calibration(s) trained, matrices per zone (K) {}\n\n",
             self.calibration,
             100.0 * self.noise_rel,
             self.draws,
             self.seed,
-            self.trainings
+            self.trainings,
+            self.clusters.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")
         );
         for f in &self.families {
             s += &format!("- {} ({} surfaces, {}): {}\n", f.family, f.materials, f.source, f.protocol);
