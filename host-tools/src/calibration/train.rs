@@ -449,7 +449,7 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs], most: usize) -> anyho
     );
     let piecewise = spec.estimator == EstimatorKind::ScaleFreePiecewise;
     let opts = ScaleFreeOptions { piecewise, false_alarm: spec.false_alarm, root: spec.root, ..Default::default() };
-    // Per zone and cluster count: the best ridge and its error.
+    // The counts tried: scored per zone, the ridge with them.
     let counts: Vec<usize> = match (piecewise, spec.clusters) {
         (false, _) => vec![1],
         (true, Some(k)) => {
@@ -463,49 +463,24 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs], most: usize) -> anyho
         (true, None) => scale_free::CLUSTER_COUNTS.iter().copied().filter(|k| *k <= most.max(2)).collect(),
     };
     use rayon::prelude::*;
-    let cv: Vec<Vec<(f64, f64)>> = pairs
+    let scores: Vec<Vec<scale_free::CountScore>> = pairs
         .par_iter()
         .enumerate()
         .map(|(z, p)| {
-            counts
-                .iter()
-                .map(|&k| {
-                    scale_free::cross_validate(p, &opts, k)
-                        .with_context(|| format!("zone {z}: cross-validating the scale-free estimator"))
-                })
-                .collect::<anyhow::Result<Vec<_>>>()
+            scale_free::score_counts(p, &opts, &counts)
+                .with_context(|| format!("zone {z}: cross-validating the scale-free estimator"))
         })
         .collect::<anyhow::Result<_>>()?;
     // The count: the most accurate on random folds of those that read kinds
     // of material held out whole no worse than the fewest clusters do,
-    // summed over the zones (`scale_free::guarded_count`).
-    let best = if counts.len() > 1 {
-        let kinds: Vec<Vec<f64>> = pairs
-            .par_iter()
-            .zip(&cv)
-            .enumerate()
-            .map(|(z, (p, c))| {
-                counts
-                    .iter()
-                    .zip(c)
-                    .map(|(&k, &(ridge, _))| {
-                        scale_free::kind_held_out_error(p, &opts, ridge, k)
-                            .with_context(|| format!("zone {z}: {k} clusters on kinds of material held out"))
-                    })
-                    .collect::<anyhow::Result<Vec<_>>>()
-            })
-            .collect::<anyhow::Result<_>>()?;
-        let random: Vec<Vec<f64>> = cv.iter().map(|z| z.iter().map(|x| x.1).collect()).collect();
-        scale_free::guarded_count(&random, &kinds)
-    } else {
-        0
-    };
+    // summed over the zones.
+    let best = scale_free::guarded_count(&scores);
     let mut trained: Vec<ScaleFreeZone> = pairs
         .par_iter()
-        .zip(&cv)
+        .zip(&scores)
         .enumerate()
         .map(|(z, (p, c))| {
-            scale_free::train_with(p, &opts, c[best].0, counts[best], c[best].1)
+            scale_free::train_with(p, &opts, c[best].ridge, counts[best], c[best].random)
                 .with_context(|| format!("zone {z}: training the scale-free estimator"))
         })
         .collect::<anyhow::Result<_>>()?;

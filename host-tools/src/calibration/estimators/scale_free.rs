@@ -608,44 +608,58 @@ impl CrossValidation {
     }
 }
 
-/// Cross-validated error of each candidate ridge with `clusters` clusters:
-/// the best `(ridge, error)`.
-pub fn cross_validate(pairs: &Pairs, opts: &ScaleFreeOptions, clusters: usize) -> anyhow::Result<(f64, f64)> {
-    check_pairs(pairs)?;
-    let nz = normalise_truth(pairs, opts)?;
-    let cv = CrossValidation::new(pairs, opts.seed);
-    let mut best = (RIDGES[0], f64::INFINITY);
-    for &ridge in &RIDGES {
-        if let Some(e) = cv.error(pairs, &nz, opts, ridge, clusters)
-            && e < best.1
-        {
-            best = (ridge, e);
-        }
-    }
-    ensure!(best.1.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
-    Ok(best)
+/// One zone's score of one cluster count ([`score_counts`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CountScore {
+    /// The ridge cross-validation on random folds chose.
+    pub ridge: f64,
+    /// Its mean peak-normalised error on random folds.
+    pub random: f64,
+    /// At that ridge, the error with each kind of material held out whole
+    /// (the folds of `shape_folds`, each one group of samples alike in the
+    /// shape of their readings): what guards the count
+    /// ([`guarded_count`]). NaN when only one count is scored.
+    pub kinds: f64,
 }
 
-/// The mean peak-normalised error, over the prior's own weights, of every
-/// pair read by a fit (at `ridge` and `clusters`) without its kind of
-/// material: the folds of `shape_folds`, each holding out one group of
-/// samples alike in the shape of their readings. What guards the cluster
-/// count ([`guarded_count`]).
-pub fn kind_held_out_error(pairs: &Pairs, opts: &ScaleFreeOptions, ridge: f64, clusters: usize) -> anyhow::Result<f64> {
+/// Scores each of `counts` on one zone's pairs: per count, the best ridge
+/// of [`RIDGES`] on random folds and its error, and when more than one
+/// count is scored, that fit's error on kinds of material held out whole.
+/// The noise draws and both sets of folds are made once, for every count.
+pub fn score_counts(pairs: &Pairs, opts: &ScaleFreeOptions, counts: &[usize]) -> anyhow::Result<Vec<CountScore>> {
     check_pairs(pairs)?;
     let nz = normalise_truth(pairs, opts)?;
     let mut cv = CrossValidation::new(pairs, opts.seed);
-    cv.fold = shape_folds(pairs, &nz, opts.seed);
-    cv.error(pairs, &nz, opts, ridge, clusters)
-        .context("no fit of the prior without one of its kinds of material is positive-definite")
+    let kinds = (counts.len() > 1).then(|| shape_folds(pairs, &nz, opts.seed));
+    let mut out = Vec::with_capacity(counts.len());
+    for &clusters in counts {
+        let mut best = (RIDGES[0], f64::INFINITY);
+        for &ridge in &RIDGES {
+            if let Some(e) = cv.error(pairs, &nz, opts, ridge, clusters)
+                && e < best.1
+            {
+                best = (ridge, e);
+            }
+        }
+        ensure!(best.1.is_finite(), "no ridge gives a positive-definite system; the prior is degenerate");
+        let kinds_error = match &kinds {
+            Some(folds) => {
+                let random = std::mem::replace(&mut cv.fold, folds.clone());
+                let e = cv.error(pairs, &nz, opts, best.0, clusters);
+                cv.fold = random;
+                e.context("no fit of the prior without one of its kinds of material is positive-definite")?
+            }
+            None => f64::NAN,
+        };
+        out.push(CountScore { ridge: best.0, random: best.1, kinds: kinds_error });
+    }
+    Ok(out)
 }
 
-/// Which of the cluster counts tried (`CLUSTER_COUNTS`, the first the
-/// fewest) a calibration takes, from each zone's errors per count on random
-/// folds (`random`, [`cross_validate`]) and on kinds of material held out
-/// whole (`kinds`, [`kind_held_out_error`]), both summed over the zones:
-/// the least error on random folds among the counts that read the kinds
-/// held out no worse than the fewest clusters do.
+/// Which of the cluster counts scored (per zone, [`score_counts`]; the
+/// first the fewest) a calibration takes, both errors summed over the
+/// zones: the least error on random folds among the counts that read the
+/// kinds of material held out whole no worse than the fewest clusters do.
 ///
 /// Random folds leave a near twin of every held-out sample in training, so
 /// their error keeps falling as clusters are added (on the patent profile
@@ -660,12 +674,12 @@ pub fn kind_held_out_error(pairs: &Pairs, opts: &ScaleFreeOptions, ridge: f64, c
 /// taken. The kinds' error alone is no ranking: dominated by one group
 /// holding out up to half the prior, it swung between 3 and 4 from one
 /// held-out fold of `pixel-map` to the next.
-pub fn guarded_count(random: &[Vec<f64>], kinds: &[Vec<f64>]) -> usize {
-    let sum = |per_zone: &[Vec<f64>], c: usize| per_zone.iter().map(|z| z[c]).sum::<f64>();
-    let counts = random.first().map_or(0, Vec::len);
+pub fn guarded_count(per_zone: &[Vec<CountScore>]) -> usize {
+    let sum = |c: usize, of: fn(&CountScore) -> f64| per_zone.iter().map(|z| of(&z[c])).sum::<f64>();
+    let counts = per_zone.first().map_or(0, Vec::len);
     (0..counts)
-        .filter(|&c| sum(kinds, c) <= sum(kinds, 0))
-        .min_by(|a, b| sum(random, *a).total_cmp(&sum(random, *b)))
+        .filter(|&c| sum(c, |s| s.kinds) <= sum(0, |s| s.kinds))
+        .min_by(|a, b| sum(*a, |s| s.random).total_cmp(&sum(*b, |s| s.random)))
         .unwrap_or(0)
 }
 
@@ -694,24 +708,13 @@ pub fn train_pairs(pairs: &Pairs, opts: &ScaleFreeOptions) -> anyhow::Result<Sca
         (true, Some(k)) => vec![k],
         (true, None) => CLUSTER_COUNTS.to_vec(),
     };
-    let scored: Vec<(f64, f64)> =
-        clusters.iter().map(|&kc| cross_validate(pairs, opts, kc)).collect::<anyhow::Result<_>>()?;
-    let best = if clusters.len() > 1 {
-        let kinds = clusters
-            .iter()
-            .zip(&scored)
-            .map(|(&kc, &(ridge, _))| kind_held_out_error(pairs, opts, ridge, kc))
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        guarded_count(&[scored.iter().map(|x| x.1).collect()], &[kinds])
-    } else {
-        0
-    };
-    let (ridge, cv_error) = scored[best];
-    train_with(pairs, opts, ridge, clusters[best], cv_error)
+    let scored = score_counts(pairs, opts, &clusters)?;
+    let best = guarded_count(std::slice::from_ref(&scored));
+    train_with(pairs, opts, scored[best].ridge, clusters[best], scored[best].random)
 }
 
 /// Trains one zone with a given ridge and cluster count (chosen by
-/// [`cross_validate`]); `cv_error` is recorded.
+/// [`score_counts`]); `cv_error` is recorded.
 pub fn train_with(
     pairs: &Pairs,
     opts: &ScaleFreeOptions,
@@ -1023,17 +1026,14 @@ mod tests {
         let noise = ReadingNoise::relative(0.02, h.nrows());
         let pairs = Pairs::in_plane(&h, &prior.samples, &prior.weights, &noise);
         let opts = ScaleFreeOptions { piecewise: true, ..Default::default() };
-        let (mut random, mut kinds) = (Vec::new(), Vec::new());
-        for &k in &CLUSTER_COUNTS {
-            let (ridge, r) = cross_validate(&pairs, &opts, k).unwrap();
-            let kind = kind_held_out_error(&pairs, &opts, ridge, k).unwrap();
+        let scored = score_counts(&pairs, &opts, &CLUSTER_COUNTS).unwrap();
+        let (random, kinds): (Vec<f64>, Vec<f64>) = scored.iter().map(|s| (s.random, s.kinds)).unzip();
+        for (k, (r, kind)) in CLUSTER_COUNTS.iter().zip(random.iter().zip(&kinds)) {
             // A kind held out whole has no near twin left in training.
             assert!(kind > r, "{k} clusters: kinds held out {kind}, random folds {r}");
-            random.push(r);
-            kinds.push(kind);
         }
         let z = train_pairs(&pairs, &opts).unwrap();
-        let c = guarded_count(&[random.clone()], &[kinds.clone()]);
+        let c = guarded_count(std::slice::from_ref(&scored));
         assert_eq!(z.maps.len(), CLUSTER_COUNTS[c]);
         assert!(kinds[c] <= kinds[0]);
         for (i, (r, k)) in random.iter().zip(&kinds).enumerate() {
@@ -1049,13 +1049,22 @@ mod tests {
     fn the_guarded_count_sums_the_zones_and_drops_counts_that_read_kinds_held_out_worse() {
         // Random folds prefer the most clusters; kinds held out say the
         // last count extrapolates worse than the first: the middle one.
-        let random = [vec![0.05, 0.04, 0.03], vec![0.05, 0.04, 0.03]];
-        assert_eq!(guarded_count(&random, &[vec![0.25, 0.125, 0.5], vec![0.25, 0.25, 0.25]]), 1);
+        let zones = |random: &[&[f64]], kinds: &[&[f64]]| -> Vec<Vec<CountScore>> {
+            random
+                .iter()
+                .zip(kinds)
+                .map(|(r, k)| {
+                    r.iter().zip(*k).map(|(r, k)| CountScore { ridge: 1e-8, random: *r, kinds: *k }).collect()
+                })
+                .collect()
+        };
+        let random: [&[f64]; 2] = [&[0.05, 0.04, 0.03], &[0.05, 0.04, 0.03]];
+        assert_eq!(guarded_count(&zones(&random, &[&[0.25, 0.125, 0.5], &[0.25, 0.25, 0.25]])), 1);
         // Summed over the zones, the last one reads kinds as well as the first.
-        assert_eq!(guarded_count(&random, &[vec![0.25, 0.25, 0.5], vec![0.25, 0.25, 0.0]]), 2);
+        assert_eq!(guarded_count(&zones(&random, &[&[0.25, 0.25, 0.5], &[0.25, 0.25, 0.0]])), 2);
         // Nothing better on random folds than the fewest: the fewest.
-        assert_eq!(guarded_count(&[vec![0.02, 0.04]], &[vec![0.3, 0.1]]), 0);
-        assert_eq!(guarded_count(&[], &[]), 0);
+        assert_eq!(guarded_count(&zones(&[&[0.02, 0.04]], &[&[0.3, 0.1]])), 0);
+        assert_eq!(guarded_count(&[]), 0);
     }
 
     #[test]
