@@ -206,6 +206,9 @@ pub struct Trained {
     pub f32_exponents: Vec<Vec<i32>>,
     /// The out-of-prior threshold (scale-free kinds), or `None`.
     pub out_of_prior_threshold: Option<f32>,
+    /// What the flag is worth on kinds of material held out of training,
+    /// over every zone (root-form scale-free kinds), or `None`.
+    pub flag_on_kinds: Option<crate::calibration::estimators::out_of_prior::FlagOnKinds>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
     /// Cluster counts chosen first whose blob the slot would not take
@@ -386,6 +389,11 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
+    let flag_on_kinds = (spec.root && threshold.is_some()).then(|| {
+        crate::calibration::estimators::out_of_prior::flag_on_kinds(
+            zones.iter().filter_map(|z| z.scale_free()).map(|s| &s.out_of_prior),
+        )
+    });
     Ok(Trained {
         dims,
         bins_deg: spec.bins_deg.to_vec(),
@@ -395,6 +403,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         f32_rel_error,
         f32_exponents,
         out_of_prior_threshold: threshold.map(|t| t.0),
+        flag_on_kinds,
         blob,
         slot_refused: Vec::new(),
     })

@@ -365,6 +365,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
+    if let Some(f) = trained.flag_on_kinds.filter(|f| f.readings > 0) {
+        println!("{}", f.note());
+    }
     for (k, len) in &trained.slot_refused {
         println!(
             "{k} clusters would make a blob of {len} bytes, more than the board's calibration slot takes ({} bytes): the count was chosen among fewer",

@@ -762,8 +762,9 @@ pub fn train_with(
             &mut fitted,
             &flagged,
         )?;
-        for (o, r) in out_of_prior_forms.iter_mut().zip(ratios) {
+        for (o, (r, on_kinds)) in out_of_prior_forms.iter_mut().zip(ratios) {
             o.band_ratios = r;
+            o.on_kinds = on_kinds;
         }
     }
     let mut zone = ScaleFreeZone {
@@ -780,8 +781,9 @@ pub fn train_with(
 }
 
 /// One held-out reading: (cluster, weight, per bin the smallest unit
-/// uncertainty that covers its error, [`covering_unit`], its pair and draw).
-type HeldOutRoot = (usize, f64, DVector<f64>, (usize, usize));
+/// uncertainty that covers its error, [`covering_unit`], its pair and draw,
+/// its peak-normalised error).
+type HeldOutRoot = (usize, f64, DVector<f64>, (usize, usize), f64);
 
 /// The smallest uncertainty per unit scale `sigma` whose stated
 /// uncertainty `root_uncertainty(sigma, est, s)` covers the error `e` at
@@ -804,7 +806,8 @@ fn covering_unit(est: f64, e: f64, s: f64) -> f64 {
 /// Returns, per out-of-prior form, the evidence for a flagged point's
 /// band (`out_of_prior::band_factor`): for each held-out reading in that
 /// form's `flagged` (pair, draw), per bin, its covering unit over the
-/// band's, with its weight shared over the bins.
+/// band's, with its weight shared over the bins; and how that form's flag
+/// did on the same readings ([`out_of_prior::FlagOnKinds`]).
 #[allow(clippy::too_many_arguments)]
 fn held_out_uncertainty(
     pairs: &Pairs,
@@ -815,7 +818,7 @@ fn held_out_uncertainty(
     clusters: usize,
     fitted: &mut Fitted,
     flagged: &[Vec<(usize, usize)>; 2],
-) -> anyhow::Result<[Vec<(f64, f64)>; 2]> {
+) -> anyhow::Result<[(Vec<(f64, f64)>, out_of_prior::FlagOnKinds); 2]> {
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
@@ -823,7 +826,7 @@ fn held_out_uncertainty(
         let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| fold[*k] != f).collect();
         let fold_fit = fit(nz, &train_idx, seed, ridge, clusters, true)?;
         for k in (0..pairs.len()).filter(|k| fold[*k] == f) {
-            let truth = pairs.truth.column(k);
+            let truth = pairs.truth.column(k).into_owned();
             for (d, v) in readings[k].iter().enumerate() {
                 let s: f64 = v.iter().sum();
                 if s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
@@ -831,7 +834,8 @@ fn held_out_uncertainty(
                 }
                 let est = fold_fit.estimate(v);
                 let unit = DVector::from_fn(n, |j, _| covering_unit(est[j], (est[j] - truth[j]).abs(), s));
-                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d)));
+                let error = peak_error(&est, &truth);
+                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d), error));
             }
         }
     }
@@ -856,17 +860,23 @@ fn held_out_uncertainty(
     }
     // A bin whose band is zero cannot be widened by a factor: it gives no
     // evidence for one.
-    let ratios = |flagged: &[(usize, usize)]| -> Vec<(f64, f64)> {
+    let evidence = |flagged: &[(usize, usize)]| {
         let flagged: std::collections::HashSet<(usize, usize)> = flagged.iter().copied().collect();
-        held.iter()
+        let ratios = held
+            .iter()
             .filter(|h| flagged.contains(&h.3))
             .flat_map(|h| {
                 let band = &fitted.maps[h.0].sigma_unit;
                 (0..n).filter(|&j| band[j] > 0.0).map(move |j| (h.2[j] / band[j], h.1 / n as f64))
             })
-            .collect()
+            .collect();
+        let mut on_kinds = out_of_prior::FlagOnKinds::default();
+        for h in &held {
+            on_kinds.add(h.1, h.4, flagged.contains(&h.3));
+        }
+        (ratios, on_kinds)
     };
-    Ok([ratios(&flagged[0]), ratios(&flagged[1])])
+    Ok([evidence(&flagged[0]), evidence(&flagged[1])])
 }
 
 /// Trains one zone of in-plane optics `h` on samples on the grid (the

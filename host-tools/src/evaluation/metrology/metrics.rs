@@ -29,7 +29,7 @@ pub const IMPOSSIBLE: f64 = -0.01;
 /// near-mirror surfaces above it.
 pub const GLOSS_SPLIT_GU: f64 = 300.0;
 /// An estimate worse than this (RMS over bins / truth's peak) should be flagged.
-pub const BAD_ERROR: f64 = 0.10;
+pub const BAD_ERROR: f64 = crate::calibration::estimators::out_of_prior::BAD_ESTIMATE;
 /// The coverage factor of the stated uncertainties checked (the GUM's ~95 %).
 pub const K: f64 = 2.0;
 

@@ -40,6 +40,7 @@ use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use anyhow::{Context, ensure};
+use brdf_meter::blob::BlobView;
 use families::TestFamily;
 use folds::{Membership, matching, plan};
 use metrics::Tally;
@@ -118,11 +119,14 @@ pub fn run(
     let plan = plan(&membership, cfg.folds, cfg.seed);
     progress("sample pairs of the prior and the standards");
     let all = ZonePairs::build(spec);
-    let (mut blobs, mut clusters) = (Vec::with_capacity(plan.calibrations.len()), Vec::new());
+    let (mut blobs, mut clusters, mut flag_forms) =
+        (Vec::with_capacity(plan.calibrations.len()), Vec::new(), Vec::new());
     for held in &plan.calibrations {
         progress(&format!("training {}", held.label(plan.folds)));
         let t = train_on(spec, &held.pairs(&all)).with_context(|| format!("training {}", held.label(plan.folds)))?;
         clusters.push(t.clusters);
+        let view = BlobView::parse(&t.blob).map_err(|e| anyhow::anyhow!("the trained blob does not parse: {e}"))?;
+        flag_forms.push(view.out_of_prior_form().map_or("none", |f| f.name()).to_string());
         blobs.push(t.blob);
     }
     let centres = inst.centre_angles_deg();
@@ -164,6 +168,7 @@ pub fn run(
         seed: cfg.seed,
         trainings: plan.calibrations.len(),
         clusters,
+        flag_forms,
         families: protocols,
         rows,
         materials,

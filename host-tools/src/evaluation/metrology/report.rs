@@ -149,6 +149,9 @@ pub struct Report {
     /// Each calibration's matrices per zone (the piecewise kind's cluster
     /// count, chosen in each training; 1 for the other kinds).
     pub clusters: Vec<usize>,
+    /// Each calibration's out-of-prior statistic (`linear`, `log-ratio`,
+    /// or `none` for a kind without the flag), chosen in each training.
+    pub flag_forms: Vec<String>,
     /// How each family was held out.
     pub families: Vec<FamilyProtocol>,
     /// Per family, the estimator's row then interpolation's.
@@ -178,13 +181,14 @@ impl Report {
     pub fn tables(&self) -> String {
         let mut s = String::new();
         s += &format!(
-            "Calibration: {}\nReadings: patent-profile optics, {} % proportional noise, {} draw(s) per surface, seed {}; {} calibration(s) trained, matrices per zone (K) {}\n\n",
+            "Calibration: {}\nReadings: patent-profile optics, {} % proportional noise, {} draw(s) per surface, seed {}; {} calibration(s) trained, matrices per zone (K) {}; flag statistic {}\n\n",
             self.calibration,
             100.0 * self.noise_rel,
             self.draws,
             self.seed,
             self.trainings,
-            self.clusters.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")
+            self.clusters.iter().map(usize::to_string).collect::<Vec<_>>().join(", "),
+            self.flag_forms.join(", ")
         );
         for f in &self.families {
             s += &format!("- {} ({} surfaces, {}): {}\n", f.family, f.materials, f.source, f.protocol);
