@@ -149,6 +149,10 @@ fn scale_free_kind(kind: EstimatorKind) -> bool {
 
 /// One zone's trained estimator.
 #[derive(Clone, Debug)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a calibration holds at most a few dozen zones, and both variants' matrices are on the heap"
+)]
 pub enum ZoneEstimator {
     /// `rho = W v`.
     Linear(LinearEstimator),

@@ -780,6 +780,10 @@ pub fn train_with(
     Ok(zone)
 }
 
+/// What one out-of-prior form's flag did on the kinds held out whole: the
+/// band-factor evidence (`OutOfPrior::band_ratios`) and its score.
+type KindsEvidence = (Vec<(f64, f64)>, out_of_prior::FlagOnKinds);
+
 /// One held-out reading: (cluster, weight, per bin the smallest unit
 /// uncertainty that covers its error, [`covering_unit`], its pair and draw,
 /// its peak-normalised error).
@@ -818,7 +822,7 @@ fn held_out_uncertainty(
     clusters: usize,
     fitted: &mut Fitted,
     flagged: &[Vec<(usize, usize)>; 2],
-) -> anyhow::Result<[(Vec<(f64, f64)>, out_of_prior::FlagOnKinds); 2]> {
+) -> anyhow::Result<[KindsEvidence; 2]> {
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
