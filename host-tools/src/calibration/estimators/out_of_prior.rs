@@ -40,6 +40,93 @@ pub const FOLDED_THRESHOLD: f32 = 1.0;
 /// ([`FlagOnKinds`]) as in every evaluation.
 pub const BAD_ESTIMATE: f64 = 0.10;
 
+/// Whether a flag predicts error: estimates worse than [`BAD_ESTIMATE`] of
+/// their truth's peak and the rest, each counted (`usize`: an evaluation's
+/// estimates) or weighed (`f64`: training's held-out readings by the
+/// prior's weights), and how much of each was flagged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FlagScore<T = usize> {
+    /// Estimates worse than [`BAD_ESTIMATE`].
+    pub bad: T,
+    /// Of them, flagged out of prior.
+    pub bad_flagged: T,
+    /// The other estimates.
+    pub good: T,
+    /// Of them, flagged out of prior (false alarms).
+    pub good_flagged: T,
+}
+
+/// What a [`FlagScore`] tallies: counts or weights.
+pub trait Tally: Copy + Default + std::ops::Add<Output = Self> {
+    /// As a real number, for shares.
+    fn real(self) -> f64;
+}
+
+impl Tally for usize {
+    fn real(self) -> f64 {
+        self as f64
+    }
+}
+
+impl Tally for f64 {
+    fn real(self) -> f64 {
+        self
+    }
+}
+
+/// `part / whole`, NaN when there is no whole.
+fn share<T: Tally>(part: T, whole: T) -> f64 {
+    if whole.real() > 0.0 { part.real() / whole.real() } else { f64::NAN }
+}
+
+impl<T: Tally> FlagScore<T> {
+    /// Tallies one estimate of weight `w` and BRDF error `error` (over its
+    /// truth's peak).
+    pub fn add_weighted(&mut self, w: T, error: f64, flagged: bool) {
+        let (all, raised) = if error > BAD_ESTIMATE {
+            (&mut self.bad, &mut self.bad_flagged)
+        } else {
+            (&mut self.good, &mut self.good_flagged)
+        };
+        *all = *all + w;
+        if flagged {
+            *raised = *raised + w;
+        }
+    }
+
+    /// Both tallies summed.
+    pub fn merged(self, o: Self) -> Self {
+        Self {
+            bad: self.bad + o.bad,
+            bad_flagged: self.bad_flagged + o.bad_flagged,
+            good: self.good + o.good,
+            good_flagged: self.good_flagged + o.good_flagged,
+        }
+    }
+
+    /// Share of the bad estimates flagged (NaN with none).
+    pub fn caught(&self) -> f64 {
+        share(self.bad_flagged, self.bad)
+    }
+
+    /// Share of the other estimates flagged (NaN with none).
+    pub fn false_alarms(&self) -> f64 {
+        share(self.good_flagged, self.good)
+    }
+
+    /// Share of all the estimates that are bad (NaN with none).
+    pub fn bad_share(&self) -> f64 {
+        share(self.bad, self.bad + self.good)
+    }
+}
+
+impl FlagScore<usize> {
+    /// Counts one estimate of BRDF error `error` (over its truth's peak).
+    pub fn add(&mut self, error: f64, flagged: bool) {
+        self.add_weighted(1, error, flagged);
+    }
+}
+
 /// What the flag is worth on kinds of material the calibration never saw,
 /// measured in training: each kind of the prior held out whole (the band's
 /// folds), its readings estimated by the fit without it and scored by the
@@ -48,70 +135,42 @@ pub const BAD_ESTIMATE: f64 = 0.10;
 /// surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FlagOnKinds {
-    /// Weight of the held-out readings estimated worse than [`BAD_ESTIMATE`].
-    pub bad: f64,
-    /// Of it, flagged.
-    pub bad_flagged: f64,
-    /// Weight of the other held-out readings.
-    pub good: f64,
-    /// Of it, flagged (false alarms).
-    pub good_flagged: f64,
-    /// Readings estimated worse than [`BAD_ESTIMATE`], counted.
-    pub bad_readings: usize,
-    /// Every held-out reading, counted.
+    /// The held-out readings, weighed.
+    pub weights: FlagScore<f64>,
+    /// How many there were.
     pub readings: usize,
 }
 
 impl FlagOnKinds {
     /// Counts one held-out reading of weight `w` and error `error`.
     pub fn add(&mut self, w: f64, error: f64, flagged: bool) {
-        let f = if flagged { w } else { 0.0 };
-        if error > BAD_ESTIMATE {
-            (self.bad, self.bad_flagged, self.bad_readings) =
-                (self.bad + w, self.bad_flagged + f, self.bad_readings + 1);
-        } else {
-            (self.good, self.good_flagged) = (self.good + w, self.good_flagged + f);
-        }
+        self.weights.add_weighted(w, error, flagged);
         self.readings += 1;
     }
 
     /// Both summed (zones of one calibration).
     pub fn merged(self, o: Self) -> Self {
-        Self {
-            bad: self.bad + o.bad,
-            bad_flagged: self.bad_flagged + o.bad_flagged,
-            good: self.good + o.good,
-            good_flagged: self.good_flagged + o.good_flagged,
-            bad_readings: self.bad_readings + o.bad_readings,
-            readings: self.readings + o.readings,
-        }
+        Self { weights: self.weights.merged(o.weights), readings: self.readings + o.readings }
     }
 
-    /// Share of the bad estimates flagged (NaN with none).
-    pub fn caught(&self) -> f64 {
-        if self.bad > 0.0 { self.bad_flagged / self.bad } else { f64::NAN }
-    }
-
-    /// Share of the other estimates flagged (NaN with none).
-    pub fn false_alarms(&self) -> f64 {
-        if self.good > 0.0 { self.good_flagged / self.good } else { f64::NAN }
-    }
-
-    /// Share of the held-out weight estimated badly (NaN with none).
-    pub fn bad_share(&self) -> f64 {
-        let all = self.bad + self.good;
-        if all > 0.0 { self.bad / all } else { f64::NAN }
+    /// Youden's J: the share of the bad caught less the share of the rest
+    /// raised (0 when either is unknown): above 0, the flag tells them
+    /// apart better than one that knew nothing.
+    pub fn youden(&self) -> f64 {
+        let j = self.weights.caught() - self.weights.false_alarms();
+        if j.is_finite() { j } else { 0.0 }
     }
 
     /// One line for a user: what the flag caught and raised in vain.
     pub fn note(&self) -> String {
         let pct = |x: f64| if x.is_finite() { format!("{:.0} %", 100.0 * x) } else { "-".into() };
+        let w = &self.weights;
         format!(
             "the flag on kinds of material held out of training ({} readings, each kind read by a fit without it): {} of them read worse than {BAD_ESTIMATE} of their peak; it caught {} of those and was raised on {} of the rest (a flag that knew nothing would catch as many as it raises)",
             self.readings,
-            pct(self.bad_share()),
-            pct(self.caught()),
-            pct(self.false_alarms()),
+            pct(w.bad_share()),
+            pct(w.caught()),
+            pct(w.false_alarms()),
         )
     }
 }
@@ -298,11 +357,7 @@ pub fn choose_form<'a>(zones: impl IntoIterator<Item = &'a [OutOfPrior; 2]>) -> 
             kinds[i] = kinds[i].merged(o.on_kinds);
         }
     }
-    let youden = |k: &FlagOnKinds| {
-        let j = k.caught() - k.false_alarms();
-        if j.is_finite() { j } else { 0.0 }
-    };
-    let (j_linear, j_log_ratio) = (youden(&kinds[0]), youden(&kinds[1]));
+    let (j_linear, j_log_ratio) = (kinds[0].youden(), kinds[1].youden());
     if j_linear.max(j_log_ratio) > 0.0 && j_linear != j_log_ratio {
         return if j_linear > j_log_ratio { OutOfPriorForm::Linear } else { OutOfPriorForm::LogRatio };
     }
@@ -416,16 +471,26 @@ mod tests {
         // Exactly BAD_ESTIMATE is not worse than it.
         a.add(0.125, BAD_ESTIMATE, true);
         a.add(0.125, 0.01, false);
-        assert_eq!((a.caught(), a.false_alarms(), a.bad_share()), (2.0 / 3.0, 0.5, 0.75));
-        assert_eq!((a.bad_readings, a.readings), (2, 4));
+        let w = a.weights;
+        assert_eq!((w.caught(), w.false_alarms(), w.bad_share(), a.readings), (2.0 / 3.0, 0.5, 0.75, 4));
+        assert_eq!(a.youden(), 2.0 / 3.0 - 0.5);
         let mut b = FlagOnKinds::default();
         b.add(1.0, 0.01, true);
         let mut zones = zone([1.0, 1.0], [0.0, 0.0]);
         zones[0].on_kinds = a;
         zones[1].on_kinds = b;
         let both = flag_on_kinds(&zones);
-        assert_eq!((both.caught(), both.false_alarms(), both.readings), (2.0 / 3.0, 1.125 / 1.25, 5));
-        assert!(FlagOnKinds::default().caught().is_nan() && b.caught().is_nan() && b.false_alarms() == 1.0);
+        assert_eq!((both.weights.caught(), both.weights.false_alarms(), both.readings), (2.0 / 3.0, 1.125 / 1.25, 5));
+        // No bad estimates: the catch is unknown, and J says nothing.
+        assert!(FlagOnKinds::default().weights.caught().is_nan() && b.weights.caught().is_nan());
+        assert_eq!((b.weights.false_alarms(), b.youden()), (1.0, 0.0));
+        // Counted estimates tally as weighed ones do.
+        let mut c = FlagScore::default();
+        for (e, f) in [(0.2, true), (0.3, false), (0.05, true), (0.01, false)] {
+            c.add(e, f);
+        }
+        assert_eq!((c.bad, c.bad_flagged, c.good, c.good_flagged), (2, 1, 2, 1));
+        assert_eq!((c.caught(), c.false_alarms(), c.bad_share()), (0.5, 0.5, 0.5));
     }
 
     #[test]
@@ -446,11 +511,7 @@ mod tests {
         // Kinds held out, 40 % bad: `caught` of the bad and `raised` of
         // the rest flagged, on two zones of equal evidence.
         let on_kinds = |caught: f64, raised: f64| FlagOnKinds {
-            bad: 0.4,
-            bad_flagged: 0.4 * caught,
-            good: 0.6,
-            good_flagged: 0.6 * raised,
-            bad_readings: 4,
+            weights: FlagScore { bad: 0.4, bad_flagged: 0.4 * caught, good: 0.6, good_flagged: 0.6 * raised },
             readings: 10,
         };
         let with = |linear: FlagOnKinds, log_ratio: FlagOnKinds| {
@@ -473,13 +534,14 @@ mod tests {
         let a = with(on_kinds(0.9, 0.1), on_kinds(0.1, 0.1));
         let mut b = with(on_kinds(0.0, 0.9), on_kinds(0.1, 0.1));
         for o in &mut b {
-            o.on_kinds = FlagOnKinds {
-                bad: 4.0 * o.on_kinds.bad,
-                bad_flagged: 4.0 * o.on_kinds.bad_flagged,
-                good: 4.0 * o.on_kinds.good,
-                good_flagged: 4.0 * o.on_kinds.good_flagged,
-                ..o.on_kinds
+            let w = o.on_kinds.weights;
+            let four = FlagScore {
+                bad: 4.0 * w.bad,
+                bad_flagged: 4.0 * w.bad_flagged,
+                good: 4.0 * w.good,
+                good_flagged: 4.0 * w.good_flagged,
             };
+            o.on_kinds.weights = four;
         }
         // Linear: caught (0.36 + 0) / 2.0 = 0.18, raised (0.06 + 2.16) / 3.0
         // = 0.74; log-ratio J 0: the random folds decide.

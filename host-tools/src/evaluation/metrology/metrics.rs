@@ -111,52 +111,7 @@ pub struct Row {
     pub peak_missed: usize,
 }
 
-/// Whether a flag predicts error: estimates worse than [`BAD_ERROR`] of
-/// their truth's peak and the rest, and how many of each are flagged.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct FlagScore {
-    /// Estimates worse than [`BAD_ERROR`].
-    pub bad: usize,
-    /// Of them, flagged out of prior.
-    pub bad_flagged: usize,
-    /// The other estimates.
-    pub good: usize,
-    /// Of them, flagged out of prior (false alarms).
-    pub good_flagged: usize,
-}
-
-impl FlagScore {
-    /// Counts one estimate of BRDF error `error` (over its truth's peak).
-    pub fn add(&mut self, error: f64, flagged: bool) {
-        if error > BAD_ERROR {
-            self.bad += 1;
-            self.bad_flagged += usize::from(flagged);
-        } else {
-            self.good += 1;
-            self.good_flagged += usize::from(flagged);
-        }
-    }
-
-    /// Both counts summed.
-    pub fn merged(self, o: Self) -> Self {
-        Self {
-            bad: self.bad + o.bad,
-            bad_flagged: self.bad_flagged + o.bad_flagged,
-            good: self.good + o.good,
-            good_flagged: self.good_flagged + o.good_flagged,
-        }
-    }
-
-    /// Share of the bad estimates flagged (NaN with none).
-    pub fn caught(&self) -> f64 {
-        if self.bad == 0 { f64::NAN } else { self.bad_flagged as f64 / self.bad as f64 }
-    }
-
-    /// Share of the other estimates flagged (NaN with none).
-    pub fn false_alarms(&self) -> f64 {
-        if self.good == 0 { f64::NAN } else { self.good_flagged as f64 / self.good as f64 }
-    }
-}
+pub use crate::calibration::estimators::out_of_prior::FlagScore;
 
 /// The running tally of one family and method.
 #[derive(Debug, Default)]
@@ -340,7 +295,9 @@ mod tests {
         assert_eq!((a.caught(), a.false_alarms()), (0.5, 0.25));
         let b = a.merged(FlagScore { bad: 2, bad_flagged: 2, good: 0, good_flagged: 0 });
         assert_eq!((b.caught(), b.false_alarms()), (0.75, 0.25));
-        assert!(FlagScore::default().caught().is_nan() && FlagScore::default().false_alarms().is_nan());
+        assert!(
+            FlagScore::<usize>::default().caught().is_nan() && FlagScore::<usize>::default().false_alarms().is_nan()
+        );
     }
 
     #[test]
