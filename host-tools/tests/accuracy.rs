@@ -98,6 +98,11 @@ fn measured_materials_in_the_prior_are_read_by_calibrations_trained_without_them
     let r = evaluate(&["--estimator", "scale-free", "--prior", "merl", "--form", "linear"], &fams, 0.02);
     assert_eq!((r.folds, r.trainings), (5, 5), "every surface a prior sample: folds only");
     assert_eq!(r.clusters, vec![1; 5], "each calibration's matrices per zone, reported (one: not piecewise)");
+    assert!(
+        r.flag_forms.len() == 5 && r.flag_forms.iter().all(|f| f == "linear" || f == "log-ratio"),
+        "each calibration's flag statistic, reported: {:?}",
+        r.flag_forms
+    );
     assert_eq!(r.families[0].in_training, 6);
     assert!(r.materials.iter().all(|m| m.fold.is_some()));
 }
