@@ -208,10 +208,20 @@ fn pixel_map_reads_every_pixel() {
     assert_eq!(f.bad + f.good, 12 * 20, "{f:?}");
     assert!(f.bad_flagged <= f.bad && f.good_flagged <= f.good, "{f:?}");
     assert_eq!(t.flag.bad + t.flag.good, 12 * t.per_tile.len() * 3, "{:?}", t.flag);
+    // Beside it, what each calibration's training chose and said of its
+    // flag: the four folds' statistics and the whole prior's, and the
+    // whole prior's score on kinds held out (the prior's weights, which
+    // sum to one over each zone's held-out readings: every zone counts
+    // alike).
+    assert_eq!(map.flag_statistics.len(), 4 + 1, "{:?}", map.flag_statistics);
+    assert!(map.flag_statistics.iter().all(|f| f == "linear" || f == "log-ratio"), "{:?}", map.flag_statistics);
+    let k = map.flag_in_training.expect("the root form's training scores its flag on kinds held out");
+    assert!((k.bad + k.good - 3.0).abs() < 1e-9 && k.bad_flagged <= k.bad && k.good_flagged <= k.good, "{k:?}");
     host_tools::evaluation::pixel_map::report::write(dir.path(), &map, 4).unwrap();
     assert!(dir.path().join("pixel-map.png").exists());
     let md = std::fs::read_to_string(dir.path().join("pixel-map.md")).unwrap();
     assert!(md.contains("| gloss, held out: relative error"), "{md}");
+    assert!(md.contains("(what `train` prints)") && md.contains("statistic of each calibration"), "{md}");
     assert!(md.contains("| gloss tiles' BRDF error / peak") && md.contains("stated uncertainty"), "{md}");
     assert!(md.contains("| out-of-prior flag, held out: of points worse than 0.10"), "{md}");
     // The unseen set: the two surfaces the truncated prior lacks are read

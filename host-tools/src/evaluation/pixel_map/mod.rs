@@ -236,6 +236,13 @@ pub struct PixelMap {
     pub bin_coverage: f64,
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
+    /// Each calibration's out-of-prior statistic as its training chose it:
+    /// the held-out folds', then the whole prior's (`none` without a flag).
+    pub flag_statistics: Vec<String>,
+    /// The whole prior's calibration's own measure of its flag in training,
+    /// on kinds of material held out whole (what `train` prints), by the
+    /// prior's weights; `None` for a kind without that evidence.
+    pub flag_in_training: Option<crate::calibration::estimators::out_of_prior::FlagScore<f64>>,
     /// The black glass: mean GU range over the pixels [min, max], the
     /// largest per-pixel spread, the line mean's spread, pixels without a
     /// reading, pixels saturated.
@@ -499,11 +506,14 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
     let mut held_out_flag = FlagScore::default();
+    let mut flag_statistics = Vec::with_capacity(folds + 1);
+    let statistic = |b: &BlobView<'_>| b.out_of_prior_form().map_or("none", |f| f.name()).to_string();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
         progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
         let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
         let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        flag_statistics.push(statistic(&blob));
         let results: Vec<(MaterialRow, Vec<FlagCounts>, FlagScore)> = held
             .par_iter()
             .map(|&k| {
@@ -527,6 +537,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     progress("gloss: training on the whole prior, reading the black glass and the tiles");
     let full = train_on(&train_spec, &all_pairs)?;
     let blob = BlobView::parse(&full.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    flag_statistics.push(statistic(&blob));
     let bg = read_surface(spec, Arc::new(SmoothDielectric::black_glass()), &blob, spec.gloss_lines, 1_000_003)?;
     let unseen = match &spec.unseen {
         Some(set) => {
@@ -649,6 +660,8 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         gloss_interpolation: held_out.gloss_interpolation,
         bin_coverage: held_out.bin_coverage,
         flag: held_out_flag,
+        flag_statistics,
+        flag_in_training: full.flag_on_kinds.filter(|f| f.readings > 0).map(|f| f.weights),
         unseen,
         black_glass,
         tiles: [

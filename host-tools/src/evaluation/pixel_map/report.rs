@@ -51,6 +51,20 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
         flag_cell(&map.flag)
     );
+    if let Some(k) = &map.flag_in_training {
+        let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() };
+        let _ = writeln!(
+            s,
+            "| out-of-prior flag in training, kinds of material held out whole (what `train` prints): of those worse than {BAD_ERROR:.2}, share flagged / of the rest | {} / {} |",
+            pct(k.caught()),
+            pct(k.false_alarms())
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| out-of-prior statistic of each calibration (the held-out folds', then the whole prior's) | {} |",
+        map.flag_statistics.join(", ")
+    );
     let _ = writeln!(
         s,
         "| black glass: per-pixel mean GU (lowest .. highest) | {:.2} .. {:.2} |",
