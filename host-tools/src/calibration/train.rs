@@ -211,7 +211,8 @@ pub struct Trained {
     /// The out-of-prior threshold (scale-free kinds), or `None`.
     pub out_of_prior_threshold: Option<f32>,
     /// What the flag is worth on kinds of material held out of training,
-    /// over every zone (root-form scale-free kinds), or `None`.
+    /// over every zone (root-form scale-free kinds), or `None` (also when
+    /// no kind could be held out).
     pub flag_on_kinds: Option<crate::calibration::estimators::out_of_prior::FlagOnKinds>,
     /// The calibration blob, already validated by `BlobView::parse`.
     pub blob: Vec<u8>,
@@ -393,11 +394,13 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
     blob.truncate(len);
     BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
-    let flag_on_kinds = (spec.root && threshold.is_some()).then(|| {
-        crate::calibration::estimators::out_of_prior::flag_on_kinds(
-            zones.iter().filter_map(|z| z.scale_free()).map(|s| &s.out_of_prior),
-        )
-    });
+    let flag_on_kinds = (spec.root && threshold.is_some())
+        .then(|| {
+            crate::calibration::estimators::out_of_prior::flag_on_kinds(
+                zones.iter().filter_map(|z| z.scale_free()).map(|s| &s.out_of_prior),
+            )
+        })
+        .filter(|f| f.readings > 0);
     Ok(Trained {
         dims,
         bins_deg: spec.bins_deg.to_vec(),

@@ -365,7 +365,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
-    if let Some(f) = trained.flag_on_kinds.filter(|f| f.readings > 0) {
+    if let Some(f) = &trained.flag_on_kinds {
         println!("{}", f.note());
     }
     for (k, len) in &trained.slot_refused {

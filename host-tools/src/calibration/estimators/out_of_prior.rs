@@ -321,6 +321,12 @@ pub fn band_factor<'a>(zones: impl IntoIterator<Item = &'a OutOfPrior>) -> f64 {
         .max(1.0)
 }
 
+/// The name of the statistic `blob` flags with (`none` for a kind without
+/// the flag): what evaluations report of each calibration they train.
+pub fn statistic_name(blob: &brdf_meter::blob::BlobView<'_>) -> &'static str {
+    blob.out_of_prior_form().map_or("none", |f| f.name())
+}
+
 /// The flag of `zones` (each zone's chosen form) on kinds of material held
 /// out whole, summed over the zones.
 pub fn flag_on_kinds<'a>(zones: impl IntoIterator<Item = &'a OutOfPrior>) -> FlagOnKinds {

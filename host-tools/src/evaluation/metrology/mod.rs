@@ -126,7 +126,7 @@ pub fn run(
         let t = train_on(spec, &held.pairs(&all)).with_context(|| format!("training {}", held.label(plan.folds)))?;
         clusters.push(t.clusters);
         let view = BlobView::parse(&t.blob).map_err(|e| anyhow::anyhow!("the trained blob does not parse: {e}"))?;
-        flag_forms.push(view.out_of_prior_form().map_or("none", |f| f.name()).to_string());
+        flag_forms.push(crate::calibration::estimators::out_of_prior::statistic_name(&view).to_string());
         blobs.push(t.blob);
     }
     let centres = inst.centre_angles_deg();

@@ -507,7 +507,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
     let mut held_out_flag = FlagScore::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
-    let statistic = |b: &BlobView<'_>| b.out_of_prior_form().map_or("none", |f| f.name()).to_string();
+    let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
         progress(&format!("fold {}/{folds}: training without {} material(s)", f + 1, held.len()));
@@ -661,7 +661,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         bin_coverage: held_out.bin_coverage,
         flag: held_out_flag,
         flag_statistics,
-        flag_in_training: full.flag_on_kinds.filter(|f| f.readings > 0).map(|f| f.weights),
+        flag_in_training: full.flag_on_kinds.map(|f| f.weights),
         unseen,
         black_glass,
         tiles: [
