@@ -5,12 +5,16 @@
 //! the readings' shares `u'`, with the estimator's predictive covariance;
 //! the log-ratio form: their centred logarithms `l'`, fitted to the
 //! prior's noisy readings, so the noise is in its covariance): mean and
-//! packed `chol(C)^-1`. A zone's threshold is the `1 - alpha` quantile of
+//! packed `chol(C)^-1`; with the piecewise kind the log-ratio model can be
+//! one per cluster (fitted on the readings the device's rule sends to it,
+//! a point scored by its own cluster's: the prior's kinds of material lie
+//! in separate clouds, and one Gaussian of them all is centred between
+//! them, where no material is). A zone's threshold is the `1 - alpha` quantile of
 //! the statistic of held-out prior readings (k-fold, each scored by a model
 //! fitted without its fold), folded into G so that every zone's threshold
 //! is [`FOLDED_THRESHOLD`] (the blob holds one).
 //!
-//! Which form a calibration flags with is decided by what the flag is for,
+//! Which candidate ([`CANDIDATES`]) a calibration flags with is decided by what the flag is for,
 //! telling badly estimated points from the rest ([`choose_form`]), on
 //! training data only, never an evaluation's held-out materials. First on
 //! kinds of the prior held out whole (the band's folds), which is where a
