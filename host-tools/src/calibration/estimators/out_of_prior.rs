@@ -298,6 +298,9 @@ pub fn train(held: &HeldOut<'_>, false_alarm: f64) -> anyhow::Result<[OutOfPrior
     ])
 }
 
+/// One Gaussian model: the mean of a form's coordinates and its packed G.
+type Model = (Vec<f32>, Vec<f32>);
+
 /// The models of pairs `idx` in `form`: one for them all, or (`per_cluster`)
 /// one per cluster of the estimator fitted on them, each on the readings
 /// the device's rule sends to that cluster (a cluster with fewer than 3 m
@@ -307,7 +310,7 @@ fn models_of(
     idx: &[usize],
     form: OutOfPriorForm,
     per_cluster: bool,
-) -> anyhow::Result<(Vec<(Vec<f32>, Vec<f32>)>, Vec<f32>)> {
+) -> anyhow::Result<(Vec<Model>, Vec<f32>)> {
     let whole = model(held, idx, form)?;
     let cents = if per_cluster { (held.centroids_of)(idx) } else { Vec::new() };
     if cents.is_empty() {
