@@ -702,6 +702,36 @@ mod tests {
         assert_eq!(choose_form(&[handheld]), LOG_RATIO);
     }
 
+    /// A test prior's held-out data: 200 pairs of 2 draws, 5 folds.
+    struct ThreeKinds {
+        readings: Vec<Vec<DVector<f64>>>,
+        weight: Vec<f64>,
+        fold: Vec<usize>,
+        error: Vec<Vec<f64>>,
+    }
+
+    /// Pairs of kinds 0 and 1 of `base` (each share with a 10 % log-normal
+    /// spread) alternating, and one pair in forty of kind 2, the odd ones
+    /// (fewer than the false-alarm rate, as the prior's own oddities are,
+    /// spread over the folds), which are the badly estimated ones (error
+    /// 0.3, the rest 0.02); and a source of fresh readings of each kind.
+    fn three_kinds(base: [[f64; 4]; 3], seed: u64) -> (ThreeKinds, impl FnMut(usize) -> DVector<f64>) {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let nd = Normal::new(0.0, 1.0).unwrap();
+        let mut reading =
+            move |kind: usize| DVector::from_fn(4, |i, _| base[kind][i] * (0.1f64 * nd.sample(&mut rng)).exp());
+        let (pairs, draws) = (200, 2);
+        let odd = |k: usize| k % 40 == 3;
+        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
+        let readings = (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
+        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
+        let fold = (0..pairs).map(|k| k % 5).collect();
+        let error = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
+        (ThreeKinds { readings, weight, fold, error }, reading)
+    }
+
     /// A prior of matte and glossy materials, and glossy readings whose
     /// dark LEDs' ratio is swapped: in the shares the swap is a thousandth
     /// against a spread of tenths (the matte ones'), in their logarithms it
@@ -710,26 +740,8 @@ mod tests {
     /// badly estimated ones the choice falls on the log-ratio form.
     #[test]
     fn the_log_ratio_form_sees_dark_ratios_and_is_chosen_when_they_matter() {
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, Normal};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let nd = Normal::new(0.0, 1.0).unwrap();
-        // 10 % log-normal spread on each share.
-        let mut reading = |kind: usize| {
-            let base = [[0.3, 0.3, 0.2, 0.2], [0.9, 0.09, 0.009, 0.001], [0.9, 0.09, 0.001, 0.009]][kind];
-            DVector::from_fn(4, |i, _| base[i] * (0.1f64 * nd.sample(&mut rng)).exp())
-        };
-        let (pairs, draws) = (200, 2);
-        // One pair in forty is odd (fewer than the false-alarm rate, as
-        // the prior's own oddities are), spread over the folds.
-        let odd = |k: usize| k % 40 == 3;
-        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
-        let readings: Vec<Vec<DVector<f64>>> =
-            (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
-        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
-        let fold: Vec<usize> = (0..pairs).map(|k| k % 5).collect();
-        // The odd pairs are the badly estimated ones.
-        let error: Vec<Vec<f64>> = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
+        let base = [[0.3, 0.3, 0.2, 0.2], [0.9, 0.09, 0.009, 0.001], [0.9, 0.09, 0.001, 0.009]];
+        let (ThreeKinds { readings, weight, fold, error }, mut reading) = three_kinds(base, 5);
         // The linear form's model: the shares' own Gaussian.
         let shares: Vec<Vec<DVector<f64>>> = readings.iter().map(|r| r.iter().map(|v| v / v.sum()).collect()).collect();
         let linear_model = |idx: &[usize]| {
@@ -777,23 +789,11 @@ mod tests {
     /// calls them typical; one per cluster sees they are like neither kind.
     #[test]
     fn a_model_per_cluster_flags_what_lies_between_the_clusters() {
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, Normal};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let nd = Normal::new(0.0, 1.0).unwrap();
         // The odd kind is the two kinds' geometric mean: in the log shares,
         // exactly half way.
         let base = [[0.55, 0.25, 0.15, 0.05], [0.05, 0.15, 0.25, 0.55], [0.1658, 0.1936, 0.1936, 0.1658]];
-        let mut reading =
-            |kind: usize| DVector::from_fn(4, |i, _| base[kind][i] * (0.1f64 * nd.sample(&mut rng)).exp());
-        let (pairs, draws) = (200, 2);
-        let odd = |k: usize| k % 40 == 3;
-        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
-        let readings: Vec<Vec<DVector<f64>>> =
-            (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
-        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
-        let fold: Vec<usize> = (0..pairs).map(|k| k % 5).collect();
-        let error: Vec<Vec<f64>> = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
+        let (ThreeKinds { readings, weight, fold, error }, mut reading) = three_kinds(base, 7);
+        let draws = readings[0].len();
         let cents: Vec<f32> = base[..2].iter().flatten().map(|x| *x as f32).collect();
         let held = HeldOut {
             readings: &readings,
