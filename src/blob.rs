@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the out-of-prior section holds one model per cluster (with bit 1 and the piecewise kind only) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -55,7 +55,7 @@
 //! | size | field |
 //! |---|---|
 //! | 4ZKm (piecewise only) | centroids per zone, K x m, in `v / sum|v|` space |
-//! | 4Z(m-1 + m(m-1)/2), with bit 6 4ZK(...) (bit 1 only) | per zone (with bit 6 per zone and cluster, the point's cluster's scoring it): prior mean of the statistic's coordinates (m-1; `u' = v'/s`, or with bit 4 the centred log shares), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
+//! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of the statistic's coordinates (m-1; `u' = v'/s`, or with bit 4 the centred log shares), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
 //!
 //! before the CRC. A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
@@ -165,11 +165,6 @@ const FLAG_LOG_RATIO: u16 = 16;
 /// `FLAG_OUT_OF_PRIOR` only). Firmware from before it rejects such a blob
 /// as having a reserved flag set, and keeps its last good calibration.
 const FLAG_BAND_FACTOR: u16 = 32;
-/// The out-of-prior section holds one model per cluster of each zone (with
-/// `FLAG_OUT_OF_PRIOR` and the piecewise kind only). Firmware from before
-/// it rejects such a blob as having a reserved flag set, and keeps its last
-/// good calibration.
-const FLAG_PER_CLUSTER: u16 = 64;
 /// Values of the gloss section before the per-zone data: the assigned value
 /// and the refractive index.
 const GLOSS_HEAD: usize = 2;
@@ -433,8 +428,7 @@ impl Dims {
         let matrices = uncertainty + 4 * self.zones * k * self.n;
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
-        let models = if x.per_cluster { k } else { 1 };
-        let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * models * out_of_prior_len(self.m) } else { 0 };
+        let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
         let crc = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
         Layout {
             grid,
@@ -521,11 +515,8 @@ pub struct OutOfPriorData<'a> {
     pub threshold: f32,
     /// Which statistic the model is for.
     pub form: OutOfPriorForm,
-    /// Per zone (per zone and cluster with `per_cluster`),
-    /// [`out_of_prior_len`] values: mean, then packed G.
+    /// Per zone, [`out_of_prior_len`] values: mean, then packed G.
     pub data: &'a [f32],
-    /// One model per cluster of each zone (the piecewise kind only).
-    pub per_cluster: bool,
     /// What a flagged point's per-bin unit uncertainty is multiplied by
     /// (finite, >= 1; 1 writes nothing: the blob is byte for byte as
     /// before).
@@ -562,8 +553,6 @@ struct Extras {
     clusters: usize,
     piecewise: bool,
     out_of_prior: bool,
-    /// One out-of-prior model per cluster.
-    per_cluster: bool,
     gloss: bool,
     root_form: bool,
     /// References in the gloss section (P in version 4, Z in version 3).
@@ -571,22 +560,14 @@ struct Extras {
 }
 
 impl Extras {
-    const NONE: Extras = Extras {
-        clusters: 1,
-        piecewise: false,
-        out_of_prior: false,
-        per_cluster: false,
-        gloss: false,
-        root_form: false,
-        gloss_refs: 0,
-    };
+    const NONE: Extras =
+        Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false, root_form: false, gloss_refs: 0 };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
         Extras {
             clusters: x.clusters,
             piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
             out_of_prior: x.out_of_prior.is_some(),
-            per_cluster: x.out_of_prior.is_some_and(|o| o.per_cluster),
             gloss: x.gloss.is_some(),
             root_form: x.root_form,
             gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
@@ -675,11 +656,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     sized(c.matrices.len() == d.zones * k * d.n * d.m, Section::Matrices)?;
     sized(extras.centroids.len() == if ex.piecewise { d.zones * k * d.m } else { 0 }, Section::Centroids)?;
     if let Some(o) = &extras.out_of_prior {
-        let models = if o.per_cluster { k } else { 1 };
-        sized(
-            d.m >= 2 && o.data.len() == d.zones * models * out_of_prior_len(d.m) && (!o.per_cluster || ex.piecewise),
-            Section::OutOfPrior,
-        )?;
+        sized(d.m >= 2 && o.data.len() == d.zones * out_of_prior_len(d.m), Section::OutOfPrior)?;
     }
     if let Some(g) = &extras.gloss {
         sized(
@@ -718,9 +695,6 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         None => 0,
     } | match extras.out_of_prior {
         Some(o) if o.band_factor != 1.0 => FLAG_BAND_FACTOR,
-        _ => 0,
-    } | match extras.out_of_prior {
-        Some(o) if o.per_cluster => FLAG_PER_CLUSTER,
         _ => 0,
     };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
@@ -820,7 +794,6 @@ impl<'a> BlobView<'a> {
                 clusters: get_u16(bytes, 48) as usize,
                 piecewise: kind == EstimatorKind::ScaleFreePiecewise,
                 out_of_prior: flags & FLAG_OUT_OF_PRIOR != 0,
-                per_cluster: flags & FLAG_PER_CLUSTER != 0,
                 gloss,
                 root_form: flags & FLAG_ROOT != 0,
                 gloss_refs: match (gloss, version) {
@@ -861,17 +834,9 @@ impl<'a> BlobView<'a> {
             bytes[50..52].iter().chain(&bytes[60..64]).all(|b| *b == 0)
                 && (band || get_u32(bytes, 56) == 0)
                 && flags
-                    & !(FLAG_FAR_FIELD
-                        | FLAG_OUT_OF_PRIOR
-                        | FLAG_GLOSS
-                        | FLAG_ROOT
-                        | FLAG_LOG_RATIO
-                        | FLAG_BAND_FACTOR
-                        | FLAG_PER_CLUSTER)
+                    & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT | FLAG_LOG_RATIO | FLAG_BAND_FACTOR)
                     == 0
-                && (ex.out_of_prior
-                    || (get_u32(bytes, 52) == 0 && flags & (FLAG_LOG_RATIO | FLAG_BAND_FACTOR | FLAG_PER_CLUSTER) == 0))
-                && (!ex.per_cluster || ex.piecewise)
+                && (ex.out_of_prior || (get_u32(bytes, 52) == 0 && flags & (FLAG_LOG_RATIO | FLAG_BAND_FACTOR) == 0))
         };
         if !reserved_ok {
             return Err(BlobError::ReservedNotZero);
@@ -1245,22 +1210,15 @@ impl<'a> BlobView<'a> {
             OutOfPriorForm::Linear
         })
     }
-    /// Whether the out-of-prior section holds one model per cluster.
-    pub fn out_of_prior_per_cluster(&self) -> bool {
-        get_u16(self.bytes, 22) & FLAG_PER_CLUSTER != 0
-    }
-    /// Copies the out-of-prior mean (m-1) and packed whitening matrix
-    /// (m(m-1)/2) that scores a point of zone `z` and cluster `c` (the
-    /// zone's one model unless the section is per cluster); false when the
-    /// blob carries no such section.
-    pub fn copy_out_of_prior(&self, z: usize, c: usize, mean: &mut [f32], g: &mut [f32]) -> bool {
+    /// Copies zone `z`'s out-of-prior mean (m-1) and packed whitening matrix
+    /// (m(m-1)/2); false when the blob carries no such section.
+    pub fn copy_out_of_prior(&self, z: usize, mean: &mut [f32], g: &mut [f32]) -> bool {
         let m = self.dims.m;
         if self.out_of_prior_threshold().is_none() {
             return false;
         }
-        assert!(z < self.dims.zones && c < self.lay.clusters && mean.len() == m - 1 && g.len() == m * (m - 1) / 2);
-        let model = if self.out_of_prior_per_cluster() { z * self.lay.clusters + c } else { z };
-        let off = self.lay.out_of_prior + 4 * model * out_of_prior_len(m);
+        assert!(z < self.dims.zones && mean.len() == m - 1 && g.len() == m * (m - 1) / 2);
+        let off = self.lay.out_of_prior + 4 * z * out_of_prior_len(m);
         for (k, o) in mean.iter_mut().chain(g.iter_mut()).enumerate() {
             *o = get_f32(self.bytes, off + 4 * k);
         }
@@ -1438,7 +1396,7 @@ mod tests {
         let ex = BlobExtras {
             clusters: 3,
             centroids: &cents,
-            out_of_prior: Some(OutOfPriorData { threshold: 12.5, form, data: &oop, band_factor, per_cluster: false }),
+            out_of_prior: Some(OutOfPriorData { threshold: 12.5, form, data: &oop, band_factor }),
             gloss: None,
             root_form: false,
         };
@@ -1482,7 +1440,7 @@ mod tests {
         v.copy_centroids(1, &mut ce);
         assert_eq!(ce, cents[12..24]);
         let (mut mean, mut g) = (vec![0.0; 3], vec![0.0; 6]);
-        assert!(v.copy_out_of_prior(1, 0, &mut mean, &mut g));
+        assert!(v.copy_out_of_prior(1, &mut mean, &mut g));
         assert_eq!(mean, oop[9..12]);
         assert_eq!(g, oop[12..18]);
         for pos in 0..buf.len() {
@@ -1494,7 +1452,7 @@ mod tests {
         let buf = bare_scale_free_blob();
         let v = BlobView::parse(&buf).unwrap();
         assert_eq!((v.version(), v.clusters(), v.out_of_prior_threshold()), (2, 1, None));
-        assert!(!v.copy_out_of_prior(0, 0, &mut mean, &mut g));
+        assert!(!v.copy_out_of_prior(0, &mut mean, &mut g));
         assert_eq!(v.out_of_prior_form(), None);
     }
 
@@ -1511,54 +1469,6 @@ mod tests {
         // The form bit without the section is refused, with a good CRC.
         let bare = bare_scale_free_blob();
         let flags = get_u16(&bare, 22) | FLAG_LOG_RATIO;
-        assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
-    }
-
-    #[test]
-    fn per_cluster_models_are_flag_bit_6_zone_then_cluster_and_only_piecewise() {
-        let o = sample(6, 4, 2, 5);
-        let (unc, mats, cents, _) = v2_extras(&o, 3);
-        let len = out_of_prior_len(o.dims.m);
-        // Z x K models, each model's values 100 z + 10 c + its index.
-        let oop: Vec<f32> = (0..o.dims.zones * 3 * len)
-            .map(|x| (100 * (x / (3 * len)) + 10 * (x / len % 3) + x % len) as f32)
-            .collect();
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
-        c.uncertainty = &unc;
-        c.matrices = &mats;
-        let data = |per_cluster| OutOfPriorData {
-            threshold: 1.0,
-            form: OutOfPriorForm::LogRatio,
-            data: &oop,
-            band_factor: 1.0,
-            per_cluster,
-        };
-        let ex = BlobExtras {
-            clusters: 3,
-            centroids: &cents,
-            out_of_prior: Some(data(true)),
-            gloss: None,
-            root_form: false,
-        };
-        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
-        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
-        let v = BlobView::parse(&buf).unwrap();
-        assert!(v.out_of_prior_per_cluster());
-        assert_eq!(get_u16(&buf, 22) & FLAG_PER_CLUSTER, FLAG_PER_CLUSTER);
-        let (mut mean, mut g) = (vec![0.0; 3], vec![0.0; 6]);
-        assert!(v.copy_out_of_prior(1, 2, &mut mean, &mut g));
-        assert_eq!((mean[0], g[5]), (120.0, 128.0));
-        // The same data as one model per zone is the wrong size.
-        let ex1 = BlobExtras { out_of_prior: Some(data(false)), ..ex };
-        assert_eq!(
-            write_blob_with(&c, &ex1, &mut buf),
-            Err(BlobError::ContentMismatch { section: Section::OutOfPrior })
-        );
-        // Per cluster needs the piecewise kind: a plain scale-free blob with
-        // the bit and a section sized for it is refused, with a good CRC.
-        let bare = bare_scale_free_blob();
-        let flags = get_u16(&bare, 22) | FLAG_PER_CLUSTER;
         assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
     }
 
@@ -1619,7 +1529,6 @@ mod tests {
                 form: OutOfPriorForm::Linear,
                 data: &oop,
                 band_factor: 1.0,
-                per_cluster: false,
             }),
             gloss: None,
             root_form: false,
@@ -1636,7 +1545,6 @@ mod tests {
                 form: OutOfPriorForm::Linear,
                 data: &oop[1..],
                 band_factor: 1.0,
-                per_cluster: false,
             }),
             gloss: None,
             root_form: false,
@@ -1669,7 +1577,6 @@ mod tests {
                 form: OutOfPriorForm::Linear,
                 data: &oop,
                 band_factor: 1.0,
-                per_cluster: false,
             }),
             gloss: Some(g),
             root_form: false,
@@ -1832,7 +1739,6 @@ mod tests {
                 form: OutOfPriorForm::Linear,
                 data: &oop,
                 band_factor: 1.0,
-                per_cluster: false,
             }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
             root_form: false,
@@ -1843,7 +1749,7 @@ mod tests {
         assert_eq!(v.copy_gloss(1, 2, &mut block), Some((100.0, 1.567, 81.0)));
         assert_eq!(block, blocks[5 * bl..6 * bl]);
         let (mut mean, mut gg) = (vec![0.0; 3], vec![0.0; 6]);
-        assert!(v.copy_out_of_prior(1, 0, &mut mean, &mut gg));
+        assert!(v.copy_out_of_prior(1, &mut mean, &mut gg));
         assert_eq!(mean, oop[9..12]);
     }
 }

@@ -64,8 +64,6 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     band_factor: f32,
     /// Which statistic the out-of-prior data is for.
     out_of_prior_form: OutOfPriorForm,
-    /// One out-of-prior model per cluster (else per zone).
-    out_of_prior_per_cluster: bool,
     /// The blob's per-bin uncertainties in flash, Z x K x n (what the
     /// Sigma16 stream encoding scales its steps by).
     uncertainty: &'static [f32],
@@ -213,7 +211,6 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             out_of_prior_threshold,
             band_factor: view.out_of_prior_band_factor(),
             out_of_prior_form,
-            out_of_prior_per_cluster: view.out_of_prior_per_cluster(),
             uncertainty,
             gloss,
             gloss_q,
@@ -351,9 +348,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         };
         if !a.out_of_prior.is_empty() {
             let per = M - 1 + whitening_len(M);
-            // The point's own cluster's model, when the blob has one per cluster.
-            let model = if a.out_of_prior_per_cluster { z * a.clusters + c } else { z };
-            let data = &a.out_of_prior[model * per..(model + 1) * per];
+            let data = &a.out_of_prior[z * per..(z + 1) * per];
             let stat = a.out_of_prior_form.stat(&data[M - 1..], &data[..M - 1], v.as_slice(), s);
             flags |= out_of_prior_flag(stat, a.out_of_prior_threshold);
         }

@@ -224,7 +224,6 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             form: OutOfPriorForm::Linear,
             data: &oop,
             band_factor: 1.0,
-            per_cluster: false,
         }),
         gloss: None,
         root_form: false,
@@ -240,7 +239,6 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             form: OutOfPriorForm::LogRatio,
             data: &oop,
             band_factor: 1.0,
-            per_cluster: false,
         }),
         ..ex
     };

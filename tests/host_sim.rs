@@ -427,62 +427,7 @@ fn scale_free_calibrations_run_bit_identically_and_flag_readings_outside_the_pri
             };
             assert_eq!((b.sigma_scale.to_bits(), b.flags), (want.to_bits(), a.flags));
         }
-
-        // One out-of-prior model per cluster: each point is scored by its
-        // own cluster's, on the device as in the host's reference. Cluster
-        // c's model is the zone's with its statistic scaled by 4^-c, so a
-        // point's flag depends on its cluster.
-        if piecewise {
-            let b = with_per_cluster_models(&t.blob);
-            assert!(BlobView::parse(&b).unwrap().out_of_prior_per_cluster());
-            c.provision(&brdf_meter::test_blobs::sign_for_tests(&b), |_, _| {}).unwrap();
-            let mut flagged_by_cluster = vec![[0usize; 2]; view.clusters()];
-            for scene in [&frames, &odd] {
-                c.load_scene(scene).unwrap();
-                let pts = c.measure(1).unwrap();
-                check_points(&b, scene, &pts, 1);
-                for p in &pts {
-                    let raised = p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0;
-                    flagged_by_cluster[p.cluster as usize][usize::from(raised)] += 1;
-                }
-            }
-            let used = flagged_by_cluster.iter().filter(|n| n[0] + n[1] > 0).count();
-            assert!(used >= 2, "the scenes' points fall in {used} cluster(s): {flagged_by_cluster:?}");
-        }
     }
-}
-
-/// `blob` (piecewise, with an out-of-prior section) with one model per
-/// cluster (flag bit 6, `brdf_meter::blob`): cluster c's model is the one
-/// that scored it before, its G scaled by 2^-c (its statistic by 4^-c), the
-/// section sized Z x K models and the blob resealed.
-fn with_per_cluster_models(blob: &[u8]) -> Vec<u8> {
-    let view = BlobView::parse(blob).unwrap();
-    let (z, k, m) = (view.dims().zones, view.clusters(), view.dims().m);
-    let len = brdf_meter::blob::out_of_prior_len(m);
-    let had = if view.out_of_prior_per_cluster() { z * k } else { z };
-    let start = view.out_of_prior_in_place().unwrap().as_ptr() as usize - blob.as_ptr() as usize;
-    let mut b = blob[..start].to_vec();
-    for zone in 0..z {
-        for c in 0..k {
-            let (mut mean, mut g) = (vec![0.0f32; m - 1], vec![0.0f32; len - (m - 1)]);
-            assert!(view.copy_out_of_prior(zone, c, &mut mean, &mut g));
-            let scale = 0.5f32.powi(c as i32);
-            for x in mean.iter().copied().chain(g.iter().map(|x| x * scale)) {
-                b.extend_from_slice(&x.to_le_bytes());
-            }
-        }
-    }
-    // Up to the CRC (the blob may be padded past it).
-    let total = u32::from_le_bytes(blob[44..48].try_into().unwrap()) as usize;
-    b.extend_from_slice(&blob[start + 4 * had * len..total - 4]);
-    let flags = u16::from_le_bytes([b[22], b[23]]) | 64;
-    b[22..24].copy_from_slice(&flags.to_le_bytes());
-    let total = (b.len() + 4) as u32;
-    b[44..48].copy_from_slice(&total.to_le_bytes());
-    let crc = CRC32.checksum(&b);
-    b.extend_from_slice(&crc.to_le_bytes());
-    b
 }
 
 /// `blob` with the out-of-prior band factor `f` in its header (flag bit 5,

@@ -25,11 +25,9 @@
 //! How typical the readings' shape is for the prior: a squared Mahalanobis
 //! distance `d2 = |G (x - mu)|^2` under the prior's covariance of `x`
 //! (noise included), `G = chol(C)^-1` lower triangular, (m-1) x (m-1),
-//! stored packed row by row (row k holds k+1 entries); one model per zone,
-//! or per zone and cluster of the piecewise kind, the point's cluster's
-//! then scoring it (`crate::blob` flag bit 6). Two forms of `x` (training
-//! keeps the one whose flag better tells bad estimates from good; the blob
-//! records which):
+//! stored packed row by row (row k holds k+1 entries). Two forms of `x`
+//! (training fits both and keeps the one whose flag lands on the worse
+//! estimates; the blob records which):
 //!
 //! - **log-ratio** ([`out_of_prior_stat_log_ratio`]): the centred
 //!   logarithms of the shares `u_i = v_i / s` (floored at

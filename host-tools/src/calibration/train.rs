@@ -353,17 +353,15 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
                     matrices.extend(map.w_f32());
                 }
                 centroids.extend_from_slice(&z.centroids);
-                oop.extend(z.out_of_prior.blob_data());
+                oop.extend_from_slice(&z.out_of_prior.mean);
+                oop.extend_from_slice(&z.out_of_prior.g);
             }
         }
     }
     // Every zone flags in one form with its threshold folded into its G
     // (`scale_free_zones`), so the first zone's threshold and form are all
     // zones'.
-    let threshold = zones
-        .iter()
-        .find_map(|z| z.scale_free())
-        .map(|s| (s.out_of_prior.threshold, s.out_of_prior.form, s.out_of_prior.models > 1));
+    let threshold = zones.iter().find_map(|z| z.scale_free()).map(|s| (s.out_of_prior.threshold, s.out_of_prior.form));
     // One band factor for every zone, from all their held-out evidence (a
     // zone holds too few flagged readings for its own).
     let band_factor = crate::calibration::estimators::out_of_prior::band_factor(
@@ -386,13 +384,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
     let extras = BlobExtras {
         clusters,
         centroids: &centroids,
-        out_of_prior: threshold.map(|(threshold, form, per_cluster)| OutOfPriorData {
-            threshold,
-            form,
-            data: &oop,
-            band_factor,
-            per_cluster,
-        }),
+        out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop, band_factor }),
         gloss: gloss.as_ref().map(GlossSection::data),
         root_form: spec.root,
     };
@@ -872,14 +864,11 @@ pub struct ScaleFreeZoneJson {
     /// Centroids (K x m), empty unless piecewise.
     pub centroids: Vec<f32>,
     /// The out-of-prior statistic's form: "linear" (the shares) or
-    /// "log-ratio" (their centred logarithms), "per cluster" when each
-    /// cluster has its own model.
+    /// "log-ratio" (their centred logarithms).
     pub out_of_prior_form: &'static str,
-    /// Mean of the statistic's coordinates (m-1), per model (one per
-    /// cluster with a per-cluster flag), back to back.
+    /// Mean of the statistic's coordinates (m-1).
     pub out_of_prior_mean: Vec<f32>,
-    /// Packed whitening G, the zone's threshold folded in (threshold 1),
-    /// per model, back to back.
+    /// Packed whitening G, the zone's threshold folded in (threshold 1).
     pub out_of_prior_g: Vec<f32>,
     /// Ridge chosen by cross-validation.
     pub ridge: f64,
@@ -947,7 +936,7 @@ impl Trained {
                             matrices: z.maps.iter().map(|mp| rows(&mp.w)).collect(),
                             sigma_unit: z.maps.iter().map(|mp| mp.sigma_unit.iter().copied().collect()).collect(),
                             centroids: z.centroids.clone(),
-                            out_of_prior_form: z.out_of_prior.name(),
+                            out_of_prior_form: z.out_of_prior.form.name(),
                             out_of_prior_mean: z.out_of_prior.mean.clone(),
                             out_of_prior_g: z.out_of_prior.g.clone(),
                             ridge: z.ridge,

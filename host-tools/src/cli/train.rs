@@ -358,7 +358,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior flag: the {} statistic, each zone's threshold at {:.0} % false alarms on held-out samples, a flagged point's band {:.2}x wider; f32 vs f64 {:.1e}",
                 z0.ridge,
                 z0.cv_error,
-                z0.out_of_prior.name(),
+                z0.out_of_prior.form.name(),
                 100.0 * a.cal.false_alarm,
                 view.out_of_prior_band_factor(),
                 trained.f32_rel_error

@@ -23,10 +23,6 @@ use brdf_meter::protocol::flags;
 use brdf_meter::shape::READINGS;
 use serde::Serialize;
 
-/// Per cluster an out-of-prior model (mean, packed G), the threshold, the
-/// statistic.
-type OutOfPriorModels = (Vec<(Vec<f32>, Vec<f32>)>, f32, OutOfPriorForm);
-
 /// One point's estimate, as the device computes it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PointEstimate {
@@ -76,9 +72,7 @@ pub struct PointEstimator<'a> {
     mats: Vec<Vec<f32>>,
     sigma: Vec<Vec<f32>>,
     centroids: Vec<f32>,
-    /// Per cluster the out-of-prior (mean, packed G) scoring its points,
-    /// the threshold and the statistic.
-    out_of_prior: Option<OutOfPriorModels>,
+    out_of_prior: Option<(Vec<f32>, Vec<f32>, f32, OutOfPriorForm)>,
     /// Per cluster the gloss block, and the standard's assigned value.
     gloss: Option<(Vec<Vec<f32>>, f32)>,
 }
@@ -107,17 +101,10 @@ impl<'a> PointEstimator<'a> {
             centroids = vec![0.0f32; k * d.m];
             view.copy_centroids(zone, &mut centroids);
         }
-        // Per cluster: the model that scores a point of that cluster (the
-        // zone's one for every cluster unless the blob has one per cluster).
         let out_of_prior = view.out_of_prior_threshold().zip(view.out_of_prior_form()).map(|(t, form)| {
-            let models = (0..k)
-                .map(|c| {
-                    let (mut mean, mut g) = (vec![0.0f32; d.m - 1], vec![0.0f32; whitening_len(d.m)]);
-                    view.copy_out_of_prior(zone, c, &mut mean, &mut g);
-                    (mean, g)
-                })
-                .collect::<Vec<_>>();
-            (models, t, form)
+            let (mut mean, mut g) = (vec![0.0f32; d.m - 1], vec![0.0f32; whitening_len(d.m)]);
+            view.copy_out_of_prior(zone, &mut mean, &mut g);
+            (mean, g, t, form)
         });
         let gloss = view.has_gloss().then(|| {
             let mut assigned = 0.0f32;
@@ -180,8 +167,7 @@ impl<'a> PointEstimator<'a> {
             }
         };
         let mut stat = f32::NAN;
-        if let Some((models, t, form)) = &self.out_of_prior {
-            let (mean, g) = &models[cluster as usize];
+        if let Some((mean, g, t, form)) = &self.out_of_prior {
             stat = form.stat(g, mean, v, s);
             bits |= out_of_prior_flag(stat, *t);
         }

@@ -5,16 +5,12 @@
 //! the readings' shares `u'`, with the estimator's predictive covariance;
 //! the log-ratio form: their centred logarithms `l'`, fitted to the
 //! prior's noisy readings, so the noise is in its covariance): mean and
-//! packed `chol(C)^-1`; with the piecewise kind the log-ratio model can be
-//! one per cluster (fitted on the readings the device's rule sends to it,
-//! a point scored by its own cluster's: the prior's kinds of material lie
-//! in separate clouds, and one Gaussian of them all is centred between
-//! them, where no material is). A zone's threshold is the `1 - alpha` quantile of
+//! packed `chol(C)^-1`. A zone's threshold is the `1 - alpha` quantile of
 //! the statistic of held-out prior readings (k-fold, each scored by a model
 //! fitted without its fold), folded into G so that every zone's threshold
 //! is [`FOLDED_THRESHOLD`] (the blob holds one).
 //!
-//! Which candidate ([`CANDIDATES`]) a calibration flags with is decided by what the flag is for,
+//! Which form a calibration flags with is decided by what the flag is for,
 //! telling badly estimated points from the rest ([`choose_form`]), on
 //! training data only, never an evaluation's held-out materials. First on
 //! kinds of the prior held out whole (the band's folds), which is where a
@@ -184,13 +180,9 @@ impl FlagOnKinds {
 pub struct OutOfPrior {
     /// Which statistic.
     pub form: OutOfPriorForm,
-    /// How many models: one per cluster of the zone's piecewise estimator
-    /// (the point's own cluster's scores it), or 1, the zone's.
-    pub models: usize,
-    /// Mean of the form's coordinates (m-1), per model, models back to back.
+    /// Mean of the form's coordinates (m-1).
     pub mean: Vec<f32>,
-    /// Packed lower-triangular G (m(m-1)/2), the zone's threshold folded in,
-    /// per model.
+    /// Packed lower-triangular G (m(m-1)/2), the zone's threshold folded in.
     pub g: Vec<f32>,
     /// Threshold on the statistic: [`FOLDED_THRESHOLD`].
     pub threshold: f32,
@@ -214,39 +206,14 @@ pub struct OutOfPrior {
 }
 
 impl OutOfPrior {
-    /// Model `c`'s mean and packed G (model 0 when there is one).
-    pub fn model_of(&self, c: usize) -> (&[f32], &[f32]) {
-        let models = self.models.max(1);
-        let c = if models > 1 { c } else { 0 };
-        let (ml, gl) = (self.mean.len() / models, self.g.len() / models);
-        (&self.mean[c * ml..(c + 1) * ml], &self.g[c * gl..(c + 1) * gl])
+    /// The statistic for readings `v` (the device's function).
+    pub fn stat(&self, v: &[f32]) -> f32 {
+        self.form.stat(&self.g, &self.mean, v, scale(v))
     }
 
-    /// The statistic for readings `v` of cluster `c` (the device's
-    /// function).
-    pub fn stat(&self, v: &[f32], c: usize) -> f32 {
-        let (mean, g) = self.model_of(c);
-        self.form.stat(g, mean, v, scale(v))
-    }
-
-    /// Whether readings `v` of cluster `c` are flagged.
-    pub fn flags(&self, v: &[f32], c: usize) -> bool {
-        self.stat(v, c) > self.threshold
-    }
-
-    /// Its name in reports ([`label`]).
-    pub fn name(&self) -> &'static str {
-        label(self.form, self.models > 1)
-    }
-
-    /// The blob's per-zone data: per model, its mean then its packed G.
-    pub fn blob_data(&self) -> Vec<f32> {
-        (0..self.models.max(1))
-            .flat_map(|c| {
-                let (mean, g) = self.model_of(c);
-                mean.iter().chain(g).copied().collect::<Vec<f32>>()
-            })
-            .collect()
+    /// Whether readings `v` are flagged.
+    pub fn flags(&self, v: &[f32]) -> bool {
+        self.stat(v) > self.threshold
     }
 }
 
@@ -268,102 +235,38 @@ pub struct HeldOut<'a> {
     /// estimator's own predictive covariance of `u'` (`scale_free`), with
     /// its weights.
     pub linear_model: &'a ModelOf<'a>,
-    /// The centroids (K x m, the device's selection rule) of the
-    /// piecewise estimator fitted on pairs `idx`; empty for one piece.
-    pub centroids_of: &'a CentroidsOf<'a>,
 }
 
-/// The centroids of the estimator fitted on some of the prior's pairs.
-pub type CentroidsOf<'a> = dyn Fn(&[usize]) -> Vec<f32> + Sync + 'a;
-
-/// The candidate flags of one zone, in [`train`]'s order: the linear form,
-/// the log-ratio form, and the log-ratio form with one model per cluster.
-pub const CANDIDATES: usize = 3;
-/// [`train`]'s linear candidate.
-pub const LINEAR: usize = 0;
-/// [`train`]'s log-ratio candidate, one model for the zone.
-pub const LOG_RATIO: usize = 1;
-/// [`train`]'s log-ratio candidate, one model per cluster.
-pub const LOG_RATIO_PER_CLUSTER: usize = 2;
-
-/// Every candidate flag's model for one zone ([`CANDIDATES`]), each with
-/// its threshold set at `false_alarm` on the held-out readings and its
-/// held-out evidence. The per-cluster candidate needs clusters: for a zone
-/// of one piece it is the zone's log-ratio model again, and never chosen.
-pub fn train(held: &HeldOut<'_>, false_alarm: f64) -> anyhow::Result<[OutOfPrior; CANDIDATES]> {
+/// Both forms' models for one zone, each with its threshold set at
+/// `false_alarm` on the held-out readings and its held-out evidence.
+pub fn train(held: &HeldOut<'_>, false_alarm: f64) -> anyhow::Result<[OutOfPrior; 2]> {
     Ok([
-        train_form(held, false_alarm, OutOfPriorForm::Linear, false)?,
-        train_form(held, false_alarm, OutOfPriorForm::LogRatio, false)?,
-        train_form(held, false_alarm, OutOfPriorForm::LogRatio, true)?,
+        train_form(held, false_alarm, OutOfPriorForm::Linear)?,
+        train_form(held, false_alarm, OutOfPriorForm::LogRatio)?,
     ])
 }
 
-/// One Gaussian model: the mean of a form's coordinates and its packed G.
-type Model = (Vec<f32>, Vec<f32>);
-
-/// The models of pairs `idx` in `form`: one for them all, or (`per_cluster`)
-/// one per cluster of the estimator fitted on them, each on the readings
-/// the device's rule sends to that cluster (a cluster with fewer than 3 m
-/// readings takes the model of them all); and those clusters' centroids.
-fn models_of(
-    held: &HeldOut<'_>,
-    idx: &[usize],
-    form: OutOfPriorForm,
-    per_cluster: bool,
-) -> anyhow::Result<(Vec<Model>, Vec<f32>)> {
-    let whole = model(held, idx, form)?;
-    let cents = if per_cluster { (held.centroids_of)(idx) } else { Vec::new() };
-    if cents.is_empty() {
-        return Ok((vec![whole], cents));
-    }
-    let m = held.readings[idx[0]][0].len();
-    let mut members: Vec<Vec<(usize, usize)>> = vec![Vec::new(); cents.len() / m];
-    for &k in idx {
-        for (d, v) in held.readings[k].iter().enumerate() {
-            let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-            members[brdf_meter::kernel::select_cluster(&cents, &v32)].push((k, d));
-        }
-    }
-    let models = members
-        .iter()
-        .map(|mem| if mem.len() < 3 * m { Ok(whole.clone()) } else { gaussian_of(held, mem, form) })
-        .collect::<anyhow::Result<_>>()?;
-    Ok((models, cents))
-}
-
-/// Each held-out reading's statistic (a model fitted without its fold, the
-/// reading's own cluster's with `per_cluster`) with its pair: (statistic,
-/// pair, draw).
-fn held_out_stats(
-    held: &HeldOut<'_>,
-    form: OutOfPriorForm,
-    per_cluster: bool,
-) -> anyhow::Result<Vec<(f64, usize, usize)>> {
+/// Each held-out reading's statistic (a model fitted without its fold)
+/// with its pair: (statistic, pair, draw).
+fn held_out_stats(held: &HeldOut<'_>, form: OutOfPriorForm) -> anyhow::Result<Vec<(f64, usize, usize)>> {
     let (pairs, fold) = (held.readings.len(), held.fold);
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut out = Vec::with_capacity(pairs * 2);
     for f in 0..nf {
         let train_idx: Vec<usize> = (0..pairs).filter(|k| fold[*k] != f).collect();
-        let (models, cents) = models_of(held, &train_idx, form, per_cluster)?;
+        let (mean, g) = model(held, &train_idx, form)?;
         for k in (0..pairs).filter(|k| fold[*k] == f) {
             for (d, v) in held.readings[k].iter().enumerate() {
                 let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-                let c = if cents.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&cents, &v32) };
-                let (mean, g) = &models[c];
-                out.push((f64::from(form.stat(g, mean, &v32, scale(&v32))), k, d));
+                out.push((f64::from(form.stat(&g, &mean, &v32, scale(&v32))), k, d));
             }
         }
     }
     Ok(out)
 }
 
-fn train_form(
-    held: &HeldOut<'_>,
-    false_alarm: f64,
-    form: OutOfPriorForm,
-    per_cluster: bool,
-) -> anyhow::Result<OutOfPrior> {
-    let scored = held_out_stats(held, form, per_cluster)?;
+fn train_form(held: &HeldOut<'_>, false_alarm: f64, form: OutOfPriorForm) -> anyhow::Result<OutOfPrior> {
+    let scored = held_out_stats(held, form)?;
     let mut stats: Vec<(f64, f64)> = scored.iter().map(|&(s, k, _)| (s, held.weight[k])).collect();
     let threshold = crate::calibration::estimators::scale_free::weighted_quantile(&mut stats, 1.0 - false_alarm);
     // The evidence: how bad the flagged held-out estimates are.
@@ -371,19 +274,15 @@ fn train_form(
     let (weight, error) =
         flagged.fold((0.0, 0.0), |(w, e), &(_, k, d)| (w + held.weight[k], e + held.weight[k] * held.error[k][d]));
     let all: Vec<usize> = (0..held.readings.len()).collect();
-    let (models, _) = models_of(held, &all, form, per_cluster)?;
+    let (mean, mut g) = model(held, &all, form)?;
     // |G x|^2 / t = |(G / sqrt t) x|^2. A zone whose held-out statistics
     // are all zero or not finite has no usable model: it never flags.
     let fold = if threshold.is_finite() && threshold > 0.0 { 1.0 / threshold.sqrt() } else { 0.0 };
-    let count = models.len();
-    let (mut mean, mut g) = (Vec::new(), Vec::new());
-    for (mu, gc) in models {
-        mean.extend(mu);
-        g.extend(gc.iter().map(|x| (f64::from(*x) * fold) as f32));
+    for x in &mut g {
+        *x = (f64::from(*x) * fold) as f32;
     }
     Ok(OutOfPrior {
         form,
-        models: count,
         mean,
         g,
         threshold: FOLDED_THRESHOLD,
@@ -401,7 +300,7 @@ fn train_form(
 /// `o`'s threshold: how a kind of material the prior lacks is flagged (a
 /// statistic that is not a number flags, as on the device).
 pub fn held_out_flagged(held: &HeldOut<'_>, o: &OutOfPrior) -> anyhow::Result<Vec<(usize, usize)>> {
-    Ok(held_out_stats(held, o.form, o.models > 1)?
+    Ok(held_out_stats(held, o.form)?
         .into_iter()
         .filter(|(s, _, _)| s.is_nan() || *s > o.unfolded_threshold)
         .map(|(_, k, d)| (k, d))
@@ -425,18 +324,7 @@ pub fn band_factor<'a>(zones: impl IntoIterator<Item = &'a OutOfPrior>) -> f64 {
 /// The name of the statistic `blob` flags with (`none` for a kind without
 /// the flag): what evaluations report of each calibration they train.
 pub fn statistic_name(blob: &brdf_meter::blob::BlobView<'_>) -> &'static str {
-    blob.out_of_prior_form().map_or("none", |f| label(f, blob.out_of_prior_per_cluster()))
-}
-
-/// A flag's name in reports: its statistic's, and whether each cluster has
-/// its own model (`log-ratio per cluster`).
-pub fn label(form: OutOfPriorForm, per_cluster: bool) -> &'static str {
-    match (form, per_cluster) {
-        (OutOfPriorForm::Linear, false) => "linear",
-        (OutOfPriorForm::Linear, true) => "linear per cluster",
-        (OutOfPriorForm::LogRatio, false) => "log-ratio",
-        (OutOfPriorForm::LogRatio, true) => "log-ratio per cluster",
-    }
+    blob.out_of_prior_form().map_or("none", |f| f.name())
 }
 
 /// The flag of `zones` (each zone's chosen form) on kinds of material held
@@ -465,31 +353,22 @@ pub fn flag_on_kinds<'a>(zones: impl IntoIterator<Item = &'a OutOfPrior>) -> Fla
 /// held out (J -0.10 and -0.08), and the random folds' choice, the
 /// log-ratio form, is the one that catches anything there (16 % of the bad
 /// held-out points against 0.4 % for the linear form).
-///
-/// The per-cluster log-ratio candidate competes on kinds held out only
-/// (where its zones have clusters); the random folds choose between the
-/// zone-wide forms. Returns the candidate's index in [`train`]'s order.
-pub fn choose_form<'a>(zones: impl IntoIterator<Item = &'a [OutOfPrior; CANDIDATES]>) -> usize {
-    let (mut weight, mut error) = ([0.0f64; CANDIDATES], [0.0f64; CANDIDATES]);
-    let mut kinds = [FlagOnKinds::default(); CANDIDATES];
-    let mut clustered = true;
+pub fn choose_form<'a>(zones: impl IntoIterator<Item = &'a [OutOfPrior; 2]>) -> OutOfPriorForm {
+    let (mut weight, mut error) = ([0.0f64; 2], [0.0f64; 2]);
+    let mut kinds = [FlagOnKinds::default(); 2];
     for z in zones {
         for (i, o) in z.iter().enumerate() {
             weight[i] += o.held_out_flagged;
             error[i] += o.held_out_flagged_error;
             kinds[i] = kinds[i].merged(o.on_kinds);
         }
-        clustered &= z[LOG_RATIO_PER_CLUSTER].models > 1;
     }
-    let offered = if clustered { CANDIDATES } else { LOG_RATIO + 1 };
-    let j: Vec<f64> = kinds[..offered].iter().map(FlagOnKinds::youden).collect();
-    let best = (0..offered).fold(0, |b, i| if j[i] > j[b] { i } else { b });
-    // The best on kinds held out, better than chance and than every other.
-    if j[best] > 0.0 && (0..offered).all(|i| i == best || j[i] < j[best]) {
-        return best;
+    let (j_linear, j_log_ratio) = (kinds[0].youden(), kinds[1].youden());
+    if j_linear.max(j_log_ratio) > 0.0 && j_linear != j_log_ratio {
+        return if j_linear > j_log_ratio { OutOfPriorForm::Linear } else { OutOfPriorForm::LogRatio };
     }
     let mean = |i: usize| if weight[i] > 0.0 { error[i] / weight[i] } else { 0.0 };
-    if mean(LINEAR) > mean(LOG_RATIO) { LINEAR } else { LOG_RATIO }
+    if mean(0) > mean(1) { OutOfPriorForm::Linear } else { OutOfPriorForm::LogRatio }
 }
 
 /// A point's coordinates in `form` (m-1 values), in f64: the device's
@@ -519,22 +398,9 @@ fn model(held: &HeldOut<'_>, idx: &[usize], form: OutOfPriorForm) -> anyhow::Res
     if form == OutOfPriorForm::Linear {
         return (held.linear_model)(idx);
     }
-    let readings: Vec<(usize, usize)> =
-        idx.iter().flat_map(|&k| (0..held.readings[k].len()).map(move |d| (k, d))).collect();
-    gaussian_of(held, &readings, form)
-}
-
-/// The Gaussian model in `form` (not the linear one) of the noisy
-/// `readings` (pair, draw), with the prior's weights: mean and packed
-/// `chol(C)^-1`.
-fn gaussian_of(
-    held: &HeldOut<'_>,
-    readings: &[(usize, usize)],
-    form: OutOfPriorForm,
-) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let xs: Vec<(DVector<f64>, f64)> = readings
+    let xs: Vec<(DVector<f64>, f64)> = idx
         .iter()
-        .filter_map(|&(k, d)| coordinates(&held.readings[k][d], form).map(|x| (x, held.weight[k])))
+        .flat_map(|&k| held.readings[k].iter().filter_map(move |v| coordinates(v, form).map(|x| (x, held.weight[k]))))
         .collect();
     ensure!(!xs.is_empty(), "no readings with a positive sum to fit the out-of-prior model on");
     let m1 = xs[0].0.len();
@@ -565,10 +431,9 @@ fn gaussian_of(
 mod tests {
     use super::*;
 
-    fn zone(weight: [f64; 3], error: [f64; 3]) -> [OutOfPrior; 3] {
-        let one = |i: usize, form, models| OutOfPrior {
+    fn zone(weight: [f64; 2], error: [f64; 2]) -> [OutOfPrior; 2] {
+        let one = |i: usize, form| OutOfPrior {
             form,
-            models,
             mean: vec![],
             g: vec![],
             threshold: FOLDED_THRESHOLD,
@@ -579,13 +444,13 @@ mod tests {
             band_ratios: Vec::new(),
             on_kinds: FlagOnKinds::default(),
         };
-        [one(0, OutOfPriorForm::Linear, 1), one(1, OutOfPriorForm::LogRatio, 1), one(2, OutOfPriorForm::LogRatio, 4)]
+        [one(0, OutOfPriorForm::Linear), one(1, OutOfPriorForm::LogRatio)]
     }
 
     #[test]
     fn the_band_factor_covers_the_flagged_held_out_readings_and_never_narrows() {
         let with = |ratios: Vec<(f64, f64)>| {
-            let mut z = zone([1.0, 1.0, 0.0], [0.0, 0.0, 0.0]);
+            let mut z = zone([1.0, 1.0], [0.0, 0.0]);
             z[1].band_ratios = ratios;
             z
         };
@@ -617,7 +482,7 @@ mod tests {
         assert_eq!(a.youden(), 2.0 / 3.0 - 0.5);
         let mut b = FlagOnKinds::default();
         b.add(1.0, 0.01, true);
-        let mut zones = zone([1.0, 1.0, 0.0], [0.0, 0.0, 0.0]);
+        let mut zones = zone([1.0, 1.0], [0.0, 0.0]);
         zones[0].on_kinds = a;
         zones[1].on_kinds = b;
         let both = flag_on_kinds(&zones);
@@ -638,13 +503,13 @@ mod tests {
     fn the_form_that_flags_worse_estimates_over_all_zones_is_chosen() {
         // Zone by zone they disagree; over both, the linear form's flagged
         // estimates err by 0.5 on average, the log-ratio form's by 0.4.
-        let zones = [zone([8.0, 8.0, 0.0], [5.0, 2.0, 0.0]), zone([2.0, 2.0, 0.0], [0.0, 2.0, 0.0])];
-        assert_eq!(choose_form(&zones), LINEAR);
-        let zones = [zone([8.0, 8.0, 0.0], [2.0, 5.0, 0.0]), zone([2.0, 2.0, 0.0], [2.0, 0.0, 0.0])];
-        assert_eq!(choose_form(&zones), LOG_RATIO);
+        let zones = [zone([8.0, 8.0], [5.0, 2.0]), zone([2.0, 2.0], [0.0, 2.0])];
+        assert_eq!(choose_form(&zones), OutOfPriorForm::Linear);
+        let zones = [zone([8.0, 8.0], [2.0, 5.0]), zone([2.0, 2.0], [2.0, 0.0])];
+        assert_eq!(choose_form(&zones), OutOfPriorForm::LogRatio);
         // A tie, or nothing bad: the log-ratio form.
-        assert_eq!(choose_form(&[zone([1.0, 1.0, 0.0], [1.0, 1.0, 0.0])]), LOG_RATIO);
-        assert_eq!(choose_form(&[zone([0.0, 0.0, 0.0], [0.0, 0.0, 0.0])]), LOG_RATIO);
+        assert_eq!(choose_form(&[zone([1.0, 1.0], [1.0, 1.0])]), OutOfPriorForm::LogRatio);
+        assert_eq!(choose_form(&[zone([0.0, 0.0], [0.0, 0.0])]), OutOfPriorForm::LogRatio);
     }
 
     #[test]
@@ -657,19 +522,19 @@ mod tests {
         };
         let with = |linear: FlagOnKinds, log_ratio: FlagOnKinds| {
             // The random folds prefer the log-ratio form.
-            let mut z = zone([1.0, 1.0, 0.0], [0.1, 0.2, 0.0]);
+            let mut z = zone([1.0, 1.0], [0.1, 0.2]);
             (z[0].on_kinds, z[1].on_kinds) = (linear, log_ratio);
             z
         };
         // The patent profile's measured case: the linear form tells them
         // apart (J 0.28), the log-ratio form does worse than chance.
         let patent = with(on_kinds(0.62, 0.34), on_kinds(0.01, 0.41));
-        assert_eq!(choose_form(&[patent.clone(), patent]), LINEAR);
+        assert_eq!(choose_form(&[patent.clone(), patent]), OutOfPriorForm::Linear);
         // Either form better than chance: the higher J, whichever it is.
-        assert_eq!(choose_form(&[with(on_kinds(0.3, 0.2), on_kinds(0.5, 0.2))]), LOG_RATIO);
+        assert_eq!(choose_form(&[with(on_kinds(0.3, 0.2), on_kinds(0.5, 0.2))]), OutOfPriorForm::LogRatio);
         // The handheld's case: neither better than chance; the random
         // folds decide, against a linear J less negative.
-        assert_eq!(choose_form(&[with(on_kinds(0.08, 0.18), on_kinds(0.07, 0.25))]), LOG_RATIO);
+        assert_eq!(choose_form(&[with(on_kinds(0.08, 0.18), on_kinds(0.07, 0.25))]), OutOfPriorForm::LogRatio);
         // Evidence summed over zones: one zone's large J does not decide
         // alone when the other zone's counts say otherwise.
         let a = with(on_kinds(0.9, 0.1), on_kinds(0.1, 0.1));
@@ -686,50 +551,7 @@ mod tests {
         }
         // Linear: caught (0.36 + 0) / 2.0 = 0.18, raised (0.06 + 2.16) / 3.0
         // = 0.74; log-ratio J 0: the random folds decide.
-        assert_eq!(choose_form(&[a, b]), LOG_RATIO);
-        // The handheld's measured case with a model per cluster: it catches
-        // 53 % and is raised on 35 %, and is taken; the patent profile's
-        // (3 % and 36 %) leaves the linear form.
-        let mut handheld = with(on_kinds(0.08, 0.18), on_kinds(0.07, 0.15));
-        handheld[LOG_RATIO_PER_CLUSTER].on_kinds = on_kinds(0.53, 0.35);
-        assert_eq!(choose_form(&[handheld.clone()]), LOG_RATIO_PER_CLUSTER);
-        let mut patent = with(on_kinds(0.62, 0.34), on_kinds(0.01, 0.41));
-        patent[LOG_RATIO_PER_CLUSTER].on_kinds = on_kinds(0.03, 0.36);
-        assert_eq!(choose_form(&[patent]), LINEAR);
-        // A zone of one piece has no per-cluster candidate: its evidence,
-        // the zone's log-ratio model's again, is not counted.
-        handheld[LOG_RATIO_PER_CLUSTER].models = 1;
-        assert_eq!(choose_form(&[handheld]), LOG_RATIO);
-    }
-
-    /// A test prior's held-out data: 200 pairs of 2 draws, 5 folds.
-    struct ThreeKinds {
-        readings: Vec<Vec<DVector<f64>>>,
-        weight: Vec<f64>,
-        fold: Vec<usize>,
-        error: Vec<Vec<f64>>,
-    }
-
-    /// Pairs of kinds 0 and 1 of `base` (each share with a 10 % log-normal
-    /// spread) alternating, and one pair in forty of kind 2, the odd ones
-    /// (fewer than the false-alarm rate, as the prior's own oddities are,
-    /// spread over the folds), which are the badly estimated ones (error
-    /// 0.3, the rest 0.02); and a source of fresh readings of each kind.
-    fn three_kinds(base: [[f64; 4]; 3], seed: u64) -> (ThreeKinds, impl FnMut(usize) -> DVector<f64>) {
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, Normal};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let nd = Normal::new(0.0, 1.0).unwrap();
-        let mut reading =
-            move |kind: usize| DVector::from_fn(4, |i, _| base[kind][i] * (0.1f64 * nd.sample(&mut rng)).exp());
-        let (pairs, draws) = (200, 2);
-        let odd = |k: usize| k % 40 == 3;
-        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
-        let readings = (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
-        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
-        let fold = (0..pairs).map(|k| k % 5).collect();
-        let error = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
-        (ThreeKinds { readings, weight, fold, error }, reading)
+        assert_eq!(choose_form(&[a, b]), OutOfPriorForm::LogRatio);
     }
 
     /// A prior of matte and glossy materials, and glossy readings whose
@@ -740,8 +562,26 @@ mod tests {
     /// badly estimated ones the choice falls on the log-ratio form.
     #[test]
     fn the_log_ratio_form_sees_dark_ratios_and_is_chosen_when_they_matter() {
-        let base = [[0.3, 0.3, 0.2, 0.2], [0.9, 0.09, 0.009, 0.001], [0.9, 0.09, 0.001, 0.009]];
-        let (ThreeKinds { readings, weight, fold, error }, mut reading) = three_kinds(base, 5);
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let nd = Normal::new(0.0, 1.0).unwrap();
+        // 10 % log-normal spread on each share.
+        let mut reading = |kind: usize| {
+            let base = [[0.3, 0.3, 0.2, 0.2], [0.9, 0.09, 0.009, 0.001], [0.9, 0.09, 0.001, 0.009]][kind];
+            DVector::from_fn(4, |i, _| base[i] * (0.1f64 * nd.sample(&mut rng)).exp())
+        };
+        let (pairs, draws) = (200, 2);
+        // One pair in forty is odd (fewer than the false-alarm rate, as
+        // the prior's own oddities are), spread over the folds.
+        let odd = |k: usize| k % 40 == 3;
+        let kind = |k: usize| if odd(k) { 2 } else { k % 2 };
+        let readings: Vec<Vec<DVector<f64>>> =
+            (0..pairs).map(|k| (0..draws).map(|_| reading(kind(k))).collect()).collect();
+        let weight = vec![1.0 / (pairs * draws) as f64; pairs];
+        let fold: Vec<usize> = (0..pairs).map(|k| k % 5).collect();
+        // The odd pairs are the badly estimated ones.
+        let error: Vec<Vec<f64>> = (0..pairs).map(|k| vec![if odd(k) { 0.3 } else { 0.02 }; draws]).collect();
         // The linear form's model: the shares' own Gaussian.
         let shares: Vec<Vec<DVector<f64>>> = readings.iter().map(|r| r.iter().map(|v| v / v.sum()).collect()).collect();
         let linear_model = |idx: &[usize]| {
@@ -754,17 +594,9 @@ mod tests {
             let packed = (0..3).flat_map(|k| (0..=k).map(move |i| (k, i))).map(|(k, i)| g[(k, i)] as f32).collect();
             Ok((mu.iter().map(|x| *x as f32).collect(), packed))
         };
-        let held = HeldOut {
-            readings: &readings,
-            weight: &weight,
-            fold: &fold,
-            error: &error,
-            linear_model: &linear_model,
-            centroids_of: &|_: &[usize]| Vec::new(),
-        };
-        let [linear, log_ratio, per_cluster] = train(&held, 0.05).unwrap();
-        // One piece: the per-cluster candidate is the zone's model again.
-        assert_eq!((per_cluster.models, &per_cluster.g), (1, &log_ratio.g));
+        let held =
+            HeldOut { readings: &readings, weight: &weight, fold: &fold, error: &error, linear_model: &linear_model };
+        let [linear, log_ratio] = train(&held, 0.05).unwrap();
         assert_eq!((linear.threshold, log_ratio.threshold), (FOLDED_THRESHOLD, FOLDED_THRESHOLD));
         // Fresh readings of each kind.
         let rate = |o: &OutOfPrior, kinds: &[usize], rng_reading: &mut dyn FnMut(usize) -> DVector<f64>| {
@@ -772,7 +604,7 @@ mod tests {
             let hits = (0..n)
                 .filter(|i| {
                     let v32: Vec<f32> = rng_reading(kinds[i % kinds.len()]).iter().map(|x| *x as f32).collect();
-                    o.flags(&v32, 0)
+                    o.flags(&v32)
                 })
                 .count();
             hits as f64 / n as f64
@@ -781,60 +613,7 @@ mod tests {
         let (lin_odd, lin_good) = (rate(&linear, &[2], &mut reading), rate(&linear, &[0, 1], &mut reading));
         assert!(lr_odd > 0.8 && lr_good < 0.1, "log-ratio: {lr_odd} of the odd, {lr_good} of the rest");
         assert!(lin_odd < 0.5 * lr_odd && lin_good < 0.1, "linear: {lin_odd} of the odd ({lin_good} of the rest)");
-        assert_eq!(choose_form([&[linear, log_ratio, per_cluster]]), LOG_RATIO);
-    }
-
-    /// A prior of two kinds of material far apart, and odd readings half
-    /// way between them: one Gaussian for the zone is centred on them and
-    /// calls them typical; one per cluster sees they are like neither kind.
-    #[test]
-    fn a_model_per_cluster_flags_what_lies_between_the_clusters() {
-        // The odd kind is the two kinds' geometric mean: in the log shares,
-        // exactly half way.
-        let base = [[0.55, 0.25, 0.15, 0.05], [0.05, 0.15, 0.25, 0.55], [0.1658, 0.1936, 0.1936, 0.1658]];
-        let (ThreeKinds { readings, weight, fold, error }, mut reading) = three_kinds(base, 7);
-        let draws = readings[0].len();
-        let cents: Vec<f32> = base[..2].iter().flatten().map(|x| *x as f32).collect();
-        let held = HeldOut {
-            readings: &readings,
-            weight: &weight,
-            fold: &fold,
-            error: &error,
-            linear_model: &|idx: &[usize]| {
-                let held = HeldOut {
-                    readings: &readings,
-                    weight: &weight,
-                    fold: &fold,
-                    error: &error,
-                    linear_model: &|_: &[usize]| unreachable!(),
-                    centroids_of: &|_: &[usize]| Vec::new(),
-                };
-                let r: Vec<(usize, usize)> = idx.iter().flat_map(|&k| (0..draws).map(move |d| (k, d))).collect();
-                gaussian_of(&held, &r, OutOfPriorForm::Linear)
-            },
-            centroids_of: &|_: &[usize]| cents.clone(),
-        };
-        let [_, whole, per_cluster] = train(&held, 0.05).unwrap();
-        assert_eq!((whole.models, per_cluster.models), (1, 2));
-        assert_eq!(per_cluster.name(), "log-ratio per cluster");
-        let rate = |o: &OutOfPrior, kinds: &[usize], reading: &mut dyn FnMut(usize) -> DVector<f64>| {
-            let n = 400;
-            let hits = (0..n)
-                .filter(|i| {
-                    let v32: Vec<f32> = reading(kinds[i % kinds.len()]).iter().map(|x| *x as f32).collect();
-                    o.flags(&v32, brdf_meter::kernel::select_cluster(&cents, &v32))
-                })
-                .count();
-            hits as f64 / n as f64
-        };
-        let (per_odd, per_good) = (rate(&per_cluster, &[2], &mut reading), rate(&per_cluster, &[0, 1], &mut reading));
-        let whole_odd = rate(&whole, &[2], &mut reading);
-        assert!(per_odd > 0.8 && per_good < 0.1, "per cluster: {per_odd} of the odd, {per_good} of the rest");
-        assert!(whole_odd < 0.2, "one model for the zone: {whole_odd} of the odd");
-        // The device's order of the blob's data: per model, mean then G.
-        let data = per_cluster.blob_data();
-        assert_eq!(data.len(), 2 * (3 + 6));
-        assert_eq!((&data[..3], &data[9..12]), (per_cluster.model_of(0).0, per_cluster.model_of(1).0));
+        assert_eq!(choose_form([&[linear, log_ratio]]), OutOfPriorForm::LogRatio);
     }
 
     #[test]

@@ -79,7 +79,9 @@ use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
-use brdf_meter::kernel::scale_free::{estimate_scale_free, estimate_scale_free_root, root_uncertainty, whitening_len};
+use brdf_meter::kernel::scale_free::{
+    OutOfPriorForm, estimate_scale_free, estimate_scale_free_root, root_uncertainty, whitening_len,
+};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -169,9 +171,9 @@ pub struct ScaleFreeZone {
     /// The out-of-prior model the zone flags with (one of
     /// `out_of_prior_forms`).
     pub out_of_prior: OutOfPrior,
-    /// Every candidate flag's models (`out_of_prior::train`'s order), with
-    /// their held-out evidence (`out_of_prior::choose_form`).
-    pub out_of_prior_forms: [OutOfPrior; out_of_prior::CANDIDATES],
+    /// Both forms' models, linear then log-ratio, with their held-out
+    /// evidence (`out_of_prior::choose_form`).
+    pub out_of_prior_forms: [OutOfPrior; 2],
     /// Relative ridge chosen by cross-validation.
     pub ridge: f64,
     /// Cross-validated mean peak-normalised error of the chosen setting.
@@ -200,13 +202,13 @@ impl ScaleFreeZone {
             brdf_meter::kernel::scale_free::scaled_uncertainty(&unit, s, &mut sigma);
             s
         };
-        let (mean, g) = self.out_of_prior.model_of(c);
-        (out, sigma, self.out_of_prior.form.stat(g, mean, v, s), c)
+        let o = &self.out_of_prior;
+        (out, sigma, o.form.stat(&o.g, &o.mean, v, s), c)
     }
 
-    /// Flags with candidate `i`'s model (`out_of_prior::choose_form`; a
-    /// calibration's zones share one).
-    pub fn use_out_of_prior_form(&mut self, i: usize) {
+    /// Flags with `form`'s model (a calibration's zones share one form).
+    pub fn use_out_of_prior_form(&mut self, form: OutOfPriorForm) {
+        let i = usize::from(form == OutOfPriorForm::LogRatio);
         self.out_of_prior = self.out_of_prior_forms[i].clone();
     }
 }
@@ -467,18 +469,13 @@ fn fit(nz: &Normalised, idx: &[usize], seed: u64, ridge: f64, clusters: usize, r
     if clusters <= 1 {
         return Ok(Fitted { maps: vec![fit_map(&moments(nz, idx), ridge)?], centroids: Vec::new(), root });
     }
-    let c32 = centroids(nz, idx, seed, clusters);
-    let maps = cluster_maps(nz, idx, ridge, &c32, m)?;
-    Ok(Fitted { maps, centroids: c32, root })
-}
-
-/// The K x m centroids of a piecewise fit on pairs `idx` (k-means in the
-/// selection rule's space, v / sum|v|: the readings are non-negative, so it
-/// is u).
-fn centroids(nz: &Normalised, idx: &[usize], seed: u64, clusters: usize) -> Vec<f32> {
+    // Clusters in the selection rule's space (v / sum|v|; the readings are
+    // non-negative, so it is u).
     let feats: Vec<Vec<f64>> = idx.iter().map(|&k| nz.u[k].iter().copied().collect()).collect();
     let (cents, _) = kmeans(&feats, clusters, seed);
-    cents.iter().flatten().map(|x| *x as f32).collect()
+    let c32: Vec<f32> = cents.iter().flatten().map(|x| *x as f32).collect();
+    let maps = cluster_maps(nz, idx, ridge, &c32, m)?;
+    Ok(Fitted { maps, centroids: c32, root })
 }
 
 /// One map per centroid of `c32` (K x m, the device's selection rule): each
@@ -744,7 +741,6 @@ pub fn train_with(
         fold: &cv.fold,
         error: &error,
         linear_model: &linear_model,
-        centroids_of: &|idx: &[usize]| if clusters > 1 { centroids(&nz, idx, opts.seed, clusters) } else { Vec::new() },
     };
     let mut out_of_prior_forms = out_of_prior::train(&held, opts.false_alarm)?;
     if opts.root {
@@ -755,7 +751,6 @@ pub fn train_with(
         let flagged = [
             out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[0])?,
             out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[1])?,
-            out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[2])?,
         ];
         let ratios = held_out_uncertainty(
             pairs,
@@ -826,8 +821,8 @@ fn held_out_uncertainty(
     ridge: f64,
     clusters: usize,
     fitted: &mut Fitted,
-    flagged: &[Vec<(usize, usize)>; out_of_prior::CANDIDATES],
-) -> anyhow::Result<[KindsEvidence; out_of_prior::CANDIDATES]> {
+    flagged: &[Vec<(usize, usize)>; 2],
+) -> anyhow::Result<[KindsEvidence; 2]> {
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
@@ -885,7 +880,7 @@ fn held_out_uncertainty(
         }
         (ratios, on_kinds)
     };
-    Ok([evidence(&flagged[0]), evidence(&flagged[1]), evidence(&flagged[2])])
+    Ok([evidence(&flagged[0]), evidence(&flagged[1])])
 }
 
 /// Trains one zone of in-plane optics `h` on samples on the grid (the
@@ -1007,7 +1002,7 @@ mod tests {
                 assert_eq!(est8[j], est[j] * 8.0);
                 assert_eq!(sigma8[j], sigma[j] * 8.0);
             }
-            assert_eq!(stat8, z.out_of_prior.stat(&v32, 0));
+            assert_eq!(stat8, z.out_of_prior.stat(&v32));
             // Close to the truth (the prior's own sample, noise-free).
             let truth = prior.samples.column(k).into_owned();
             let e = peak_error(&DVector::from_iterator(est.len(), est.iter().map(|x| *x as f64)), &truth);
@@ -1026,7 +1021,7 @@ mod tests {
                 let v0 = &h * prior.samples.column(k);
                 let v = noisy(&v0, &v0.map(|x| (0.02 * x).powi(2)), &mut rng);
                 let v32: Vec<f32> = v.iter().map(|x| *x as f32).collect();
-                flagged += usize::from(z.out_of_prior.flags(&v32, 0));
+                flagged += usize::from(z.out_of_prior.stat(&v32) > z.out_of_prior.threshold);
                 total += 1;
             }
         }
@@ -1036,7 +1031,7 @@ mod tests {
         // A material unlike any Ward sample: light only from one LED.
         let mut v = vec![1e-4f32; h.nrows()];
         v[0] = 1.0;
-        assert!(z.out_of_prior.flags(&v, 0));
+        assert!(z.out_of_prior.stat(&v) > z.out_of_prior.threshold);
     }
 
     #[test]

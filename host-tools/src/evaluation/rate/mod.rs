@@ -70,11 +70,7 @@ fn describe(blob: &[u8]) -> anyhow::Result<String> {
         "{} on the MERL prior, {} form, {} out-of-prior flag, {}",
         crate::calibration::estimators::kind_name(view.estimator()),
         if view.root_form() { "root" } else { "linear" },
-        if view.out_of_prior_form().is_some() {
-            crate::calibration::estimators::out_of_prior::statistic_name(&view)
-        } else {
-            "no"
-        },
+        view.out_of_prior_form().map_or("no", |f| f.name()),
         if view.has_gloss() { "gloss readings" } else { "no gloss readings" }
     ))
 }
