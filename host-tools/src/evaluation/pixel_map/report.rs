@@ -12,8 +12,12 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// `caught % (n bad) / false %`, a dash where there is nothing to share.
+/// A share in per cent to 0.1, `-` when unknown.
+fn pct(x: f64) -> String {
+    if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() }
+}
+
 fn flag_cell(f: &FlagScore) -> String {
-    let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() };
     format!("{} ({}) / {}", pct(f.caught()), f.bad, pct(f.false_alarms()))
 }
 
@@ -52,7 +56,6 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         flag_cell(&map.flag)
     );
     if let Some(k) = &map.flag_in_training {
-        let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() };
         let _ = writeln!(
             s,
             "| out-of-prior flag in training, kinds of material held out whole (what `train` prints): of those worse than {BAD_ERROR:.2}, share flagged / of the rest | {} / {} |",
