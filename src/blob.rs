@@ -41,12 +41,12 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
 //! | 56 | 4 | out-of-prior band factor (f32, finite, >= 1, with bit 5 only; else 0) |
-//! | 60 | 4 | reserved, 0 |
+//! | 60 | 4 | peak resolution, deg (f32, finite, > 0, with bit 6 only; else 0) |
 //!
 //! and sections sized by K: the uncertainty is Z x K x n (for the scale-free
 //! kinds per unit scale: the device multiplies by the point's scale), the
@@ -59,6 +59,16 @@
 //!
 //! before the CRC. A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
+//!
+//! ## The peak resolution (flag bit 6)
+//! The full width at half maximum of the calibration's estimate of the
+//! black-glass standard, a mirror spike (the widest over the pixels): the
+//! narrowest lobe the calibration puts out, as a spectrometer's bandwidth
+//! is the width it reads a line with. The device does not use it; the host
+//! reads a specular peak narrower than it allows as not resolved
+//! (`host_tools::output::peak`). Training writes it whenever the blob has
+//! a gloss section (the standard's readings are training's); a blob
+//! without it reads as before.
 //!
 //! ## The root form (flag bit 3, the scale-free kinds)
 //! A scale-free calibration may be trained in the root form: its matrices
@@ -165,6 +175,21 @@ const FLAG_LOG_RATIO: u16 = 16;
 /// `FLAG_OUT_OF_PRIOR` only). Firmware from before it rejects such a blob
 /// as having a reserved flag set, and keeps its last good calibration.
 const FLAG_BAND_FACTOR: u16 = 32;
+/// The header holds the peak resolution at offset 60. Firmware from before
+/// it rejects such a blob as having a reserved flag set, and keeps its last
+/// good calibration.
+const FLAG_PEAK_RESOLUTION: u16 = 64;
+/// A peak resolution must be a finite width above zero.
+fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
+    if !r.is_finite() {
+        Err(BlobError::NonFinite { section: Section::Header, index: 60 })
+    } else if r <= 0.0 {
+        Err(BlobError::OutOfRange { section: Section::Header, index: 60 })
+    } else {
+        Ok(())
+    }
+}
+
 /// Values of the gloss section before the per-zone data: the assigned value
 /// and the refractive index.
 const GLOSS_HEAD: usize = 2;
@@ -539,12 +564,21 @@ pub struct BlobExtras<'a> {
     /// kernel's outputs `t` are roots, every value is `t^2 / s` with `s` the
     /// readings' scale (`crate::estimate`, `crate::gloss::readings_root`).
     pub root_form: bool,
+    /// The peak resolution, deg (header flag bit 6, format version 2 and
+    /// up; finite, > 0): the module docs.
+    pub peak_resolution_deg: Option<f32>,
 }
 
 impl BlobExtras<'_> {
     /// Nothing added.
-    pub const NONE: BlobExtras<'static> =
-        BlobExtras { clusters: 1, centroids: &[], out_of_prior: None, gloss: None, root_form: false };
+    pub const NONE: BlobExtras<'static> = BlobExtras {
+        clusters: 1,
+        centroids: &[],
+        out_of_prior: None,
+        gloss: None,
+        root_form: false,
+        peak_resolution_deg: None,
+    };
 }
 
 /// The layout-relevant part of the extras.
@@ -557,11 +591,20 @@ struct Extras {
     root_form: bool,
     /// References in the gloss section (P in version 4, Z in version 3).
     gloss_refs: usize,
+    /// The header holds the peak resolution.
+    peak_resolution: bool,
 }
 
 impl Extras {
-    const NONE: Extras =
-        Extras { clusters: 1, piecewise: false, out_of_prior: false, gloss: false, root_form: false, gloss_refs: 0 };
+    const NONE: Extras = Extras {
+        clusters: 1,
+        piecewise: false,
+        out_of_prior: false,
+        gloss: false,
+        root_form: false,
+        gloss_refs: 0,
+        peak_resolution: false,
+    };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
         Extras {
@@ -571,6 +614,7 @@ impl Extras {
             gloss: x.gloss.is_some(),
             root_form: x.root_form,
             gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
+            peak_resolution: x.peak_resolution_deg.is_some(),
         }
     }
 
@@ -579,6 +623,7 @@ impl Extras {
             || self.piecewise
             || self.out_of_prior
             || self.root_form
+            || self.peak_resolution
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
@@ -665,6 +710,9 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
             Section::Gloss,
         )?;
     }
+    if let Some(r) = extras.peak_resolution_deg {
+        check_peak_resolution(r)?;
+    }
     if out.len() < lay.total {
         return Err(BlobError::BufferTooSmall { need: lay.total });
     }
@@ -699,12 +747,20 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
-    put_u16(out, 22, if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag | root_flag);
+    let resolution_flag = if ex.peak_resolution { FLAG_PEAK_RESOLUTION } else { 0 };
+    put_u16(
+        out,
+        22,
+        if c.far_field { FLAG_FAR_FIELD } else { 0 } | oop_flag | gloss_flag | root_flag | resolution_flag,
+    );
     if v2 {
         put_u16(out, 48, k as u16);
         put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
         if let Some(o) = extras.out_of_prior.filter(|o| o.band_factor != 1.0) {
             put_f32(out, 56, o.band_factor);
+        }
+        if let Some(r) = extras.peak_resolution_deg {
+            put_f32(out, 60, r);
         }
     }
     put_u32(out, 24, c.summary.prior_samples);
@@ -801,6 +857,7 @@ impl<'a> BlobView<'a> {
                     (true, FORMAT_VERSION_3) => dims.zones,
                     (true, _) => dims.pixels,
                 },
+                peak_resolution: flags & FLAG_PEAK_RESOLUTION != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -831,11 +888,17 @@ impl<'a> BlobView<'a> {
             bytes[48..64].iter().all(|b| *b == 0) && flags & !FLAG_FAR_FIELD == 0
         } else {
             let band = flags & FLAG_BAND_FACTOR != 0;
-            bytes[50..52].iter().chain(&bytes[60..64]).all(|b| *b == 0)
+            let known = FLAG_FAR_FIELD
+                | FLAG_OUT_OF_PRIOR
+                | FLAG_GLOSS
+                | FLAG_ROOT
+                | FLAG_LOG_RATIO
+                | FLAG_BAND_FACTOR
+                | FLAG_PEAK_RESOLUTION;
+            bytes[50..52].iter().all(|b| *b == 0)
                 && (band || get_u32(bytes, 56) == 0)
-                && flags
-                    & !(FLAG_FAR_FIELD | FLAG_OUT_OF_PRIOR | FLAG_GLOSS | FLAG_ROOT | FLAG_LOG_RATIO | FLAG_BAND_FACTOR)
-                    == 0
+                && (ex.peak_resolution || get_u32(bytes, 60) == 0)
+                && flags & !known == 0
                 && (ex.out_of_prior || (get_u32(bytes, 52) == 0 && flags & (FLAG_LOG_RATIO | FLAG_BAND_FACTOR) == 0))
         };
         if !reserved_ok {
@@ -857,6 +920,9 @@ impl<'a> BlobView<'a> {
             if f < 1.0 {
                 return Err(BlobError::OutOfRange { section: Section::Header, index: 56 });
             }
+        }
+        if let Some(r) = view.peak_resolution_deg() {
+            check_peak_resolution(r)?;
         }
         let noise = view.noise_rel();
         if !noise.is_finite() {
@@ -1200,6 +1266,11 @@ impl<'a> BlobView<'a> {
     pub fn out_of_prior_band_factor(&self) -> f32 {
         if get_u16(self.bytes, 22) & FLAG_BAND_FACTOR != 0 { get_f32(self.bytes, 56) } else { 1.0 }
     }
+    /// The peak resolution (deg; header offset 60 with flag bit 6), when
+    /// the blob carries it: the module docs.
+    pub fn peak_resolution_deg(&self) -> Option<f32> {
+        (get_u16(self.bytes, 22) & FLAG_PEAK_RESOLUTION != 0).then(|| get_f32(self.bytes, 60))
+    }
     /// Which statistic the out-of-prior section is for, when the blob
     /// carries one.
     pub fn out_of_prior_form(&self) -> Option<OutOfPriorForm> {
@@ -1399,6 +1470,7 @@ mod tests {
             out_of_prior: Some(OutOfPriorData { threshold: 12.5, form, data: &oop, band_factor }),
             gloss: None,
             root_form: false,
+            peak_resolution_deg: None,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1515,7 +1587,14 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None, gloss: None, root_form: false };
+        let ex = BlobExtras {
+            clusters: 1,
+            centroids: &cents,
+            out_of_prior: None,
+            gloss: None,
+            root_form: false,
+            peak_resolution_deg: None,
+        };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
         // The threshold must be positive.
@@ -1532,6 +1611,7 @@ mod tests {
             }),
             gloss: None,
             root_form: false,
+            peak_resolution_deg: None,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1548,6 +1628,7 @@ mod tests {
             }),
             gloss: None,
             root_form: false,
+            peak_resolution_deg: None,
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1580,6 +1661,7 @@ mod tests {
             }),
             gloss: Some(g),
             root_form: false,
+            peak_resolution_deg: None,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();
@@ -1742,6 +1824,7 @@ mod tests {
             }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
             root_form: false,
+            peak_resolution_deg: None,
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();

@@ -1,7 +1,7 @@
 //! Valid calibration blobs with deterministic contents, for the tests of the
 //! library, of host-tools and of tests/ (one builder for all of them). Built
 //! with `std` (host users) and for this crate's own tests; never in firmware.
-use crate::blob::{BlobContents, Dims, EstimatorKind, TrainingSummary, write_blob};
+use crate::blob::{BlobContents, BlobExtras, Dims, EstimatorKind, TrainingSummary, write_blob_with};
 use crate::signed::{PublicKeyBytes, public_key, sign};
 
 /// The DEVELOPMENT KEY - NOT FOR PRODUCTION: its checked-in secret seed, which
@@ -74,6 +74,8 @@ pub struct TestBlobParts {
     pub unc: Vec<f32>,
     /// Matrices, Z x n x m.
     pub mats: Vec<f32>,
+    /// The peak resolution in the header (`None`: none, a version 1 blob).
+    pub peak_resolution_deg: Option<f32>,
 }
 
 impl TestBlobParts {
@@ -98,6 +100,7 @@ impl TestBlobParts {
             white,
             unc: (0..zones * n).map(|k| 0.01 + 0.001 * (k % 17) as f32).collect(),
             mats,
+            peak_resolution_deg: None,
         }
     }
 
@@ -126,8 +129,9 @@ impl TestBlobParts {
 
     /// The encoded blob. Panics if the parts do not make a valid blob.
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = vec![0u8; self.dims.blob_len()];
-        let len = write_blob(&self.contents(), &mut out).expect("test blob is valid");
+        let ex = BlobExtras { peak_resolution_deg: self.peak_resolution_deg, ..BlobExtras::NONE };
+        let mut out = vec![0u8; self.dims.blob_len_with(&ex)];
+        let len = write_blob_with(&self.contents(), &ex, &mut out).expect("test blob is valid");
         out.truncate(len);
         out
     }

@@ -227,6 +227,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         }),
         gloss: None,
         root_form: false,
+        peak_resolution_deg: None,
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
@@ -263,6 +264,12 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&p3.contents(), &ex3, &mut b3).expect("a valid format 3 blob");
     b3.truncate(n);
     out.push(("blob.v3".into(), b3));
+    // The same with the peak resolution in the header (flag bit 6, offset 60).
+    let ex3r = BlobExtras { peak_resolution_deg: Some(0.8125), ..ex3 };
+    let mut b3r = vec![0u8; p3.dims.blob_len_with(&ex3r)];
+    let n = write_blob_with(&p3.contents(), &ex3r, &mut b3r).expect("a valid format 3 blob with the peak resolution");
+    b3r.truncate(n);
+    out.push(("blob.v3.peak-resolution".into(), b3r));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

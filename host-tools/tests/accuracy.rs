@@ -260,15 +260,24 @@ fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_neve
     // over-covered.
     assert!(coverage("ward") > 0.90, "{}", r.tables());
     assert!(coverage("ggx") > 0.92, "{}", r.tables());
-    // The specular peak's stated height holds on the measured materials
-    // (trained on the readings the instrument takes, their peak bins are no
-    // longer read high: 61 % with `H rho`) and on the smooth lobes.
+    // The specular peak's stated height, over the peaks the calibration
+    // resolves (an unresolved one states none): it holds on the smooth
+    // lobes, and on the measured materials' resolved peaks 85-90 % of the
+    // time (their mid-width lobes; 94 % over all peaks, the unresolved
+    // polished ones included, which a prior made of them read near their
+    // height; 61 % with `H rho` training).
     let peak = |family: &str| row(&r, family, "estimator").peak_height_coverage.unwrap();
-    assert!(peak("measured") > 0.90, "{}", r.tables());
+    assert!(peak("measured") > 0.80, "{}", r.tables());
     assert!(peak("ward") > 0.85 && peak("ggx") > 0.75, "{}", r.tables());
-    // The polished standards' peak, a mirror spike projected onto one bin,
-    // is not: no prior of the maps holds a mirror, and the estimate spreads
-    // the spike over three bins (docs/guide/real-materials.md).
+    // The polished standards' mirror spikes come out at the calibration's
+    // resolution, spread over three bins and 45 % low (no prior of the maps
+    // holds a mirror): every one is read as not resolved, and the peaks
+    // that are resolved, the tiles', are covered (33 % over all peaks
+    // before unresolved ones stated no uncertainty).
+    let standards = row(&r, "gloss standards", "estimator");
+    assert!(standards.peak_unresolved.is_some_and(|u| u > 0.6), "{}", r.tables());
+    assert!(peak("gloss standards") > 0.9, "{}", r.tables());
+    assert_eq!(row(&r, "ward", "estimator").peak_unresolved, Some(0.0), "{}", r.tables());
     // Not bought with a band of no use: at most a few times the error it
     // covers (Ward's is the widest, about 4x: wide at the peak, where the
     // held-out kinds of gloss disagree most, and narrow in the tails).
@@ -277,4 +286,45 @@ fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_neve
         let band = e.band.unwrap().median;
         assert!(band < 5.0 * e.error.median, "{family}: band {band}, error {}\n{}", e.error.median, r.tables());
     }
+}
+
+#[test]
+fn a_mirror_spike_is_read_as_not_resolved_and_a_broad_lobe_as_resolved() {
+    use host_tools::forward::brdf::{Ggx, SmoothDielectric};
+    // The calibration records its resolution: what it makes of the black glass.
+    let s = setup(&[]);
+    let trained = host_tools::calibration::train::train(&s.spec()).unwrap();
+    let view = brdf_meter::blob::BlobView::parse(&trained.blob).unwrap();
+    let res = view.peak_resolution_deg().expect("a calibration with a gloss section records its peak resolution");
+    assert!((0.5..2.0).contains(&res), "{res} deg: a few bins, far below the LEDs' 4 deg spacing");
+    // Polished dielectrics (mirror spikes, one bin wide) come out at the
+    // resolution: not resolved, so no uncertainty is stated for the height
+    // they are read too low by. A GGX lobe degrees wide is resolved.
+    let spikes = TestFamily {
+        name: "spikes".into(),
+        source: "test".into(),
+        materials: [(1.52, 0.0), (1.6, 0.4)]
+            .iter()
+            .map(|&(n, a)| {
+                (
+                    format!("dielectric {n} over {a}"),
+                    Arc::new(SmoothDielectric::over_base(n, a).unwrap()) as Arc<dyn Brdf>,
+                )
+            })
+            .collect(),
+    };
+    let lobes = TestFamily {
+        name: "lobes".into(),
+        source: "test".into(),
+        materials: vec![("ggx 0.08".into(), Arc::new(Ggx::new(0.3, 1.0, 0.08, 0.04).unwrap()) as Arc<dyn Brdf>)],
+    };
+    let r = evaluate(&[], &[spikes, lobes], 0.0);
+    let spike = row(&r, "spikes", "estimator");
+    assert_eq!(spike.peak_unresolved, Some(1.0), "{}", r.tables());
+    assert_eq!(spike.peak_height_coverage, None, "an unresolved peak states no uncertainty");
+    assert!(spike.peak_height_rel.median > 0.2, "the spike's height is the prior's: {}", r.tables());
+    let lobe = row(&r, "lobes", "estimator");
+    assert_eq!(lobe.peak_unresolved, Some(0.0), "{}", r.tables());
+    assert!(lobe.peak_height_coverage.is_some());
+    assert_eq!(row(&r, "lobes", "interpolation").peak_unresolved, None, "interpolation states no resolution");
 }

@@ -27,15 +27,17 @@ fn golden_dir() -> PathBuf {
 }
 
 /// A fixed blob: 21 bins of 0.5 deg over 40..50 deg (the specular aperture
-/// about 45 deg and a little beyond), 3 readings, 2 zones of 4 pixels. Its
-/// matrices make an estimate a lobe (zone 0 at 45 deg, zone 1 at 46 deg)
-/// times the first reading over a level the second reading gives.
+/// about 45 deg and a little beyond), 3 readings, 2 zones of 4 pixels, a
+/// peak resolution of 1 deg. Its matrices make an estimate a lobe (zone 0
+/// at 45 deg, zone 1 at 46 deg) times the first reading over a level the
+/// second reading gives.
 fn blob() -> Vec<u8> {
     let mut parts = TestBlobParts::new(21, 3, 2, 4, 1.0);
     assert_eq!(parts.dims, Dims { n: 21, m: 3, zones: 2, pixels: 4 });
     parts.grid = (0..21).map(|i| 40.0 + 0.5 * i as f32).collect();
     let lobes = [lobe(&parts.grid, 0.0, 1.0, 45.0, 2.5), lobe(&parts.grid, 0.0, 1.0, 46.0, 3.0)];
     parts.mats = lobes.iter().flat_map(|l| l.iter().flat_map(|&x| [x, 1.0, 0.0])).collect();
+    parts.peak_resolution_deg = Some(1.0);
     parts.encode()
 }
 
@@ -66,7 +68,8 @@ fn record(line: u32, point: u16, zone: u16, flags: u8, sigma_scale: f32, reading
 /// scale-free point (its uncertainty scaled); a matte point (no peak, no
 /// distinctness); a saturated point on a high diffuse level in the zone
 /// without readings (a height but no width); a non-finite point (zeros, no
-/// readings).
+/// readings); a lobe narrower than the calibration resolves (no
+/// uncertainty of its height and width).
 fn records(grid: &[f32]) -> Vec<PointRecord> {
     let nan = f32::NAN;
     let mut r = vec![
@@ -75,12 +78,14 @@ fn records(grid: &[f32]) -> Vec<PointRecord> {
         record(0, 2, 0, 0, 1.0, [[8.0, 2.0, nan], [0.5, 0.125, nan]]),
         record(0, 3, 1, flags::SATURATED, 1.0, [[nan; 3], [nan; 3]]),
         record(1, 0, 0, flags::NON_FINITE, 1.0, [[nan; 3], [nan; 3]]),
+        record(1, 1, 0, 0, 1.0, [[310.5, 1.25, 96.5], [9.0, 0.25, 1.5]]),
     ];
     r[0].values = lobe(grid, 0.05, 1.5, 45.0, 2.5);
     r[1].values = lobe(grid, 0.0625, 1.5, 45.5, 2.5);
     r[2].values = vec![0.8; 21];
     r[3].values = lobe(grid, 0.75, 0.5, 47.0, 2.0);
     r[4].values = vec![0.0; 21];
+    r[5].values = lobe(grid, 0.05, 3.0, 45.0, 0.75);
     r
 }
 

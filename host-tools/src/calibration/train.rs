@@ -7,7 +7,8 @@
 //!      the pairs; the H-based baselines from the zone's centre H)
 //!   -> the f32 gate (crate::calibration::f32_gate)
 //!   -> the gloss section (crate::calibration::gloss_rows)
-//!   -> the calibration blob (brdf_meter::blob), parsed back before it is returned
+//!   -> the calibration blob (brdf_meter::blob), parsed back before it is returned,
+//!      with its peak resolution (crate::calibration::peak_resolution)
 //! ```
 //!
 //! Each zone of pixels has its own optics ([`ZoneOptics`], from the forward
@@ -24,6 +25,7 @@ use crate::calibration::estimators::{
 use crate::calibration::f32_gate::scale_free_gate;
 pub use crate::calibration::f32_gate::{F32_TOLERANCE, F32Plan, F32Refusal, f32_gate};
 use crate::calibration::gloss_rows::{self, GlossSection};
+use crate::calibration::peak_resolution;
 use crate::forward::pairs::{Criterion, Pairs, PixelOptics};
 use crate::forward::prior_models::PriorModels;
 use crate::forward::zone_optics::ZoneOptics;
@@ -381,18 +383,24 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         matrices: &matrices,
     };
     let gloss = gloss_section(spec, &zones, zone_pairs, &plans)?;
-    let extras = BlobExtras {
+    let mut extras = BlobExtras {
         clusters,
         centroids: &centroids,
         out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop, band_factor }),
         gloss: gloss.as_ref().map(GlossSection::data),
         root_form: spec.root,
+        peak_resolution_deg: None,
     };
-    let mut blob = vec![0u8; dims.blob_len_with(&extras)];
-    let len = write_blob_with(&contents, &extras, &mut blob)
-        .map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
-    blob.truncate(len);
-    BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
+    let mut blob = written(&contents, &extras)?;
+    // The peak resolution is what the device makes of the black glass, so
+    // it is measured on the blob itself, then recorded in it.
+    if gloss.is_some() {
+        let view = BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
+        if let Some(w) = peak_resolution::black_glass_width(&view, &spec.zones, &plans)? {
+            extras.peak_resolution_deg = Some(w as f32);
+            blob = written(&contents, &extras)?;
+        }
+    }
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
     let flag_on_kinds = (spec.root && threshold.is_some())
         .then(|| {
@@ -414,6 +422,16 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         blob,
         slot_refused: Vec::new(),
     })
+}
+
+/// The blob of `contents` and `extras`, parsed back.
+fn written(contents: &BlobContents<'_>, extras: &BlobExtras<'_>) -> anyhow::Result<Vec<u8>> {
+    let mut blob = vec![0u8; contents.dims.blob_len_with(extras)];
+    let len = write_blob_with(contents, extras, &mut blob)
+        .map_err(|e| anyhow::anyhow!("the calibration blob would be invalid: {e}"))?;
+    blob.truncate(len);
+    BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
+    Ok(blob)
 }
 
 /// The prior as `R_pp` over a zone's pairs (their truths with the

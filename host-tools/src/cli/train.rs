@@ -374,6 +374,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             crate::calibration::train::board_blob_capacity()
         );
     }
+    if let Some(r) = view.peak_resolution_deg() {
+        println!(
+            "peak resolution {r:.2} deg: the width it puts out for a mirror (the black glass); a specular peak narrower than {:.2} deg is reported as not resolved, with no uncertainty",
+            crate::output::peak::RESOLVED_WIDTH_FACTOR * f64::from(r)
+        );
+    }
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);
     } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {

@@ -22,6 +22,7 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
         source: "measure",
         calibration_crc: view.crc(),
         view_deg,
+        peak_resolution_deg: view.peak_resolution_deg().map(f64::from),
         bins_deg: bins.bins().map(|j| view.grid_deg(j)).collect(),
         points: points
             .iter()

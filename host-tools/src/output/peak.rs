@@ -48,7 +48,28 @@
 //! neighbouring bins) is not in the per-bin u the calibration holds. A test
 //! checks the first-order u against a seeded Monte Carlo where its
 //! assumptions hold.
+//!
+//! # Resolution
+//! A calibration puts out no lobe narrower than its estimate of a mirror
+//! spike (its peak resolution, `crate::calibration::peak_resolution`,
+//! recorded in the blob): below that width the readings do not say how
+//! narrow a lobe is, or how high, and the estimate's shape there is the
+//! prior's. A peak is *resolved* when its width is at least
+//! [`RESOLVED_WIDTH_FACTOR`] times the resolution: widths of a lobe and of
+//! the calibration's response add about in quadrature, so a lobe as wide as
+//! the resolution comes out `sqrt 2` times as wide, and one that comes out
+//! narrower is narrower than the resolution itself. An unresolved peak
+//! keeps its height and width (what the estimate shows), but no uncertainty
+//! is stated for either (NaN): its errors are not the readings' noise but
+//! what the prior assumes, which the per-bin uncertainty does not hold (on
+//! the patent profile the gloss standards' mirror spikes come out 45 %
+//! below their height, 6 standard uncertainties). A peak without a width
+//! (a lobe on a level above half its height) is resolved: it is wide.
 use crate::forward::gloss::SPECULAR_APERTURE_DEG;
+
+/// A peak narrower than this times the calibration's peak resolution is
+/// not resolved (module docs).
+pub const RESOLVED_WIDTH_FACTOR: f64 = std::f64::consts::SQRT_2;
 
 /// Slack on the aperture's edges (deg): the grid is stored in f32, so a bin
 /// meant to be on the edge may lie a rounding error outside it.
@@ -67,12 +88,35 @@ pub struct Peak {
     pub width_deg: f64,
     /// Its standard uncertainty (k = 1, deg).
     pub u_width_deg: f64,
+    /// Whether the calibration resolves it (module docs); `None`: no peak,
+    /// or the calibration records no resolution.
+    pub resolved: Option<bool>,
 }
 
 impl Peak {
     /// No peak.
-    pub const NONE: Self =
-        Self { rf: f64::NAN, u_rf: f64::NAN, deg: f64::NAN, width_deg: f64::NAN, u_width_deg: f64::NAN };
+    pub const NONE: Self = Self {
+        rf: f64::NAN,
+        u_rf: f64::NAN,
+        deg: f64::NAN,
+        width_deg: f64::NAN,
+        u_width_deg: f64::NAN,
+        resolved: None,
+    };
+
+    /// The peak read by a calibration of peak resolution `resolution_deg`
+    /// (`None`: it records none, and the peak is as it was): an unresolved
+    /// peak's uncertainties are not stated (module docs).
+    pub fn at_resolution(self, resolution_deg: Option<f64>) -> Self {
+        let Some(res) = resolution_deg.filter(|_| self.rf.is_finite()) else { return self };
+        // No width (NaN): a lobe on a level above half its height, wide.
+        let resolved = self.width_deg.is_nan() || self.width_deg >= RESOLVED_WIDTH_FACTOR * res;
+        if resolved {
+            Self { resolved: Some(true), ..self }
+        } else {
+            Self { u_rf: f64::NAN, u_width_deg: f64::NAN, resolved: Some(false), ..self }
+        }
+    }
 }
 
 /// Where `R` crosses `h` between the outer bin `a` (at or below `h`) and the
@@ -135,7 +179,7 @@ pub fn specular_peak(bins_deg: &[f32], rho: &[f32], u: &[f32], view_deg: f64) ->
     if !(top > 0.0 && is_max) {
         return Peak::NONE;
     }
-    let mut peak = Peak { rf: top, u_rf: f64::from(u[k]), deg: x[k], width_deg: f64::NAN, u_width_deg: f64::NAN };
+    let mut peak = Peak { rf: top, u_rf: f64::from(u[k]), deg: x[k], ..Peak::NONE };
     let h = top / 2.0;
     let (Some(a_l), Some(a_r)) = (outer_bin(&r, k, -1, h), outer_bin(&r, k, 1, h)) else {
         return peak;
@@ -160,6 +204,35 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn a_peak_within_sqrt_2_of_the_resolution_states_no_uncertainty() {
+        let x = grid();
+        let u = vec![0.02f32; x.len()];
+        let at = |fwhm: f64, res: Option<f64>| {
+            specular_peak(&x, &gaussian(&x, 1.0, fwhm, 45.0, 0.0), &u, 45.0).at_resolution(res)
+        };
+        // Without a recorded resolution nothing changes.
+        let bare = specular_peak(&x, &gaussian(&x, 1.0, 1.2, 45.0, 0.0), &u, 45.0);
+        assert_eq!(at(1.2, None), bare);
+        assert_eq!(bare.resolved, None);
+        // 1.2 deg wide against a resolution of 1: below sqrt 2, so not resolved,
+        // the values kept, their uncertainties not stated.
+        let narrow = at(1.2, Some(1.0));
+        assert_eq!(narrow.resolved, Some(false));
+        assert_eq!((narrow.rf, narrow.deg, narrow.width_deg), (bare.rf, bare.deg, bare.width_deg));
+        assert!(narrow.u_rf.is_nan() && narrow.u_width_deg.is_nan());
+        // 1.6 deg: resolved, as it was.
+        let wide = at(1.6, Some(1.0));
+        assert_eq!(wide.resolved, Some(true));
+        assert!(wide.u_rf.is_finite() && wide.u_width_deg.is_finite());
+        // A lobe on a level above half its height has no width: it is wide.
+        let flat = specular_peak(&x, &gaussian(&x, 0.5, 3.0, 45.0, 0.6), &u, 45.0).at_resolution(Some(1.0));
+        assert!(flat.width_deg.is_nan());
+        assert_eq!(flat.resolved, Some(true));
+        // No peak stays no peak.
+        assert_eq!(Peak::NONE.at_resolution(Some(1.0)).resolved, None);
+    }
 
     /// 0.5 deg bins over 25..65 deg, the instrument's grid.
     fn grid() -> Vec<f32> {

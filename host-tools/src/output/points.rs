@@ -28,12 +28,12 @@ pub const SCHEMA: &str = "brdf-meter/points";
 /// The schema's version: bumped when a field is renamed, removed, added,
 /// moved or changes its meaning, unit or rule for when it is missing
 /// (`docs/point-schema.md`).
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// The unit of each quantity, by field name; a field `u_X` is the standard
 /// uncertainty of `X` in the same unit. Units that are the same stand
 /// together (the CSV's comment groups them).
-pub const UNITS: [(&str, &str); 11] = [
+pub const UNITS: [(&str, &str); 12] = [
     ("rho", RF),
     ("peak_rf", RF),
     ("gloss_gu", "GU (specular gloss units: the black-glass standard n = 1.567 reads 100)"),
@@ -43,6 +43,7 @@ pub const UNITS: [(&str, &str); 11] = [
     ("view_deg", "deg"),
     ("peak_deg", "deg"),
     ("peak_width_deg", "deg"),
+    ("peak_resolution_deg", "deg"),
     ("zone", "index"),
     ("cluster", "index"),
 ];
@@ -88,6 +89,9 @@ pub struct Points {
     pub calibration_crc: u32,
     /// The view angle (deg): the specular peak is sought about its mirror incidence.
     pub view_deg: f64,
+    /// The calibration's peak resolution (deg; `None`: it records none):
+    /// narrower peaks are not resolved (`crate::output::peak`).
+    pub peak_resolution_deg: Option<f64>,
     /// Incidence of each bin (deg).
     pub bins_deg: Vec<f32>,
     /// The points.
@@ -104,6 +108,8 @@ enum Value<'a> {
     Bins(Cow<'a, [f32]>),
     /// A number (NaN: nothing).
     Number(f32),
+    /// Yes or no, or nothing.
+    Bool(Option<bool>),
 }
 
 /// The shortest text that reads back to `x`, as serde_json writes an f32;
@@ -115,7 +121,8 @@ fn number_text(x: f32) -> String {
 impl Points {
     /// A point's fields in the schema's order, with its specular peak.
     fn fields<'a>(&self, p: &'a Point) -> Vec<(&'static str, Value<'a>)> {
-        let peak: Peak = specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg);
+        let peak: Peak =
+            specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.peak_resolution_deg);
         // A non-finite point's values are the device's guard (zeros, so a
         // reader that ignores flags sees a flat curve), no estimate: it has no
         // uncertainty, whichever source (the device's frame scales the
@@ -144,6 +151,7 @@ impl Points {
             ("peak_deg", Value::Number(peak.deg as f32)),
             ("peak_width_deg", Value::Number(peak.width_deg as f32)),
             ("u_peak_width_deg", Value::Number(peak.u_width_deg as f32)),
+            ("peak_resolved", Value::Bool(peak.resolved)),
         ]);
         f
     }
@@ -159,12 +167,13 @@ impl Points {
         }
         let units: Vec<String> = groups.iter().map(|(names, unit)| format!("{} = {unit}", names.join(" "))).collect();
         Ok(format!(
-            "# {SCHEMA} schema_version {SCHEMA_VERSION}; source {}; calibration_crc {:#010x}; view_deg {}; {UNCERTAINTY}; \
-             units: {}\n",
+            "# {SCHEMA} schema_version {SCHEMA_VERSION}; source {}; calibration_crc {:#010x}; view_deg {}; \
+             peak_resolution_deg {}; {UNCERTAINTY}; units: {}\n",
             self.source,
             self.calibration_crc,
-            // As the JSON writes it.
+            // As the JSON writes them.
             serde_json::to_string(&self.view_deg).context("the view angle")?,
+            serde_json::to_string(&self.peak_resolution_deg).context("the peak resolution")?,
             units.join("; ")
         ))
     }
@@ -206,6 +215,7 @@ impl Points {
                     Value::Flags(bits) => rec.push(flag_names(bits).join("|")),
                     Value::Bins(xs) => rec.extend(xs.iter().map(|&x| number_text(x))),
                     Value::Number(x) => rec.push(number_text(x)),
+                    Value::Bool(x) => rec.push(x.map_or(String::new(), |x| x.to_string())),
                 }
             }
             w.write_record(&rec).with_context(|| format!("writing point {i} to the CSV"))?;
@@ -245,6 +255,7 @@ impl serde::Serialize for JsonDocument<'_> {
         m.serialize_entry("source", d.source)?;
         m.serialize_entry("calibration_crc", &format!("{:#010x}", d.calibration_crc))?;
         m.serialize_entry("view_deg", &d.view_deg)?;
+        m.serialize_entry("peak_resolution_deg", &d.peak_resolution_deg)?;
         m.serialize_entry("uncertainty", UNCERTAINTY)?;
         m.serialize_entry("units", &Units)?;
         m.serialize_entry("bins_deg", &d.bins_deg)?;
@@ -276,6 +287,7 @@ impl serde::Serialize for JsonPoint<'_> {
                 Value::Flags(bits) => m.serialize_entry(name, &flag_names(*bits))?,
                 Value::Bins(xs) => m.serialize_entry(name, xs)?,
                 Value::Number(x) => m.serialize_entry(name, x)?,
+                Value::Bool(x) => m.serialize_entry(name, x)?,
             }
         }
         m.end()
@@ -294,6 +306,7 @@ mod tests {
             source: "measure",
             calibration_crc: 0x00c0_ffee,
             view_deg: 45.0,
+            peak_resolution_deg: Some(0.75),
             bins_deg: bins.clone(),
             points: vec![
                 Point {
@@ -329,7 +342,7 @@ mod tests {
         let mut lines = csv.lines();
         let comment = lines.next().unwrap();
         assert!(
-            comment.starts_with("# brdf-meter/points schema_version 1; source measure; calibration_crc 0x00c0ffee")
+            comment.starts_with("# brdf-meter/points schema_version 2; source measure; calibration_crc 0x00c0ffee")
         );
         assert!(!comment.contains(','), "a reader that does not skip comments sees one cell: {comment}");
         for (q, unit) in UNITS {
@@ -372,7 +385,8 @@ mod tests {
                 "u_peak_rf",
                 "peak_deg",
                 "peak_width_deg",
-                "u_peak_width_deg"
+                "u_peak_width_deg",
+                "peak_resolved"
             ]
         );
         // The reading fields are the library's names.
@@ -380,7 +394,7 @@ mod tests {
             assert_eq!(READING_FIELDS[k], [*name, &format!("u_{name}")]);
         }
         assert_eq!(j["schema"], SCHEMA);
-        assert_eq!(j["schema_version"], 1);
+        assert_eq!(j["schema_version"], 2);
         assert_eq!(j["calibration_crc"], "0x00c0ffee");
         assert_eq!(j["units"].as_object().unwrap().len(), UNITS.len());
         assert_eq!(j["bins_deg"].as_array().unwrap().len(), 21);
@@ -402,6 +416,10 @@ mod tests {
         assert!((rf - 1.2).abs() < 1e-6 && first["peak_deg"] == 45.0, "{first}");
         assert!((width - 2.4).abs() < 1e-5, "half of 1.2 is 0.2 + 0.4, 1.2 deg either side: {first}");
         assert_eq!(first["u_peak_rf"].as_f64().unwrap() as f32, 0.01);
+        // 2.4 deg wide at a resolution of 0.75: resolved; the flat point has no peak.
+        assert_eq!((rows[0][58], &first["peak_resolved"]), ("true", &serde_json::json!(true)));
+        assert_eq!((rows[1][58], &j["points"][1]["peak_resolved"]), ("", &serde_json::Value::Null));
+        assert_eq!(j["peak_resolution_deg"], 0.75);
         let json = String::from_utf8(p.json().unwrap()).unwrap();
         for (col, name) in [(47, "gloss_gu"), (53, "peak_rf"), (56, "peak_width_deg"), (57, "u_peak_width_deg")] {
             let line = format!("\"{name}\": {}", rows[0][col]);

@@ -13,7 +13,9 @@
 //! - Flag: of estimates worse than [`BAD_ERROR`] of the truth's peak, the
 //!   share flagged (any flag); of the rest, the share flagged.
 //! - Specular peak (`output::peak`): height relative error, full width at
-//!   half maximum absolute error, the height's k = 2 coverage.
+//!   half maximum absolute error, their k = 2 coverage over the peaks the
+//!   calibration resolves (an unresolved one states no uncertainty), and
+//!   the share it does not resolve.
 //!
 //! Interpolation states no uncertainty and raises no flag: its coverage
 //! and flag figures are absent (`None`), never zero.
@@ -103,12 +105,16 @@ pub struct Row {
     pub peak_height_rel: Spread,
     /// Its full width at half maximum, absolute error (deg).
     pub peak_width_abs_deg: Spread,
-    /// Share of peak heights within k = 2 of their stated uncertainty.
+    /// Share of peak heights within k = 2 of their stated uncertainty
+    /// (the resolved peaks': an unresolved one states none).
     pub peak_height_coverage: Option<f64>,
     /// Share of peak widths within k = 2 of theirs.
     pub peak_width_coverage: Option<f64>,
     /// Estimates without a peak where the truth has one.
     pub peak_missed: usize,
+    /// Of the estimates' peaks, the share the calibration does not resolve
+    /// (`output::peak`; `None`: no peak, or no resolution recorded).
+    pub peak_unresolved: Option<f64>,
 }
 
 pub use crate::calibration::estimators::out_of_prior::FlagScore;
@@ -135,6 +141,7 @@ pub struct Tally {
     height_cov: Option<(usize, usize)>,
     width_cov: Option<(usize, usize)>,
     peak_missed: usize,
+    unresolved: Option<(usize, usize)>,
 }
 
 /// `(hits, total)` as a share (`None` when there was nothing to count).
@@ -221,6 +228,9 @@ impl Tally {
             let (tp, ep) = (truth.specular, r.specular);
             if tp.rf.is_finite() {
                 if ep.rf.is_finite() {
+                    if let Some(resolved) = ep.resolved {
+                        count(&mut self.unresolved, !resolved);
+                    }
                     self.height.push((ep.rf - tp.rf).abs() / tp.rf);
                     if ep.u_rf.is_finite() && r.sigma.is_some() {
                         count(&mut self.height_cov, (ep.rf - tp.rf).abs() <= K * ep.u_rf);
@@ -276,6 +286,7 @@ impl Tally {
             peak_height_coverage: self.height_cov.and_then(share),
             peak_width_coverage: self.width_cov.and_then(share),
             peak_missed: self.peak_missed,
+            peak_unresolved: self.unresolved.and_then(share),
         }
     }
 }

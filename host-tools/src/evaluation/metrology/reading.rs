@@ -68,6 +68,8 @@ pub struct Readers<'a> {
     bins: Vec<f64>,
     bins32: Vec<f32>,
     view_deg: f64,
+    /// The calibration's peak resolution (`output::peak`), if it records one.
+    resolution_deg: Option<f64>,
 }
 
 impl<'a> Readers<'a> {
@@ -84,6 +86,7 @@ impl<'a> Readers<'a> {
             bins: grid.bins_deg().to_vec(),
             bins32: grid.bins_deg().iter().map(|x| *x as f32).collect(),
             view_deg,
+            resolution_deg: view.peak_resolution_deg().map(f64::from),
         })
     }
 
@@ -98,7 +101,7 @@ impl<'a> Readers<'a> {
             gloss: p.readings.map(f64::from),
             gloss_u: Some(p.reading_sigma.map(f64::from)),
             flagged: Some(p.flag_bits != 0),
-            specular: specular_peak(&self.bins32, &p.rho, &p.sigma, self.view_deg),
+            specular: specular_peak(&self.bins32, &p.rho, &p.sigma, self.view_deg).at_resolution(self.resolution_deg),
             stat: f64::from(p.stat),
             brightest_share: brightest_share(v),
         }

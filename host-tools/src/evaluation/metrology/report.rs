@@ -195,13 +195,14 @@ impl Report {
         }
         s += &format!(
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
-             coverage = |est - truth| <= 2 u; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest)\n\n"
+             coverage = |est - truth| <= 2 u; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest; \
+             peak coverage: of the peaks the calibration resolves, an unresolved one states no u)\n\n"
         );
-        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) |\n";
-        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) | peaks unresolved |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for r in &self.rows {
             s += &format!(
-                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} ({}) | {} ({}) |\n",
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} ({}) | {} ({}) | {} |\n",
                 r.family,
                 r.method,
                 r.materials,
@@ -219,6 +220,7 @@ impl Report {
                 opt_pct(r.peak_height_coverage),
                 pair(&r.peak_width_abs_deg, 2),
                 opt_pct(r.peak_width_coverage),
+                opt_pct(r.peak_unresolved),
             );
         }
         s += &format!(
