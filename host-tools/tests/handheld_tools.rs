@@ -198,8 +198,8 @@ fn pixel_map_reads_every_pixel() {
     // read beside interpolation's.
     assert_eq!(m.bin_coverage.len(), 12);
     assert!((0.5..=1.0).contains(&map.bin_coverage), "{}", map.bin_coverage);
-    let t = &map.tiles_brdf;
-    assert_eq!(t.per_tile.len(), host_tools::evaluation::pixel_map::gloss_tiles().len());
+    let (per_tile, t) = (&map.tiles_brdf.per_tile, &map.tiles_brdf.all);
+    assert_eq!(per_tile.len(), host_tools::evaluation::pixel_map::gloss_tiles().len());
     assert!(t.error[0] > 0.0 && t.interpolation[0] > 0.0 && t.error[1] <= t.error[2], "{t:?}");
     assert!((0.5..=1.0).contains(&t.bin_coverage) && (0.0..=1.0).contains(&t.out_of_prior), "{t:?}");
     // Whether the flag predicts error is scored on every point read: each
@@ -207,7 +207,15 @@ fn pixel_map_reads_every_pixel() {
     let f = &map.flag;
     assert_eq!(f.bad + f.good, 12 * 20, "{f:?}");
     assert!(f.bad_flagged <= f.bad && f.good_flagged <= f.good, "{f:?}");
-    assert_eq!(t.flag.bad + t.flag.good, 12 * t.per_tile.len() * 3, "{:?}", t.flag);
+    assert_eq!(t.flag.bad + t.flag.good, 12 * per_tile.len() * 3, "{:?}", t.flag);
+    // And on the scene's own surface, the one it is set up to read (a flag
+    // raised there is what inspection cannot be taught on), and the
+    // black glass's flags.
+    let own = &map.own_surface.brdf;
+    assert!(map.own_surface.surface.contains("\"model\""), "{}", map.own_surface.surface);
+    assert!(own.error[0] > 0.0 && own.error[1] <= own.error[2] && own.interpolation[0] > 0.0, "{own:?}");
+    assert_eq!(own.flag.bad + own.flag.good, 12 * 3, "{:?}", own.flag);
+    assert!((0.0..=1.0).contains(&own.out_of_prior) && (0.0..=1.0).contains(&map.black_glass.out_of_prior));
     // Beside it, what each calibration's training chose and said of its
     // flag: the four folds' statistics and the whole prior's, and the
     // whole prior's score on kinds held out (the prior's weights, which

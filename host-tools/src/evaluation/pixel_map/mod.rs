@@ -251,16 +251,18 @@ pub struct PixelMap {
     pub tiles: [f64; 2],
     /// The tiles' BRDF estimates: surfaces of families no prior holds.
     pub tiles_brdf: TilesBrdf,
+    /// The scene's own surface.
+    pub own_surface: OwnSurface,
     /// The tiles' truths at the line's centre pixel, GU.
     pub tile_gu: Vec<(String, f64)>,
     /// The unseen set, when asked for.
     pub unseen: Option<unseen::UnseenSet>,
 }
 
-/// The gloss tiles' BRDF estimates, over every (tile, pixel), each its
-/// mean over the tile's lines.
+/// A surface's BRDF estimates over the line (every pixel, each its mean
+/// over the surface's lines), by the calibration on the whole prior.
 #[derive(Clone, Debug, Serialize)]
-pub struct TilesBrdf {
+pub struct SurfaceBrdf {
     /// BRDF error / peak: median, 90th percentile, worst.
     pub error: [f64; 3],
     /// Linear interpolation's on the same readings.
@@ -271,8 +273,39 @@ pub struct TilesBrdf {
     pub out_of_prior: f64,
     /// Whether the flag predicts their error.
     pub flag: FlagScore,
+}
+
+impl SurfaceBrdf {
+    fn of<'a>(scores: impl Iterator<Item = &'a TilePixel> + Clone) -> Self {
+        let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        Self {
+            error: quantiles(&scores.clone().map(|x| x.error).collect::<Vec<_>>()),
+            interpolation: quantiles(&scores.clone().map(|x| x.interpolation).collect::<Vec<_>>()),
+            bin_coverage: mean(scores.clone().map(|x| x.covered).collect()),
+            out_of_prior: mean(scores.clone().map(|x| x.out_of_prior).collect()),
+            flag: scores.fold(FlagScore::default(), |a, x| a.merged(x.flag)),
+        }
+    }
+}
+
+/// The gloss tiles' BRDF estimates: surfaces of families no prior holds.
+#[derive(Clone, Debug, Serialize)]
+pub struct TilesBrdf {
+    /// Over every (tile, pixel).
+    #[serde(flatten)]
+    pub all: SurfaceBrdf,
     /// Per tile, its error over the pixels: median, 90th percentile, worst.
     pub per_tile: Vec<(String, [f64; 3])>,
+}
+
+/// The scene's own surface (its `surface.brdf`), read over the line.
+#[derive(Clone, Debug, Serialize)]
+pub struct OwnSurface {
+    /// The surface, as the scene writes it (JSON).
+    pub surface: String,
+    /// Its estimates.
+    #[serde(flatten)]
+    pub brdf: SurfaceBrdf,
 }
 
 /// The black glass over the line.
@@ -288,6 +321,9 @@ pub struct BlackGlassSummary {
     pub no_reading: usize,
     /// Pixels saturated on some line.
     pub saturated: usize,
+    /// Share of its points flagged out of prior (a mirror: no measured
+    /// prior holds one).
+    pub out_of_prior: f64,
 }
 
 /// The gloss tiles the map reads: polished dielectrics roughened by Ward
@@ -335,6 +371,49 @@ fn read_surface(
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     Ok(Read { points })
+}
+
+/// A scene's surface as one line of JSON, without the fields it leaves to
+/// their defaults.
+fn surface_text(b: &crate::forward::brdf::BrdfSpec) -> String {
+    match serde_json::to_value(b) {
+        Ok(serde_json::Value::Object(mut m)) => {
+            m.retain(|_, v| !v.is_null());
+            serde_json::Value::Object(m).to_string()
+        }
+        _ => String::new(),
+    }
+}
+
+/// Surface `b` read over the line for `lines` lines (noise seed `seed`) by
+/// `blob`, and per pixel its BRDF scores (each the mean over the lines).
+fn score_lines(
+    spec: &MapSpec,
+    geo: &LineGeometry,
+    b: &Arc<dyn Brdf>,
+    blob: &BlobView<'_>,
+    lines: u64,
+    seed: u64,
+) -> anyhow::Result<(Read, Vec<TilePixel>)> {
+    let read = read_surface(spec, b.clone(), blob, lines, seed)?;
+    let scores = (0..geo.views.len())
+        .map(|px| {
+            let t = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
+            let lines = read.points.len().max(1) as f64;
+            let mut acc = TilePixel::default();
+            for line in &read.points {
+                let sc = PointScore::of(blob, &t, &line[px], &geo.interp[px]);
+                acc.error += sc.error / lines;
+                acc.interpolation += sc.interpolation / lines;
+                acc.covered += sc.covered / lines;
+                let flagged = line[px].flags & flags::OUT_OF_PRIOR != 0;
+                acc.out_of_prior += f64::from(u8::from(flagged)) / lines;
+                acc.flag.add(sc.error, flagged);
+            }
+            acc
+        })
+        .collect();
+    Ok((read, scores))
 }
 
 /// A surface's truth at a pixel's view: its binned reflectance factor on the grid.
@@ -551,36 +630,26 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         .par_iter()
         .enumerate()
         .map(|(i, (_, b))| {
-            let read = read_surface(spec, b.clone(), &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
+            let (read, brdf) = score_lines(spec, &geo, b, &blob, spec.gloss_lines.clamp(1, 8), 2_000_003 + i as u64)?;
             let gloss_truth = (0..p).map(|px| Some(model_readings(b.as_ref(), &geo.views[px])[0])).collect();
-            let brdf = (0..p)
-                .map(|px| {
-                    let t = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
-                    let lines = read.points.len().max(1) as f64;
-                    let mut acc = TilePixel::default();
-                    for line in &read.points {
-                        let sc = PointScore::of(&blob, &t, &line[px], &geo.interp[px]);
-                        acc.error += sc.error / lines;
-                        acc.interpolation += sc.interpolation / lines;
-                        acc.covered += sc.covered / lines;
-                        let flagged = line[px].flags & flags::OUT_OF_PRIOR != 0;
-                        acc.out_of_prior += f64::from(u8::from(flagged)) / lines;
-                        acc.flag.add(sc.error, flagged);
-                    }
-                    acc
-                })
-                .collect();
             Ok(TileRead { read, gloss_truth, brdf })
         })
         .collect::<anyhow::Result<_>>()?;
+    // The scene's own surface, the one the instrument is set up to read: a
+    // flag raised on it costs more than one that misses (inspection is
+    // taught on it).
+    progress("reading the scene's own surface");
+    let own: Arc<dyn Brdf> =
+        Arc::from(scene.surface.brdf.build_for(scene.instrument.spectral_weights).context("the scene's surface.brdf")?);
+    let (_, own_scores) = score_lines(spec, &geo, &own, &blob, spec.gloss_lines.clamp(1, 8), 3_000_017)?;
+    let own_surface =
+        OwnSurface { surface: surface_text(&scene.surface.brdf), brdf: SurfaceBrdf::of(own_scores.iter()) };
+    let black_glass_out_of_prior = bg.points.iter().flatten().filter(|pt| pt.flags & flags::OUT_OF_PRIOR != 0).count()
+        as f64
+        / bg.points.iter().map(Vec::len).sum::<usize>().max(1) as f64;
     let all_tiles = || tile_reads.iter().flat_map(|t| t.brdf.iter());
-    let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let tiles_brdf = TilesBrdf {
-        error: quantiles(&all_tiles().map(|x| x.error).collect::<Vec<_>>()),
-        interpolation: quantiles(&all_tiles().map(|x| x.interpolation).collect::<Vec<_>>()),
-        bin_coverage: mean(all_tiles().map(|x| x.covered).collect()),
-        out_of_prior: mean(all_tiles().map(|x| x.out_of_prior).collect()),
-        flag: all_tiles().fold(FlagScore::default(), |a, x| a.merged(x.flag)),
+        all: SurfaceBrdf::of(all_tiles()),
         per_tile: tiles
             .iter()
             .zip(&tile_reads)
@@ -641,6 +710,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         line_mean_sd_gu: mean_sd(&line_means).1,
         no_reading: pixels.iter().filter(|r| !r.black_glass_gu.is_finite()).count(),
         saturated: pixels.iter().filter(|r| r.black_glass_saturated).count(),
+        out_of_prior: black_glass_out_of_prior,
     };
     let devs: Vec<f64> = pixels.iter().map(|r| r.tiles_mean_abs_gu).filter(|x| x.is_finite()).collect();
     let tile_gu = tiles
@@ -670,6 +740,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         ],
         tile_gu,
         tiles_brdf,
+        own_surface,
         pixels,
         materials: rows,
     })

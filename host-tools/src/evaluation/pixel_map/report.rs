@@ -76,6 +76,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(s, "| black glass: largest per-pixel 1 sigma over lines, GU | {:.2} |", bg.max_pixel_sd_gu);
     let _ = writeln!(s, "| black glass: 1 sigma of the line's mean, GU | {:.3} |", bg.line_mean_sd_gu);
     let _ = writeln!(s, "| black glass: pixels without a reading / saturated | {} / {} |", bg.no_reading, bg.saturated);
+    let _ = writeln!(s, "| black glass: points flagged out of prior (a mirror) | {} |", pct(bg.out_of_prior));
     let _ = writeln!(
         s,
         "| gloss tiles: mean / worst abs(delta GU) over tile x pixel | {:.2} / {:.2} |",
@@ -83,7 +84,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let tiles: Vec<String> = map.tile_gu.iter().map(|(_, g)| format!("{g:.1}")).collect();
     let _ = writeln!(s, "| gloss tiles' GU at the centre pixel | {} |", tiles.join(", "));
-    let tb = &map.tiles_brdf;
+    let tb = &map.tiles_brdf.all;
     let _ =
         writeln!(s, "| gloss tiles' BRDF error / peak (median / 90th / worst over tile x pixel) | {} |", q(tb.error));
     let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(tb.interpolation));
@@ -97,6 +98,20 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         s,
         "| gloss tiles' out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
         flag_cell(&tb.flag)
+    );
+    let own = &map.own_surface;
+    let _ = writeln!(
+        s,
+        "| the scene's own surface `{}`: BRDF error / peak (median / 90th / worst over the pixels) | {} |",
+        own.surface,
+        q(own.brdf.error)
+    );
+    let _ = writeln!(s, "| linear interpolation, the same points | {} |", q(own.brdf.interpolation));
+    let _ = writeln!(
+        s,
+        "| the scene's own surface: bins within k = 2 of their stated uncertainty; points flagged out of prior | {:.1} %; {} |",
+        100.0 * own.brdf.bin_coverage,
+        pct(own.brdf.out_of_prior)
     );
     if let Some(u) = &map.unseen {
         let left = if u.in_prior.is_empty() {
