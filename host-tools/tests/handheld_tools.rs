@@ -216,6 +216,12 @@ fn pixel_map_reads_every_pixel() {
     assert!(own.error[0] > 0.0 && own.error[1] <= own.error[2] && own.interpolation[0] > 0.0, "{own:?}");
     assert_eq!(own.flag.bad + own.flag.good, 12 * 3, "{:?}", own.flag);
     assert!((0.0..=1.0).contains(&own.out_of_prior) && (0.0..=1.0).contains(&map.black_glass.out_of_prior));
+    // The held-out points' specular peaks, as `measure` writes them: every
+    // point whose truth has one is counted, read with a peak or without.
+    let pk = &map.peaks;
+    assert!(pk.points > 0 && pk.missed <= pk.points, "{pk:?}");
+    assert!((0.0..=1.0).contains(&pk.unresolved), "{pk:?}");
+    assert!(pk.height_rel[0] <= pk.height_rel[1] && pk.interpolation_height_rel[0] > 0.0, "{pk:?}");
     // Beside it, what each calibration's training chose and said of its
     // flag: the four folds' statistics and the whole prior's, and the
     // whole prior's score on kinds held out (the prior's weights, which

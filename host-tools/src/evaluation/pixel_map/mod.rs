@@ -34,6 +34,12 @@
 //!   points (each line of each pixel) worse than 0.10 of their peak,
 //!   the share flagged, and of the rest, on the held-out materials and on
 //!   the tiles.
+//! - **Specular peaks** of the held-out points ([`peaks`]): height error,
+//!   the share the calibration does not resolve, the resolved heights'
+//!   coverage.
+//! - **The scene's own surface**, read as the tiles are: the surface the
+//!   instrument is set up to read, on which a flag costs most.
+pub mod peaks;
 pub mod report;
 pub mod unseen;
 
@@ -54,6 +60,7 @@ use brdf_meter::acquire::AcqConfig;
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::protocol::flags;
 use nalgebra::DVector;
+use peaks::{PeakSummary, PeakTally};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rayon::prelude::*;
@@ -236,6 +243,8 @@ pub struct PixelMap {
     pub bin_coverage: f64,
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
+    /// The held-out points' specular peaks.
+    pub peaks: PeakSummary,
     /// Each calibration's out-of-prior statistic as its training chose it:
     /// the held-out folds', then the whole prior's (`none` without a flag).
     pub flag_statistics: Vec<String>,
@@ -490,6 +499,8 @@ struct LineGeometry {
     views: Vec<nalgebra::Vector3<f64>>,
     interp: Vec<nalgebra::DMatrix<f64>>,
     grid: crate::forward::grid::AngleGrid,
+    /// The grid's bins as the device holds them (f32).
+    bins32: Vec<f32>,
 }
 
 /// Material `b` (named `name`) read on the whole line by `blob` for the
@@ -502,8 +513,9 @@ fn read_material(
     b: &Arc<dyn Brdf>,
     blob: &BlobView<'_>,
     seed: u64,
-) -> anyhow::Result<(MaterialRow, Vec<FlagCounts>, FlagScore)> {
+) -> anyhow::Result<MaterialRead> {
     let p = geo.views.len();
+    let mut peaks = PeakTally::default();
     let read = read_surface(spec, b.clone(), blob, spec.lines, seed)?;
     let mut err = vec![0.0; p];
     let mut ierr = vec![0.0; p];
@@ -515,9 +527,12 @@ fn read_material(
         g_true[px] = model_readings(b.as_ref(), &geo.views[px])[brdf_meter::gloss::SPECULAR_GU];
         let view_deg = geo.views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
         let truth = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
+        let truth32: Vec<f32> = truth.iter().map(|x| *x as f32).collect();
         for line in &read.points {
             let pt = &line[px];
             let score = PointScore::of(blob, &truth, pt, &geo.interp[px]);
+            let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
+            peaks.add(blob, &geo.bins32, &truth32, pt, &profile, view_deg);
             *e += score.error / spec.lines as f64;
             *ie += score.interpolation / spec.lines as f64;
             covered[px] += score.covered / spec.lines as f64;
@@ -540,8 +555,12 @@ fn read_material(
         gloss_interpolation: g_int,
         bin_coverage: covered,
     };
-    Ok((row, fl, flag))
+    Ok((row, fl, flag, peaks))
 }
+
+/// A held-out material's row, per pixel its flag counts, its flag score
+/// and its peaks.
+type MaterialRead = (MaterialRow, Vec<FlagCounts>, FlagScore, PeakTally);
 
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
@@ -581,10 +600,12 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             interpolation::weights(grid.bins_deg(), &c).map_err(|e| anyhow::anyhow!("{e}"))
         })
         .collect::<anyhow::Result<_>>()?;
-    let geo = LineGeometry { views, interp, grid: grid.clone() };
+    let bins32 = grid.bins_deg().iter().map(|x| *x as f32).collect();
+    let geo = LineGeometry { views, interp, grid: grid.clone(), bins32 };
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
     let mut held_out_flag = FlagScore::default();
+    let mut held_out_peaks = PeakTally::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
     let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
     for f in 0..folds {
@@ -593,7 +614,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         let trained = train_on(&train_spec, &all_pairs.without(&held)).with_context(|| format!("fold {f}"))?;
         let blob = BlobView::parse(&trained.blob).map_err(|e| anyhow::anyhow!("{e}"))?;
         flag_statistics.push(statistic(&blob));
-        let results: Vec<(MaterialRow, Vec<FlagCounts>, FlagScore)> = held
+        let results: Vec<MaterialRead> = held
             .par_iter()
             .map(|&k| {
                 let s = &spec.prior.samples[k];
@@ -601,8 +622,9 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 read_material(spec, &geo, &s.name, b, &blob, k as u64)
             })
             .collect::<anyhow::Result<_>>()?;
-        for (row, fl, f) in results {
+        for (row, fl, f, pk) in results {
             held_out_flag = held_out_flag.merged(f);
+            held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in flag_counts.iter_mut().zip(fl) {
                 acc.0 += x.0;
                 acc.1 += x.1;
@@ -730,6 +752,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         gloss_interpolation: held_out.gloss_interpolation,
         bin_coverage: held_out.bin_coverage,
         flag: held_out_flag,
+        peaks: held_out_peaks.summary(),
         flag_statistics,
         flag_in_training: full.flag_on_kinds.map(|f| f.weights),
         unseen,

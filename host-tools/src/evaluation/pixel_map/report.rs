@@ -2,6 +2,7 @@
 //! per pixel), JSON (everything, each material's errors too) and a plot
 //! against pixel (held-out error beside interpolation's, the black glass's
 //! reading, the tiles' gloss error).
+use super::peaks::PeakSummary;
 use super::{FlagScore, PixelMap};
 use crate::evaluation::metrology::metrics::BAD_ERROR;
 use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
@@ -11,14 +12,33 @@ use plotters::prelude::*;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// `caught % (n bad) / false %`, a dash where there is nothing to share.
 /// A share in per cent to 0.1, `-` when unknown.
 fn pct(x: f64) -> String {
     if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() }
 }
 
+/// `caught % (n bad) / false %`, a dash where there is nothing to share.
 fn flag_cell(f: &FlagScore) -> String {
     format!("{} ({}) / {}", pct(f.caught()), f.bad, pct(f.false_alarms()))
+}
+
+/// A [`PeakSummary`] as one cell: height error median / 90th, all peaks,
+/// the resolved ones and interpolation's; share not resolved; resolved
+/// heights within k = 2 (points with a peak in truth, read without one).
+fn peak_cell(p: &PeakSummary) -> String {
+    format!(
+        "{:.1} / {:.1} % (resolved {:.1} / {:.1} %; interpolation {:.1} / {:.1} %); {}; {} ({}, {})",
+        100.0 * p.height_rel[0],
+        100.0 * p.height_rel[1],
+        100.0 * p.resolved_height_rel[0],
+        100.0 * p.resolved_height_rel[1],
+        100.0 * p.interpolation_height_rel[0],
+        100.0 * p.interpolation_height_rel[1],
+        pct(p.unresolved),
+        pct(p.resolved_coverage),
+        p.points,
+        p.missed
+    )
 }
 
 /// The summary and the per-pixel table (every `stride`-th pixel and the last).
@@ -54,6 +74,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         s,
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
         flag_cell(&map.flag)
+    );
+    let _ = writeln!(
+        s,
+        "| specular peaks, held out: height relative error median / 90th (all peaks; resolved ones; interpolation's); not resolved by the calibration; resolved heights within k = 2 (points with a peak in truth, read without one) | {} |",
+        peak_cell(&map.peaks)
     );
     if let Some(k) = &map.flag_in_training {
         let _ = writeln!(
@@ -145,6 +170,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             "| unseen set's out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
             flag_cell(&u.flag)
         );
+        let _ = writeln!(s, "| unseen set's specular peaks | {} |", peak_cell(&u.peaks));
     }
     let _ = writeln!(s);
     let _ = writeln!(

@@ -4,7 +4,8 @@
 //! the held-out materials get, beside linear interpolation's. A surface
 //! that is also a prior sample is left out and named: the calibration has
 //! seen it, and the held-out figures already read it without.
-use super::{FlagCounts, LineGeometry, LineSummary, MapSpec, MaterialRow, read_material};
+use super::peaks::{PeakSummary, PeakTally};
+use super::{LineGeometry, LineSummary, MapSpec, MaterialRead, MaterialRow, read_material};
 use crate::evaluation::metrology::metrics::FlagScore;
 use crate::forward::brdf::Brdf;
 use crate::forward::prior_models::SampleModel;
@@ -33,6 +34,8 @@ pub struct UnseenSet {
     pub summary: LineSummary,
     /// Whether the out-of-prior flag predicts their points' error.
     pub flag: FlagScore,
+    /// Their points' specular peaks.
+    pub peaks: PeakSummary,
     /// Per surface.
     pub materials: Vec<MaterialRow>,
 }
@@ -57,17 +60,19 @@ pub(super) fn read(
         let v = SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg);
         prior.iter().any(|p| same_profile(p, &v))
     });
-    let reads: Vec<(MaterialRow, Vec<FlagCounts>, FlagScore)> = unseen
+    let reads: Vec<MaterialRead> = unseen
         .par_iter()
         .map(|(i, (name, b))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
         .collect::<anyhow::Result<_>>()?;
     let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.2));
+    let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.3.clone())).summary();
     let materials: Vec<MaterialRow> = reads.into_iter().map(|r| r.0).collect();
     Ok(UnseenSet {
         source: set.source.clone(),
         in_prior: seen.into_iter().map(|(_, (n, _))| n.clone()).collect(),
         summary: LineSummary::of(&materials),
         flag,
+        peaks,
         materials,
     })
 }

@@ -1,0 +1,122 @@
+//! The specular peaks of the map's held-out points (`crate::output::peak`,
+//! as `measure` writes them): each point's peak against its truth's at the
+//! pixel's own view, the height's relative error over every point with a
+//! peak, the share the calibration does not resolve, and the k = 2
+//! coverage of the heights it does (an unresolved peak states no
+//! uncertainty); linear interpolation's peak heights on the same points
+//! beside them.
+use crate::device::reference::ExpectedPoint;
+use crate::evaluation::metrology::metrics::K;
+use crate::evaluation::pixel_error::quantiles;
+use crate::output::peak::{Peak, specular_peak};
+use brdf_meter::blob::BlobView;
+use serde::Serialize;
+
+/// The running count, mergeable over materials.
+#[derive(Clone, Debug, Default)]
+pub struct PeakTally {
+    height_rel: Vec<f64>,
+    resolved_height_rel: Vec<f64>,
+    interpolation_height_rel: Vec<f64>,
+    resolved: usize,
+    resolved_within: usize,
+    unresolved: usize,
+    missed: usize,
+}
+
+/// What the map reports of the peaks.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PeakSummary {
+    /// Points whose truth has a peak.
+    pub points: usize,
+    /// Height relative error, median and 90th percentile, over the points
+    /// whose estimate has a peak (resolved or not).
+    pub height_rel: [f64; 2],
+    /// The same over the resolved peaks.
+    pub resolved_height_rel: [f64; 2],
+    /// Linear interpolation's, over the points whose profile has a peak.
+    pub interpolation_height_rel: [f64; 2],
+    /// Share of the estimates' peaks the calibration does not resolve.
+    pub unresolved: f64,
+    /// Share of the resolved peaks' heights within k = 2 of their stated
+    /// uncertainty.
+    pub resolved_coverage: f64,
+    /// Points without a peak where the truth has one.
+    pub missed: usize,
+}
+
+impl PeakTally {
+    /// Adds point `pt` of `blob`, and interpolation's `profile` of the
+    /// same readings, against the truth's bins `truth` (on `bins_deg`), the
+    /// peak sought about `view_deg`.
+    pub fn add(
+        &mut self,
+        blob: &BlobView<'_>,
+        bins_deg: &[f32],
+        truth: &[f32],
+        pt: &ExpectedPoint,
+        profile: &[f32],
+        view_deg: f64,
+    ) {
+        let none = vec![0.0; truth.len()];
+        let t = specular_peak(bins_deg, truth, &none, view_deg);
+        if !t.rf.is_finite() {
+            return;
+        }
+        let i = specular_peak(bins_deg, profile, &none, view_deg);
+        if i.rf.is_finite() {
+            self.interpolation_height_rel.push((i.rf - t.rf).abs() / t.rf);
+        }
+        let u: Vec<f32> = (0..pt.values.len())
+            .map(|j| blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale))
+            .collect();
+        let e: Peak =
+            specular_peak(bins_deg, &pt.values, &u, view_deg).at_resolution(blob.peak_resolution_deg().map(f64::from));
+        if !e.rf.is_finite() {
+            self.missed += 1;
+            return;
+        }
+        let err = (e.rf - t.rf).abs();
+        self.height_rel.push(err / t.rf);
+        if e.resolved == Some(false) {
+            self.unresolved += 1;
+        } else if e.u_rf.is_finite() {
+            self.resolved += 1;
+            self.resolved_height_rel.push(err / t.rf);
+            self.resolved_within += usize::from(err <= K * e.u_rf);
+        }
+    }
+
+    /// Both counts together.
+    pub fn merged(mut self, o: Self) -> Self {
+        self.height_rel.extend(o.height_rel);
+        self.resolved_height_rel.extend(o.resolved_height_rel);
+        self.interpolation_height_rel.extend(o.interpolation_height_rel);
+        self.resolved += o.resolved;
+        self.resolved_within += o.resolved_within;
+        self.unresolved += o.unresolved;
+        self.missed += o.missed;
+        self
+    }
+
+    /// The figures.
+    pub fn summary(&self) -> PeakSummary {
+        let q = quantiles(&self.height_rel);
+        let qr = quantiles(&self.resolved_height_rel);
+        let qi = quantiles(&self.interpolation_height_rel);
+        let with_peak = self.height_rel.len();
+        PeakSummary {
+            points: with_peak + self.missed,
+            height_rel: [q[0], q[1]],
+            resolved_height_rel: [qr[0], qr[1]],
+            interpolation_height_rel: [qi[0], qi[1]],
+            unresolved: self.unresolved as f64 / with_peak.max(1) as f64,
+            resolved_coverage: if self.resolved > 0 {
+                self.resolved_within as f64 / self.resolved as f64
+            } else {
+                f64::NAN
+            },
+            missed: self.missed,
+        }
+    }
+}
