@@ -285,7 +285,7 @@ pub struct SurfaceBrdf {
 }
 
 impl SurfaceBrdf {
-    fn of<'a>(scores: impl Iterator<Item = &'a TilePixel> + Clone) -> Self {
+    fn of<'a>(scores: impl Iterator<Item = &'a SurfacePixel> + Clone) -> Self {
         let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
         Self {
             error: quantiles(&scores.clone().map(|x| x.error).collect::<Vec<_>>()),
@@ -403,13 +403,13 @@ fn score_lines(
     blob: &BlobView<'_>,
     lines: u64,
     seed: u64,
-) -> anyhow::Result<(Read, Vec<TilePixel>)> {
+) -> anyhow::Result<(Read, Vec<SurfacePixel>)> {
     let read = read_surface(spec, b.clone(), blob, lines, seed)?;
     let scores = (0..geo.views.len())
         .map(|px| {
             let t = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
             let lines = read.points.len().max(1) as f64;
-            let mut acc = TilePixel::default();
+            let mut acc = SurfacePixel::default();
             for line in &read.points {
                 let sc = PointScore::of(blob, &t, &line[px], &geo.interp[px]);
                 acc.error += sc.error / lines;
@@ -477,12 +477,13 @@ struct TileRead {
     /// Per pixel, its gloss by the definitions in three dimensions, GU.
     gloss_truth: Vec<Option<f64>>,
     /// Per pixel, its BRDF scores (each the mean over the lines).
-    brdf: Vec<TilePixel>,
+    brdf: Vec<SurfacePixel>,
 }
 
-/// One tile's BRDF at one pixel, each figure its mean over the lines.
+/// One surface's BRDF at one pixel (a tile's, the scene's own), each
+/// figure its mean over the lines.
 #[derive(Clone, Copy, Debug, Default)]
-struct TilePixel {
+struct SurfacePixel {
     error: f64,
     interpolation: f64,
     covered: f64,
