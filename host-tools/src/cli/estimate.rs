@@ -169,16 +169,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         points: schema_points,
     };
     files.write(&a.out, a.json.as_deref())?;
+    let unresolved = files.unresolved_peaks();
     let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
         crate::device::measurement_summary::SummaryPoint { line: None, flags: p.flag_bits, readings: p.readings }
     }));
     print!("{}", crate::device::measurement_summary::table(&summary));
     let flagged = points.iter().filter(|p| p.flag_bits & flags::OUT_OF_PRIOR != 0).count();
     println!(
-        "{} point(s), {} estimator, zone {}: {flagged} out-of-prior; wrote {}{}",
+        "{} point(s), {} estimator, zone {}: {flagged} out-of-prior{}; wrote {}{}",
         points.len(),
         crate::calibration::estimators::kind_name(view.estimator()),
         app.zone(),
+        crate::output::points::unresolved_note(unresolved),
         a.out.display(),
         a.json.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
     );

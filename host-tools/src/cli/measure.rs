@@ -132,7 +132,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let points = c.measure_observed(a.lines, &mut |_| progress.inc(1));
     progress.finish_and_clear();
     let points: Vec<PointRecord> = points.context("measuring")?;
-    crate::device::measurement::measurement_points(&view, &points, a.exports.view_deg).write(&a.csv, Some(&a.json))?;
+    let files = crate::device::measurement::measurement_points(&view, &points, a.exports.view_deg);
+    files.write(&a.csv, Some(&a.json))?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();
     print!(
         "{}",
@@ -141,10 +142,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ))
     );
     println!(
-        "measured {} lines, {} points ({} flagged): {} and {}",
+        "measured {} lines, {} points ({} flagged{}): {} and {}",
         a.lines,
         points.len(),
         flagged,
+        crate::output::points::unresolved_note(files.unresolved_peaks()),
         a.csv.display(),
         a.json.display()
     );

@@ -80,6 +80,18 @@ pub struct Point {
     pub u_readings: [f32; READINGS],
 }
 
+/// `; N peak(s) not resolved (narrower than W deg)` for a summary line,
+/// nothing when no peak is unresolved or the calibration records no
+/// resolution.
+pub fn unresolved_note(u: Option<(usize, f64)>) -> String {
+    match u {
+        Some((n, w)) if n > 0 => {
+            format!("; {n} peak(s) not resolved (narrower than {w:.2} deg: no uncertainty stated)")
+        }
+        _ => String::new(),
+    }
+}
+
 /// A set of points and what they are on: one CSV file, one JSON document.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Points {
@@ -154,6 +166,22 @@ impl Points {
             ("peak_resolved", Value::Bool(peak.resolved)),
         ]);
         f
+    }
+
+    /// How many points' specular peaks the calibration does not resolve
+    /// (`peak_resolved` false), and the width below which it does not
+    /// (`None`: the calibration records no resolution).
+    pub fn unresolved_peaks(&self) -> Option<(usize, f64)> {
+        let res = self.peak_resolution_deg?;
+        let n = self
+            .points
+            .iter()
+            .filter(|p| {
+                specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(Some(res)).resolved
+                    == Some(false)
+            })
+            .count();
+        Some((n, crate::output::peak::RESOLVED_WIDTH_FACTOR * res))
     }
 
     /// The CSV's first line: schema, version, where the points came from, and the units.
@@ -420,6 +448,11 @@ mod tests {
         assert_eq!((rows[0][58], &first["peak_resolved"]), ("true", &serde_json::json!(true)));
         assert_eq!((rows[1][58], &j["points"][1]["peak_resolved"]), ("", &serde_json::Value::Null));
         assert_eq!(j["peak_resolution_deg"], 0.75);
+        // The triangle is resolved; a resolution of 2 deg would not resolve it.
+        assert_eq!(p.unresolved_peaks().map(|u| u.0), Some(0));
+        let coarse = Points { peak_resolution_deg: Some(2.0), ..p.clone() };
+        assert_eq!(coarse.unresolved_peaks().map(|u| u.0), Some(1));
+        assert_eq!(Points { peak_resolution_deg: None, ..p.clone() }.unresolved_peaks(), None);
         let json = String::from_utf8(p.json().unwrap()).unwrap();
         for (col, name) in [(47, "gloss_gu"), (53, "peak_rf"), (56, "peak_width_deg"), (57, "u_peak_width_deg")] {
             let line = format!("\"{name}\": {}", rows[0][col]);
