@@ -829,6 +829,8 @@ pub struct TrainJson {
     pub blob_bytes: usize,
     /// Blob CRC-32.
     pub blob_crc: u32,
+    /// The peak resolution the blob records, deg (`crate::calibration::peak_resolution`; null: none).
+    pub peak_resolution_deg: Option<f32>,
     /// Every zone.
     pub zones: Vec<ZoneJson>,
 }
@@ -868,6 +870,8 @@ pub struct ScaleFreeJson {
     pub blob_bytes: usize,
     /// Blob CRC-32.
     pub blob_crc: u32,
+    /// The peak resolution the blob records, deg (`crate::calibration::peak_resolution`; null: none).
+    pub peak_resolution_deg: Option<f32>,
 }
 
 /// One zone in [`ScaleFreeJson`].
@@ -939,6 +943,7 @@ impl Trained {
                 f32_rel_error: self.f32_rel_error,
                 blob_bytes: self.blob.len(),
                 blob_crc: view.crc(),
+                peak_resolution_deg: view.peak_resolution_deg(),
                 zones,
             })
         } else {
@@ -966,6 +971,7 @@ impl Trained {
                 f32_rel_error: self.f32_rel_error,
                 blob_bytes: self.blob.len(),
                 blob_crc: view.crc(),
+                peak_resolution_deg: view.peak_resolution_deg(),
             })
         };
         value.expect("the inspection JSON serialises")
@@ -1028,6 +1034,7 @@ mod tests {
         assert_eq!(j["W"].as_array().unwrap().len(), 81);
         assert_eq!(j["W"][0].as_array().unwrap().len(), 7);
         assert_eq!(j["uncertainty"].as_array().unwrap().len(), 81);
+        assert_eq!(j["peak_resolution_deg"].as_f64().map(|x| x as f32), v.peak_resolution_deg());
     }
 
     #[test]
