@@ -1569,6 +1569,41 @@ mod tests {
     }
 
     #[test]
+    fn the_peak_resolution_is_flag_bit_6_at_offset_60_and_is_checked() {
+        let o = sample(6, 4, 2, 5);
+        let with = |r: Option<f32>| {
+            let ex = BlobExtras { peak_resolution_deg: r, ..BlobExtras::NONE };
+            let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+            write_blob_with(&contents(&o), &ex, &mut buf).map(|n| {
+                buf.truncate(n);
+                buf
+            })
+        };
+        // None writes version 1 as before; a value writes version 2, the
+        // flag and the value, and it reads back.
+        let (bare, res) = (with(None).unwrap(), with(Some(0.75)).unwrap());
+        assert_eq!(
+            (get_u16(&bare, 4), BlobView::parse(&bare).unwrap().peak_resolution_deg()),
+            (FORMAT_VERSION_1, None)
+        );
+        assert_eq!(get_u16(&res, 4), FORMAT_VERSION_2);
+        assert_eq!(get_u16(&res, 22) & FLAG_PEAK_RESOLUTION, FLAG_PEAK_RESOLUTION);
+        assert_eq!(BlobView::parse(&res).unwrap().peak_resolution_deg(), Some(0.75));
+        // The writer refuses what the parser would.
+        assert_eq!(with(Some(0.0)), Err(BlobError::OutOfRange { section: Section::Header, index: 60 }));
+        assert_eq!(with(Some(f32::NAN)), Err(BlobError::NonFinite { section: Section::Header, index: 60 }));
+        // So does the parser, with a good CRC: a bad value, a value without
+        // the flag, the flag in a version 1 blob.
+        let bad = |x: f32| resealed(res.clone(), &|b| put_f32(b, 60, x));
+        assert_eq!(bad(-1.0), Err(BlobError::OutOfRange { section: Section::Header, index: 60 }));
+        assert_eq!(bad(f32::INFINITY), Err(BlobError::NonFinite { section: Section::Header, index: 60 }));
+        let flags = get_u16(&res, 22) & !FLAG_PEAK_RESOLUTION;
+        assert_eq!(resealed(res.clone(), &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
+        let v1_flags = get_u16(&bare, 22) | FLAG_PEAK_RESOLUTION;
+        assert_eq!(resealed(bare, &|b| put_u16(b, 22, v1_flags)), Err(BlobError::ReservedNotZero));
+    }
+
+    #[test]
     fn version_1_is_still_written_and_read_as_before_and_v2_rules_hold() {
         let o = sample(6, 4, 2, 5);
         let buf = encode(&o);
