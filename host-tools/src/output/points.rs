@@ -133,8 +133,7 @@ fn number_text(x: f32) -> String {
 impl Points {
     /// A point's fields in the schema's order, with its specular peak.
     fn fields<'a>(&self, p: &'a Point) -> Vec<(&'static str, Value<'a>)> {
-        let peak: Peak =
-            specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.peak_resolution_deg);
+        let peak = self.peak(p);
         // A non-finite point's values are the device's guard (zeros, so a
         // reader that ignores flags sees a flat curve), no estimate: it has no
         // uncertainty, whichever source (the device's frame scales the
@@ -173,15 +172,14 @@ impl Points {
     /// (`None`: the calibration records no resolution).
     pub fn unresolved_peaks(&self) -> Option<(usize, f64)> {
         let res = self.peak_resolution_deg?;
-        let n = self
-            .points
-            .iter()
-            .filter(|p| {
-                specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(Some(res)).resolved
-                    == Some(false)
-            })
-            .count();
+        let n = self.points.iter().filter(|p| self.peak(p).resolved == Some(false)).count();
         Some((n, crate::output::peak::RESOLVED_WIDTH_FACTOR * res))
+    }
+
+    /// Point `p`'s specular peak as the files write it: sought about the
+    /// view, read at the calibration's resolution.
+    fn peak(&self, p: &Point) -> Peak {
+        specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.peak_resolution_deg)
     }
 
     /// The CSV's first line: schema, version, where the points came from, and the units.

@@ -442,6 +442,8 @@ struct PointScore {
     /// Share of the bins within k = 2 of the uncertainty the frame states
     /// (`BlobView::point_uncertainty`, what `measure` writes).
     covered: f64,
+    /// Those uncertainties, per bin.
+    u: Vec<f32>,
     /// Interpolation's profile (its gloss is read from it).
     profile: DVector<f64>,
 }
@@ -456,16 +458,15 @@ impl PointScore {
         let n = truth.len();
         let est = DVector::from_iterator(n, pt.values.iter().map(|x| f64::from(*x)));
         let profile = interp * DVector::from_iterator(pt.corrected.len(), pt.corrected.iter().map(|x| f64::from(*x)));
-        let inside = (0..n)
-            .filter(|&j| {
-                let u = blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale);
-                (est[j] - truth[j]).abs() <= K * f64::from(u)
-            })
-            .count();
+        let u: Vec<f32> = (0..n)
+            .map(|j| blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale))
+            .collect();
+        let inside = (0..n).filter(|&j| (est[j] - truth[j]).abs() <= K * f64::from(u[j])).count();
         Self {
             error: peak_error(&est, truth),
             interpolation: peak_error(&profile, truth),
             covered: inside as f64 / n.max(1) as f64,
+            u,
             profile,
         }
     }
@@ -516,7 +517,7 @@ fn read_material(
     seed: u64,
 ) -> anyhow::Result<MaterialRead> {
     let p = geo.views.len();
-    let mut peaks = PeakTally::default();
+    let mut peaks = PeakTally::at_resolution(blob.peak_resolution_deg().map(f64::from));
     let read = read_surface(spec, b.clone(), blob, spec.lines, seed)?;
     let mut err = vec![0.0; p];
     let mut ierr = vec![0.0; p];
@@ -533,7 +534,7 @@ fn read_material(
             let pt = &line[px];
             let score = PointScore::of(blob, &truth, pt, &geo.interp[px]);
             let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
-            peaks.add(blob, &geo.bins32, &truth32, pt, &profile, view_deg);
+            peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, view_deg);
             *e += score.error / spec.lines as f64;
             *ie += score.interpolation / spec.lines as f64;
             covered[px] += score.covered / spec.lines as f64;

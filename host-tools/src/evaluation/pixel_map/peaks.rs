@@ -9,12 +9,13 @@ use crate::device::reference::ExpectedPoint;
 use crate::evaluation::metrology::metrics::K;
 use crate::evaluation::pixel_error::quantiles;
 use crate::output::peak::{Peak, specular_peak};
-use brdf_meter::blob::BlobView;
 use serde::Serialize;
 
 /// The running count, mergeable over materials.
 #[derive(Clone, Debug, Default)]
 pub struct PeakTally {
+    /// The calibration's peak resolution (`None`: it records none).
+    resolution_deg: Option<f64>,
     height_rel: Vec<f64>,
     resolved_height_rel: Vec<f64>,
     interpolation_height_rel: Vec<f64>,
@@ -46,15 +47,21 @@ pub struct PeakSummary {
 }
 
 impl PeakTally {
-    /// Adds point `pt` of `blob`, and interpolation's `profile` of the
-    /// same readings, against the truth's bins `truth` (on `bins_deg`), the
-    /// peak sought about `view_deg`.
+    /// An empty tally for a calibration of peak resolution `resolution_deg`.
+    pub fn at_resolution(resolution_deg: Option<f64>) -> Self {
+        Self { resolution_deg, ..Self::default() }
+    }
+
+    /// Adds point `pt` with the per-bin uncertainty `u` its frame
+    /// states, and interpolation's `profile` of the same readings, against
+    /// the truth's bins `truth` (on `bins_deg`), the peak sought about
+    /// `view_deg`.
     pub fn add(
         &mut self,
-        blob: &BlobView<'_>,
         bins_deg: &[f32],
         truth: &[f32],
         pt: &ExpectedPoint,
+        u: &[f32],
         profile: &[f32],
         view_deg: f64,
     ) {
@@ -67,11 +74,7 @@ impl PeakTally {
         if i.rf.is_finite() {
             self.interpolation_height_rel.push((i.rf - t.rf).abs() / t.rf);
         }
-        let u: Vec<f32> = (0..pt.values.len())
-            .map(|j| blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale))
-            .collect();
-        let e: Peak =
-            specular_peak(bins_deg, &pt.values, &u, view_deg).at_resolution(blob.peak_resolution_deg().map(f64::from));
+        let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).at_resolution(self.resolution_deg);
         if !e.rf.is_finite() {
             self.missed += 1;
             return;
