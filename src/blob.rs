@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -57,7 +57,10 @@
 //! | 4ZKm (piecewise only) | centroids per zone, K x m, in `v / sum|v|` space |
 //! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of the statistic's coordinates (m-1; `u' = v'/s`, or with bit 4 the centred log shares), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
 //!
-//! before the CRC. A scale-free matrix is `[W' | b]`: its last column
+//! | 4P (bit 7 only) | per pixel, the peak resolution, deg (below) |
+//!
+//! before the CRC (the per-pixel resolutions after the gloss section, when
+//! the blob has one). A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
 //!
 //! ## The peak resolution (flag bit 6)
@@ -69,6 +72,16 @@
 //! (`host_tools::output::peak`). Training writes it whenever the blob has
 //! a gloss section (the standard's readings are training's); a blob
 //! without it reads as before.
+//!
+//! With flag bit 7 the blob also holds each pixel's own resolution, the
+//! width its own estimate of the black glass comes out with: a pixel's
+//! matrices are its zone's, but where the mirror direction falls between
+//! the LEDs moves along the line, and with it the narrowest lobe the pixel
+//! puts out (0.73 to 1.14 deg on the handheld). Each value is finite, > 0
+//! and at most the header's (the widest), or NaN for a pixel whose estimate
+//! of the standard has no width, which is then judged at the header's
+//! value ([`BlobView::peak_resolution_at`]). The host judges a point's peak
+//! at its pixel's resolution; the device does not use them.
 //!
 //! ## The root form (flag bit 3, the scale-free kinds)
 //! A scale-free calibration may be trained in the root form: its matrices
@@ -179,12 +192,30 @@ const FLAG_BAND_FACTOR: u16 = 32;
 /// it rejects such a blob as having a reserved flag set, and keeps its last
 /// good calibration.
 const FLAG_PEAK_RESOLUTION: u16 = 64;
+/// A per-pixel peak resolution section follows the gloss section (with
+/// `FLAG_PEAK_RESOLUTION` only). Firmware from before it rejects such a
+/// blob as having a reserved flag set, and keeps its last good calibration.
+const FLAG_PIXEL_RESOLUTION: u16 = 128;
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
         Err(BlobError::NonFinite { section: Section::Header, index: 60 })
     } else if r <= 0.0 {
         Err(BlobError::OutOfRange { section: Section::Header, index: 60 })
+    } else {
+        Ok(())
+    }
+}
+
+/// A pixel's peak resolution: NaN (none of its own), or a finite width
+/// above zero and at most the calibration's `widest`.
+fn check_pixel_resolution(r: f32, widest: f32, p: usize) -> Result<(), BlobError> {
+    if r.is_nan() {
+        Ok(())
+    } else if !r.is_finite() {
+        Err(BlobError::NonFinite { section: Section::PeakResolution, index: p })
+    } else if r <= 0.0 || r > widest {
+        Err(BlobError::OutOfRange { section: Section::PeakResolution, index: p })
     } else {
         Ok(())
     }
@@ -281,6 +312,8 @@ pub enum Section {
     OutOfPrior,
     /// The gloss readings' reference values, rows and covariances (format version 3).
     Gloss,
+    /// The per-pixel peak resolutions (header flag bit 7).
+    PeakResolution,
 }
 
 /// Why a blob was rejected.
@@ -427,6 +460,8 @@ struct Layout {
     centroids: usize,
     out_of_prior: usize,
     gloss: usize,
+    /// The per-pixel peak resolutions (as long as the pixels, or empty).
+    pixel_resolution: usize,
     crc: usize,
     total: usize,
     clusters: usize,
@@ -454,7 +489,8 @@ impl Dims {
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
         let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
-        let crc = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
+        let pixel_resolution = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
+        let crc = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
         Layout {
             grid,
             led_order,
@@ -465,6 +501,7 @@ impl Dims {
             centroids,
             out_of_prior,
             gloss,
+            pixel_resolution,
             crc,
             total: crc + 4,
             clusters: k,
@@ -567,6 +604,9 @@ pub struct BlobExtras<'a> {
     /// The peak resolution, deg (header flag bit 6, format version 2 and
     /// up; finite, > 0): the module docs.
     pub peak_resolution_deg: Option<f32>,
+    /// Each pixel's peak resolution, deg (P values, or empty for none;
+    /// header flag bit 7, with `peak_resolution_deg` only): the module docs.
+    pub pixel_peak_resolution_deg: &'a [f32],
 }
 
 impl BlobExtras<'_> {
@@ -578,6 +618,7 @@ impl BlobExtras<'_> {
         gloss: None,
         root_form: false,
         peak_resolution_deg: None,
+        pixel_peak_resolution_deg: &[],
     };
 }
 
@@ -593,6 +634,8 @@ struct Extras {
     gloss_refs: usize,
     /// The header holds the peak resolution.
     peak_resolution: bool,
+    /// The per-pixel resolutions follow.
+    pixel_resolution: bool,
 }
 
 impl Extras {
@@ -604,6 +647,7 @@ impl Extras {
         root_form: false,
         gloss_refs: 0,
         peak_resolution: false,
+        pixel_resolution: false,
     };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
@@ -615,6 +659,7 @@ impl Extras {
             root_form: x.root_form,
             gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
             peak_resolution: x.peak_resolution_deg.is_some(),
+            pixel_resolution: !x.pixel_peak_resolution_deg.is_empty(),
         }
     }
 
@@ -713,6 +758,14 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     if let Some(r) = extras.peak_resolution_deg {
         check_peak_resolution(r)?;
     }
+    if ex.pixel_resolution {
+        sized(extras.pixel_peak_resolution_deg.len() == d.pixels, Section::PeakResolution)?;
+        let widest =
+            extras.peak_resolution_deg.ok_or(BlobError::ContentMismatch { section: Section::PeakResolution })?;
+        for (p, r) in extras.pixel_peak_resolution_deg.iter().enumerate() {
+            check_pixel_resolution(*r, widest, p)?;
+        }
+    }
     if out.len() < lay.total {
         return Err(BlobError::BufferTooSmall { need: lay.total });
     }
@@ -747,7 +800,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     };
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
-    let resolution_flag = if ex.peak_resolution { FLAG_PEAK_RESOLUTION } else { 0 };
+    let resolution_flag = if ex.peak_resolution { FLAG_PEAK_RESOLUTION } else { 0 }
+        | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 };
     put_u16(
         out,
         22,
@@ -790,6 +844,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         (lay.matrices, c.matrices),
         (lay.centroids, extras.centroids),
         (lay.out_of_prior, oop),
+        (lay.pixel_resolution, extras.pixel_peak_resolution_deg),
     ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);
@@ -858,6 +913,7 @@ impl<'a> BlobView<'a> {
                     (true, _) => dims.pixels,
                 },
                 peak_resolution: flags & FLAG_PEAK_RESOLUTION != 0,
+                pixel_resolution: flags & FLAG_PIXEL_RESOLUTION != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -894,8 +950,10 @@ impl<'a> BlobView<'a> {
                 | FLAG_ROOT
                 | FLAG_LOG_RATIO
                 | FLAG_BAND_FACTOR
-                | FLAG_PEAK_RESOLUTION;
+                | FLAG_PEAK_RESOLUTION
+                | FLAG_PIXEL_RESOLUTION;
             bytes[50..52].iter().all(|b| *b == 0)
+                && (ex.peak_resolution || !ex.pixel_resolution)
                 && (band || get_u32(bytes, 56) == 0)
                 && (ex.peak_resolution || get_u32(bytes, 60) == 0)
                 && flags & !known == 0
@@ -923,6 +981,11 @@ impl<'a> BlobView<'a> {
         }
         if let Some(r) = view.peak_resolution_deg() {
             check_peak_resolution(r)?;
+            if ex.pixel_resolution {
+                for p in 0..dims.pixels {
+                    check_pixel_resolution(get_f32(bytes, lay.pixel_resolution + 4 * p), r, p)?;
+                }
+            }
         }
         let noise = view.noise_rel();
         if !noise.is_finite() {
@@ -1167,7 +1230,7 @@ impl<'a> BlobView<'a> {
     #[cfg(target_endian = "little")]
     pub fn out_of_prior_in_place(&self) -> Option<&'a [f32]> {
         self.out_of_prior_threshold()?;
-        bytemuck::try_cast_slice(self.bytes.get(self.lay.out_of_prior..self.lay.crc)?).ok()
+        bytemuck::try_cast_slice(self.bytes.get(self.lay.out_of_prior..self.lay.gloss)?).ok()
     }
     /// All zones' per-bin standard uncertainties (Z x K x n) as an `f32`
     /// slice in place, when the blob sits at a 4-byte aligned address.
@@ -1181,10 +1244,11 @@ impl<'a> BlobView<'a> {
     /// index, the zones' references Z, the blocks Z x K).
     #[cfg(target_endian = "little")]
     pub fn gloss_in_place(&self) -> Option<GlossData<'a>> {
-        if self.lay.crc == self.lay.gloss {
+        if !self.has_gloss() {
             return None;
         }
-        let all: &'a [f32] = bytemuck::try_cast_slice(self.bytes.get(self.lay.gloss..self.lay.crc)?).ok()?;
+        let all: &'a [f32] =
+            bytemuck::try_cast_slice(self.bytes.get(self.lay.gloss..self.lay.pixel_resolution)?).ok()?;
         let r = self.lay.gloss_refs;
         Some(GlossData {
             assigned_gu: all[0],
@@ -1203,7 +1267,7 @@ impl<'a> BlobView<'a> {
     }
     /// Whether the blob carries the gloss section.
     pub fn has_gloss(&self) -> bool {
-        self.lay.crc != self.lay.gloss
+        self.lay.pixel_resolution != self.lay.gloss
     }
     /// The gloss section's values copied out (any alignment): assigned value,
     /// refractive index, then the reference of zone `z`'s first pixel and the
@@ -1270,6 +1334,15 @@ impl<'a> BlobView<'a> {
     /// the blob carries it: the module docs.
     pub fn peak_resolution_deg(&self) -> Option<f32> {
         (get_u16(self.bytes, 22) & FLAG_PEAK_RESOLUTION != 0).then(|| get_f32(self.bytes, 60))
+    }
+
+    /// Pixel `p`'s peak resolution (deg): its own (flag bit 7) when it has
+    /// one, else the calibration's ([`Self::peak_resolution_deg`]).
+    pub fn peak_resolution_at(&self, p: usize) -> Option<f32> {
+        let own = (get_u16(self.bytes, 22) & FLAG_PIXEL_RESOLUTION != 0 && p < self.dims.pixels)
+            .then(|| get_f32(self.bytes, self.lay.pixel_resolution + 4 * p))
+            .filter(|r| !r.is_nan());
+        own.or_else(|| self.peak_resolution_deg())
     }
     /// Which statistic the out-of-prior section is for, when the blob
     /// carries one.
@@ -1471,6 +1544,7 @@ mod tests {
             gloss: None,
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1604,6 +1678,56 @@ mod tests {
     }
 
     #[test]
+    fn each_pixels_peak_resolution_is_flag_bit_7_after_the_last_section_and_is_checked() {
+        let o = sample(6, 4, 2, 5);
+        let with = |widest: Option<f32>, own: &[f32]| {
+            let ex = BlobExtras { peak_resolution_deg: widest, pixel_peak_resolution_deg: own, ..BlobExtras::NONE };
+            let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+            write_blob_with(&contents(&o), &ex, &mut buf).map(|n| {
+                buf.truncate(n);
+                buf
+            })
+        };
+        let own = [0.5, f32::NAN, 0.75, 0.6, 0.7];
+        let (bare, res) = (with(Some(0.75), &[]).unwrap(), with(Some(0.75), &own).unwrap());
+        // The section is P values just before the CRC; nothing before it moves.
+        assert_eq!(res.len(), bare.len() + 4 * 5);
+        assert_eq!(res[64..bare.len() - 4], bare[64..bare.len() - 4]);
+        assert_eq!(get_u16(&res, 22) & FLAG_PIXEL_RESOLUTION, FLAG_PIXEL_RESOLUTION);
+        let v = BlobView::parse(&res).unwrap();
+        // A pixel without its own (NaN) and one past the line take the header's.
+        let at: Vec<Option<f32>> = (0..6).map(|p| v.peak_resolution_at(p)).collect();
+        assert_eq!(at, [Some(0.5), Some(0.75), Some(0.75), Some(0.6), Some(0.7), Some(0.75)]);
+        let b = BlobView::parse(&bare).unwrap();
+        assert!((0..5).all(|p| b.peak_resolution_at(p) == Some(0.75)));
+        // The writer refuses what the parser would: a width wider than the
+        // calibration's, zero, infinite, the wrong count, no header value.
+        let oor = |p| BlobError::OutOfRange { section: Section::PeakResolution, index: p };
+        assert_eq!(with(Some(0.75), &[0.5, 0.5, 0.8, 0.5, 0.5]), Err(oor(2)));
+        assert_eq!(with(Some(0.75), &[0.5, 0.0, 0.5, 0.5, 0.5]), Err(oor(1)));
+        assert_eq!(
+            with(Some(0.75), &[0.5, 0.5, 0.5, f32::INFINITY, 0.5]),
+            Err(BlobError::NonFinite { section: Section::PeakResolution, index: 3 })
+        );
+        let mismatch = Err(BlobError::ContentMismatch { section: Section::PeakResolution });
+        assert_eq!(with(Some(0.75), &own[..4]), mismatch);
+        assert_eq!(with(None, &own), mismatch);
+        // So does the parser, with a good CRC: a bad value, the section's
+        // flag without the header's.
+        let at_p = |p: usize| res.len() - 4 - 4 * (5 - p);
+        assert_eq!(resealed(res.clone(), &|b| put_f32(b, at_p(4), 0.9)), Err(oor(4)));
+        assert_eq!(resealed(res.clone(), &|b| put_f32(b, at_p(0), -0.1)), Err(oor(0)));
+        let flags = get_u16(&res, 22) & !FLAG_PEAK_RESOLUTION;
+        assert_eq!(
+            resealed(res.clone(), &|b| {
+                put_u16(b, 22, flags);
+                put_f32(b, 60, 0.0)
+            }),
+            Err(BlobError::ReservedNotZero)
+        );
+    }
+
+    #[test]
     fn version_1_is_still_written_and_read_as_before_and_v2_rules_hold() {
         let o = sample(6, 4, 2, 5);
         let buf = encode(&o);
@@ -1629,6 +1753,7 @@ mod tests {
             gloss: None,
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
@@ -1647,6 +1772,7 @@ mod tests {
             gloss: None,
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1664,6 +1790,7 @@ mod tests {
             gloss: None,
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1697,6 +1824,7 @@ mod tests {
             gloss: Some(g),
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();
@@ -1860,6 +1988,7 @@ mod tests {
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
             root_form: false,
             peak_resolution_deg: None,
+            pixel_peak_resolution_deg: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();

@@ -228,6 +228,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         gloss: None,
         root_form: false,
         peak_resolution_deg: None,
+        pixel_peak_resolution_deg: &[],
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
@@ -270,6 +271,14 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&p3.contents(), &ex3r, &mut b3r).expect("a valid format 3 blob with the peak resolution");
     b3r.truncate(n);
     out.push(("blob.v3.peak-resolution".into(), b3r));
+    // The same with each pixel's own resolution after the gloss section
+    // (flag bit 7; NaN: the pixel takes the header's).
+    let own = [0.8125f32, 0.5, f32::NAN, 0.75, 0.625, 0.8125];
+    let ex3p = BlobExtras { pixel_peak_resolution_deg: &own, ..ex3r };
+    let mut b3p = vec![0u8; p3.dims.blob_len_with(&ex3p)];
+    let n = write_blob_with(&p3.contents(), &ex3p, &mut b3p).expect("a valid format 3 blob with per-pixel resolutions");
+    b3p.truncate(n);
+    out.push(("blob.v3.pixel-peak-resolution".into(), b3p));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

@@ -337,7 +337,7 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     assert!(svg.contains("line 0 point 15"));
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("m.json")).unwrap()).unwrap();
     let csv = std::fs::read_to_string(dir.path().join("m.csv")).unwrap();
-    assert!(csv.starts_with("# brdf-meter/points schema_version 2; source measure;"), "the point schema");
+    assert!(csv.starts_with("# brdf-meter/points schema_version 3; source measure;"), "the point schema");
     assert_eq!((&j["schema"], &j["source"]), (&"brdf-meter/points".into(), &"measure".into()));
     let (profiles, view) = host_tools::output::bird::read(&dir.path().join("m.bird.json")).unwrap();
     assert_eq!((profiles.len(), view), (2 * PIXELS, 45.0));

@@ -9,6 +9,9 @@
 //!   within 1 GU), none without a reading, none saturated: its mirror
 //!   reflection meets an LED die from every pixel, and its saturating frames
 //!   are read from the shorter exposures.
+//! - Each pixel records its own peak resolution, none wider than the
+//!   calibration's, and the black glass is not resolved at any pixel by its
+//!   pixel's.
 //! - A matt white tile's readings stay unflagged and its BRDF within 5 % of
 //!   its peak at every pixel and line (measured: median 2.1 %, 90th
 //!   percentile 3.0 %, worst 4.2 % at pixel 4; the worst are near the line's
@@ -27,6 +30,7 @@ use host_tools::forward::brdf::{Brdf, Lambertian, SmoothDielectric, binned_refle
 use host_tools::forward::pairs::Criterion;
 use host_tools::forward::scene::Scene;
 use host_tools::forward::scene::pipeline::{Simulator, pixel_view};
+use host_tools::output::peak::specular_peak;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -72,6 +76,28 @@ fn every_pixel_reads_the_black_glass_and_a_white_tile_true() {
         assert!(g.iter().all(|x| x.is_finite()), "pixel {px}: no gloss reading");
         assert!(bg.iter().all(|l| l[px].flags & flags::SATURATED == 0), "pixel {px}: saturated");
         assert!((mean - 100.0).abs() <= TOLERANCE_GU, "pixel {px}: the black glass reads {mean:.2} GU");
+    }
+    // Each pixel's own peak resolution (blob flag bit 7): none wider than
+    // the calibration's, the widest some pixel's, and finer ones along the
+    // line (measured 0.73-1.14 deg: the mirror direction falls on an LED at
+    // some pixels, between two at others). The black glass, a mirror, is not
+    // resolved at any pixel by its own pixel's resolution.
+    let widest = f64::from(blob.peak_resolution_deg().expect("a gloss calibration records its resolution"));
+    let own: Vec<f64> = (0..128).map(|p| f64::from(blob.peak_resolution_at(p).unwrap())).collect();
+    assert!(own.iter().all(|r| *r > 0.0 && *r <= widest), "{own:?}");
+    assert!(own.contains(&widest) && own.iter().any(|r| *r < 0.8 * widest), "{own:?}");
+    let bins: Vec<f32> = sc.instrument.grid().unwrap().bins_deg().iter().map(|x| *x as f32).collect();
+    for px in 0..128 {
+        let view_deg = pixel_view(&sc, px).z.acos().to_degrees();
+        let p = &bg[0][px];
+        let peak = specular_peak(&bins, &p.values, &vec![0.0; bins.len()], view_deg).at_resolution(Some(own[px]));
+        assert_eq!(
+            peak.resolved,
+            Some(false),
+            "pixel {px}: the black glass {} deg wide at {} deg",
+            peak.width_deg,
+            own[px]
+        );
     }
     // A matt white tile: unflagged, its BRDF close at every pixel.
     let white: Arc<dyn Brdf> = Arc::new(Lambertian::new(0.9).unwrap());

@@ -390,14 +390,19 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         gloss: gloss.as_ref().map(GlossSection::data),
         root_form: spec.root,
         peak_resolution_deg: None,
+        pixel_peak_resolution_deg: &[],
     };
     let mut blob = written(&contents, &extras)?;
+    let own;
     // The peak resolution is what the device makes of the black glass, so
     // it is measured on the blob itself, then recorded in it.
     if gloss.is_some() {
         let view = BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
-        if let Some(w) = peak_resolution::black_glass_width(&view, &spec.zones, &plans)? {
-            extras.peak_resolution_deg = Some(w as f32);
+        let widest;
+        (widest, own) = peak_resolution::recorded(&peak_resolution::black_glass_widths(&view, &spec.zones, &plans)?);
+        if widest.is_some() {
+            extras.peak_resolution_deg = widest;
+            extras.pixel_peak_resolution_deg = &own;
             blob = written(&contents, &extras)?;
         }
     }
@@ -831,6 +836,9 @@ pub struct TrainJson {
     pub blob_crc: u32,
     /// The peak resolution the blob records, deg (`crate::calibration::peak_resolution`; null: none).
     pub peak_resolution_deg: Option<f32>,
+    /// Each pixel's peak resolution, deg: its own, or the calibration's
+    /// when the blob records none for it (null: none).
+    pub pixel_peak_resolution_deg: Vec<Option<f32>>,
     /// Every zone.
     pub zones: Vec<ZoneJson>,
 }
@@ -872,6 +880,9 @@ pub struct ScaleFreeJson {
     pub blob_crc: u32,
     /// The peak resolution the blob records, deg (`crate::calibration::peak_resolution`; null: none).
     pub peak_resolution_deg: Option<f32>,
+    /// Each pixel's peak resolution, deg: its own, or the calibration's
+    /// when the blob records none for it (null: none).
+    pub pixel_peak_resolution_deg: Vec<Option<f32>>,
 }
 
 /// One zone in [`ScaleFreeJson`].
@@ -944,6 +955,7 @@ impl Trained {
                 blob_bytes: self.blob.len(),
                 blob_crc: view.crc(),
                 peak_resolution_deg: view.peak_resolution_deg(),
+                pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
                 zones,
             })
         } else {
@@ -972,6 +984,7 @@ impl Trained {
                 blob_bytes: self.blob.len(),
                 blob_crc: view.crc(),
                 peak_resolution_deg: view.peak_resolution_deg(),
+                pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
             })
         };
         value.expect("the inspection JSON serialises")
@@ -1035,6 +1048,8 @@ mod tests {
         assert_eq!(j["W"][0].as_array().unwrap().len(), 7);
         assert_eq!(j["uncertainty"].as_array().unwrap().len(), 81);
         assert_eq!(j["peak_resolution_deg"].as_f64().map(|x| x as f32), v.peak_resolution_deg());
+        // Every pixel alike (the same in-plane optics): each takes the calibration's.
+        assert_eq!(j["pixel_peak_resolution_deg"], serde_json::json!(vec![v.peak_resolution_deg(); 128]));
     }
 
     #[test]

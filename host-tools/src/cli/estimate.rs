@@ -160,11 +160,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
     }
+    let (peak_resolution_deg, pixel_peak_resolution_deg) = crate::output::points::peak_resolutions(&view);
     let files = Points {
         source: "estimate",
         calibration_crc: view.crc(),
         view_deg: a.exports.view_deg,
-        peak_resolution_deg: view.peak_resolution_deg().map(f64::from),
+        peak_resolution_deg,
+        pixel_peak_resolution_deg,
         bins_deg: bins,
         points: schema_points,
     };
@@ -281,9 +283,9 @@ mod tests {
         assert_eq!(pts[0]["u_rho"].as_array().unwrap().len(), 81);
         let csv = std::fs::read_to_string(dir.path().join("e.csv")).unwrap();
         assert_eq!(csv.lines().count(), 4, "the schema's comment, the header, two points");
-        assert!(csv.starts_with("# brdf-meter/points schema_version 2; source estimate;"));
+        assert!(csv.starts_with("# brdf-meter/points schema_version 3; source estimate;"));
         let header = csv.lines().nth(1).unwrap();
-        assert_eq!(header.split(',').count(), 5 + 2 * 81 + 2 * brdf_meter::shape::READINGS + 6);
+        assert_eq!(header.split(',').count(), 5 + 2 * 81 + 2 * brdf_meter::shape::READINGS + 7);
         assert!(header.starts_with("line,pixel,zone,cluster,flags,rho_25,"), "{header}");
         assert!(csv.lines().nth(3).unwrap().starts_with(",,0,0,out-of-prior,"));
     }

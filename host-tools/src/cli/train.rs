@@ -375,9 +375,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(r) = view.peak_resolution_deg() {
+        let f = crate::output::peak::RESOLVED_WIDTH_FACTOR;
+        let finest = (0..view.dims().pixels).filter_map(|p| view.peak_resolution_at(p)).fold(r, f32::min);
+        let (range, limit) = if finest < r {
+            (
+                format!("{r:.2} deg ({finest:.2}-{r:.2} over the pixels, each recorded)"),
+                format!("{:.2}-{:.2} deg at its pixel", f * f64::from(finest), f * f64::from(r)),
+            )
+        } else {
+            (format!("{r:.2} deg"), format!("{:.2} deg", f * f64::from(r)))
+        };
         println!(
-            "peak resolution {r:.2} deg: the width it puts out for a mirror (the black glass); a specular peak narrower than {:.2} deg is reported as not resolved, with no uncertainty",
-            crate::output::peak::RESOLVED_WIDTH_FACTOR * f64::from(r)
+            "peak resolution {range}: the width it puts out for a mirror (the black glass); a specular peak narrower than {limit} is reported as not resolved, with no uncertainty"
         );
     }
     if !view.has_gloss() {

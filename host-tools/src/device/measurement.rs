@@ -18,11 +18,13 @@ use brdf_meter::shape::READINGS;
 pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg: f64) -> Points {
     let d = view.dims();
     let bins = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins);
+    let (peak_resolution_deg, pixel_peak_resolution_deg) = crate::output::points::peak_resolutions(view);
     Points {
         source: "measure",
         calibration_crc: view.crc(),
         view_deg,
-        peak_resolution_deg: view.peak_resolution_deg().map(f64::from),
+        peak_resolution_deg,
+        pixel_peak_resolution_deg,
         bins_deg: bins.bins().map(|j| view.grid_deg(j)).collect(),
         points: points
             .iter()

@@ -52,7 +52,7 @@
 //! # Resolution
 //! A calibration puts out no lobe narrower than its estimate of a mirror
 //! spike (its peak resolution, `crate::calibration::peak_resolution`,
-//! recorded in the blob): below that width the readings do not say how
+//! recorded in the blob, per pixel where the pixels differ): below that width the readings do not say how
 //! narrow a lobe is, or how high, and the estimate's shape there is the
 //! prior's. A peak is *resolved* when its width is at least
 //! [`RESOLVED_WIDTH_FACTOR`] times the resolution: widths of a lobe and of
@@ -67,8 +67,8 @@
 //! (a lobe on a level above half its height) is resolved: it is wide.
 use crate::forward::gloss::SPECULAR_APERTURE_DEG;
 
-/// A peak narrower than this times the calibration's peak resolution is
-/// not resolved (module docs).
+/// A peak narrower than this times its pixel's peak resolution is not
+/// resolved (module docs).
 pub const RESOLVED_WIDTH_FACTOR: f64 = std::f64::consts::SQRT_2;
 
 /// Slack on the aperture's edges (deg): the grid is stored in f32, so a bin
@@ -104,8 +104,8 @@ impl Peak {
         resolved: None,
     };
 
-    /// The peak read by a calibration of peak resolution `resolution_deg`
-    /// (`None`: it records none, and the peak is as it was): an unresolved
+    /// The peak read at a pixel of peak resolution `resolution_deg`
+    /// (`None`: the calibration records none, and the peak is as it was): an unresolved
     /// peak's uncertainties are not stated (module docs).
     pub fn at_resolution(self, resolution_deg: Option<f64>) -> Self {
         let Some(res) = resolution_deg.filter(|_| self.rf.is_finite()) else { return self };

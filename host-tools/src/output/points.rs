@@ -28,7 +28,7 @@ pub const SCHEMA: &str = "brdf-meter/points";
 /// The schema's version: bumped when a field is renamed, removed, added,
 /// moved or changes its meaning, unit or rule for when it is missing
 /// (`docs/point-schema.md`).
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// The unit of each quantity, by field name; a field `u_X` is the standard
 /// uncertainty of `X` in the same unit. Units that are the same stand
@@ -83,13 +83,31 @@ pub struct Point {
 /// `; N peak(s) not resolved (narrower than W deg)` for a summary line,
 /// nothing when no peak is unresolved or the calibration records no
 /// resolution.
-pub fn unresolved_note(u: Option<(usize, f64)>) -> String {
+pub fn unresolved_note(u: Option<Unresolved>) -> String {
     match u {
-        Some((n, w)) if n > 0 => {
-            format!("; {n} peak(s) not resolved (narrower than {w:.2} deg: no uncertainty stated)")
+        Some(Unresolved { peaks, narrower_than_deg: (lo, hi) }) if peaks > 0 => {
+            let w = if hi - lo < 0.005 { format!("{hi:.2}") } else { format!("{lo:.2}-{hi:.2}") };
+            format!("; {peaks} peak(s) not resolved (narrower than {w} deg at their pixels: no uncertainty stated)")
         }
         _ => String::new(),
     }
+}
+
+/// A calibration's peak resolutions as [`Points`] holds them: its own (the
+/// widest) and each pixel's.
+pub fn peak_resolutions(view: &brdf_meter::blob::BlobView<'_>) -> (Option<f64>, Vec<f64>) {
+    let own = (0..view.dims().pixels).map(|p| view.peak_resolution_at(p).map_or(f64::NAN, f64::from)).collect();
+    (view.peak_resolution_deg().map(f64::from), own)
+}
+
+/// The peaks a set of points' calibration does not resolve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Unresolved {
+    /// How many points' peaks are not resolved (`peak_resolved` false).
+    pub peaks: usize,
+    /// The narrowest and the widest width below which the points' pixels
+    /// resolve no peak (`RESOLVED_WIDTH_FACTOR` times their resolutions).
+    pub narrower_than_deg: (f64, f64),
 }
 
 /// A set of points and what they are on: one CSV file, one JSON document.
@@ -101,9 +119,13 @@ pub struct Points {
     pub calibration_crc: u32,
     /// The view angle (deg): the specular peak is sought about its mirror incidence.
     pub view_deg: f64,
-    /// The calibration's peak resolution (deg; `None`: it records none):
-    /// narrower peaks are not resolved (`crate::output::peak`).
+    /// The calibration's peak resolution (deg; `None`: it records none),
+    /// the widest over its pixels: narrower peaks are not resolved
+    /// (`crate::output::peak`).
     pub peak_resolution_deg: Option<f64>,
+    /// Each pixel's own peak resolution (deg, by pixel; NaN or past the end:
+    /// the calibration's): a point's peak is judged at its pixel's.
+    pub pixel_peak_resolution_deg: Vec<f64>,
     /// Incidence of each bin (deg).
     pub bins_deg: Vec<f32>,
     /// The points.
@@ -162,24 +184,35 @@ impl Points {
             ("peak_deg", Value::Number(peak.deg as f32)),
             ("peak_width_deg", Value::Number(peak.width_deg as f32)),
             ("u_peak_width_deg", Value::Number(peak.u_width_deg as f32)),
+            ("peak_resolution_deg", Value::Number(self.resolution_of(p).map_or(f32::NAN, |r| r as f32))),
             ("peak_resolved", Value::Bool(peak.resolved)),
         ]);
         f
     }
 
     /// How many points' specular peaks the calibration does not resolve
-    /// (`peak_resolved` false), and the width below which it does not
-    /// (`None`: the calibration records no resolution).
-    pub fn unresolved_peaks(&self) -> Option<(usize, f64)> {
-        let res = self.peak_resolution_deg?;
-        let n = self.points.iter().filter(|p| self.peak(p).resolved == Some(false)).count();
-        Some((n, crate::output::peak::RESOLVED_WIDTH_FACTOR * res))
+    /// (`peak_resolved` false), and the widths below which their pixels do
+    /// not (`None`: the calibration records no resolution).
+    pub fn unresolved_peaks(&self) -> Option<Unresolved> {
+        self.peak_resolution_deg?;
+        let f = crate::output::peak::RESOLVED_WIDTH_FACTOR;
+        let widths = self.points.iter().filter_map(|p| self.resolution_of(p)).map(|r| f * r);
+        let narrower_than_deg = widths.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| (lo.min(w), hi.max(w)));
+        let peaks = self.points.iter().filter(|p| self.peak(p).resolved == Some(false)).count();
+        Some(Unresolved { peaks, narrower_than_deg })
+    }
+
+    /// The peak resolution point `p` is judged at: its pixel's own, else
+    /// the calibration's.
+    fn resolution_of(&self, p: &Point) -> Option<f64> {
+        let own = p.pixel.and_then(|i| self.pixel_peak_resolution_deg.get(i as usize)).filter(|r| r.is_finite());
+        own.copied().or(self.peak_resolution_deg)
     }
 
     /// Point `p`'s specular peak as the files write it: sought about the
-    /// view, read at the calibration's resolution.
+    /// view, read at its pixel's resolution.
     fn peak(&self, p: &Point) -> Peak {
-        specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.peak_resolution_deg)
+        specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.resolution_of(p))
     }
 
     /// The CSV's first line: schema, version, where the points came from, and the units.
@@ -333,6 +366,7 @@ mod tests {
             calibration_crc: 0x00c0_ffee,
             view_deg: 45.0,
             peak_resolution_deg: Some(0.75),
+            pixel_peak_resolution_deg: vec![],
             bins_deg: bins.clone(),
             points: vec![
                 Point {
@@ -368,7 +402,7 @@ mod tests {
         let mut lines = csv.lines();
         let comment = lines.next().unwrap();
         assert!(
-            comment.starts_with("# brdf-meter/points schema_version 2; source measure; calibration_crc 0x00c0ffee")
+            comment.starts_with("# brdf-meter/points schema_version 3; source measure; calibration_crc 0x00c0ffee")
         );
         assert!(!comment.contains(','), "a reader that does not skip comments sees one cell: {comment}");
         for (q, unit) in UNITS {
@@ -412,6 +446,7 @@ mod tests {
                 "peak_deg",
                 "peak_width_deg",
                 "u_peak_width_deg",
+                "peak_resolution_deg",
                 "peak_resolved"
             ]
         );
@@ -420,7 +455,7 @@ mod tests {
             assert_eq!(READING_FIELDS[k], [*name, &format!("u_{name}")]);
         }
         assert_eq!(j["schema"], SCHEMA);
-        assert_eq!(j["schema_version"], 2);
+        assert_eq!(j["schema_version"], 3);
         assert_eq!(j["calibration_crc"], "0x00c0ffee");
         assert_eq!(j["units"].as_object().unwrap().len(), UNITS.len());
         assert_eq!(j["bins_deg"].as_array().unwrap().len(), 21);
@@ -443,14 +478,33 @@ mod tests {
         assert!((width - 2.4).abs() < 1e-5, "half of 1.2 is 0.2 + 0.4, 1.2 deg either side: {first}");
         assert_eq!(first["u_peak_rf"].as_f64().unwrap() as f32, 0.01);
         // 2.4 deg wide at a resolution of 0.75: resolved; the flat point has no peak.
-        assert_eq!((rows[0][58], &first["peak_resolved"]), ("true", &serde_json::json!(true)));
-        assert_eq!((rows[1][58], &j["points"][1]["peak_resolved"]), ("", &serde_json::Value::Null));
+        assert_eq!((rows[0][59], &first["peak_resolved"]), ("true", &serde_json::json!(true)));
+        assert_eq!((rows[1][59], &j["points"][1]["peak_resolved"]), ("", &serde_json::Value::Null));
         assert_eq!(j["peak_resolution_deg"], 0.75);
+        // Each point states the resolution it was judged at: the calibration's
+        // when its pixel has none of its own (or it has no pixel).
+        assert_eq!((rows[0][58], rows[1][58]), ("0.75", "0.75"));
+        assert_eq!(j["points"][1]["peak_resolution_deg"], 0.75);
         // The triangle is resolved; a resolution of 2 deg would not resolve it.
-        assert_eq!(p.unresolved_peaks().map(|u| u.0), Some(0));
+        let peaks = |p: &Points| p.unresolved_peaks().map(|u| u.peaks);
+        let f = crate::output::peak::RESOLVED_WIDTH_FACTOR;
+        assert_eq!(p.unresolved_peaks(), Some(Unresolved { peaks: 0, narrower_than_deg: (f * 0.75, f * 0.75) }));
         let coarse = Points { peak_resolution_deg: Some(2.0), ..p.clone() };
-        assert_eq!(coarse.unresolved_peaks().map(|u| u.0), Some(1));
+        assert_eq!(peaks(&coarse), Some(1));
         assert_eq!(Points { peak_resolution_deg: None, ..p.clone() }.unresolved_peaks(), None);
+        // A pixel's own resolution decides for its points: pixel 17 coarse
+        // (2 deg) does not resolve the triangle the calibration's 0.75 would;
+        // the pointless second point keeps the calibration's.
+        let own = Points { pixel_peak_resolution_deg: [vec![f64::NAN; 17], vec![2.0]].concat(), ..p.clone() };
+        assert_eq!(peaks(&own), Some(1));
+        let u = own.unresolved_peaks().unwrap().narrower_than_deg;
+        assert_eq!(u, (f * 0.75, f * 2.0));
+        let own_csv = String::from_utf8(own.csv().unwrap()).unwrap();
+        assert_eq!(own_csv.lines().nth(2).unwrap().split(',').nth(58), Some("2.0"));
+        assert_eq!(
+            unresolved_note(own.unresolved_peaks()),
+            "; 1 peak(s) not resolved (narrower than 1.06-2.83 deg at their pixels: no uncertainty stated)"
+        );
         let json = String::from_utf8(p.json().unwrap()).unwrap();
         for (col, name) in [(47, "gloss_gu"), (53, "peak_rf"), (56, "peak_width_deg"), (57, "u_peak_width_deg")] {
             let line = format!("\"{name}\": {}", rows[0][col]);
@@ -459,7 +513,8 @@ mod tests {
         // No line, pixel, readings or peak: empty in the CSV, null in the JSON.
         let second = &j["points"][1];
         assert_eq!(&rows[1][..5], &["", "", "0", "0", ""]);
-        assert!(rows[1][47..].iter().all(|f| f.is_empty()), "{:?}", &rows[1][47..]);
+        // (Its pixel's resolution it has: the calibration's.)
+        assert!(rows[1][47..].iter().enumerate().all(|(i, f)| f.is_empty() == (i != 11)), "{:?}", &rows[1][47..]);
         for k in ["line", "pixel", "gloss_gu", "u_distinctness_pct", "peak_rf", "peak_width_deg"] {
             assert!(second[k].is_null(), "{k}: {}", second[k]);
         }

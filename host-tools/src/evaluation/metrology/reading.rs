@@ -68,7 +68,8 @@ pub struct Readers<'a> {
     bins: Vec<f64>,
     bins32: Vec<f32>,
     view_deg: f64,
-    /// The calibration's peak resolution (`output::peak`), if it records one.
+    /// The peak resolution (`output::peak`) of the pixel read (the zone's
+    /// first), if the calibration records one.
     resolution_deg: Option<f64>,
 }
 
@@ -86,7 +87,7 @@ impl<'a> Readers<'a> {
             bins: grid.bins_deg().to_vec(),
             bins32: grid.bins_deg().iter().map(|x| *x as f32).collect(),
             view_deg,
-            resolution_deg: view.peak_resolution_deg().map(f64::from),
+            resolution_deg: view.peak_resolution_at(view.zone_start(0) as usize).map(f64::from),
         })
     }
 

@@ -60,7 +60,7 @@ use brdf_meter::acquire::AcqConfig;
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::protocol::flags;
 use nalgebra::DVector;
-use peaks::{PeakSummary, PeakTally};
+use peaks::{PeakSummary, PeakTally, PixelPeaks};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rayon::prelude::*;
@@ -517,7 +517,7 @@ fn read_material(
     seed: u64,
 ) -> anyhow::Result<MaterialRead> {
     let p = geo.views.len();
-    let mut peaks = PeakTally::at_resolution(blob.peak_resolution_deg().map(f64::from));
+    let mut peaks = PeakTally::default();
     let read = read_surface(spec, b.clone(), blob, spec.lines, seed)?;
     let mut err = vec![0.0; p];
     let mut ierr = vec![0.0; p];
@@ -534,7 +534,8 @@ fn read_material(
             let pt = &line[px];
             let score = PointScore::of(blob, &truth, pt, &geo.interp[px]);
             let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
-            peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, view_deg);
+            let at = PixelPeaks { view_deg, resolution_deg: blob.peak_resolution_at(px).map(f64::from) };
+            peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, at);
             *e += score.error / spec.lines as f64;
             *ie += score.interpolation / spec.lines as f64;
             covered[px] += score.covered / spec.lines as f64;

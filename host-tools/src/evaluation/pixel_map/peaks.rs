@@ -14,8 +14,6 @@ use serde::Serialize;
 /// The running count, mergeable over materials.
 #[derive(Clone, Debug, Default)]
 pub struct PeakTally {
-    /// The calibration's peak resolution (`None`: it records none).
-    resolution_deg: Option<f64>,
     height_rel: Vec<f64>,
     resolved_height_rel: Vec<f64>,
     interpolation_height_rel: Vec<f64>,
@@ -46,16 +44,21 @@ pub struct PeakSummary {
     pub missed: usize,
 }
 
-impl PeakTally {
-    /// An empty tally for a calibration of peak resolution `resolution_deg`.
-    pub fn at_resolution(resolution_deg: Option<f64>) -> Self {
-        Self { resolution_deg, ..Self::default() }
-    }
+/// How a pixel reads a peak: about its own view's mirror incidence, at its
+/// own peak resolution (`brdf_meter::blob::BlobView::peak_resolution_at`;
+/// `None`: the calibration records none).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelPeaks {
+    /// The pixel's view, deg.
+    pub view_deg: f64,
+    /// The pixel's peak resolution, deg.
+    pub resolution_deg: Option<f64>,
+}
 
+impl PeakTally {
     /// Adds point `pt` with the per-bin uncertainty `u` its frame
     /// states, and interpolation's `profile` of the same readings, against
-    /// the truth's bins `truth` (on `bins_deg`), the peak sought about
-    /// `view_deg`.
+    /// the truth's bins `truth` (on `bins_deg`), read as `pixel` reads it.
     pub fn add(
         &mut self,
         bins_deg: &[f32],
@@ -63,8 +66,9 @@ impl PeakTally {
         pt: &ExpectedPoint,
         u: &[f32],
         profile: &[f32],
-        view_deg: f64,
+        pixel: PixelPeaks,
     ) {
+        let view_deg = pixel.view_deg;
         let none = vec![0.0; truth.len()];
         let t = specular_peak(bins_deg, truth, &none, view_deg);
         if !t.rf.is_finite() {
@@ -74,7 +78,7 @@ impl PeakTally {
         if i.rf.is_finite() {
             self.interpolation_height_rel.push((i.rf - t.rf).abs() / t.rf);
         }
-        let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).at_resolution(self.resolution_deg);
+        let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).at_resolution(pixel.resolution_deg);
         if !e.rf.is_finite() {
             self.missed += 1;
             return;
