@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | reserved, 0 |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -58,9 +58,10 @@
 //! | 4Z(m-1 + m(m-1)/2) (bit 1 only) | per zone: prior mean of the statistic's coordinates (m-1; `u' = v'/s`, or with bit 4 the centred log shares), then the packed lower-triangular whitening G (`crate::kernel::scale_free`) |
 //!
 //! | 4P (bit 7 only) | per pixel, the peak resolution, deg (below) |
+//! | 4ZKn (bit 8 only) | the second per-bin uncertainty table, for broad estimates (below) |
 //!
-//! before the CRC (the per-pixel resolutions after the gloss section, when
-//! the blob has one). A scale-free matrix is `[W' | b]`: its last column
+//! before the CRC (these two after the gloss section, when the blob has
+//! one). A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
 //!
 //! ## The peak resolution (flag bit 6)
@@ -82,6 +83,17 @@
 //! of the standard has no width, which is then judged at the header's
 //! value ([`BlobView::peak_resolution_at`]). The host judges a point's peak
 //! at its pixel's resolution; the device does not use them.
+//!
+//! ## The second uncertainty table (flag bit 8)
+//! Laid out as the first (Z x K x n, per unit scale for the scale-free
+//! kinds; finite, >= 0). With it the first table is for points whose
+//! estimate is sharp and the second for those whose estimate is broad
+//! (`crate::band`: the half-maximum width about the estimate's highest
+//! value, at least `crate::band::BROAD_WIDTH_DEG`); without it the first
+//! is every point's. The device does not use the second (it streams each
+//! point's scale; the sigma16 encoding's step is the first table's), so
+//! only the host's stated uncertainty depends on it
+//! ([`BlobView::point_uncertainty`]).
 //!
 //! ## The root form (flag bit 3, the scale-free kinds)
 //! A scale-free calibration may be trained in the root form: its matrices
@@ -141,7 +153,8 @@
 //! (`host-tools pixel-map`, held-out MERL materials): the BRDF error is flat
 //! from 16 zones up (per-pixel matrices, 124 zones, are no better), while
 //! the calibration slot holds 16 zones x 4 clusters of the piecewise kind
-//! (184 KB) but not 32 x 4 (364 KB); the device's cost per point does not
+//! (205 KB with both uncertainty tables and each pixel's peak resolution)
+//! but not 32 x 4 (over 364 KB); the device's cost per point does not
 //! depend on the zones (a zone only selects a matrix). docs/handheld.md
 //! ("A calibration that follows the pixel") has the table.
 //!
@@ -196,6 +209,10 @@ const FLAG_PEAK_RESOLUTION: u16 = 64;
 /// `FLAG_PEAK_RESOLUTION` only). Firmware from before it rejects such a
 /// blob as having a reserved flag set, and keeps its last good calibration.
 const FLAG_PIXEL_RESOLUTION: u16 = 128;
+/// The second per-bin uncertainty table (broad estimates) follows the
+/// per-pixel resolutions. Firmware from before it rejects such a blob as
+/// having a reserved flag set, and keeps its last good calibration.
+const FLAG_BROAD_BAND: u16 = 256;
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
@@ -462,6 +479,8 @@ struct Layout {
     gloss: usize,
     /// The per-pixel peak resolutions (as long as the pixels, or empty).
     pixel_resolution: usize,
+    /// The second uncertainty table (as long as the first, or empty).
+    broad_uncertainty: usize,
     crc: usize,
     total: usize,
     clusters: usize,
@@ -490,7 +509,8 @@ impl Dims {
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
         let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
         let pixel_resolution = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
-        let crc = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
+        let broad_uncertainty = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
+        let crc = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
         Layout {
             grid,
             led_order,
@@ -502,6 +522,7 @@ impl Dims {
             out_of_prior,
             gloss,
             pixel_resolution,
+            broad_uncertainty,
             crc,
             total: crc + 4,
             clusters: k,
@@ -607,6 +628,9 @@ pub struct BlobExtras<'a> {
     /// Each pixel's peak resolution, deg (P values, or empty for none;
     /// header flag bit 7, with `peak_resolution_deg` only): the module docs.
     pub pixel_peak_resolution_deg: &'a [f32],
+    /// The second per-bin uncertainty table, for broad estimates (as the
+    /// first: Z x K x n; empty for none; header flag bit 8): the module docs.
+    pub broad_uncertainty: &'a [f32],
 }
 
 impl BlobExtras<'_> {
@@ -619,6 +643,7 @@ impl BlobExtras<'_> {
         root_form: false,
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
+        broad_uncertainty: &[],
     };
 }
 
@@ -636,6 +661,8 @@ struct Extras {
     peak_resolution: bool,
     /// The per-pixel resolutions follow.
     pixel_resolution: bool,
+    /// The second uncertainty table follows.
+    broad_band: bool,
 }
 
 impl Extras {
@@ -648,6 +675,7 @@ impl Extras {
         gloss_refs: 0,
         peak_resolution: false,
         pixel_resolution: false,
+        broad_band: false,
     };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
@@ -660,6 +688,7 @@ impl Extras {
             gloss_refs: x.gloss.map_or(0, |g| g.reference.len()),
             peak_resolution: x.peak_resolution_deg.is_some(),
             pixel_resolution: !x.pixel_peak_resolution_deg.is_empty(),
+            broad_band: !x.broad_uncertainty.is_empty(),
         }
     }
 
@@ -669,6 +698,7 @@ impl Extras {
             || self.out_of_prior
             || self.root_form
             || self.peak_resolution
+            || self.broad_band
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
@@ -743,6 +773,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     sized(c.zone_start.len() == d.zones, Section::Zones)?;
     sized(c.white.len() == d.pixels * d.m, Section::White)?;
     sized(c.uncertainty.len() == d.zones * k * d.n, Section::Uncertainty)?;
+    sized(!ex.broad_band || extras.broad_uncertainty.len() == d.zones * k * d.n, Section::Uncertainty)?;
     sized(c.matrices.len() == d.zones * k * d.n * d.m, Section::Matrices)?;
     sized(extras.centroids.len() == if ex.piecewise { d.zones * k * d.m } else { 0 }, Section::Centroids)?;
     if let Some(o) = &extras.out_of_prior {
@@ -801,7 +832,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     let gloss_flag = if ex.gloss { FLAG_GLOSS } else { 0 };
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
     let resolution_flag = if ex.peak_resolution { FLAG_PEAK_RESOLUTION } else { 0 }
-        | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 };
+        | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 }
+        | if ex.broad_band { FLAG_BROAD_BAND } else { 0 };
     put_u16(
         out,
         22,
@@ -845,6 +877,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         (lay.centroids, extras.centroids),
         (lay.out_of_prior, oop),
         (lay.pixel_resolution, extras.pixel_peak_resolution_deg),
+        (lay.broad_uncertainty, extras.broad_uncertainty),
     ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);
@@ -914,6 +947,7 @@ impl<'a> BlobView<'a> {
                 },
                 peak_resolution: flags & FLAG_PEAK_RESOLUTION != 0,
                 pixel_resolution: flags & FLAG_PIXEL_RESOLUTION != 0,
+                broad_band: flags & FLAG_BROAD_BAND != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -951,7 +985,8 @@ impl<'a> BlobView<'a> {
                 | FLAG_LOG_RATIO
                 | FLAG_BAND_FACTOR
                 | FLAG_PEAK_RESOLUTION
-                | FLAG_PIXEL_RESOLUTION;
+                | FLAG_PIXEL_RESOLUTION
+                | FLAG_BROAD_BAND;
             bytes[50..52].iter().all(|b| *b == 0)
                 && (ex.peak_resolution || !ex.pixel_resolution)
                 && (band || get_u32(bytes, 56) == 0)
@@ -1030,6 +1065,14 @@ impl<'a> BlobView<'a> {
         view.check_finite(Section::White, lay.white, dims.pixels * dims.m, true)?;
         let k = lay.clusters;
         view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * k * dims.n, false)?;
+        // The second table, its values indexed on from the first's.
+        let first = dims.zones * k * dims.n;
+        view.check_finite(Section::Uncertainty, lay.broad_uncertainty, (lay.crc - lay.broad_uncertainty) / 4, false)
+            .map_err(|e| match e {
+                BlobError::NonFinite { section, index } => BlobError::NonFinite { section, index: first + index },
+                BlobError::OutOfRange { section, index } => BlobError::OutOfRange { section, index: first + index },
+                e => e,
+            })?;
         view.check_finite(Section::Matrices, lay.matrices, dims.zones * k * dims.n * dims.m, false)?;
         view.check_finite(Section::Centroids, lay.centroids, (lay.out_of_prior - lay.centroids) / 4, false)?;
         view.check_finite(Section::OutOfPrior, lay.out_of_prior, (lay.gloss - lay.out_of_prior) / 4, false)?;
@@ -1173,13 +1216,41 @@ impl<'a> BlobView<'a> {
         assert!(z < self.dims.zones && c < self.lay.clusters && j < self.dims.n);
         get_f32(self.bytes, self.lay.uncertainty + 4 * ((z * self.lay.clusters + c) * self.dims.n + j))
     }
-    /// A point's standard uncertainty of bin `j`, from its zone `z`,
-    /// cluster `c`, estimate `rho` of the bin and `sigma_scale` (the frame's):
-    /// the blob's uncertainty times `|sigma_scale|`, or in the root form
+    /// Whether the blob carries the second uncertainty table (flag bit 8).
+    pub fn has_broad_band(&self) -> bool {
+        self.lay.crc != self.lay.broad_uncertainty
+    }
+    /// The table the point of estimate `rho` (on the angles `bins_deg`:
+    /// the grid's, or the subset a frame carries) takes: [`crate::band`].
+    pub fn band_table(&self, bins_deg: &[f32], rho: &[f32]) -> crate::band::BandTable {
+        crate::band::table_of(self.has_broad_band(), bins_deg, rho)
+    }
+    /// Predicted standard uncertainty of zone `z`, cluster `c`, bin `j` in
+    /// `table` (the first table when the blob has no second).
+    pub fn uncertainty_in(&self, table: crate::band::BandTable, z: usize, c: usize, j: usize) -> f32 {
+        match table {
+            crate::band::BandTable::Broad if self.has_broad_band() => {
+                assert!(z < self.dims.zones && c < self.lay.clusters && j < self.dims.n);
+                get_f32(self.bytes, self.lay.broad_uncertainty + 4 * ((z * self.lay.clusters + c) * self.dims.n + j))
+            }
+            _ => self.uncertainty_of(z, c, j),
+        }
+    }
+    /// A point's standard uncertainty of bin `j`, from the table it takes
+    /// ([`Self::band_table`]), its zone `z`, cluster `c`, estimate `rho` of
+    /// the bin and `sigma_scale` (the frame's): the table's uncertainty
+    /// times `|sigma_scale|`, or in the root form
     /// [`crate::kernel::scale_free::root_uncertainty`], which follows the
     /// point's own estimate.
-    pub fn point_uncertainty(&self, z: usize, c: usize, j: usize, rho: f32, sigma_scale: f32) -> f32 {
-        let u = self.uncertainty_of(z, c, j);
+    pub fn point_uncertainty(
+        &self,
+        table: crate::band::BandTable,
+        (z, c): (usize, usize),
+        j: usize,
+        rho: f32,
+        sigma_scale: f32,
+    ) -> f32 {
+        let u = self.uncertainty_in(table, z, c, j);
         if self.root_form() {
             crate::kernel::scale_free::root_uncertainty(u, rho, sigma_scale)
         } else {
@@ -1545,6 +1616,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1728,6 +1800,61 @@ mod tests {
     }
 
     #[test]
+    fn the_second_uncertainty_table_is_flag_bit_8_before_the_crc_and_is_checked() {
+        use crate::band::BandTable;
+        let o = sample(6, 4, 2, 5);
+        let broad: Vec<f32> = (0..12).map(|i| 0.01 * i as f32).collect();
+        let with = |table: &[f32]| {
+            let ex = BlobExtras { broad_uncertainty: table, ..BlobExtras::NONE };
+            let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+            write_blob_with(&contents(&o), &ex, &mut buf).map(|n| {
+                buf.truncate(n);
+                buf
+            })
+        };
+        let (bare, two) = (with(&[]).unwrap(), with(&broad).unwrap());
+        // Version 2, the flag, Z x K x n values just before the CRC; nothing
+        // before them moves.
+        assert_eq!((get_u16(&bare, 4), get_u16(&two, 4)), (FORMAT_VERSION_1, FORMAT_VERSION_2));
+        assert_eq!(get_u16(&two, 22) & FLAG_BROAD_BAND, FLAG_BROAD_BAND);
+        assert_eq!(two.len(), bare.len() + 4 * 12);
+        assert_eq!(two[64..bare.len() - 4], bare[64..bare.len() - 4]);
+        let (v, b) = (BlobView::parse(&two).unwrap(), BlobView::parse(&bare).unwrap());
+        assert!(v.has_broad_band() && !b.has_broad_band());
+        // A broad point takes the second table, a sharp one the first; a
+        // blob without the second gives every point the first.
+        assert_eq!(v.uncertainty_in(BandTable::Broad, 1, 0, 2), broad[6 + 2]);
+        assert_eq!(v.uncertainty_in(BandTable::Sharp, 1, 0, 2), v.uncertainty_of(1, 0, 2));
+        assert_eq!(b.uncertainty_in(BandTable::Broad, 1, 0, 2), b.uncertainty_of(1, 0, 2));
+        assert_eq!(v.point_uncertainty(BandTable::Broad, (1, 0), 2, 0.5, -3.0), 3.0 * broad[8]);
+        // Bins 1 deg apart: a flat estimate is broad, a one-bin spike sharp.
+        let grid: Vec<f32> = (0..6).map(|i| 40.0 + i as f32).collect();
+        let flat = [1.0f32; 6];
+        let spike = [0.0f32, 0.0, 1.0, 0.0, 0.0, 0.0];
+        assert_eq!(v.band_table(&grid, &flat), BandTable::Broad);
+        assert_eq!(v.band_table(&grid, &spike), BandTable::Sharp);
+        assert_eq!(b.band_table(&grid, &flat), BandTable::Sharp);
+        // The writer refuses the wrong count; the parser, with a good CRC,
+        // a negative or non-finite value, indexed on from the first table.
+        assert_eq!(with(&broad[..11]), Err(BlobError::ContentMismatch { section: Section::Uncertainty }));
+        let at = |i: usize| two.len() - 4 - 4 * (12 - i);
+        assert_eq!(
+            resealed(two.clone(), &|b| put_f32(b, at(3), -0.5)),
+            Err(BlobError::OutOfRange { section: Section::Uncertainty, index: 12 + 3 })
+        );
+        assert_eq!(
+            resealed(two.clone(), &|b| put_f32(b, at(0), f32::NAN)),
+            Err(BlobError::NonFinite { section: Section::Uncertainty, index: 12 })
+        );
+        // The flag without its table is a length mismatch; in a version 1
+        // blob, a reserved flag.
+        let flags = get_u16(&two, 22) & !FLAG_BROAD_BAND;
+        assert!(matches!(resealed(two.clone(), &|b| put_u16(b, 22, flags)), Err(BlobError::LengthMismatch { .. })));
+        let v1_flags = get_u16(&bare, 22) | FLAG_BROAD_BAND;
+        assert_eq!(resealed(bare, &|b| put_u16(b, 22, v1_flags)), Err(BlobError::ReservedNotZero));
+    }
+
+    #[test]
     fn version_1_is_still_written_and_read_as_before_and_v2_rules_hold() {
         let o = sample(6, 4, 2, 5);
         let buf = encode(&o);
@@ -1754,6 +1881,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
@@ -1773,6 +1901,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1791,6 +1920,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1825,6 +1955,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();
@@ -1989,6 +2120,7 @@ mod tests {
             root_form: false,
             peak_resolution_deg: None,
             pixel_peak_resolution_deg: &[],
+            broad_uncertainty: &[],
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();

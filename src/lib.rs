@@ -10,6 +10,8 @@
 //! The library (no_std, allocates nothing, never depends on host code):
 //! - [`shape`]: build-time shape (n, m, P per build) and flash geometry.
 //! - [`blob`]: the calibration blob format (writer and in-place reader).
+//! - [`band`]: which of a calibration's per-bin uncertainty tables a point
+//!   takes (sharp or broad estimate).
 //! - [`signed`]: signed calibrations (the signature trailer, the trusted keys).
 //! - [`store`]: the two-slot calibration store on any NOR flash.
 //! - [`firmware`]: firmware updates: the signed image format and (feature
@@ -39,6 +41,7 @@
 pub mod acquire;
 #[cfg(feature = "app")]
 pub mod app;
+pub mod band;
 pub mod blob;
 pub mod estimate;
 pub mod firmware;

@@ -229,6 +229,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         root_form: false,
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
+        broad_uncertainty: &[],
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
@@ -248,6 +249,14 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");
     b2.truncate(n);
     out.push(("blob.v2.log-ratio".into(), b2));
+    // The same with the second per-bin uncertainty table, for broad
+    // estimates (flag bit 8, Z x K x n before the CRC).
+    let broad: Vec<f32> = (0..2 * k * 9).map(|i| 0.005 + 0.0005 * i as f32).collect();
+    let exb = BlobExtras { broad_uncertainty: &broad, ..ex };
+    let mut b2 = vec![0u8; p2.dims.blob_len_with(&exb)];
+    let n = write_blob_with(&c2, &exb, &mut b2).expect("a valid format 2 blob with the broad table");
+    b2.truncate(n);
+    out.push(("blob.v2.broad-band".into(), b2));
     // Format 3: a Wiener blob with the gloss section.
     let p3 = TestBlobParts::new(9, 3, 2, 6, 0.75);
     let reference = [84.5f32, 91.25];

@@ -343,6 +343,8 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
     let zone_start: Vec<u16> = zones.iter().map(|z| z.first_pixel as u16).collect();
     let led_order = spec.led_order.clone().unwrap_or_else(|| (0..m as u8).collect());
     let (mut uncertainty, mut matrices, mut centroids, mut oop) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // The broad estimates' table, when every zone's maps have one.
+    let mut broad = Vec::new();
     for (tz, plan) in zones.iter().zip(&plans) {
         match &tz.estimator {
             ZoneEstimator::Linear(e) => {
@@ -352,6 +354,9 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
             ZoneEstimator::ScaleFree(z) => {
                 for map in &z.maps {
                     uncertainty.extend(map.sigma_unit.iter().map(|x| *x as f32));
+                    if let Some(b) = &map.sigma_broad {
+                        broad.extend(b.iter().map(|x| *x as f32));
+                    }
                     matrices.extend(map.w_f32());
                 }
                 centroids.extend_from_slice(&z.centroids);
@@ -391,6 +396,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         root_form: spec.root,
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
+        broad_uncertainty: if broad.len() == uncertainty.len() { &broad } else { &[] },
     };
     let mut blob = written(&contents, &extras)?;
     let own;
@@ -487,7 +493,14 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs], most: usize) -> anyho
         spec.false_alarm
     );
     let piecewise = spec.estimator == EstimatorKind::ScaleFreePiecewise;
-    let opts = ScaleFreeOptions { piecewise, false_alarm: spec.false_alarm, root: spec.root, ..Default::default() };
+    let bins32: Vec<f32> = spec.bins_deg.iter().map(|x| *x as f32).collect();
+    let opts = ScaleFreeOptions {
+        piecewise,
+        false_alarm: spec.false_alarm,
+        root: spec.root,
+        band_bins: Some(&bins32),
+        ..Default::default()
+    };
     // The counts tried: scored per zone, the ridge with them.
     let counts: Vec<usize> = match (piecewise, spec.clusters) {
         (false, _) => vec![1],
@@ -613,7 +626,12 @@ fn summary(spec: &TrainSpec<'_>, zones: &[TrainedZone], clusters: usize, f32_rel
     let predicted = if sf.is_empty() {
         linear.iter().map(|s| s.predicted_rmse).sum::<f64>() / linear.len().max(1) as f64
     } else {
-        sf.iter().flat_map(|z| &z.maps).map(|mp| (mp.sigma_unit.norm_squared() / n).sqrt()).sum::<f64>()
+        // Each map's tables alike (the sharp and the broad estimates' when it has both).
+        let rms = |t: &nalgebra::DVector<f64>| (t.norm_squared() / n).sqrt();
+        sf.iter()
+            .flat_map(|z| &z.maps)
+            .map(|mp| mp.sigma_broad.as_ref().map_or(rms(&mp.sigma_unit), |b| 0.5 * (rms(&mp.sigma_unit) + rms(b))))
+            .sum::<f64>()
             / (sf.len() * clusters) as f64
     };
     TrainingSummary {

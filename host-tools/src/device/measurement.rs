@@ -48,13 +48,16 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
 }
 
 /// The calibration's per-bin standard uncertainty for point `p` on the bins
-/// it carries: its zone's and cluster's, for its scale and (root form) its
-/// own estimate (`BlobView::point_uncertainty`).
+/// it carries: its zone's and cluster's, from the table its estimate takes
+/// on those bins (sharp or broad, `brdf_meter::band`), for its scale and
+/// (root form) its own estimate (`BlobView::point_uncertainty`).
 pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
+    let bins: Vec<f32> = p.bins.bins().map(|j| view.grid_deg(j)).collect();
+    let table = view.band_table(&bins, &p.values);
     p.bins
         .bins()
         .zip(&p.values)
-        .map(|(j, v)| view.point_uncertainty(p.zone as usize, p.cluster as usize, j, *v, p.sigma_scale))
+        .map(|(j, v)| view.point_uncertainty(table, (p.zone as usize, p.cluster as usize), j, *v, p.sigma_scale))
         .collect()
 }
 

@@ -12,6 +12,7 @@
 //! same out-of-prior statistic and flag rule, the same guard.
 use anyhow::ensure;
 use brdf_meter::acquire::{AcqConfig, Shorter, correct_point_into};
+use brdf_meter::band::BandTable;
 use brdf_meter::blob::{BlobView, EstimatorKind};
 use brdf_meter::estimate::{guard_estimate, out_of_prior_flag};
 use brdf_meter::kernel::scale_free::{
@@ -70,7 +71,11 @@ pub struct PointEstimator<'a> {
     view: BlobView<'a>,
     zone: usize,
     mats: Vec<Vec<f32>>,
-    sigma: Vec<Vec<f32>>,
+    /// Per table (sharp, broad: `brdf_meter::band`) and cluster, the
+    /// per-bin uncertainty.
+    sigma: [Vec<Vec<f32>>; 2],
+    /// The grid (deg), which a point's table is decided on.
+    bins: Vec<f32>,
     centroids: Vec<f32>,
     out_of_prior: Option<(Vec<f32>, Vec<f32>, f32, OutOfPriorForm)>,
     /// Per cluster the gloss block, and the standard's assigned value.
@@ -95,7 +100,9 @@ impl<'a> PointEstimator<'a> {
                 w
             })
             .collect();
-        let sigma = (0..k).map(|c| (0..d.n).map(|j| view.uncertainty_of(zone, c, j)).collect()).collect();
+        let table = |t| (0..k).map(|c| (0..d.n).map(|j| view.uncertainty_in(t, zone, c, j)).collect()).collect();
+        let sigma = [table(BandTable::Sharp), table(BandTable::Broad)];
+        let bins = (0..d.n).map(|j| view.grid_deg(j)).collect();
         let mut centroids = Vec::new();
         if view.estimator() == EstimatorKind::ScaleFreePiecewise {
             centroids = vec![0.0f32; k * d.m];
@@ -117,7 +124,7 @@ impl<'a> PointEstimator<'a> {
                 .collect();
             (blocks, assigned)
         });
-        Ok(Self { view, zone, mats, sigma, centroids, out_of_prior, gloss })
+        Ok(Self { view, zone, mats, sigma, bins, centroids, out_of_prior, gloss })
     }
 
     /// Readings per point m.
@@ -181,7 +188,8 @@ impl<'a> PointEstimator<'a> {
         } else {
             sigma_scale
         };
-        let unit = &self.sigma[cluster as usize];
+        let table = self.view.band_table(&self.bins, &rho);
+        let unit = &self.sigma[usize::from(table == BandTable::Broad)][cluster as usize];
         let mut sigma = vec![0.0f32; n];
         if root {
             for (j, o) in sigma.iter_mut().enumerate() {

@@ -238,6 +238,7 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         false_alarm: cfg.false_alarm,
         seed: cfg.seed,
         root: false,
+        band_bins: None,
     };
     let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts)
         .context("scale-free with the Table 5 prior")?;

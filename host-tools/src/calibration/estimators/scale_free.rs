@@ -135,6 +135,10 @@ pub struct ScaleFreeMap {
     /// The full error covariance per unit scale (n x n): its diagonal is
     /// `sigma_unit` squared; the gloss readings' covariance is taken from it.
     pub err_unit: DMatrix<f64>,
+    /// With the grid a band is decided on ([`ScaleFreeOptions::band_bins`]),
+    /// the uncertainty per unit scale of the points whose estimate is broad
+    /// (`brdf_meter::band`); `sigma_unit` is then the sharp ones'.
+    pub sigma_broad: Option<DVector<f64>>,
 }
 
 impl ScaleFreeMap {
@@ -180,30 +184,47 @@ pub struct ScaleFreeZone {
     pub cv_error: f64,
     /// Whether the maps are in the root form.
     pub root: bool,
+    /// The grid the band's table is decided on, when the maps have the
+    /// broad estimates' table (`ScaleFreeMap::sigma_broad`).
+    pub band_bins: Option<Vec<f32>>,
 }
 
 impl ScaleFreeZone {
     /// Estimates one point exactly as the device does: f32, the library's
-    /// functions. Returns (estimate, per-bin sigma, statistic, cluster).
+    /// functions, and the per-bin uncertainty as the host states it (the
+    /// table the estimate takes, `brdf_meter::band`). Returns (estimate,
+    /// per-bin sigma, statistic, cluster).
     pub fn estimate_f32(&self, v: &[f32]) -> (Vec<f32>, Vec<f32>, f32, usize) {
         let n = self.maps[0].w.nrows();
         let mut out = vec![0.0f32; n];
         let c = if self.centroids.is_empty() { 0 } else { brdf_meter::kernel::select_cluster(&self.centroids, v) };
-        let unit: Vec<f32> = self.maps[c].sigma_unit.iter().map(|x| *x as f32).collect();
         let mut sigma = vec![0.0f32; n];
         let s = if self.root {
             let (s, _) = estimate_scale_free_root(&self.maps[c].w_f32(), v, &mut out);
+            let unit: Vec<f32> = self.band_of(c, &out).iter().map(|x| *x as f32).collect();
             for j in 0..n {
                 sigma[j] = root_uncertainty(unit[j], out[j], s);
             }
             s
         } else {
             let s = estimate_scale_free(&self.maps[c].w_f32(), v, &mut out);
+            let unit: Vec<f32> = self.band_of(c, &out).iter().map(|x| *x as f32).collect();
             brdf_meter::kernel::scale_free::scaled_uncertainty(&unit, s, &mut sigma);
             s
         };
         let o = &self.out_of_prior;
         (out, sigma, o.form.stat(&o.g, &o.mean, v, s), c)
+    }
+
+    /// Cluster `c`'s uncertainty per unit scale for the estimate `est`: the
+    /// broad estimates' table when the zone has one and `est` is broad on
+    /// its grid, else `sigma_unit`.
+    pub fn band_of(&self, c: usize, est: &[f32]) -> &DVector<f64> {
+        let map = &self.maps[c];
+        match (&map.sigma_broad, &self.band_bins) {
+            (Some(broad), Some(bins)) if brdf_meter::band::is_broad(bins, est) => broad,
+            _ => &map.sigma_unit,
+        }
     }
 
     /// Flags with `form`'s model (a calibration's zones share one form).
@@ -329,7 +350,7 @@ fn fit_map(mo: &Moments, ridge: f64) -> anyhow::Result<ScaleFreeMap> {
     w.set_column(m1, &b);
     let err = &mo.sy * mo.sy.transpose() - &wp * &cyu.transpose();
     let sigma_unit = DVector::from_fn(n, |j, _| err[(j, j)].max(0.0).sqrt());
-    Ok(ScaleFreeMap { w, sigma_unit, err_unit: err })
+    Ok(ScaleFreeMap { w, sigma_unit, err_unit: err, sigma_broad: None })
 }
 
 /// Packed `chol(C')^-1` (lower triangular) of the predictive covariance of
@@ -411,7 +432,7 @@ pub fn peak_error(est: &DVector<f64>, truth: &DVector<f64>) -> f64 {
 
 /// Settings of [`train_pairs`].
 #[derive(Clone, Debug)]
-pub struct ScaleFreeOptions {
+pub struct ScaleFreeOptions<'a> {
     /// Relative noise, for [`train_zone`]'s in-plane pairs only (pairs
     /// carry their own noise model).
     pub noise_rel: f64,
@@ -427,9 +448,14 @@ pub struct ScaleFreeOptions {
     pub seed: u64,
     /// The root form (every estimate non-negative).
     pub root: bool,
+    /// The grid (deg) a held-out estimate's band table is decided on
+    /// (`brdf_meter::band`): with it (and the root form), training sets a
+    /// second table per cluster for the broad estimates, `sigma_unit`
+    /// then being the sharp ones'; without it, one table for every point.
+    pub band_bins: Option<&'a [f32]>,
 }
 
-impl Default for ScaleFreeOptions {
+impl Default for ScaleFreeOptions<'_> {
     fn default() -> Self {
         Self {
             noise_rel: 0.02,
@@ -438,6 +464,7 @@ impl Default for ScaleFreeOptions {
             false_alarm: DEFAULT_FALSE_ALARM,
             seed: 7,
             root: false,
+            band_bins: None,
         }
     }
 }
@@ -756,7 +783,7 @@ pub fn train_with(
             pairs,
             &nz,
             (&cv.readings, &by_shape),
-            opts.seed,
+            (opts.seed, opts.band_bins),
             ridge,
             clusters,
             &mut fitted,
@@ -767,6 +794,7 @@ pub fn train_with(
             o.on_kinds = on_kinds;
         }
     }
+    let band_bins = fitted.maps.iter().all(|m| m.sigma_broad.is_some()).then(|| opts.band_bins.map(<[f32]>::to_vec));
     let mut zone = ScaleFreeZone {
         maps: fitted.maps,
         centroids: fitted.centroids,
@@ -775,6 +803,7 @@ pub fn train_with(
         ridge,
         cv_error,
         root: opts.root,
+        band_bins: band_bins.flatten(),
     };
     zone.use_out_of_prior_form(out_of_prior::choose_form([&zone.out_of_prior_forms]));
     Ok(zone)
@@ -786,8 +815,14 @@ type KindsEvidence = (Vec<(f64, f64)>, out_of_prior::FlagOnKinds);
 
 /// One held-out reading: (cluster, weight, per bin the smallest unit
 /// uncertainty that covers its error, [`covering_unit`], its pair and draw,
-/// its peak-normalised error).
-type HeldOutRoot = (usize, f64, DVector<f64>, (usize, usize), f64);
+/// its peak-normalised error, whether its estimate is broad).
+type HeldOutRoot = (usize, f64, DVector<f64>, (usize, usize), f64, bool);
+
+/// Fewest held-out readings a cluster's table for one kind of estimate
+/// (sharp or broad) is set from on their own; fewer take that kind's over
+/// every cluster of the zone (the 95th percentile of 40 readings is the
+/// third largest).
+const MIN_BAND_READINGS: usize = 40;
 
 /// The smallest uncertainty per unit scale `sigma` whose stated
 /// uncertainty `root_uncertainty(sigma, est, s)` covers the error `e` at
@@ -817,7 +852,7 @@ fn held_out_uncertainty(
     pairs: &Pairs,
     nz: &Normalised,
     (readings, fold): (&[Vec<DVector<f64>>], &[usize]),
-    seed: u64,
+    (seed, band_bins): (u64, Option<&[f32]>),
     ridge: f64,
     clusters: usize,
     fitted: &mut Fitted,
@@ -839,7 +874,9 @@ fn held_out_uncertainty(
                 let est = fold_fit.estimate(v);
                 let unit = DVector::from_fn(n, |j, _| covering_unit(est[j], (est[j] - truth[j]).abs(), s));
                 let error = peak_error(&est, &truth);
-                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d), error));
+                let est32: Vec<f32> = est.iter().map(|x| *x as f32).collect();
+                let broad = band_bins.is_some_and(|b| brdf_meter::band::is_broad(b, &est32));
+                held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d), error, broad));
             }
         }
     }
@@ -849,18 +886,41 @@ fn held_out_uncertainty(
     // set to cover 95 % of all the held-out values it came out at 0.77-0.91,
     // and the peak bins of held-out measured materials were covered 70-80 %
     // of the time.
-    let quantile = |c: Option<usize>, j: usize| -> Option<f64> {
-        let mut xs: Vec<(f64, f64)> =
-            held.iter().filter(|h| c.is_none_or(|c| h.0 == c)).map(|h| (h.2[j], h.1)).collect();
+    //
+    // With a grid to decide on, each cluster's readings of each kind of
+    // estimate (sharp, broad: `brdf_meter::band`) are covered on their own
+    // too: a cluster's readings may be read as smooth lobes or as sharp
+    // peaks, which err differently at the specular bins.
+    let quantile = |c: Option<usize>, broad: Option<bool>, j: usize| -> Option<f64> {
+        let mut xs: Vec<(f64, f64)> = held
+            .iter()
+            .filter(|h| c.is_none_or(|c| h.0 == c) && broad.is_none_or(|b| h.5 == b))
+            .map(|h| (h.2[j], h.1))
+            .collect();
         (!xs.is_empty()).then(|| weighted_quantile(&mut xs, COVERAGE))
     };
-    let pooled = DVector::from_fn(n, |j, _| quantile(None, j).unwrap_or(0.0));
+    let count =
+        |c: Option<usize>, broad: bool| held.iter().filter(|h| c.is_none_or(|c| h.0 == c) && h.5 == broad).count();
+    let pooled = DVector::from_fn(n, |j, _| quantile(None, None, j).unwrap_or(0.0));
+    let table = |c: Option<usize>, broad: Option<bool>| {
+        (0..n).map(|j| quantile(c, broad, j)).collect::<Option<Vec<f64>>>().map(DVector::from_vec)
+    };
     for (c, map) in fitted.maps.iter_mut().enumerate() {
         // A cluster no held-out pair fell in keeps the pooled value.
-        map.sigma_unit = (0..n)
-            .map(|j| quantile(Some(c), j))
-            .collect::<Option<Vec<f64>>>()
-            .map_or(pooled.clone(), DVector::from_vec);
+        let all = table(Some(c), None).unwrap_or_else(|| pooled.clone());
+        // A kind with too few readings in the cluster takes the kind's over
+        // the zone's clusters, and with too few of those the cluster's.
+        let of_kind = |broad: bool| {
+            let own = (count(Some(c), broad) >= MIN_BAND_READINGS).then(|| table(Some(c), Some(broad))).flatten();
+            own.or_else(|| (count(None, broad) >= MIN_BAND_READINGS).then(|| table(None, Some(broad))).flatten())
+                .unwrap_or_else(|| all.clone())
+        };
+        if band_bins.is_some() {
+            map.sigma_broad = Some(of_kind(true));
+            map.sigma_unit = of_kind(false);
+        } else {
+            map.sigma_unit = all;
+        }
     }
     // A bin whose band is zero cannot be widened by a factor: it gives no
     // evidence for one.
@@ -870,7 +930,8 @@ fn held_out_uncertainty(
             .iter()
             .filter(|h| flagged.contains(&h.3))
             .flat_map(|h| {
-                let band = &fitted.maps[h.0].sigma_unit;
+                let map = &fitted.maps[h.0];
+                let band = if h.5 { map.sigma_broad.as_ref().unwrap_or(&map.sigma_unit) } else { &map.sigma_unit };
                 (0..n).filter(|&j| band[j] > 0.0).map(move |j| (h.2[j] / band[j], h.1 / n as f64))
             })
             .collect();
@@ -1079,6 +1140,47 @@ mod tests {
         // Nothing better on random folds than the fewest: the fewest.
         assert_eq!(guarded_count(&zones(&[&[0.02, 0.04]], &[&[0.3, 0.1]])), 0);
         assert_eq!(guarded_count(&[]), 0);
+    }
+
+    #[test]
+    fn with_a_grid_broad_and_sharp_estimates_each_take_their_own_band() {
+        // Ward lobes from near-mirrors (alpha 0.005) to broad ones, scaled
+        // over orders of magnitude as in `setup`.
+        let (grid, inst) = (AngleGrid::patent(), Instrument::patent_profile());
+        let h = system_matrix(&inst, &grid, false).unwrap();
+        let rho_d: Vec<f64> = (0..6).map(|i| 0.05 + 0.15 * i as f64).collect();
+        let alpha = [0.005, 0.01, 0.02, 0.05, 0.09, 0.13];
+        let mut samples = SampleSet::ward_grid(&rho_d, &alpha).on_grid(&grid, inst.view_deg);
+        for (c, mut col) in samples.column_iter_mut().enumerate() {
+            col *= 10f64.powi(c as i32 % 4 - 1);
+        }
+        let prior = WeightedSamples::equal(samples);
+        let bins: Vec<f32> = grid.bins_deg().iter().map(|x| *x as f32).collect();
+        let opts = ScaleFreeOptions { root: true, band_bins: Some(&bins), ..Default::default() };
+        let two = train_zone(&h, &prior, &opts).unwrap();
+        let one = train_zone(&h, &prior, &ScaleFreeOptions { band_bins: None, ..opts }).unwrap();
+        // Without the grid, one table as before; the estimates are the same either way.
+        assert!(one.band_bins.is_none() && one.maps.iter().all(|m| m.sigma_broad.is_none()));
+        assert!(two.band_bins.is_some() && two.maps.iter().all(|m| m.sigma_broad.is_some()));
+        assert!(one.maps.iter().zip(&two.maps).all(|(a, b)| a.w == b.w));
+        // Every prior sample's reading states the table its estimate takes,
+        // and both kinds occur (the narrowest Ward lobes read sharp, the
+        // widest broad) with tables that differ.
+        let mut kinds = [false; 2];
+        for k in 0..prior.samples.ncols() {
+            let v: Vec<f32> = (&h * prior.samples.column(k)).iter().map(|x| *x as f32).collect();
+            let (est, sigma, _, c) = two.estimate_f32(&v);
+            let broad = brdf_meter::band::is_broad(&bins, &est);
+            kinds[usize::from(broad)] = true;
+            let map = &two.maps[c];
+            let table = if broad { map.sigma_broad.as_ref().unwrap() } else { &map.sigma_unit };
+            let s: f32 = v.iter().sum();
+            for j in 0..est.len() {
+                assert_eq!(sigma[j], root_uncertainty(table[j] as f32, est[j], s), "sample {k} bin {j}");
+            }
+        }
+        assert_eq!(kinds, [true, true]);
+        assert!(two.maps.iter().any(|m| m.sigma_broad.as_ref().unwrap() != &m.sigma_unit));
     }
 
     #[test]

@@ -458,8 +458,12 @@ impl PointScore {
         let n = truth.len();
         let est = DVector::from_iterator(n, pt.values.iter().map(|x| f64::from(*x)));
         let profile = interp * DVector::from_iterator(pt.corrected.len(), pt.corrected.iter().map(|x| f64::from(*x)));
+        let bins: Vec<f32> = (0..n).map(|j| blob.grid_deg(j)).collect();
+        let table = blob.band_table(&bins, &pt.values);
         let u: Vec<f32> = (0..n)
-            .map(|j| blob.point_uncertainty(pt.zone as usize, pt.cluster as usize, j, pt.values[j], pt.sigma_scale))
+            .map(|j| {
+                blob.point_uncertainty(table, (pt.zone as usize, pt.cluster as usize), j, pt.values[j], pt.sigma_scale)
+            })
             .collect();
         let inside = (0..n).filter(|&j| (est[j] - truth[j]).abs() <= K * f64::from(u[j])).count();
         Self {
