@@ -7,9 +7,9 @@
 //! differently: where a sharp estimate's peak may be far off (a mirror
 //! spike read as the prior's idea of one), a broad estimate's is not, and
 //! one table for both states the polished materials' errors on every
-//! smooth lobe (on the handheld's one-zone demo, 2 to 5 times the broad
-//! lobes' own at the specular bins) while the few sharp readings of a
-//! mostly broad cluster are covered less often than the rest. A blob may
+//! smooth lobe (in a one-zone calibration of the handheld, 4 to 6 times
+//! the broad lobes' own at the specular bins) while the few sharp readings
+//! of a mostly broad cluster are covered less often than the rest. A blob may
 //! therefore carry a second table ([`crate::blob`], flag bit 8): the first
 //! for points whose estimate is sharp, the second for those whose estimate
 //! is broad ([`is_broad`]), each set from held-out readings of its own
@@ -21,10 +21,10 @@
 //! judged on those.
 
 /// A point's estimate is broad when its half-maximum width about its
-/// highest value is at least this (deg): twice the widest peak resolution
-/// of the product's calibrations (1.14 deg on the handheld, 0.76 on the
-/// patent profile), so a broad estimate is a lobe the calibration resolves
-/// by a margin, never its response to a spike.
+/// highest value is at least this (deg): over twice the widest peak
+/// resolution of the product's calibrations (1.14 deg on the handheld,
+/// 0.76 on the patent profile), so a broad estimate is a lobe the
+/// calibration resolves by a margin, never its response to a spike.
 pub const BROAD_WIDTH_DEG: f32 = 3.0;
 
 /// Which table a point takes.

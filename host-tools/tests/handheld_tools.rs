@@ -222,6 +222,9 @@ fn pixel_map_reads_every_pixel() {
     assert!(pk.points > 0 && pk.missed <= pk.points, "{pk:?}");
     assert!((0.0..=1.0).contains(&pk.unresolved), "{pk:?}");
     assert!(pk.height_rel[0] <= pk.height_rel[1] && pk.interpolation_height_rel[0] > 0.0, "{pk:?}");
+    // Every pixel states the resolution its peaks are judged at (a few
+    // bins: far below the LEDs' spacing).
+    assert!(map.pixels.iter().all(|r| (0.3..2.0).contains(&r.peak_resolution_deg)), "{:?}", map.pixels);
     // Beside it, what each calibration's training chose and said of its
     // flag: the four folds' statistics and the whole prior's, and the
     // whole prior's score on kinds held out (the prior's weights, which

@@ -53,7 +53,13 @@
 //! which let the many dark bins' coverage buy the peak's; 61 % and 68 %
 //! with each bin's own quantile, and 97 % on the measured materials once
 //! their training readings were the rays' rather than `H rho`,
-//! `crate::forward::pairs`).
+//! `crate::forward::pairs`). Given the grid (`ScaleFreeOptions::band_bins`,
+//! as `train` gives it), each cluster has two tables, one from its
+//! held-out readings whose estimate is sharp and one from those whose
+//! estimate is broad (`brdf_meter::band`; a kind with fewer than
+//! `MIN_BAND_READINGS` in the cluster takes the kind's over the zone): a
+//! cluster's readings may be read either way, and a smooth lobe's specular
+//! bins do not err as a mirror's read as the prior's idea of one does.
 //!
 //! The folds of that uncertainty hold out whole *kinds* of material
 //! (`shape_folds`: the prior's samples grouped by the shape of their
@@ -794,7 +800,7 @@ pub fn train_with(
             o.on_kinds = on_kinds;
         }
     }
-    let band_bins = fitted.maps.iter().all(|m| m.sigma_broad.is_some()).then(|| opts.band_bins.map(<[f32]>::to_vec));
+    let band_bins = opts.band_bins.filter(|_| fitted.maps.iter().all(|m| m.sigma_broad.is_some())).map(<[f32]>::to_vec);
     let mut zone = ScaleFreeZone {
         maps: fitted.maps,
         centroids: fitted.centroids,
@@ -803,7 +809,7 @@ pub fn train_with(
         ridge,
         cv_error,
         root: opts.root,
-        band_bins: band_bins.flatten(),
+        band_bins,
     };
     zone.use_out_of_prior_form(out_of_prior::choose_form([&zone.out_of_prior_forms]));
     Ok(zone)

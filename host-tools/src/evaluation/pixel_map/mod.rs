@@ -127,6 +127,9 @@ pub struct PixelRow {
     pub tiles_mean_abs_gu: f64,
     /// The tiles' worst.
     pub tiles_max_abs_gu: f64,
+    /// The pixel's peak resolution, deg (the blob's, per pixel where it
+    /// records one; NaN: none).
+    pub peak_resolution_deg: f64,
 }
 
 /// One material's errors (its mean over the lines at every pixel).
@@ -718,6 +721,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             black_glass_saturated: bg.points.iter().any(|l| l[px].flags & flags::SATURATED != 0),
             tiles_mean_abs_gu: if dev.is_empty() { f64::NAN } else { dev.iter().sum::<f64>() / dev.len() as f64 },
             tiles_max_abs_gu: dev.iter().copied().fold(f64::NAN, f64::max),
+            peak_resolution_deg: blob.peak_resolution_at(px).map_or(f64::NAN, f64::from),
         });
     }
     let held_out = LineSummary::of(&rows);

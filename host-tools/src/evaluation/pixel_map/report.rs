@@ -175,14 +175,14 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
-        "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU |"
+        "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU | peak resolution deg |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     let last = map.pixels.len().saturating_sub(1);
     for r in map.pixels.iter().filter(|r| r.pixel % stride.max(1) == 0 || r.pixel == last) {
         let _ = writeln!(
             s,
-            "| {} | {:.2} | {} | {} | {} | {:.0} % | {:.0} % | {:.2} ({:.2}) | {:.2} / {:.2} |",
+            "| {} | {:.2} | {} | {} | {} | {:.0} % | {:.0} % | {:.2} ({:.2}) | {:.2} / {:.2} | {:.2} |",
             r.pixel,
             r.view_deg,
             r.zone,
@@ -193,7 +193,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             r.black_glass_gu,
             r.black_glass_sd_gu,
             r.tiles_mean_abs_gu,
-            r.tiles_max_abs_gu
+            r.tiles_max_abs_gu,
+            r.peak_resolution_deg
         );
     }
     s
@@ -219,6 +220,7 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
         "black_glass_saturated",
         "tiles_mean_abs_gu",
         "tiles_max_abs_gu",
+        "peak_resolution_deg",
     ])?;
     for r in &map.pixels {
         let f = |x: f64| format!("{x:.6}");
@@ -239,6 +241,7 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
             r.black_glass_saturated.to_string(),
             f(r.tiles_mean_abs_gu),
             f(r.tiles_max_abs_gu),
+            f(r.peak_resolution_deg),
         ])?;
     }
     Ok(w.into_inner()?)
