@@ -492,19 +492,21 @@ mod tests {
         let coarse = Points { peak_resolution_deg: Some(2.0), ..p.clone() };
         assert_eq!(peaks(&coarse), Some(1));
         assert_eq!(Points { peak_resolution_deg: None, ..p.clone() }.unresolved_peaks(), None);
-        // A pixel's own resolution decides for its points: pixel 17 coarse
-        // (2 deg) does not resolve the triangle the calibration's 0.75 would;
-        // the pointless second point keeps the calibration's.
-        let own = Points { pixel_peak_resolution_deg: [vec![f64::NAN; 17], vec![2.0]].concat(), ..p.clone() };
-        assert_eq!(peaks(&own), Some(1));
-        let u = own.unresolved_peaks().unwrap().narrower_than_deg;
-        assert_eq!(u, (f * 0.75, f * 2.0));
+        // A pixel's own resolution decides for its points: pixel 17 resolves
+        // 0.75 deg, finer than the calibration's widest (2 deg), and so the
+        // triangle the widest would not; the second point, of no pixel, is
+        // judged at the widest.
+        let own = Points { pixel_peak_resolution_deg: [vec![f64::NAN; 17], vec![0.75]].concat(), ..coarse.clone() };
+        assert_eq!(peaks(&own), Some(0));
+        assert_eq!(own.unresolved_peaks().unwrap().narrower_than_deg, (f * 0.75, f * 2.0));
         let own_csv = String::from_utf8(own.csv().unwrap()).unwrap();
-        assert_eq!(own_csv.lines().nth(2).unwrap().split(',').nth(58), Some("2.0"));
+        let cells = |row: usize| own_csv.lines().nth(row).unwrap().split(',').nth(58).map(str::to_string);
+        assert_eq!((cells(2), cells(3)), (Some("0.75".into()), Some("2.0".into())));
         assert_eq!(
-            unresolved_note(own.unresolved_peaks()),
-            "; 1 peak(s) not resolved (narrower than 1.06-2.83 deg at their pixels: no uncertainty stated)"
+            unresolved_note(Some(Unresolved { peaks: 3, narrower_than_deg: (f * 0.75, f * 2.0) })),
+            "; 3 peak(s) not resolved (narrower than 1.06-2.83 deg at their pixels: no uncertainty stated)"
         );
+        assert_eq!(unresolved_note(coarse.unresolved_peaks()).matches("narrower than 2.83 deg").count(), 1);
         let json = String::from_utf8(p.json().unwrap()).unwrap();
         for (col, name) in [(47, "gloss_gu"), (53, "peak_rf"), (56, "peak_width_deg"), (57, "u_peak_width_deg")] {
             let line = format!("\"{name}\": {}", rows[0][col]);
