@@ -1612,11 +1612,7 @@ mod tests {
             clusters: 3,
             centroids: &cents,
             out_of_prior: Some(OutOfPriorData { threshold: 12.5, form, data: &oop, band_factor }),
-            gloss: None,
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
+            ..BlobExtras::NONE
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -1873,16 +1869,7 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let ex = BlobExtras {
-            clusters: 1,
-            centroids: &cents,
-            out_of_prior: None,
-            gloss: None,
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
-        };
+        let ex = BlobExtras { clusters: 1, centroids: &cents, out_of_prior: None, ..BlobExtras::NONE };
         let mut out = vec![0u8; 4096];
         assert!(matches!(write_blob_with(&c, &ex, &mut out), Err(BlobError::BadDimension { field: "clusters", .. })));
         // The threshold must be positive.
@@ -1897,11 +1884,7 @@ mod tests {
                 data: &oop,
                 band_factor: 1.0,
             }),
-            gloss: None,
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
+            ..BlobExtras::NONE
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1916,11 +1899,7 @@ mod tests {
                 data: &oop[1..],
                 band_factor: 1.0,
             }),
-            gloss: None,
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
+            ..BlobExtras::NONE
         };
         assert_eq!(
             write_blob_with(&c, &ex, &mut out),
@@ -1952,10 +1931,7 @@ mod tests {
                 band_factor: 1.0,
             }),
             gloss: Some(g),
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
+            ..BlobExtras::NONE
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();
@@ -2117,10 +2093,7 @@ mod tests {
                 band_factor: 1.0,
             }),
             gloss: Some(GlossData { reference: &reference, blocks: &blocks, ..g }),
-            root_form: false,
-            peak_resolution_deg: None,
-            pixel_peak_resolution_deg: &[],
-            broad_uncertainty: &[],
+            ..BlobExtras::NONE
         };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).unwrap();

@@ -225,11 +225,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             data: &oop,
             band_factor: 1.0,
         }),
-        gloss: None,
-        root_form: false,
-        peak_resolution_deg: None,
-        pixel_peak_resolution_deg: &[],
-        broad_uncertainty: &[],
+        ..BlobExtras::NONE
     };
     let mut b2 = vec![0u8; p2.dims.blob_len_with(&ex)];
     let n = write_blob_with(&c2, &ex, &mut b2).expect("a valid format 2 blob");

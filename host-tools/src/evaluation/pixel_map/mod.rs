@@ -414,7 +414,7 @@ fn score_lines(
             let lines = read.points.len().max(1) as f64;
             let mut acc = SurfacePixel::default();
             for line in &read.points {
-                let sc = PointScore::of(blob, &t, &line[px], &geo.interp[px]);
+                let sc = PointScore::of(blob, &geo.bins32, &t, &line[px], &geo.interp[px]);
                 acc.error += sc.error / lines;
                 acc.interpolation += sc.interpolation / lines;
                 acc.covered += sc.covered / lines;
@@ -454,6 +454,7 @@ struct PointScore {
 impl PointScore {
     fn of(
         blob: &BlobView<'_>,
+        bins_deg: &[f32],
         truth: &DVector<f64>,
         pt: &crate::device::reference::ExpectedPoint,
         interp: &nalgebra::DMatrix<f64>,
@@ -461,8 +462,7 @@ impl PointScore {
         let n = truth.len();
         let est = DVector::from_iterator(n, pt.values.iter().map(|x| f64::from(*x)));
         let profile = interp * DVector::from_iterator(pt.corrected.len(), pt.corrected.iter().map(|x| f64::from(*x)));
-        let bins: Vec<f32> = (0..n).map(|j| blob.grid_deg(j)).collect();
-        let table = blob.band_table(&bins, &pt.values);
+        let table = blob.band_table(bins_deg, &pt.values);
         let u: Vec<f32> = (0..n)
             .map(|j| {
                 blob.point_uncertainty(table, (pt.zone as usize, pt.cluster as usize), j, pt.values[j], pt.sigma_scale)
@@ -539,7 +539,7 @@ fn read_material(
         let truth32: Vec<f32> = truth.iter().map(|x| *x as f32).collect();
         for line in &read.points {
             let pt = &line[px];
-            let score = PointScore::of(blob, &truth, pt, &geo.interp[px]);
+            let score = PointScore::of(blob, &geo.bins32, &truth, pt, &geo.interp[px]);
             let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
             let at = PixelPeaks { view_deg, resolution_deg: blob.peak_resolution_at(px).map(f64::from) };
             peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, at);
