@@ -140,6 +140,24 @@ impl Form {
     pub fn default_for(kind: EstimatorKind) -> Self {
         if scale_free_kind(kind) { Self::Root } else { Self::Linear }
     }
+
+    /// The form a blob's root-form flag says it is in.
+    pub fn of_blob(view: &brdf_meter::blob::BlobView<'_>) -> Self {
+        Self::of_root(view.root_form())
+    }
+
+    /// The form of a calibration trained with `root` set or not.
+    pub fn of_root(root: bool) -> Self {
+        if root { Self::Root } else { Self::Linear }
+    }
+
+    /// Its name, as `--form` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Root => "root",
+            Self::Linear => "linear",
+        }
+    }
 }
 
 /// Whether `kind` is one of the scale-free kinds (trained on the readings
@@ -1017,6 +1035,16 @@ mod tests {
     use crate::forward::prior_measured::PriorMix;
     use crate::forward::reading_noise::ReadingNoise;
     use crate::forward::zone_optics::uniform_zones;
+
+    /// A form's name in reports is the one `--form` takes.
+    #[test]
+    fn a_forms_name_is_the_one_the_command_line_takes() {
+        for f in [Form::Root, Form::Linear] {
+            let value = clap::ValueEnum::to_possible_value(&f).unwrap();
+            assert_eq!(value.get_name(), f.name());
+            assert_eq!(Form::of_root(f == Form::Root), f);
+        }
+    }
 
     fn patent_spec(
         prior: &PriorModels,

@@ -79,7 +79,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     report.calibration = format!(
         "{} ({} form) on prior {}, criterion {:?}, {} zone(s), trained at {} % noise",
         kind_name(setup.kind),
-        if setup.root { "root" } else { "linear" },
+        crate::calibration::train::Form::of_root(setup.root).name(),
         a.cal.prior,
         setup.criterion,
         spec.zones.len(),

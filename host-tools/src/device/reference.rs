@@ -127,6 +127,11 @@ impl<'a> PointEstimator<'a> {
         Ok(Self { view, zone, mats, sigma, bins, centroids, out_of_prior, gloss })
     }
 
+    /// The calibration it applies.
+    pub fn view(&self) -> &BlobView<'a> {
+        &self.view
+    }
+
     /// Readings per point m.
     pub fn m(&self) -> usize {
         self.view.dims().m

@@ -40,7 +40,6 @@ use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use anyhow::{Context, ensure};
-use brdf_meter::blob::BlobView;
 use families::TestFamily;
 use folds::{Membership, matching, plan};
 use metrics::Tally;
@@ -119,19 +118,17 @@ pub fn run(
     let plan = plan(&membership, cfg.folds, cfg.seed);
     progress("sample pairs of the prior and the standards");
     let all = ZonePairs::build(spec);
-    let (mut blobs, mut clusters, mut flag_forms) =
-        (Vec::with_capacity(plan.calibrations.len()), Vec::new(), Vec::new());
+    let (mut blobs, mut clusters) = (Vec::with_capacity(plan.calibrations.len()), Vec::new());
     for held in &plan.calibrations {
         progress(&format!("training {}", held.label(plan.folds)));
         let t = train_on(spec, &held.pairs(&all)).with_context(|| format!("training {}", held.label(plan.folds)))?;
         clusters.push(t.clusters);
-        let view = BlobView::parse(&t.blob).map_err(|e| anyhow::anyhow!("the trained blob does not parse: {e}"))?;
-        flag_forms.push(crate::calibration::estimators::out_of_prior::statistic_name(&view).to_string());
         blobs.push(t.blob);
     }
     let centres = inst.centre_angles_deg();
     let readers: Vec<Readers<'_>> =
         blobs.iter().map(|b| Readers::new(b, grid, &centres, inst.view_deg)).collect::<anyhow::Result<_>>()?;
+    let flag_forms = readers.iter().map(|r| r.flag_statistic().to_string()).collect();
     let mut rows = Vec::new();
     let mut materials = Vec::new();
     let mut protocols = Vec::new();

@@ -91,6 +91,12 @@ impl<'a> Readers<'a> {
         })
     }
 
+    /// The name of the statistic the calibration's out-of-prior flag is
+    /// raised on (`none` without one).
+    pub fn flag_statistic(&self) -> &'static str {
+        crate::calibration::estimators::out_of_prior::statistic_name(self.estimator.view())
+    }
+
     /// The calibration's estimate of white-normalised readings `v`, as the device computes it.
     pub fn estimator(&self, v: &[f32]) -> Reading {
         let corrected: Vec<f32> = v.iter().zip(&self.white).map(|(x, w)| x / w).collect();

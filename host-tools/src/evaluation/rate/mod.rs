@@ -69,7 +69,7 @@ fn describe(blob: &[u8]) -> anyhow::Result<String> {
     Ok(format!(
         "{} on the MERL prior, {} form, {} out-of-prior flag, {}",
         crate::calibration::estimators::kind_name(view.estimator()),
-        if view.root_form() { "root" } else { "linear" },
+        crate::calibration::train::Form::of_blob(&view).name(),
         view.out_of_prior_form().map_or("no", |f| f.name()),
         if view.has_gloss() { "gloss readings" } else { "no gloss readings" }
     ))
