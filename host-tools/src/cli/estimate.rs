@@ -14,7 +14,7 @@
 //! standard uncertainties, the gloss readings (`brdf_meter::gloss`) and the
 //! specular peak with theirs.
 //! Everything is checked and computed before anything is written.
-use crate::device::reference::{PointEstimate, PointEstimator};
+use crate::device::reference::PointEstimator;
 use crate::output::points::{Point, Points};
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
@@ -42,7 +42,8 @@ pub struct Args {
     /// readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
-    /// Plot and standard files (points are the readings' rows).
+    /// Plot and standard files (points are the readings' pixels on their
+    /// lines, as `measure`'s; rows on line 0 without `line` and `pixel` columns).
     #[command(flatten)]
     pub exports: crate::cli::exports::ExportArgs,
 }
@@ -155,11 +156,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         });
         points.push(e);
     }
-    let bins: Vec<f32> = (0..d.n).map(|j| view.grid_deg(j)).collect();
-    let profiles = profiles(&bins, &points);
-    if a.exports.plot.is_some() {
-        a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
-    }
     let (peak_resolution_deg, pixel_peak_resolution_deg) = crate::output::points::peak_resolutions(&view);
     let files = Points {
         source: "estimate",
@@ -167,9 +163,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view_deg: a.exports.view_deg,
         peak_resolution_deg,
         pixel_peak_resolution_deg,
-        bins_deg: bins,
+        bins_deg: (0..d.n).map(|j| view.grid_deg(j)).collect(),
         points: schema_points,
     };
+    let profiles = files.profiles();
+    if a.exports.plot.is_some() {
+        a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
+    }
     files.write(&a.out, a.json.as_deref())?;
     let unresolved = files.unresolved_peaks();
     let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
@@ -204,23 +204,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("{line}");
     }
     Ok(())
-}
-
-/// The estimates as profiles (line 0, point = the readings' row).
-fn profiles(bins: &[f32], points: &[PointEstimate]) -> Vec<crate::output::profile::Profile> {
-    points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| crate::output::profile::Profile {
-            line: 0,
-            point: u16::try_from(i).unwrap_or(u16::MAX),
-            flags: p.flags.iter().map(|f| f.to_string()).collect(),
-            theta_i_deg: bins.iter().map(|x| f64::from(*x)).collect(),
-            reflectance: p.rho.iter().map(|x| f64::from(*x)).collect(),
-            uncertainty: p.sigma.iter().map(|x| f64::from(*x)).collect(),
-            readings: crate::device::measurement::readings_of(&p.readings, &p.reading_sigma),
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -12,8 +12,9 @@ pub struct ExportArgs {
     /// gloss readings; .svg or .png by the name.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Points to plot, comma-separated (measure: pixels of the first line
-    /// measured; estimate: rows of the readings); default: first, middle, last.
+    /// Points to plot, comma-separated: pixels of the first line (estimate
+    /// without a `pixel` column: rows of the readings); default: first,
+    /// middle, last.
     #[arg(long, value_delimiter = ',', value_name = "P,P,...")]
     pub plot_points: Vec<usize>,
     /// Write every point as one BiRD universal BRDF JSON file.

@@ -162,7 +162,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         timestamp: crate::output::profile::utc_now(),
         solid_angle_sr: a.exports.solid_angle_sr,
     };
-    let profiles = crate::device::measurement::profiles(&view, &points);
+    let profiles = files.profiles();
     let title = format!("BRDF profiles, {} ({})", a.blob.display(), export.calibration);
     for line in a.exports.write(&profiles, &export, &title)? {
         println!("{line}");

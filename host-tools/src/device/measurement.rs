@@ -4,9 +4,9 @@
 //! point's zone, its flags, its gloss readings with their standard
 //! uncertainties as the device streamed them (`brdf_meter::gloss`; none
 //! when the calibration carries no gloss section) and its specular peak),
-//! and as profiles for the plot and the standard files.
+//! which also make the profiles for the plot and the standard files
+//! (`Points::profiles`).
 use crate::device::link::PointRecord;
-use crate::device::reference::flag_names;
 use crate::output::points::{Point, Points};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss;
@@ -58,23 +58,6 @@ pub fn point_uncertainty(view: &BlobView<'_>, p: &PointRecord) -> Vec<f32> {
         .bins()
         .zip(&p.values)
         .map(|(j, v)| view.point_uncertainty(table, (p.zone as usize, p.cluster as usize), j, *v, p.sigma_scale))
-        .collect()
-}
-
-/// The points as profiles for the plot and the standard files.
-pub fn profiles(view: &BlobView<'_>, points: &[PointRecord]) -> Vec<crate::output::profile::Profile> {
-    points
-        .iter()
-        .map(|p| crate::output::profile::Profile {
-            line: p.line,
-            point: p.point,
-            flags: flag_names(p.flags).into_iter().map(String::from).collect(),
-            // The bins the point carries (all, unless the measurement asked for a subset).
-            theta_i_deg: p.bins.bins().map(|j| f64::from(view.grid_deg(j))).collect(),
-            reflectance: p.values.iter().map(|x| f64::from(*x)).collect(),
-            uncertainty: point_uncertainty(view, p).into_iter().map(f64::from).collect(),
-            readings: readings_of(&p.readings, &p.reading_sigma),
-        })
         .collect()
 }
 
@@ -144,8 +127,9 @@ mod tests {
         let view = BlobView::parse(&bytes).unwrap();
         let points: Vec<PointRecord> =
             (0..4).map(|p| record(0, p, 1.0 + f32::from(p), if p == 2 { flags::SATURATED } else { 0 })).collect();
-        let profiles = profiles(&view, &points);
+        let profiles = measurement_points(&view, &points, 45.0).profiles();
         assert_eq!(profiles.len(), 4);
+        assert_eq!((profiles[3].line, profiles[3].point), (0, 3));
         // The band is the blob's per-bin uncertainty times the point's scale.
         for j in 0..9 {
             let want = f64::from(view.uncertainty_of(0, 0, j) * 3.0);

@@ -153,6 +153,27 @@ fn number_text(x: f32) -> String {
 }
 
 impl Points {
+    /// The points as profiles for the plot and the standard files, the
+    /// same values and uncertainties as the schema's files: each on its
+    /// line and pixel, or (offline, without them) on line 0 at its row.
+    pub fn profiles(&self) -> Vec<crate::output::profile::Profile> {
+        let theta_i_deg: Vec<f64> = self.bins_deg.iter().map(|x| f64::from(*x)).collect();
+        let wide = |x: &[f32]| x.iter().map(|y| f64::from(*y)).collect::<Vec<f64>>();
+        self.points
+            .iter()
+            .enumerate()
+            .map(|(row, p)| crate::output::profile::Profile {
+                line: p.line.map_or(0, |l| u32::try_from(l).unwrap_or(u32::MAX)),
+                point: u16::try_from(p.pixel.unwrap_or(row as u64)).unwrap_or(u16::MAX),
+                flags: flag_names(p.flags).into_iter().map(String::from).collect(),
+                theta_i_deg: theta_i_deg.clone(),
+                reflectance: wide(&p.rho),
+                uncertainty: wide(&p.u_rho),
+                readings: crate::device::measurement::readings_of(&p.readings, &p.u_readings),
+            })
+            .collect()
+    }
+
     /// A point's fields in the schema's order, with its specular peak.
     fn fields<'a>(&self, p: &'a Point) -> Vec<(&'static str, Value<'a>)> {
         let peak = self.peak(p);
@@ -549,5 +570,21 @@ mod tests {
         assert!(!c.exists() && !j.exists());
         points().write(&c, Some(&j)).unwrap();
         assert!(c.exists() && j.exists());
+    }
+
+    /// The plot's and the standard files' profiles carry the files'
+    /// values: a point on its line and pixel, or offline on line 0 at its row.
+    #[test]
+    fn profiles_carry_the_files_values_on_their_line_and_pixel() {
+        let p = points();
+        let pr = p.profiles();
+        assert_eq!((pr[0].line, pr[0].point, pr[1].line, pr[1].point), (3, 17, 0, 1));
+        assert_eq!(pr[0].flags, vec!["saturated", "out-of-prior"]);
+        assert_eq!(pr[0].theta_i_deg[2], 41.0);
+        assert_eq!(pr[0].reflectance[10], f64::from(p.points[0].rho[10]));
+        assert_eq!(pr[1].uncertainty, vec![f64::from(0.02f32); 21]);
+        assert_eq!(pr[0].readings[1], ("haze_hu".to_string(), 2.25, 0.125));
+        assert_eq!(pr[0].readings.len(), 3);
+        assert!(pr[1].readings.is_empty());
     }
 }
