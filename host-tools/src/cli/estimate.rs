@@ -177,11 +177,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }));
     print!("{}", crate::device::measurement_summary::table(&summary));
     let flagged = points.iter().filter(|p| p.flag_bits & flags::OUT_OF_PRIOR != 0).count();
+    // Rows with a pixel took its zone; the others took --zone.
+    let zones_used = match (rows.iter().any(|r| r.pixel.is_some()), rows.iter().all(|r| r.pixel.is_some())) {
+        (_, true) => "each pixel's zone".to_string(),
+        (true, false) => format!("each pixel's zone, zone {} without one", app.zone()),
+        (false, _) => format!("zone {}", app.zone()),
+    };
     println!(
-        "{} point(s), {} estimator, zone {}: {flagged} out-of-prior{}; wrote {}{}",
+        "{} point(s), {} estimator, {zones_used}: {flagged} out-of-prior{}; wrote {}{}",
         points.len(),
         crate::calibration::estimators::kind_name(view.estimator()),
-        app.zone(),
         crate::output::points::unresolved_note(unresolved),
         a.out.display(),
         a.json.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
@@ -191,10 +196,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         source: "host-tools estimate".into(),
         instrument: format!("offline estimate from {}", a.readings.display()),
         calibration: format!(
-            "{} blob crc {:#010x} zone {}",
+            "{} blob crc {:#010x}, {zones_used}",
             crate::calibration::estimators::kind_name(view.estimator()),
-            view.crc(),
-            app.zone()
+            view.crc()
         ),
         timestamp: crate::output::profile::utc_now(),
         solid_angle_sr: a.exports.solid_angle_sr,
