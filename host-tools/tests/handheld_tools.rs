@@ -225,6 +225,12 @@ fn pixel_map_reads_every_pixel() {
     // Every pixel states the resolution its peaks are judged at (a few
     // bins: far below the LEDs' spacing).
     assert!(map.pixels.iter().all(|r| (0.3..2.0).contains(&r.peak_resolution_deg)), "{:?}", map.pixels);
+    // And the share of its peaks it leaves unresolved: the line's share is
+    // among its pixels' (each pixel's own peaks, counted once).
+    let shares: Vec<f64> = map.pixels.iter().map(|r| r.peaks_unresolved).collect();
+    assert!(shares.iter().all(|x| (0.0..=1.0).contains(x)), "{shares:?}");
+    let (lo, hi) = shares.iter().fold((1.0f64, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
+    assert!(lo <= pk.unresolved && pk.unresolved <= hi, "{lo} {} {hi}", pk.unresolved);
     // Beside it, what each calibration's training chose and said of its
     // flag: the four folds' statistics and the whole prior's, and the
     // whole prior's score on kinds held out (the prior's weights, which

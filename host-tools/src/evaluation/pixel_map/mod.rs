@@ -130,6 +130,9 @@ pub struct PixelRow {
     /// The pixel's peak resolution, deg (the blob's, per pixel where it
     /// records one; NaN: none).
     pub peak_resolution_deg: f64,
+    /// Share of its held-out points' specular peaks it does not resolve
+    /// (no uncertainty stated for them; NaN: no peaks).
+    pub peaks_unresolved: f64,
 }
 
 /// One material's errors (its mean over the lines at every pixel).
@@ -499,8 +502,30 @@ struct SurfacePixel {
     flag: FlagScore,
 }
 
-/// Per pixel: points flagged out of prior, points flagged saturated, points.
-type FlagCounts = (usize, usize, usize);
+/// One pixel's counts over its held-out points.
+#[derive(Clone, Copy, Debug, Default)]
+struct PixelCounts {
+    /// Points flagged out of prior.
+    out_of_prior: usize,
+    /// Points flagged saturated.
+    saturated: usize,
+    /// Points.
+    points: usize,
+    /// Points whose estimate has a specular peak where the truth has one.
+    peaks: usize,
+    /// Of them, peaks the pixel does not resolve.
+    unresolved: usize,
+}
+
+impl PixelCounts {
+    fn add(&mut self, o: Self) {
+        self.out_of_prior += o.out_of_prior;
+        self.saturated += o.saturated;
+        self.points += o.points;
+        self.peaks += o.peaks;
+        self.unresolved += o.unresolved;
+    }
+}
 
 /// Per pixel of the line: its view, and linear interpolation's weights
 /// between the LEDs' centre angles there; the scene's grid.
@@ -528,7 +553,7 @@ fn read_material(
     let read = read_surface(spec, b.clone(), blob, spec.lines, seed)?;
     let mut err = vec![0.0; p];
     let mut ierr = vec![0.0; p];
-    let mut fl = vec![(0, 0, 0); p];
+    let mut fl = vec![PixelCounts::default(); p];
     let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
     let mut covered = vec![0.0; p];
     let mut flag = FlagScore::default();
@@ -542,7 +567,10 @@ fn read_material(
             let score = PointScore::of(blob, &geo.bins32, &truth, pt, &geo.interp[px]);
             let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
             let at = PixelPeaks { view_deg, resolution_deg: blob.peak_resolution_at(px).map(f64::from) };
-            peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, at);
+            if let Some(unresolved) = peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, at) {
+                c.peaks += 1;
+                c.unresolved += usize::from(unresolved);
+            }
             *e += score.error / spec.lines as f64;
             *ie += score.interpolation / spec.lines as f64;
             covered[px] += score.covered / spec.lines as f64;
@@ -550,10 +578,10 @@ fn read_material(
             let gi = profile_scaled_readings(&score.profile, geo.grid.bins_deg(), view_deg).map_or(f64::NAN, |l| l[0]);
             g_int[px] += gi / spec.lines as f64;
             let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
-            c.0 += usize::from(flagged);
+            c.out_of_prior += usize::from(flagged);
             flag.add(score.error, flagged);
-            c.1 += usize::from(pt.flags & flags::SATURATED != 0);
-            c.2 += 1;
+            c.saturated += usize::from(pt.flags & flags::SATURATED != 0);
+            c.points += 1;
         }
     }
     let row = MaterialRow {
@@ -568,9 +596,9 @@ fn read_material(
     Ok((row, fl, flag, peaks))
 }
 
-/// A held-out material's row, per pixel its flag counts, its flag score
-/// and its peaks.
-type MaterialRead = (MaterialRow, Vec<FlagCounts>, FlagScore, PeakTally);
+/// A held-out material's row, per pixel its counts, its flag score and its
+/// peaks.
+type MaterialRead = (MaterialRow, Vec<PixelCounts>, FlagScore, PeakTally);
 
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
@@ -613,7 +641,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let bins32 = grid.bins_deg().iter().map(|x| *x as f32).collect();
     let geo = LineGeometry { views, interp, grid: grid.clone(), bins32 };
     let mut rows: Vec<MaterialRow> = Vec::new();
-    let mut flag_counts = vec![(0usize, 0usize, 0usize); p];
+    let mut pixel_counts = vec![PixelCounts::default(); p];
     let mut held_out_flag = FlagScore::default();
     let mut held_out_peaks = PeakTally::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
@@ -635,10 +663,8 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         for (row, fl, f, pk) in results {
             held_out_flag = held_out_flag.merged(f);
             held_out_peaks = held_out_peaks.merged(pk);
-            for (acc, x) in flag_counts.iter_mut().zip(fl) {
-                acc.0 += x.0;
-                acc.1 += x.1;
-                acc.2 += x.2;
+            for (acc, x) in pixel_counts.iter_mut().zip(fl) {
+                acc.add(x);
             }
             rows.push(row);
         }
@@ -707,21 +733,22 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 dev.push((mean_sd(&r).0 - t).abs());
             }
         }
-        let (oop, sat, total) = flag_counts[px];
+        let c = pixel_counts[px];
         pixels.push(PixelRow {
             pixel: px,
             view_deg: geo.views[px].z.acos().to_degrees(),
             zone: blob.zone_of_pixel(px),
             error: quantiles(&e),
             interpolation: quantiles(&i),
-            out_of_prior: oop as f64 / total.max(1) as f64,
-            saturated: sat as f64 / total.max(1) as f64,
+            out_of_prior: c.out_of_prior as f64 / c.points.max(1) as f64,
+            saturated: c.saturated as f64 / c.points.max(1) as f64,
             black_glass_gu: bm,
             black_glass_sd_gu: bsd,
             black_glass_saturated: bg.points.iter().any(|l| l[px].flags & flags::SATURATED != 0),
             tiles_mean_abs_gu: if dev.is_empty() { f64::NAN } else { dev.iter().sum::<f64>() / dev.len() as f64 },
             tiles_max_abs_gu: dev.iter().copied().fold(f64::NAN, f64::max),
             peak_resolution_deg: blob.peak_resolution_at(px).map_or(f64::NAN, f64::from),
+            peaks_unresolved: if c.peaks == 0 { f64::NAN } else { c.unresolved as f64 / c.peaks as f64 },
         });
     }
     let held_out = LineSummary::of(&rows);

@@ -59,6 +59,8 @@ impl PeakTally {
     /// Adds point `pt` with the per-bin uncertainty `u` its frame
     /// states, and interpolation's `profile` of the same readings, against
     /// the truth's bins `truth` (on `bins_deg`), read as `pixel` reads it.
+    /// Returns whether the point's peak is not resolved (`None`: the truth
+    /// has no peak, or the estimate none where it has one).
     pub fn add(
         &mut self,
         bins_deg: &[f32],
@@ -67,12 +69,12 @@ impl PeakTally {
         u: &[f32],
         profile: &[f32],
         pixel: PixelPeaks,
-    ) {
+    ) -> Option<bool> {
         let view_deg = pixel.view_deg;
         let none = vec![0.0; truth.len()];
         let t = specular_peak(bins_deg, truth, &none, view_deg);
         if !t.rf.is_finite() {
-            return;
+            return None;
         }
         let i = specular_peak(bins_deg, profile, &none, view_deg);
         if i.rf.is_finite() {
@@ -81,7 +83,7 @@ impl PeakTally {
         let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).at_resolution(pixel.resolution_deg);
         if !e.rf.is_finite() {
             self.missed += 1;
-            return;
+            return None;
         }
         let err = (e.rf - t.rf).abs();
         self.height_rel.push(err / t.rf);
@@ -92,6 +94,7 @@ impl PeakTally {
             self.resolved_height_rel.push(err / t.rf);
             self.resolved_within += usize::from(err <= K * e.u_rf);
         }
+        Some(e.resolved == Some(false))
     }
 
     /// Both counts together.

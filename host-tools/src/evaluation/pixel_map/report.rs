@@ -175,14 +175,14 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
-        "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU | peak resolution deg |"
+        "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU | peak resolution deg | peaks not resolved |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     let last = map.pixels.len().saturating_sub(1);
     for r in map.pixels.iter().filter(|r| r.pixel % stride.max(1) == 0 || r.pixel == last) {
         let _ = writeln!(
             s,
-            "| {} | {:.2} | {} | {} | {} | {:.0} % | {:.0} % | {:.2} ({:.2}) | {:.2} / {:.2} | {:.2} |",
+            "| {} | {:.2} | {} | {} | {} | {:.0} % | {:.0} % | {:.2} ({:.2}) | {:.2} / {:.2} | {:.2} | {:.0} % |",
             r.pixel,
             r.view_deg,
             r.zone,
@@ -194,7 +194,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             r.black_glass_sd_gu,
             r.tiles_mean_abs_gu,
             r.tiles_max_abs_gu,
-            r.peak_resolution_deg
+            r.peak_resolution_deg,
+            100.0 * r.peaks_unresolved
         );
     }
     s
@@ -221,6 +222,7 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
         "tiles_mean_abs_gu",
         "tiles_max_abs_gu",
         "peak_resolution_deg",
+        "peaks_unresolved",
     ])?;
     for r in &map.pixels {
         let f = |x: f64| format!("{x:.6}");
@@ -242,6 +244,7 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
             f(r.tiles_mean_abs_gu),
             f(r.tiles_max_abs_gu),
             f(r.peak_resolution_deg),
+            f(r.peaks_unresolved),
         ])?;
     }
     Ok(w.into_inner()?)
