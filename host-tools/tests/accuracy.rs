@@ -70,8 +70,12 @@ fn a_flat_surface_is_read_exactly_by_interpolation_against_the_same_truth() {
         i.bin_coverage.is_none() && i.band.is_none() && i.flag_caught.is_none(),
         "interpolation states no uncertainty, raises no flag"
     );
+    assert!(i.bin_coverage_interval.is_none());
     let e = row(&r, "diffusers", "estimator");
     assert!(e.bin_coverage.is_some() && e.reading_coverage.is_some());
+    // The coverage's interval over the three surfaces holds the coverage.
+    let ([lo, hi], c) = (e.bin_coverage_interval.unwrap(), e.bin_coverage.unwrap());
+    assert!(0.0 <= lo && lo <= c && c <= hi && hi <= 1.0, "{lo} {c} {hi}");
     assert!(e.band.is_some_and(|b| b.median > 0.0 && b.median.is_finite()), "{:?}", e.band);
     assert!(r.tables().contains("| diffusers | interpolation | 3 |"), "{}", r.tables());
 }

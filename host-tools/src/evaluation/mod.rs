@@ -3,6 +3,7 @@
 //! against time (`tradeoff`), hard-case stability (`stability`), all timed
 //! by one harness (`timing`); the figures a metrologist signs for one
 //! calibration, held out family by family (`metrology`).
+pub mod coverage_interval;
 pub mod design;
 pub mod device_cost;
 pub mod fitting;

@@ -9,7 +9,8 @@
 //!   percentile, split at [`GLOSS_SPLIT_GU`] of the truth (up to it also in
 //!   GU); haze (HU) and distinctness (%) as absolute errors.
 //! - Coverage at k = 2: the share of bins with `|est - truth| <= 2 u`, `u`
-//!   the bin's own stated uncertainty; the same per gloss reading.
+//!   the bin's own stated uncertainty, with its 95 % interval over the
+//!   surfaces (`evaluation::coverage_interval`); the same per gloss reading.
 //! - Flag: of estimates worse than [`BAD_ERROR`] of the truth's peak, the
 //!   share flagged (any flag); of the rest, the share flagged.
 //! - Specular peak (`output::peak`): height relative error, full width at
@@ -34,6 +35,8 @@ pub const GLOSS_SPLIT_GU: f64 = 300.0;
 pub const BAD_ERROR: f64 = crate::calibration::estimators::out_of_prior::BAD_ESTIMATE;
 /// The coverage factor of the stated uncertainties checked (the GUM's ~95 %).
 pub const K: f64 = 2.0;
+/// The seed of the coverage's bootstrap interval: one report, one interval.
+const COVERAGE_INTERVAL_SEED: u64 = 2813;
 
 /// Median, 90th percentile and largest.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -89,6 +92,9 @@ pub struct Row {
     pub no_reading: usize,
     /// Share of bins within k = 2 of their stated uncertainty.
     pub bin_coverage: Option<f64>,
+    /// Its 95 % interval, resampling the surfaces
+    /// (`evaluation::coverage_interval`).
+    pub bin_coverage_interval: Option<[f64; 2]>,
     /// How wide that band is: per estimate, the RMS over the bins of the
     /// stated uncertainty over the truth's peak (the error's own scale, so a
     /// band that is right has its median near the error's).
@@ -132,6 +138,8 @@ pub struct Tally {
     distinctness: Vec<f64>,
     no_reading: usize,
     bins: Option<(usize, usize)>,
+    /// Per surface, bins within k = 2 and bins counted.
+    bins_per_surface: Vec<(f64, f64)>,
     band: Vec<f64>,
     readings: Option<[(usize, usize); 3]>,
     flag: FlagScore,
@@ -179,6 +187,7 @@ impl Tally {
     /// Adds every estimate of one surface.
     pub fn add(&mut self, name: &str, truth: &Truth, estimates: &[Reading]) {
         let mut ss = 0.0;
+        let mut surface_bins = (0usize, 0usize);
         for r in estimates {
             let e = peak_relative_rms(&r.rho, truth);
             ss += e * e;
@@ -210,6 +219,8 @@ impl Tally {
                 let (inside, all) = bins_within(&r.rho, truth, s);
                 b.0 += inside;
                 b.1 += all;
+                surface_bins.0 += inside;
+                surface_bins.1 += all;
                 let ms = s.iter().map(|u| u * u).sum::<f64>() / s.len().max(1) as f64;
                 self.band.push(ms.sqrt() / truth.peak.max(f64::MIN_POSITIVE));
             }
@@ -248,6 +259,9 @@ impl Tally {
         }
         let rms = (ss / estimates.len().max(1) as f64).sqrt();
         self.materials.push((name.to_string(), rms));
+        if surface_bins.1 > 0 {
+            self.bins_per_surface.push((surface_bins.0 as f64, surface_bins.1 as f64));
+        }
     }
 
     /// The figures.
@@ -276,6 +290,10 @@ impl Tally {
             distinctness_abs: Spread::of(&self.distinctness),
             no_reading: self.no_reading,
             bin_coverage: self.bins.and_then(share),
+            bin_coverage_interval: crate::evaluation::coverage_interval::coverage_interval(
+                &self.bins_per_surface,
+                COVERAGE_INTERVAL_SEED,
+            ),
             band: (!self.band.is_empty()).then(|| Spread::of(&self.band)),
             reading_coverage: self.readings.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
             bad: self.flag.bad,

@@ -5,6 +5,7 @@ use super::families::TestFamily;
 use super::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, Row, Spread, bins_within, peak_relative_rms};
 use super::reading::Reading;
 use super::truth::Truth;
+use crate::evaluation::coverage_interval::percent_with_interval;
 use serde::Serialize;
 
 /// How one family was held out.
@@ -195,7 +196,7 @@ impl Report {
         }
         s += &format!(
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
-             coverage = |est - truth| <= 2 u; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest; \
+             coverage = |est - truth| <= 2 u, with its 95 % interval over the surfaces; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest; \
              peak coverage: of the peaks the calibration resolves, an unresolved one states no u)\n\n"
         );
         s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) | peaks unresolved |\n";
@@ -211,7 +212,7 @@ impl Report {
                 r.error.max,
                 r.worst_material,
                 pct(r.impossible),
-                opt_pct(r.bin_coverage),
+                r.bin_coverage.map_or("-".into(), |x| percent_with_interval(x, r.bin_coverage_interval)),
                 r.band.map_or("-".into(), |b| format!("{:.4}", b.median)),
                 opt_pct(r.flag_caught),
                 r.bad,

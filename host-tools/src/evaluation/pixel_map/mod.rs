@@ -200,6 +200,9 @@ pub struct LineSummary {
     pub gloss_interpolation: GlossErrors,
     /// Share of the bins within k = 2 of their stated uncertainty.
     pub bin_coverage: f64,
+    /// Its 95 % interval, resampling the materials
+    /// (`evaluation::coverage_interval`).
+    pub bin_coverage_interval: Option<[f64; 2]>,
 }
 
 impl LineSummary {
@@ -216,6 +219,14 @@ impl LineSummary {
             gloss: gloss_of(|r| &r.gloss),
             gloss_interpolation: gloss_of(|r| &r.gloss_interpolation),
             bin_coverage: covered.iter().sum::<f64>() / covered.len().max(1) as f64,
+            // Each material's pixels weigh alike (each the same lines and bins).
+            bin_coverage_interval: crate::evaluation::coverage_interval::coverage_interval(
+                &rows
+                    .iter()
+                    .map(|r| (r.bin_coverage.iter().sum::<f64>(), r.bin_coverage.len() as f64))
+                    .collect::<Vec<_>>(),
+                COVERAGE_INTERVAL_SEED,
+            ),
         }
     }
 }
@@ -247,6 +258,8 @@ pub struct PixelMap {
     pub gloss_interpolation: GlossErrors,
     /// Share of every held-out bin within k = 2 of its stated uncertainty.
     pub bin_coverage: f64,
+    /// Its 95 % interval, resampling the materials.
+    pub bin_coverage_interval: Option<[f64; 2]>,
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
     /// The held-out points' specular peaks.
@@ -501,6 +514,9 @@ struct SurfacePixel {
     out_of_prior: f64,
     flag: FlagScore,
 }
+
+/// The seed of the coverage's bootstrap interval: one map, one interval.
+const COVERAGE_INTERVAL_SEED: u64 = 2813;
 
 /// One pixel's counts over its held-out points.
 #[derive(Clone, Copy, Debug, Default)]
@@ -789,6 +805,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         gloss: held_out.gloss,
         gloss_interpolation: held_out.gloss_interpolation,
         bin_coverage: held_out.bin_coverage,
+        bin_coverage_interval: held_out.bin_coverage_interval,
         flag: held_out_flag,
         peaks: held_out_peaks.summary(),
         flag_statistics,

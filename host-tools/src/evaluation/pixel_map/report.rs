@@ -4,6 +4,7 @@
 //! reading, the tiles' gloss error).
 use super::peaks::PeakSummary;
 use super::{FlagScore, PixelMap};
+use crate::evaluation::coverage_interval::percent_with_interval;
 use crate::evaluation::metrology::metrics::BAD_ERROR;
 use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
 use anyhow::anyhow;
@@ -68,8 +69,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         g(&map.gloss)
     );
     let _ = writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&map.gloss_interpolation));
-    let _ =
-        writeln!(s, "| held-out bins within k = 2 of their stated uncertainty | {:.1} % |", 100.0 * map.bin_coverage);
+    let _ = writeln!(
+        s,
+        "| held-out bins within k = 2 of their stated uncertainty (95 % interval over the materials) | {} |",
+        percent_with_interval(map.bin_coverage, map.bin_coverage_interval)
+    );
     let _ = writeln!(
         s,
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
@@ -162,8 +166,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&u.summary.gloss_interpolation));
         let _ = writeln!(
             s,
-            "| unseen set's bins within k = 2 of their stated uncertainty | {:.1} % |",
-            100.0 * u.summary.bin_coverage
+            "| unseen set's bins within k = 2 of their stated uncertainty (95 % interval over the surfaces) | {} |",
+            percent_with_interval(u.summary.bin_coverage, u.summary.bin_coverage_interval)
         );
         let _ = writeln!(
             s,
