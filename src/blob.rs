@@ -41,9 +41,9 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
-//! | 50 | 2 | reserved, 0 |
+//! | 50 | 2 | K_g, the gloss rows' clusters per zone (2..=64, with bit 9 only; else 0) |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
 //! | 56 | 4 | out-of-prior band factor (f32, finite, >= 1, with bit 5 only; else 0) |
 //! | 60 | 4 | peak resolution, deg (f32, finite, > 0, with bit 6 only; else 0) |
@@ -127,6 +127,22 @@
 //! What the values mean and how the device combines them: `crate::gloss`.
 //! A device running a version 1 or 2 blob streams NaN readings ("no
 //! reading").
+//!
+//! ## The gloss rows' own clusters (flag bit 9)
+//! Without it a point's gloss block is its BRDF cluster's (`ZK` blocks).
+//! With it the gloss rows have `K_g` clusters of their own (header offset
+//! 50): the section holds `Z K_g` blocks, then per zone the gloss
+//! centroids, `K_g x m` in the same space as the matrices' centroids
+//! (`4 Z K_g m` bytes, finite), and a point's block is the one
+//! [`crate::kernel::select_cluster`] picks from its zone's gloss centroids
+//! ([`GlossData::block`]). The gloss readings are a flux through the
+//! gloss window, and what decides how a flux is read from the facets (how
+//! wide a lobe is where the mirror direction passes from one LED to the
+//! next) is not what decides the BRDF's maps: a prior that holds materials
+//! stretched across the plane reads the BRDF best with 2 clusters, which
+//! read the gloss tiles at the handheld's facet edges 7 GU off, where 4
+//! read them within 3.4 (`host-tools pixel-map`). A zone without a reading
+//! has NaN blocks as before and finite centroids (zeros).
 //!
 //! A zone that cannot read the standard (no LED ray near the specular
 //! direction from where it looks) has no reading: its `S_z` is NaN and so
@@ -213,6 +229,11 @@ const FLAG_PIXEL_RESOLUTION: u16 = 128;
 /// per-pixel resolutions. Firmware from before it rejects such a blob as
 /// having a reserved flag set, and keeps its last good calibration.
 const FLAG_BROAD_BAND: u16 = 256;
+/// The gloss rows have clusters of their own: K_g at header offset 50, the
+/// gloss centroids after the blocks (with `FLAG_GLOSS` and the piecewise
+/// kind only). Firmware from before it rejects such a blob as having a
+/// reserved flag set, and keeps its last good calibration.
+const FLAG_GLOSS_CLUSTERS: u16 = 512;
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
@@ -486,6 +507,10 @@ struct Layout {
     clusters: usize,
     /// References in the gloss section.
     gloss_refs: usize,
+    /// The gloss rows' clusters per zone (K without flag bit 9).
+    gloss_clusters: usize,
+    /// Whether the gloss section ends with its own centroids (flag bit 9).
+    gloss_centroids: bool,
 }
 
 const fn pad4(x: usize) -> usize {
@@ -508,7 +533,14 @@ impl Dims {
         let centroids = matrices + 4 * self.zones * k * self.n * self.m;
         let out_of_prior = centroids + if x.piecewise { 4 * self.zones * k * self.m } else { 0 };
         let gloss = out_of_prior + if x.out_of_prior { 4 * self.zones * out_of_prior_len(self.m) } else { 0 };
-        let pixel_resolution = gloss + if x.gloss { 4 * gloss_len(x.gloss_refs, self.zones, k, self.m) } else { 0 };
+        let kg = if x.gloss_clusters > 0 { x.gloss_clusters } else { k };
+        let pixel_resolution = gloss
+            + if x.gloss {
+                4 * (gloss_len(x.gloss_refs, self.zones, kg, self.m)
+                    + if x.gloss_clusters > 0 { self.zones * kg * self.m } else { 0 })
+            } else {
+                0
+            };
         let broad_uncertainty = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
         let crc = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
         Layout {
@@ -527,6 +559,8 @@ impl Dims {
             total: crc + 4,
             clusters: k,
             gloss_refs: if x.gloss { x.gloss_refs } else { 0 },
+            gloss_clusters: kg,
+            gloss_centroids: x.gloss && x.gloss_clusters > 0,
         }
     }
 
@@ -537,7 +571,7 @@ impl Dims {
 
     /// Total length in bytes of a blob with these dimensions and `extras`.
     pub fn blob_len_with(&self, extras: &BlobExtras<'_>) -> usize {
-        self.layout_with(&Extras::of(extras, EstimatorKind::Wiener)).total
+        self.layout_with(&Extras::of(extras, EstimatorKind::Wiener, self)).total
     }
 
     fn check(&self) -> Result<(), BlobError> {
@@ -580,11 +614,31 @@ pub struct GlossData<'a> {
     /// The standard's specular linear reading through the estimator: per
     /// pixel (P, format version 4) or per zone (Z, version 3).
     pub reference: &'a [f32],
-    /// Per zone and cluster, `crate::gloss::block_len(m)` values (Z x K blocks).
+    /// Per zone and cluster, `crate::gloss::block_len(m)` values (Z x K
+    /// blocks, or Z x K_g with `centroids`).
     pub blocks: &'a [f32],
+    /// The gloss rows' own centroids, Z x K_g x m (flag bit 9), or empty:
+    /// a point's block is then its BRDF cluster's.
+    pub centroids: &'a [f32],
 }
 
 impl GlossData<'_> {
+    /// The block of a point in zone `z` whose BRDF cluster is `c` and
+    /// readings `v` (m values), the rows having `k` clusters per zone (the
+    /// blob's [`BlobView::gloss_clusters`]): its own gloss cluster's
+    /// ([`crate::kernel::select_cluster`] on the zone's gloss centroids)
+    /// when the rows have centroids, else cluster `c`'s.
+    pub fn block(&self, z: usize, c: usize, k: usize, v: &[f32]) -> &[f32] {
+        let m = v.len();
+        let c = if self.centroids.is_empty() {
+            c
+        } else {
+            crate::kernel::select_cluster(&self.centroids[z * k * m..(z + 1) * k * m], v)
+        };
+        let bl = crate::gloss::block_len(m);
+        &self.blocks[(z * k + c) * bl..(z * k + c + 1) * bl]
+    }
+
     /// The reference pixel `p` (in zone `z`) is read with.
     pub fn reference_for(&self, p: usize, z: usize, pixels: usize) -> f32 {
         if self.reference.len() == pixels { self.reference[p] } else { self.reference[z] }
@@ -663,6 +717,8 @@ struct Extras {
     pixel_resolution: bool,
     /// The second uncertainty table follows.
     broad_band: bool,
+    /// The gloss rows' own clusters per zone, K_g (flag bit 9), or 0.
+    gloss_clusters: usize,
 }
 
 impl Extras {
@@ -676,9 +732,10 @@ impl Extras {
         peak_resolution: false,
         pixel_resolution: false,
         broad_band: false,
+        gloss_clusters: 0,
     };
 
-    fn of(x: &BlobExtras<'_>, kind: EstimatorKind) -> Self {
+    fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
         Extras {
             clusters: x.clusters,
             piecewise: kind == EstimatorKind::ScaleFreePiecewise || !x.centroids.is_empty(),
@@ -689,6 +746,7 @@ impl Extras {
             peak_resolution: x.peak_resolution_deg.is_some(),
             pixel_resolution: !x.pixel_peak_resolution_deg.is_empty(),
             broad_band: !x.broad_uncertainty.is_empty(),
+            gloss_clusters: x.gloss.map_or(0, |g| g.centroids.len() / (d.zones * d.m).max(1)),
         }
     }
 
@@ -712,6 +770,16 @@ impl Extras {
         };
         if self.root_form && !matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
             return Err(BlobError::ReservedNotZero);
+        }
+        if self.gloss_clusters != 0
+            && (!self.gloss
+                || kind != EstimatorKind::ScaleFreePiecewise
+                || !(2..=MAX_CLUSTERS).contains(&self.gloss_clusters))
+        {
+            return Err(BlobError::BadDimension {
+                field: "gloss clusters",
+                value: self.gloss_clusters.min(u16::MAX as usize) as u16,
+            });
         }
         if ok {
             Ok(())
@@ -762,7 +830,7 @@ pub fn write_blob(c: &BlobContents<'_>, out: &mut [u8]) -> Result<usize, BlobErr
 pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut [u8]) -> Result<usize, BlobError> {
     let d = c.dims;
     d.check()?;
-    let ex = Extras::of(extras, c.estimator);
+    let ex = Extras::of(extras, c.estimator, &d);
     ex.check(c.estimator)?;
     let v2 = ex.needs_v2(c.estimator);
     let lay = d.layout_with(&ex);
@@ -780,9 +848,11 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         sized(d.m >= 2 && o.data.len() == d.zones * out_of_prior_len(d.m), Section::OutOfPrior)?;
     }
     if let Some(g) = &extras.gloss {
+        let kg = lay.gloss_clusters;
         sized(
             (g.reference.len() == d.pixels || g.reference.len() == d.zones)
-                && g.blocks.len() == d.zones * k * crate::gloss::block_len(d.m),
+                && g.blocks.len() == d.zones * kg * crate::gloss::block_len(d.m)
+                && g.centroids.len() == if ex.gloss_clusters > 0 { d.zones * kg * d.m } else { 0 },
             Section::Gloss,
         )?;
     }
@@ -833,7 +903,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     let root_flag = if ex.root_form { FLAG_ROOT } else { 0 };
     let resolution_flag = if ex.peak_resolution { FLAG_PEAK_RESOLUTION } else { 0 }
         | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 }
-        | if ex.broad_band { FLAG_BROAD_BAND } else { 0 };
+        | if ex.broad_band { FLAG_BROAD_BAND } else { 0 }
+        | if ex.gloss_clusters > 0 { FLAG_GLOSS_CLUSTERS } else { 0 };
     put_u16(
         out,
         22,
@@ -841,6 +912,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     );
     if v2 {
         put_u16(out, 48, k as u16);
+        put_u16(out, 50, ex.gloss_clusters as u16);
         put_f32(out, 52, extras.out_of_prior.map_or(0.0, |o| o.threshold));
         if let Some(o) = extras.out_of_prior.filter(|o| o.band_factor != 1.0) {
             put_f32(out, 56, o.band_factor);
@@ -867,10 +939,12 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         put_f32(out, lay.gloss, g.assigned_gu);
         put_f32(out, lay.gloss + 4, g.refractive_index);
     }
-    let (gref, gblocks): (&[f32], &[f32]) = extras.gloss.map_or((&[], &[]), |g| (g.reference, g.blocks));
+    let (gref, gblocks, gcents): (&[f32], &[f32], &[f32]) =
+        extras.gloss.map_or((&[], &[], &[]), |g| (g.reference, g.blocks, g.centroids));
     for (off, xs) in [
         (lay.gloss + 4 * GLOSS_HEAD, gref),
         (lay.gloss + 4 * (GLOSS_HEAD + lay.gloss_refs), gblocks),
+        (lay.gloss + 4 * (GLOSS_HEAD + lay.gloss_refs + gblocks.len()), gcents),
         (lay.white, c.white),
         (lay.uncertainty, c.uncertainty),
         (lay.matrices, c.matrices),
@@ -948,6 +1022,12 @@ impl<'a> BlobView<'a> {
                 peak_resolution: flags & FLAG_PEAK_RESOLUTION != 0,
                 pixel_resolution: flags & FLAG_PIXEL_RESOLUTION != 0,
                 broad_band: flags & FLAG_BROAD_BAND != 0,
+                gloss_clusters: if flags & FLAG_GLOSS_CLUSTERS != 0 {
+                    // At least 1, so a zero is refused as a bad count, not read as "none".
+                    (get_u16(bytes, 50) as usize).max(1)
+                } else {
+                    0
+                },
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -986,8 +1066,9 @@ impl<'a> BlobView<'a> {
                 | FLAG_BAND_FACTOR
                 | FLAG_PEAK_RESOLUTION
                 | FLAG_PIXEL_RESOLUTION
-                | FLAG_BROAD_BAND;
-            bytes[50..52].iter().all(|b| *b == 0)
+                | FLAG_BROAD_BAND
+                | FLAG_GLOSS_CLUSTERS;
+            (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
                 && (ex.peak_resolution || !ex.pixel_resolution)
                 && (band || get_u32(bytes, 56) == 0)
                 && (ex.peak_resolution || get_u32(bytes, 60) == 0)
@@ -1089,7 +1170,7 @@ impl<'a> BlobView<'a> {
     /// version 3) and every value of its blocks are NaN (no mix). Indices
     /// count f32 values from the section's start.
     fn check_gloss(&self) -> Result<(), BlobError> {
-        let (z, k, m, refs) = (self.dims.zones, self.lay.clusters, self.dims.m, self.lay.gloss_refs);
+        let (z, k, m, refs) = (self.dims.zones, self.lay.gloss_clusters, self.dims.m, self.lay.gloss_refs);
         let block = crate::gloss::block_len(m);
         let rows = crate::gloss::LINEAR * m;
         let diag = [0, 1, 2, 3].map(|i| rows + crate::gloss::cov_index(i, i));
@@ -1126,6 +1207,14 @@ impl<'a> BlobView<'a> {
             };
             if !ok {
                 return Err(BlobError::OutOfRange { section: Section::Gloss, index: i });
+            }
+        }
+        // The rows' own centroids, after the blocks: finite in every zone.
+        let cents = if self.lay.gloss_centroids { z * k * m } else { 0 };
+        let first_centroid = gloss_len(refs, z, k, m);
+        for i in first_centroid..first_centroid + cents {
+            if !get_f32(self.bytes, self.lay.gloss + 4 * i).is_finite() {
+                return Err(BlobError::NonFinite { section: Section::Gloss, index: i });
             }
         }
         Ok(())
@@ -1312,7 +1401,8 @@ impl<'a> BlobView<'a> {
     }
     /// The gloss section (`crate::gloss`) in place, when the blob carries it
     /// and sits at a 4-byte aligned address: (assigned value, refractive
-    /// index, the zones' references Z, the blocks Z x K).
+    /// index, the references, the blocks Z x K_g and the rows' own
+    /// centroids).
     #[cfg(target_endian = "little")]
     pub fn gloss_in_place(&self) -> Option<GlossData<'a>> {
         if !self.has_gloss() {
@@ -1321,11 +1411,13 @@ impl<'a> BlobView<'a> {
         let all: &'a [f32] =
             bytemuck::try_cast_slice(self.bytes.get(self.lay.gloss..self.lay.pixel_resolution)?).ok()?;
         let r = self.lay.gloss_refs;
+        let blocks = self.dims.zones * self.lay.gloss_clusters * crate::gloss::block_len(self.dims.m);
         Some(GlossData {
             assigned_gu: all[0],
             refractive_index: all[1],
             reference: &all[GLOSS_HEAD..GLOSS_HEAD + r],
-            blocks: &all[GLOSS_HEAD + r..],
+            blocks: &all[GLOSS_HEAD + r..GLOSS_HEAD + r + blocks],
+            centroids: &all[GLOSS_HEAD + r + blocks..],
         })
     }
     /// Whether the calibration is in the root form (flag bit 3): the
@@ -1342,13 +1434,13 @@ impl<'a> BlobView<'a> {
     }
     /// The gloss section's values copied out (any alignment): assigned value,
     /// refractive index, then the reference of zone `z`'s first pixel and the
-    /// block of cluster `c` into `block`; `None` when the blob has no gloss
-    /// section.
+    /// block of gloss cluster `c` (< [`Self::gloss_clusters`]) into `block`;
+    /// `None` when the blob has no gloss section.
     pub fn copy_gloss(&self, z: usize, c: usize, block: &mut [f32]) -> Option<(f32, f32, f32)> {
         if !self.has_gloss() {
             return None;
         }
-        let (zones, k, m) = (self.dims.zones, self.lay.clusters, self.dims.m);
+        let (zones, k, m) = (self.dims.zones, self.lay.gloss_clusters, self.dims.m);
         let bl = crate::gloss::block_len(m);
         assert!(z < zones && c < k && block.len() == bl);
         let at = |i: usize| get_f32(self.bytes, self.lay.gloss + 4 * i);
@@ -1359,6 +1451,32 @@ impl<'a> BlobView<'a> {
         Some((at(0), at(1), self.gloss_reference(self.zone_start(z) as usize).expect("the blob has the section")))
     }
 
+    /// The gloss rows' clusters per zone: K_g when they have their own
+    /// (flag bit 9), else K (a point's gloss block is its BRDF cluster's).
+    pub fn gloss_clusters(&self) -> usize {
+        self.lay.gloss_clusters
+    }
+    /// Whether the gloss rows have clusters of their own (flag bit 9).
+    pub fn has_gloss_centroids(&self) -> bool {
+        self.lay.gloss_centroids
+    }
+    /// Copies zone `z`'s gloss centroids (K_g x m) into `out`, when the
+    /// gloss rows have their own (flag bit 9): a point's gloss cluster is
+    /// the one [`crate::kernel::select_cluster`] picks among them. `false`
+    /// (nothing copied) when they have none: a point's gloss block is then
+    /// its BRDF cluster's.
+    pub fn copy_gloss_centroids(&self, z: usize, out: &mut [f32]) -> bool {
+        if !self.lay.gloss_centroids {
+            return false;
+        }
+        let (k, m) = (self.lay.gloss_clusters, self.dims.m);
+        assert!(z < self.dims.zones && out.len() == k * m);
+        let at = self.lay.gloss + 4 * (gloss_len(self.lay.gloss_refs, self.dims.zones, k, m) + z * k * m);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = get_f32(self.bytes, at + 4 * i);
+        }
+        true
+    }
     /// The gloss reference pixel `p` is read with: its own (format version
     /// 4) or its zone's (version 3); `None` without a gloss section.
     pub fn gloss_reference(&self, p: usize) -> Option<f32> {
@@ -1920,7 +2038,13 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let g = GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference,
+            blocks: &blocks,
+            centroids: &[],
+        };
         let ex = BlobExtras {
             clusters: 2,
             centroids: &cents,
@@ -1941,7 +2065,7 @@ mod tests {
         assert!(s.is_nan() && block.iter().all(|x| x.is_nan()));
         assert_eq!(v.copy_gloss(2, 0, &mut block), Some((100.0, 1.567, 82.0)));
         assert!(block.iter().all(|x| x.is_finite()));
-        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::ScaleFreePiecewise));
+        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::ScaleFreePiecewise, &o.dims));
         let resealed = |f: &dyn Fn(&mut Vec<u8>)| {
             let mut b = buf.clone();
             f(&mut b);
@@ -1985,6 +2109,102 @@ mod tests {
         (reference, blocks)
     }
 
+    /// A piecewise blob (K = 3) with a version 4 gloss section whose rows
+    /// have `kg` clusters of their own (`kg = 0`: the maps').
+    fn gloss_clusters_blob(kg: usize, centroids: &[f32]) -> Result<Vec<u8>, BlobError> {
+        let o = sample(6, 4, 2, 5);
+        let (unc, mats, cents, _) = v2_extras(&o, 3);
+        let (_, blocks) = gloss_parts(&o, if kg == 0 { 3 } else { kg });
+        let reference: Vec<f32> = (0..o.dims.pixels).map(|p| 90.0 + p as f32).collect();
+        let mut c = contents(&o);
+        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.uncertainty = &unc;
+        c.matrices = &mats;
+        let g = GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference,
+            blocks: &blocks,
+            centroids,
+        };
+        let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), ..BlobExtras::NONE };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        write_blob_with(&c, &ex, &mut buf).map(|n| {
+            buf.truncate(n);
+            buf
+        })
+    }
+
+    #[test]
+    fn the_gloss_rows_own_clusters_are_flag_bit_9_with_k_g_at_offset_50_and_are_checked() {
+        let (z, m, kg) = (2, 4, 5);
+        // Each centroid a distinct point of the shares' simplex.
+        let cents: Vec<f32> = (0..z * kg)
+            .flat_map(|c| {
+                let v: Vec<f32> = (0..m).map(|i| 1.0 + ((7 * c + 3 * i) % 11) as f32).collect();
+                let s: f32 = v.iter().sum();
+                v.into_iter().map(move |x| x / s)
+            })
+            .collect();
+        let (maps, own) = (gloss_clusters_blob(0, &[]).unwrap(), gloss_clusters_blob(kg, &cents).unwrap());
+        // Without the bit: K blocks per zone, offset 50 zero, a point's
+        // block its BRDF cluster's.
+        let v0 = BlobView::parse(&maps).unwrap();
+        assert_eq!((v0.gloss_clusters(), v0.has_gloss_centroids(), get_u16(&maps, 50)), (3, false, 0));
+        assert!(!v0.copy_gloss_centroids(1, &mut [0.0; 12]));
+        // With it: K_g in the header, K_g blocks per zone, then the centroids.
+        let v = BlobView::parse(&own).unwrap();
+        assert_eq!(get_u16(&own, 22) & FLAG_GLOSS_CLUSTERS, FLAG_GLOSS_CLUSTERS);
+        assert_eq!((v.gloss_clusters(), v.clusters(), get_u16(&own, 50)), (kg, 3, kg as u16));
+        let bl = crate::gloss::block_len(m);
+        assert_eq!(own.len(), maps.len() + 4 * (z * (kg - 3) * bl + z * kg * m));
+        let mut got = vec![0.0; kg * m];
+        assert!(v.copy_gloss_centroids(1, &mut got));
+        assert_eq!(got, cents[kg * m..]);
+        let (_, blocks) = gloss_parts(&sample(6, 4, 2, 5), kg);
+        let mut block = vec![0.0; bl];
+        v.copy_gloss(1, 4, &mut block).unwrap();
+        assert_eq!(block, blocks[(kg + 4) * bl..(kg + 5) * bl]);
+        // In place, a point's block is the one its readings select among its
+        // zone's gloss centroids, whatever its BRDF cluster.
+        let aligned: Vec<u32> = own.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+        let bytes: &[u8] = bytemuck::cast_slice(&aligned);
+        let g = BlobView::parse(bytes).unwrap().gloss_in_place().unwrap();
+        assert_eq!(g.centroids, &cents[..]);
+        let near_3 = &cents[(kg + 3) * m..(kg + 4) * m];
+        let pick = crate::kernel::select_cluster(&cents[kg * m..], near_3);
+        assert_eq!(pick, 3);
+        assert_eq!(g.block(1, 0, kg, near_3), &blocks[(kg + 3) * bl..(kg + 4) * bl]);
+        // The writer refuses the wrong count of centroids; a count of 1 or
+        // over the limit; the rows' clusters without the piecewise kind.
+        assert_eq!(gloss_clusters_blob(kg, &cents[1..]), Err(BlobError::ContentMismatch { section: Section::Gloss }));
+        assert!(matches!(
+            gloss_clusters_blob(1, &cents[..z * m]),
+            Err(BlobError::BadDimension { field: "gloss clusters", value: 1 })
+        ));
+        // The parser: a non-finite centroid, K_g 0, the bit without the
+        // gloss section, offset 50 set without the bit.
+        let first_centroid = own.len() - 4 - 4 * z * kg * m;
+        assert_eq!(
+            resealed(own.clone(), &|b| put_f32(b, first_centroid + 4, f32::INFINITY)),
+            Err(BlobError::NonFinite { section: Section::Gloss, index: gloss_len(5, z, kg, m) + 1 })
+        );
+        assert!(matches!(
+            resealed(own.clone(), &|b| put_u16(b, 50, 0)),
+            Err(BlobError::BadDimension { field: "gloss clusters", .. })
+        ));
+        let bare = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
+        let flags = get_u16(&bare, 22) | FLAG_GLOSS_CLUSTERS;
+        assert!(matches!(
+            resealed(bare.clone(), &|b| {
+                put_u16(b, 22, flags);
+                put_u16(b, 50, 4);
+            }),
+            Err(BlobError::BadDimension { field: "gloss clusters", .. })
+        ));
+        assert_eq!(resealed(maps, &|b| put_u16(b, 50, 4)), Err(BlobError::ReservedNotZero));
+    }
+
     #[test]
     fn version_4_carries_one_gloss_reference_per_pixel() {
         let o = sample(6, 4, 2, 5);
@@ -1992,7 +2212,13 @@ mod tests {
         let d = o.dims;
         let reference: Vec<f32> = (0..d.pixels).map(|p| 90.0 + p as f32).collect();
         let c = contents(&o);
-        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let g = GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference,
+            blocks: &blocks,
+            centroids: &[],
+        };
         let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -2027,7 +2253,13 @@ mod tests {
         let o = sample(6, 4, 2, 5);
         let (reference, blocks) = gloss_parts(&o, 1);
         let c = contents(&o);
-        let g = GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference: &reference, blocks: &blocks };
+        let g = GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference,
+            blocks: &blocks,
+            centroids: &[],
+        };
         let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -2057,7 +2289,7 @@ mod tests {
         // Relabelled version 4, it would need one reference per pixel.
         assert!(matches!(resealed(buf.clone(), &|b| put_u16(b, 4, 4)), Err(BlobError::LengthMismatch { .. })));
         // Every malformed value is named by its index in the section.
-        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::Wiener));
+        let lay = o.dims.layout_with(&Extras::of(&ex, EstimatorKind::Wiener, &o.dims));
         let bl = crate::gloss::block_len(4);
         let cov00 = 2 + 2 + 4 * 4;
         for (i, x, want) in [

@@ -69,6 +69,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     uncertainty: &'static [f32],
     /// The blob's gloss section in flash, when it carries one.
     gloss: Option<GlossData<'static>>,
+    /// The gloss rows' clusters per zone (K unless they have their own).
+    gloss_clusters: usize,
     /// Per pixel, its zone's gloss scale `assigned / S_z` (`crate::gloss`),
     /// divided once at load rather than per point.
     gloss_q: [f32; P],
@@ -213,6 +215,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             out_of_prior_form,
             uncertainty,
             gloss,
+            gloss_clusters: view.gloss_clusters(),
             gloss_q,
         });
         Ok(())
@@ -299,7 +302,9 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// statistic is above the threshold (or not a number); and, when it
     /// carries the gloss section, computes the point's gloss readings and
     /// their uncertainties from the same kernel input ([`crate::gloss`]:
-    /// 4 x m multiply-adds more), else leaves them NaN.
+    /// 4 x m multiply-adds more, and the choice of the gloss rows' own
+    /// cluster when they have one: `crate::blob`, flag bit 9), else leaves
+    /// them NaN.
     ///
     /// Not inlined, so the firmware has one symbol for the whole per-point
     /// path, whose instructions scripts/qemu-icount.sh counts with those of
@@ -354,8 +359,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         }
         let (readings, reading_sigma) = match &a.gloss {
             Some(g) => {
-                let bl = crate::gloss::block_len(M);
-                let block = &g.blocks[(z * a.clusters + c) * bl..(z * a.clusters + c + 1) * bl];
+                let block = g.block(z, c, a.gloss_clusters, v.as_slice());
                 if a.root {
                     crate::gloss::readings_root(block, x.as_slice(), a.gloss_q[p], root_sqrt_s)
                 } else {

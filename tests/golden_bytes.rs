@@ -263,6 +263,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             refractive_index: 1.567,
             reference: &reference,
             blocks: &blocks,
+            centroids: &[],
         }),
         ..BlobExtras::NONE
     };
@@ -284,6 +285,27 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&p3.contents(), &ex3p, &mut b3p).expect("a valid format 3 blob with per-pixel resolutions");
     b3p.truncate(n);
     out.push(("blob.v3.pixel-peak-resolution".into(), b3p));
+    // Format 4 (a gloss reference per pixel): the piecewise blob above with
+    // a gloss section whose rows have 3 clusters of their own (flag bit 9,
+    // K_g at offset 50, their centroids after the blocks).
+    let kg = 3;
+    let reference4: Vec<f32> = (0..6).map(|p| 88.0 + 0.5 * p as f32).collect();
+    let blocks4: Vec<f32> = (0..2 * kg * brdf_meter::gloss::block_len(3)).map(|i| 0.0625 * (i % 13) as f32).collect();
+    let centroids4: Vec<f32> = (0..2 * kg * 3).map(|i| 0.25 + 0.03125 * i as f32).collect();
+    let ex4 = BlobExtras {
+        gloss: Some(brdf_meter::blob::GlossData {
+            assigned_gu: 100.0,
+            refractive_index: 1.567,
+            reference: &reference4,
+            blocks: &blocks4,
+            centroids: &centroids4,
+        }),
+        ..exb
+    };
+    let mut b4 = vec![0u8; p2.dims.blob_len_with(&ex4)];
+    let n = write_blob_with(&c2, &ex4, &mut b4).expect("a valid format 4 blob with the gloss rows' own clusters");
+    b4.truncate(n);
+    out.push(("blob.v4.gloss-clusters".into(), b4));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

@@ -300,9 +300,19 @@ fn check_view(v: &BlobView<'_>, bytes: &[u8]) {
     // The gloss section: every block in bounds, the parse's rules hold, the
     // in-place view agrees with the copies.
     let mut block = vec![0f32; brdf_meter::gloss::block_len(d.m)];
-    assert_eq!(v.has_gloss(), v.version() == 3);
+    assert_eq!(v.has_gloss(), v.version() >= 3);
+    let kg = v.gloss_clusters();
+    assert!(v.has_gloss_centroids() || kg == v.clusters());
     for z in 0..d.zones {
-        for c in 0..v.clusters() {
+        let mut cents = vec![0f32; kg * d.m];
+        if v.copy_gloss_centroids(z, &mut cents) {
+            assert!(cents.iter().all(|x| x.is_finite()));
+            if let Some(g) = v.gloss_in_place() {
+                let at = z * kg * d.m;
+                assert!(g.centroids[at..at + cents.len()].iter().zip(&cents).all(|(a, b)| a.to_bits() == b.to_bits()));
+            }
+        }
+        for c in 0..kg {
             let Some((assigned, index, reference)) = v.copy_gloss(z, c, &mut block) else { continue };
             assert!(assigned > 0.0 && index > 1.0);
             if reference.is_nan() {
@@ -314,9 +324,11 @@ fn check_view(v: &BlobView<'_>, bytes: &[u8]) {
             }
             if let Some(g) = v.gloss_in_place() {
                 let bl = block.len();
-                let at = (z * v.clusters() + c) * bl;
+                let at = (z * kg + c) * bl;
                 assert!(g.blocks[at..at + bl].iter().zip(&block).all(|(a, b)| a.to_bits() == b.to_bits()));
-                assert_eq!(g.reference[z].to_bits(), reference.to_bits());
+                // The reference of the zone's first pixel (version 4) or the zone's (3).
+                let r = if v.version() == 3 { z } else { v.zone_start(z) as usize };
+                assert_eq!(g.reference[r].to_bits(), reference.to_bits());
             }
         }
     }

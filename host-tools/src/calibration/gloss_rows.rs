@@ -78,6 +78,9 @@ pub struct GlossSection {
     pub reference: Vec<f32>,
     /// Per zone and cluster, the block (rows then packed covariance).
     pub blocks: Vec<f32>,
+    /// The rows' own centroids, per zone K_g x m, or empty: a point's
+    /// block is then its BRDF cluster's (`brdf_meter::blob`, flag bit 9).
+    pub centroids: Vec<f32>,
 }
 
 impl GlossSection {
@@ -102,6 +105,7 @@ impl GlossSection {
             refractive_index: BLACK_GLASS_INDEX as f32,
             reference: &self.reference,
             blocks: &self.blocks,
+            centroids: &self.centroids,
         }
     }
 }

@@ -78,8 +78,11 @@ pub struct PointEstimator<'a> {
     bins: Vec<f32>,
     centroids: Vec<f32>,
     out_of_prior: Option<(Vec<f32>, Vec<f32>, f32, OutOfPriorForm)>,
-    /// Per cluster the gloss block, and the standard's assigned value.
+    /// Per gloss cluster the gloss block, and the standard's assigned value.
     gloss: Option<(Vec<Vec<f32>>, f32)>,
+    /// The gloss rows' own centroids (K_g x m), or empty: a point's gloss
+    /// block is then its BRDF cluster's.
+    gloss_centroids: Vec<f32>,
 }
 
 impl<'a> PointEstimator<'a> {
@@ -113,9 +116,14 @@ impl<'a> PointEstimator<'a> {
             view.copy_out_of_prior(zone, &mut mean, &mut g);
             (mean, g, t, form)
         });
+        let kg = view.gloss_clusters();
+        let mut gloss_centroids = vec![0.0f32; kg * d.m];
+        if !view.copy_gloss_centroids(zone, &mut gloss_centroids) {
+            gloss_centroids.clear();
+        }
         let gloss = view.has_gloss().then(|| {
             let mut assigned = 0.0f32;
-            let blocks = (0..k)
+            let blocks = (0..kg)
                 .map(|c| {
                     let mut b = vec![0.0f32; brdf_meter::gloss::block_len(d.m)];
                     assigned = view.copy_gloss(zone, c, &mut b).expect("the blob has the section").0;
@@ -124,7 +132,7 @@ impl<'a> PointEstimator<'a> {
                 .collect();
             (blocks, assigned)
         });
-        Ok(Self { view, zone, mats, sigma, bins, centroids, out_of_prior, gloss })
+        Ok(Self { view, zone, mats, sigma, bins, centroids, out_of_prior, gloss, gloss_centroids })
     }
 
     /// The calibration it applies.
@@ -208,6 +216,12 @@ impl<'a> PointEstimator<'a> {
         if let Some((blocks, assigned)) = &self.gloss {
             // The device's operation, so the same bits.
             let q = *assigned / self.view.gloss_reference(p).expect("the blob has the section");
+            // The gloss rows' cluster, from the same readings as the BRDF's.
+            let gc = if self.gloss_centroids.is_empty() {
+                cluster as usize
+            } else {
+                brdf_meter::kernel::select_cluster(&self.gloss_centroids, v)
+            };
             // The kernel's input: the scale-free kinds replace the last reading by the scale.
             let mut x = v.to_vec();
             if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
@@ -215,9 +229,9 @@ impl<'a> PointEstimator<'a> {
             }
             (readings, reading_sigma) = if root {
                 brdf_meter::kernel::scale_input(&mut x, brdf_meter::kernel::root_scales(s).1);
-                brdf_meter::gloss::readings_root(&blocks[cluster as usize], &x, q, sqrt_s)
+                brdf_meter::gloss::readings_root(&blocks[gc], &x, q, sqrt_s)
             } else {
-                brdf_meter::gloss::readings(&blocks[cluster as usize], &x, q, readings_scale)
+                brdf_meter::gloss::readings(&blocks[gc], &x, q, readings_scale)
             };
         }
         if bits & flags::NON_FINITE != 0 {

@@ -571,6 +571,51 @@ pub fn fit_target(pairs: &Pairs, target: &DMatrix<f64>, zone: &ScaleFreeZone) ->
     cluster_maps(&nz, &all, zone.ridge, &zone.centroids, pairs.m())
 }
 
+/// `k` centroids (K x m, f32) of the pairs' normalised readings `v / s`,
+/// by the k-means the piecewise maps are clustered with: the selection
+/// rule's space (`brdf_meter::kernel::select_cluster`), so a set of rows
+/// with clusters of its own (the gloss rows) selects as the maps do.
+pub fn reading_centroids(pairs: &Pairs, k: usize, seed: u64) -> Vec<f32> {
+    let feats: Vec<Vec<f64>> = pairs
+        .readings
+        .column_iter()
+        .map(|v| {
+            let s: f64 = v.iter().map(|x| x.abs()).sum();
+            v.iter().map(|x| if s > 0.0 { x / s } else { 0.0 }).collect()
+        })
+        .collect();
+    let (mut cents, _) = kmeans(&feats, k, seed);
+    // Fewer distinct readings than k: the last centroid again, which the
+    // rule never selects (it takes the first of equal distances).
+    while cents.len() < k {
+        cents.push(cents.last().expect("k-means gives at least one centroid").clone());
+    }
+    cents.iter().flatten().map(|x| *x as f32).collect()
+}
+
+/// Each pair's fold when the pairs' samples are held out by kind of
+/// material ([`FOLDS`] groups by the shape of their readings, as the
+/// maps' cluster count is guarded with): what reads a material unlike
+/// the rest, where random folds leave a near twin of it behind.
+pub fn kind_folds(pairs: &Pairs, seed: u64) -> anyhow::Result<Vec<usize>> {
+    let nz = normalise(pairs, &pairs.truth, Form::Linear)?;
+    Ok(shape_folds(pairs, &nz, seed))
+}
+
+/// [`fit_target`] with clusters of the target's own (`centroids`, K x m
+/// in the selection rule's space) in place of the zone's.
+pub fn fit_target_with(
+    pairs: &Pairs,
+    target: &DMatrix<f64>,
+    zone: &ScaleFreeZone,
+    centroids: &[f32],
+) -> anyhow::Result<Vec<ScaleFreeMap>> {
+    let levels = gloss_levels(target);
+    let nz = normalise(pairs, target, if zone.root { Form::Root(&levels) } else { Form::Linear })?;
+    let all: Vec<usize> = (0..pairs.len()).collect();
+    cluster_maps(&nz, &all, zone.ridge, centroids, pairs.m())
+}
+
 /// The noisy held-out readings of every pair (fixed for every candidate
 /// setting) and each pair's fold.
 struct CrossValidation {
