@@ -505,6 +505,49 @@ fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
     }
 }
 
+/// The handheld's line cut to the simulated device, trained as the product
+/// is (scale-free piecewise on the measured prior, the scene's noise): its
+/// gloss rows have clusters of their own (blob flag bit 9), and the device
+/// picks each point's gloss cluster and reads its gloss bit for bit as the
+/// host's reference, on a glossy lobe and on the black glass.
+#[test]
+fn gloss_rows_with_clusters_of_their_own_read_bit_identically() {
+    use host_tools::calibration::demo::{scene_prior, train_scene};
+    use host_tools::forward::scene::frames::scene_frames;
+    let whole = host_tools::forward::scene::Scene::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
+    )
+    .unwrap();
+    let mut scene = whole.for_device(P).unwrap();
+    let prior = scene_prior(&scene, "merl").unwrap();
+    let noise = host_tools::forward::scene::noise_level::relative_noise_level(&scene).unwrap();
+    let trained = train_scene(
+        &scene,
+        1,
+        noise,
+        brdf_meter::blob::EstimatorKind::ScaleFreePiecewise,
+        &prior,
+        host_tools::forward::pairs::Criterion::PeakRelative,
+    )
+    .unwrap();
+    let view = BlobView::parse(&trained.blob).unwrap();
+    assert!(view.has_gloss_centroids(), "the handheld's gloss rows choose clusters of their own");
+    assert_ne!(view.gloss_clusters(), view.clusters());
+    let mut c = client(flash(), ZONES);
+    c.provision(&sign_for_tests(&trained.blob), |_, _| {}).unwrap();
+    for brdf in [
+        host_tools::forward::brdf::BrdfSpec::Ward { rho_d: 0.2, rho_s: Some(0.1), alpha: 0.06 },
+        host_tools::forward::brdf::BrdfSpec::SmoothDielectric { n: 1.567, base_albedo: 0.0 },
+    ] {
+        scene.surface.brdf = brdf;
+        let frames = scene_frames(&scene, 2).unwrap();
+        c.load_scene(&frames).unwrap();
+        let pts = c.measure(2).unwrap();
+        check_points(&trained.blob, &frames, &pts, 2);
+        assert!(pts.iter().all(|p| p.readings[0].is_finite() && p.readings[0] > 0.0));
+    }
+}
+
 /// What every encoding must give: the f32 stream's points, values bit for
 /// bit (f32, corrected readings) or within 1/256 of each bin's uncertainty
 /// (Sigma16), on the bins asked for.

@@ -40,6 +40,10 @@ pub struct Args {
     /// prior's evaluations on every pixel).
     #[arg(long, value_name = "DEG,...|none")]
     pub finishes: Option<String>,
+    /// How many times wider across the plane of incidence each prior
+    /// material also trains, as `train --across` (default 1.5,3; `none`).
+    #[arg(long, value_name = "S,...|none")]
+    pub across: Option<String>,
     /// Measured surfaces of your own, read at every pixel by the calibration
     /// on the whole prior beside the held-out figures: NBRDF .json sets,
     /// MERL .binary tables, or a directory or comma list of them (as
@@ -77,7 +81,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let grid = inst.grid().context("the scene's angle grid")?;
     let prior = PriorMix::parse(&a.prior)?
         .models(&grid, inst.view_deg, inst.spectral_weights)?
-        .with_finishes(&crate::cli::train::finishes_deg(a.finishes.as_deref(), true)?);
+        .with_finishes(&crate::cli::train::finishes_deg(a.finishes.as_deref(), true)?)
+        .with_across(&crate::cli::train::across(a.across.as_deref())?);
     let unseen = match &a.set {
         Some(arg) => {
             let f = crate::evaluation::metrology::families::TestFamily::measured_files(arg, inst.spectral_weights)?;

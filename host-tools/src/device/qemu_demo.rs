@@ -78,9 +78,11 @@ pub fn set_up<T: Transport>(
         DemoEstimator::ScaleFreePiecewise => {
             // As many clusters as the device's slot takes with the signature.
             let room = (info.max_blob as usize).saturating_sub(brdf_meter::signed::TRAILER_LEN);
+            // At the scene's own noise level, as `train --scene` trains by default.
             let prior = scene_prior(&scene, "merl")?;
+            let noise = crate::forward::scene::noise_level::relative_noise_level(&scene)?;
             let kind = brdf_meter::blob::EstimatorKind::ScaleFreePiecewise;
-            train_scene_for_slot(&scene, 1, 0.02, kind, &prior, Criterion::PeakRelative, room)?.blob
+            train_scene_for_slot(&scene, 1, noise, kind, &prior, Criterion::PeakRelative, room)?.blob
         }
     };
     let signed = crate::calibration::signing::sign_with_dev_key(&blob);

@@ -234,7 +234,7 @@ pub struct Pairs {
     /// The prior's own weights (summing to 1), whatever the criterion: the
     /// ensemble an error over the prior is averaged with.
     pub base: Vec<f64>,
-    /// The prior sample of each pair (a sample's finishes are pairs of it:
+    /// The prior sample of each pair (a sample's variants are pairs of it:
     /// what holds a sample out holds them out too).
     pub sample: Vec<usize>,
     /// The pixel of each pair (index into the pixels it was built over).
@@ -246,9 +246,10 @@ pub struct Pairs {
 
 impl Pairs {
     /// Every sample of `prior` at every pixel of `pixels`, each pixel's
-    /// pairs sharing the prior's weights equally; a sample with rougher
-    /// finishes (`PriorModels::finishes`) is one pair per finish, all of
-    /// that sample, sharing its weight.
+    /// pairs sharing the prior's weights equally; a sample with variants
+    /// (rougher finishes, stretches across the plane:
+    /// `PriorModels::variants`) is one pair per variant, all of that
+    /// sample, sharing its weight.
     pub fn build(pixels: &[PixelOptics], prior: &PriorModels) -> Self {
         Self::build_inner(pixels, prior, false)
     }
@@ -263,9 +264,11 @@ impl Pairs {
         let np = pixels.len();
         type Col =
             (DVector<f64>, DVector<f64>, DVector<f64>, f64, usize, usize, Option<[f64; brdf_meter::gloss::LINEAR]>);
-        // Each sample's variants (itself, and its rougher finishes when the
-        // prior has them): pairs of one sample, sharing its weight.
-        let variants: Vec<Vec<(SampleModel, f64)>> = (0..prior.len()).map(|k| prior.finishes(k)).collect();
+        // Each sample's variants (itself, and its rougher finishes and
+        // stretches across the plane when the prior has them and the
+        // optics see across the plane): pairs of one sample, sharing its weight.
+        let sees_across = pixels.iter().any(|p| !p.in_plane());
+        let variants: Vec<Vec<(SampleModel, f64)>> = (0..prior.len()).map(|k| prior.variants(k, sees_across)).collect();
         let jobs: Vec<(usize, usize, usize)> = (0..np)
             .flat_map(|p| variants.iter().enumerate().flat_map(move |(k, v)| (0..v.len()).map(move |j| (p, k, j))))
             .collect();
@@ -546,5 +549,19 @@ mod tests {
         let t = px.truth(&glossy);
         let (by_rays, model) = (px.readings(&glossy, &t), &px.h * &t);
         assert!(by_rays[3] < 0.8 * model[3], "{} vs {}", by_rays[3], model[3]);
+        // So the prior's materials stretched across the plane are pairs
+        // here: the same truth, more light from the facet in the mirror
+        // direction. In the plane they read exactly as the material does
+        // and are left out.
+        let prior =
+            PriorModels::from_brdfs("w", vec![("glossy".into(), Arc::new(Ward::patent(0.05, 0.05)) as Arc<dyn Brdf>)])
+                .with_across(&[1.5, 3.0]);
+        let pairs = Pairs::build(std::slice::from_ref(&px), &prior);
+        assert_eq!(pairs.sample, vec![0, 0, 0]);
+        assert!((pairs.truth.column(0) - pairs.truth.column(2)).amax() <= 1e-12 * pairs.truth.column(0).amax());
+        let specular = (0..7).max_by(|a, b| pairs.readings[(*a, 0)].total_cmp(&pairs.readings[(*b, 0)])).unwrap();
+        let r = |k: usize| pairs.readings[(specular, k)];
+        assert!(r(1) > 1.1 * r(0) && r(2) > 1.1 * r(1), "{} {} {}", r(0), r(1), r(2));
+        assert_eq!(Pairs::build(std::slice::from_ref(&patent_pixel()), &prior).len(), 1);
     }
 }

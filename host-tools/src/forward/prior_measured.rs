@@ -137,10 +137,13 @@ impl PriorMix {
     }
 
     /// The samples as models (RGB data seen through `spectral`), each
-    /// family's weight shared equally by its samples. Profiles (CSV, ASTM)
-    /// are taken at `view_deg` on `grid`.
+    /// family's weight shared equally by its samples, each rough model also
+    /// stretched across the plane of incidence by the default factors
+    /// (`crate::forward::prior_models::DEFAULT_ACROSS`, which only optics
+    /// that see across the plane read). Profiles (CSV, ASTM) are taken at
+    /// `view_deg` on `grid`.
     pub fn models(&self, grid: &AngleGrid, view_deg: f64, spectral: [f64; 3]) -> anyhow::Result<PriorModels> {
-        let mut out = PriorModels::default();
+        let mut out = PriorModels::default().with_across(&crate::forward::prior_models::DEFAULT_ACROSS);
         for (label, fam, w) in &self.families {
             let c = family_models(fam, grid, view_deg, spectral).with_context(|| format!("prior family {label:?}"))?;
             ensure!(!c.is_empty(), "prior family {label:?} has no samples");

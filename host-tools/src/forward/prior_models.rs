@@ -10,8 +10,9 @@
 //! an ASTM E1392 table's profile) cannot: [`SampleModel::Profile`], whose
 //! readings are the in-plane model's `H rho` and whose truth stays the
 //! profile at every pixel. A prior may also train every rough reflection
-//! model at rougher finishes of itself ([`PriorModels::finishes`]): pairs of
-//! the same sample, so what holds a sample out holds them out too.
+//! model at rougher finishes of itself, and stretched across the plane of
+//! incidence where the optics see across it ([`PriorModels::variants`]):
+//! pairs of the same sample, so what holds a sample out holds them out too.
 use crate::calibration::estimators::scale_free::WeightedSamples;
 use crate::forward::brdf::Brdf;
 use crate::forward::grid::AngleGrid;
@@ -61,9 +62,9 @@ pub struct PriorSample {
 }
 
 /// The share of a material's weight its own model keeps when it also
-/// trains at rougher finishes ([`PriorModels::finishes`]): half. What was
-/// measured stays what the prior is mostly made of; the finishes, a
-/// construction from it, fill the gaps between its lobes. (Equal shares,
+/// trains at rougher finishes or stretched ([`PriorModels::variants`]):
+/// half. What was measured stays what the prior is mostly made of; the
+/// variants, constructions from it, fill the gaps between its lobes. (Equal shares,
 /// a quarter each at three finishes, let the constructed lobes outweigh
 /// the measured ones: the measured set's held-out median error went from
 /// 0.0213 to 0.0246 and its false flags from 5 to 15 %, `host-tools
@@ -77,8 +78,12 @@ pub struct PriorModels {
     pub samples: Vec<PriorSample>,
     /// Rougher finishes each rough reflection model also trains at: the
     /// standard deviations of a further spread of facet tilts, degrees
-    /// ([`Self::finishes`]). Empty: the samples as they are.
+    /// ([`Self::variants`]). Empty: the samples as they are.
     pub finishes_deg: Vec<f64>,
+    /// How much wider across the plane of incidence each rough reflection
+    /// model is also read, where the optics see across it
+    /// ([`Self::variants`]). Empty: the samples as they are.
+    pub across: Vec<f64>,
 }
 
 impl PriorModels {
@@ -101,6 +106,7 @@ impl PriorModels {
                 .map(|(name, b)| PriorSample { name, family: family.into(), weight: w, model: SampleModel::Brdf(b) })
                 .collect(),
             finishes_deg: Vec::new(),
+            across: Vec::new(),
         }
     }
 
@@ -131,6 +137,7 @@ impl PriorModels {
                 })
                 .collect(),
             finishes_deg: self.finishes_deg.clone(),
+            across: self.across.clone(),
         }
     }
 
@@ -144,6 +151,7 @@ impl PriorModels {
         Self {
             samples: scaled(self, 1.0 - w).chain(scaled(other, w)).collect(),
             finishes_deg: self.finishes_deg.clone(),
+            across: self.across.clone(),
         }
     }
 
@@ -154,31 +162,57 @@ impl PriorModels {
         self
     }
 
+    /// This prior with every rough reflection model also stretched across
+    /// the plane of incidence by each of `s` (each > 0), where the optics
+    /// see across it ([`Self::variants`]).
+    pub fn with_across(mut self, s: &[f64]) -> Self {
+        self.across = s.to_vec();
+        self
+    }
+
     /// Sample `k`'s variants that training reads, each with its share of
     /// the sample's weight: the model as it is, and, for a reflection
     /// model without a mirror spike (a measured material or a rough model:
     /// a polished standard's Fresnel spike is no lobe to spread), each of
-    /// [`Self::finishes_deg`] as `crate::forward::brdf::roughened::Roughened`.
-    /// The material as it is keeps [`MEASURED_SHARE`] of the weight and its
-    /// finishes share the rest equally. They stay one sample (one fold, one
-    /// prior index), so nothing held out of training leaves a rougher twin
-    /// behind in it.
-    pub fn finishes(&self, k: usize) -> Vec<(SampleModel, f64)> {
+    /// [`Self::finishes_deg`] as `crate::forward::brdf::roughened::Roughened`
+    /// and, when the optics read light from across the plane of incidence
+    /// (`sees_across`), each of [`Self::across`] as
+    /// `crate::forward::brdf::stretched::Stretched`. In-plane optics read a
+    /// stretched material exactly as the material itself (the same rays,
+    /// the same in-plane truth), so there it is the material once. The
+    /// material as it is keeps [`MEASURED_SHARE`] of the weight and its
+    /// variants share the rest equally. They stay one sample (one fold,
+    /// one prior index), so nothing held out of training leaves a twin of
+    /// itself behind in it.
+    pub fn variants(&self, k: usize, sees_across: bool) -> Vec<(SampleModel, f64)> {
+        use crate::forward::brdf::{roughened::Roughened, stretched::Stretched};
         let model = &self.samples[k].model;
+        let across: &[f64] = if sees_across { &self.across } else { &[] };
         // A model with a mirror spike has it at every incidence; 45 deg is any.
         let rough = match model {
-            SampleModel::Brdf(b) if !self.finishes_deg.is_empty() && b.mirror_reflectance(45.0) == 0.0 => b,
+            SampleModel::Brdf(b) if b.mirror_reflectance(45.0) == 0.0 => b,
             _ => return vec![(model.clone(), 1.0)],
         };
-        let share = (1.0 - MEASURED_SHARE) / self.finishes_deg.len() as f64;
+        let extra = self.finishes_deg.len() + across.len();
+        if extra == 0 {
+            return vec![(model.clone(), 1.0)];
+        }
+        let share = (1.0 - MEASURED_SHARE) / extra as f64;
+        let finishes = self.finishes_deg.iter().map(|&s| Arc::new(Roughened::new(rough.clone(), s)) as Arc<dyn Brdf>);
+        let stretched = across.iter().map(|&s| Arc::new(Stretched::new(rough.clone(), s)) as Arc<dyn Brdf>);
         std::iter::once((model.clone(), MEASURED_SHARE))
-            .chain(self.finishes_deg.iter().map(|&s| {
-                let r = crate::forward::brdf::roughened::Roughened::new(rough.clone(), s);
-                (SampleModel::Brdf(Arc::new(r)), share)
-            }))
+            .chain(finishes.chain(stretched).map(|b| (SampleModel::Brdf(b), share)))
             .collect()
     }
 }
+
+/// How much wider across the plane of incidence than as measured a prior
+/// also holds each material by default ([`PriorModels::with_across`]):
+/// one and a half and three times. An isotropic lobe at 45 deg is 0.7 as
+/// wide across the plane as along it, so these are lobes about as wide
+/// across as along, and twice as wide, as satins and effect paints are
+/// (`crate::forward::brdf::stretched`; docs/handheld.md has what they do).
+pub const DEFAULT_ACROSS: [f64; 2] = [1.5, 3.0];
 
 #[cfg(test)]
 mod tests {
@@ -186,7 +220,7 @@ mod tests {
     use crate::forward::brdf::{Lambertian, Ward};
 
     #[test]
-    fn rough_models_train_at_their_finishes_and_what_has_no_lobe_to_spread_as_it_is() {
+    fn rough_models_train_at_their_finishes_and_stretches_and_what_has_no_lobe_as_it_is() {
         let p = PriorModels {
             samples: vec![
                 PriorSample {
@@ -210,16 +244,35 @@ mod tests {
             ],
             ..Default::default()
         };
-        assert_eq!(p.finishes(0).len(), 1, "no finishes unless asked for");
+        assert_eq!(p.variants(0, true).len(), 1, "no variants unless asked for");
         let p = p.with_finishes(&[0.5, 1.0, 2.0]);
-        let shares = |k: usize| p.finishes(k).iter().map(|v| v.1).collect::<Vec<_>>();
+        let shares =
+            |p: &PriorModels, k: usize, across: bool| p.variants(k, across).iter().map(|v| v.1).collect::<Vec<_>>();
         let third = (1.0 - MEASURED_SHARE) / 3.0;
-        assert_eq!(shares(0), vec![MEASURED_SHARE, third, third, third]);
-        assert_eq!(shares(1), vec![1.0], "a mirror spike has no lobe to spread");
-        assert_eq!(shares(2), vec![1.0], "a profile is known in-plane only");
+        assert_eq!(shares(&p, 0, true), vec![MEASURED_SHARE, third, third, third]);
+        assert_eq!(shares(&p, 1, true), vec![1.0], "a mirror spike has no lobe to spread");
+        assert_eq!(shares(&p, 2, true), vec![1.0], "a profile is known in-plane only");
+        // Stretched across the plane only where the optics see across it.
+        let p = p.with_across(&[1.5, 3.0]);
+        let fifth = (1.0 - MEASURED_SHARE) / 5.0;
+        assert_eq!(shares(&p, 0, true), vec![MEASURED_SHARE, fifth, fifth, fifth, fifth, fifth]);
+        assert_eq!(shares(&p, 0, false), vec![MEASURED_SHARE, third, third, third]);
+        let stretched_only = p.clone().with_finishes(&[]);
+        assert_eq!(shares(&stretched_only, 0, false), vec![1.0]);
+        assert_eq!(shares(&stretched_only, 0, true), vec![MEASURED_SHARE, 0.25, 0.25]);
+        assert_eq!(shares(&p, 1, true), vec![1.0]);
+        // A stretched variant is the material in the plane and wider across it.
+        let v = stretched_only.variants(0, true);
+        let (SampleModel::Brdf(a), SampleModel::Brdf(b)) = (&v[0].0, &v[2].0) else { panic!("models") };
+        assert!((a.reflectance(44.0, 45.0) - b.reflectance(44.0, 45.0)).abs() < 1e-12 * a.reflectance(44.0, 45.0));
+        let tilt = 0.1f64;
+        let off = crate::forward::brdf::light_dir(45.0) * tilt.cos() + nalgebra::Vector3::new(0.0, tilt.sin(), 0.0);
+        let wo = crate::forward::brdf::view_dir(45.0);
+        assert!(b.f_r(&off, &wo) > 1.5 * a.f_r(&off, &wo));
         // Kept through a subset and a mixture.
         assert_eq!(p.subset(&[0]).finishes_deg, vec![0.5, 1.0, 2.0]);
-        assert_eq!(p.mixed_with(&p.subset(&[2]), 0.5).finishes(0).len(), 4);
+        assert_eq!(p.subset(&[0]).across, vec![1.5, 3.0]);
+        assert_eq!(p.mixed_with(&p.subset(&[2]), 0.5).variants(0, true).len(), 6);
     }
 
     #[test]

@@ -16,6 +16,7 @@ pub mod merl_binary;
 pub mod nbrdf;
 pub mod roughened;
 pub mod smooth_dielectric;
+pub mod stretched;
 mod tabulated;
 mod ward;
 
