@@ -26,6 +26,10 @@ pub struct Args {
     /// The prior the error is predicted over (as `train --prior`).
     #[arg(long, default_value = "merl")]
     pub prior: String,
+    /// How many times wider across the plane of incidence each prior
+    /// material also trains, as `train --across` (default 1.5,3; `none`).
+    #[arg(long, value_name = "S,...|none")]
+    pub across: Option<String>,
     /// Estimator whose held-out error is predicted.
     #[arg(long, value_enum, default_value_t = DesignEstimator::Wiener)]
     pub estimator: DesignEstimator,
@@ -61,7 +65,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     ensure!(a.folds >= 2, "--folds {}: at least 2", a.folds);
     let inst = &base.instrument;
     let grid = inst.grid().context("the scene's angle grid")?;
-    let prior = PriorMix::parse(&a.prior)?.models(&grid, inst.view_deg, inst.spectral_weights)?;
+    let prior = PriorMix::parse(&a.prior)?
+        .models(&grid, inst.view_deg, inst.spectral_weights)?
+        .with_across(&crate::cli::train::across(a.across.as_deref())?);
     let p = inst.pixels();
     let pixels = a.pixels.clone().unwrap_or_else(|| (0..9).map(|i| i * (p - 1) / 8).collect());
     if let Some(bad) = pixels.iter().find(|x| **x >= p) {
