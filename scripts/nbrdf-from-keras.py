@@ -83,8 +83,13 @@ def main():
     doc = {"format": "nbrdf-mlp-6-21-21-3", "materials": materials}
     folder = os.path.dirname(os.path.abspath(out_path))
     with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as t:
-        json.dump(doc, t)
         tmp = t.name
+        try:
+            json.dump(doc, t)
+        except BaseException:
+            t.close()
+            os.unlink(tmp)
+            raise
     os.replace(tmp, out_path)
     print(f"wrote {out_path}: {len(materials)} material(s)")
 

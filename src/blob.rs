@@ -1023,8 +1023,11 @@ impl<'a> BlobView<'a> {
                 pixel_resolution: flags & FLAG_PIXEL_RESOLUTION != 0,
                 broad_band: flags & FLAG_BROAD_BAND != 0,
                 gloss_clusters: if flags & FLAG_GLOSS_CLUSTERS != 0 {
-                    // At least 1, so a zero is refused as a bad count, not read as "none".
-                    (get_u16(bytes, 50) as usize).max(1)
+                    // Zero means "none" in `Extras`: with the bit it is a bad count.
+                    match get_u16(bytes, 50) {
+                        0 => return Err(BlobError::BadDimension { field: "gloss clusters", value: 0 }),
+                        k => k as usize,
+                    }
                 } else {
                     0
                 },
@@ -2112,12 +2115,17 @@ mod tests {
     /// A piecewise blob (K = 3) with a version 4 gloss section whose rows
     /// have `kg` clusters of their own (`kg = 0`: the maps').
     fn gloss_clusters_blob(kg: usize, centroids: &[f32]) -> Result<Vec<u8>, BlobError> {
+        gloss_clusters_blob_of(EstimatorKind::ScaleFreePiecewise, kg, centroids)
+    }
+
+    /// [`gloss_clusters_blob`] labelled as estimator `kind`.
+    fn gloss_clusters_blob_of(kind: EstimatorKind, kg: usize, centroids: &[f32]) -> Result<Vec<u8>, BlobError> {
         let o = sample(6, 4, 2, 5);
         let (unc, mats, cents, _) = v2_extras(&o, 3);
         let (_, blocks) = gloss_parts(&o, if kg == 0 { 3 } else { kg });
         let reference: Vec<f32> = (0..o.dims.pixels).map(|p| 90.0 + p as f32).collect();
         let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
+        c.estimator = kind;
         c.uncertainty = &unc;
         c.matrices = &mats;
         let g = GlossData {
@@ -2175,24 +2183,49 @@ mod tests {
         let pick = crate::kernel::select_cluster(&cents[kg * m..], near_3);
         assert_eq!(pick, 3);
         assert_eq!(g.block(1, 0, kg, near_3), &blocks[(kg + 3) * bl..(kg + 4) * bl]);
-        // The writer refuses the wrong count of centroids; a count of 1 or
-        // over the limit; the rows' clusters without the piecewise kind.
-        assert_eq!(gloss_clusters_blob(kg, &cents[1..]), Err(BlobError::ContentMismatch { section: Section::Gloss }));
+        // The writer refuses centroids that are not Z x K_g x m (one too
+        // many: K_g still matches the blocks; one too few: it does not); a
+        // count of 1 or over the limit; the rows' clusters without the
+        // piecewise kind.
+        let mismatch = Err(BlobError::ContentMismatch { section: Section::Gloss });
+        let one_more: Vec<f32> = cents.iter().copied().chain([0.25]).collect();
+        assert_eq!(gloss_clusters_blob(kg, &one_more), mismatch);
+        assert_eq!(gloss_clusters_blob(kg, &cents[1..]), mismatch);
         assert!(matches!(
             gloss_clusters_blob(1, &cents[..z * m]),
             Err(BlobError::BadDimension { field: "gloss clusters", value: 1 })
         ));
-        // The parser: a non-finite centroid, K_g 0, the bit without the
-        // gloss section, offset 50 set without the bit.
+        let over = MAX_CLUSTERS + 1;
+        let many: Vec<f32> = (0..z * over * m).map(|i| 0.25 + (i % 7) as f32 * 0.01).collect();
+        assert!(matches!(
+            gloss_clusters_blob(over, &many),
+            Err(BlobError::BadDimension { field: "gloss clusters", value }) if usize::from(value) == over
+        ));
+        assert!(matches!(
+            gloss_clusters_blob_of(EstimatorKind::ScaleFree, kg, &cents),
+            Err(BlobError::BadDimension { field: "gloss clusters", .. })
+        ));
+        // The parser: a non-finite centroid, K_g 0 or over the limit, the
+        // bit on another kind, the bit without the gloss section, offset
+        // 50 set without the bit.
         let first_centroid = own.len() - 4 - 4 * z * kg * m;
         assert_eq!(
             resealed(own.clone(), &|b| put_f32(b, first_centroid + 4, f32::INFINITY)),
             Err(BlobError::NonFinite { section: Section::Gloss, index: gloss_len(5, z, kg, m) + 1 })
         );
-        assert!(matches!(
+        assert_eq!(
             resealed(own.clone(), &|b| put_u16(b, 50, 0)),
-            Err(BlobError::BadDimension { field: "gloss clusters", .. })
-        ));
+            Err(BlobError::BadDimension { field: "gloss clusters", value: 0 })
+        );
+        assert_eq!(
+            resealed(own.clone(), &|b| put_u16(b, 50, over as u16)),
+            Err(BlobError::BadDimension { field: "gloss clusters", value: over as u16 })
+        );
+        let scale_free = EstimatorKind::ScaleFree as u16;
+        assert_eq!(
+            resealed(own.clone(), &|b| put_u16(b, 20, scale_free)),
+            Err(BlobError::BadDimension { field: "gloss clusters", value: kg as u16 })
+        );
         let bare = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
         let flags = get_u16(&bare, 22) | FLAG_GLOSS_CLUSTERS;
         assert!(matches!(

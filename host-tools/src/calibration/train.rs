@@ -405,30 +405,24 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         uncertainty: &uncertainty,
         matrices: &matrices,
     };
-    let gloss = gloss_section(spec, &zones, zone_pairs, &plans, most)?;
-    let mut extras = BlobExtras {
+    let base = BlobExtras {
         clusters,
         centroids: &centroids,
         out_of_prior: threshold.map(|(threshold, form)| OutOfPriorData { threshold, form, data: &oop, band_factor }),
-        gloss: gloss.as_ref().map(GlossSection::data),
+        gloss: None,
         root_form: spec.root,
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
         broad_uncertainty: if broad.len() == uncertainty.len() { &broad } else { &[] },
     };
-    let mut blob = written(&contents, &extras)?;
-    let own;
-    // The peak resolution is what the device makes of the black glass, so
-    // it is measured on the blob itself, then recorded in it.
-    if gloss.is_some() {
-        let view = BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
-        let widest;
-        (widest, own) = peak_resolution::recorded(&peak_resolution::black_glass_widths(&view, &spec.zones, &plans)?);
-        if widest.is_some() {
-            extras.peak_resolution_deg = widest;
-            extras.pixel_peak_resolution_deg = &own;
-            blob = written(&contents, &extras)?;
-        }
+    let chosen = gloss_section(spec, &zones, zone_pairs, &plans, most)?;
+    let mut blob = with_gloss(&contents, base, chosen.as_ref(), spec, &plans)?;
+    // The rows' own clusters make the gloss section larger: where that
+    // takes the blob over the slot, the rows keep the maps' clusters before
+    // the maps are offered fewer (`train_on`).
+    if chosen.as_ref().is_some_and(|g| !g.centroids.is_empty()) && blob.len() > spec.max_blob_len {
+        let maps = gloss_section(spec, &zones, zone_pairs, &plans, 1)?;
+        blob = with_gloss(&contents, base, maps.as_ref(), spec, &plans)?;
     }
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
     let flag_on_kinds = (spec.root && threshold.is_some())
@@ -451,6 +445,29 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         blob,
         slot_refused: Vec::new(),
     })
+}
+
+/// The blob of `contents` and `base` with `gloss`, and with it the peak
+/// resolution: what the device makes of the black glass, so it is
+/// measured on the blob itself, then recorded in it.
+fn with_gloss(
+    contents: &BlobContents<'_>,
+    base: BlobExtras<'_>,
+    gloss: Option<&GlossSection>,
+    spec: &TrainSpec<'_>,
+    plans: &[F32Plan],
+) -> anyhow::Result<Vec<u8>> {
+    let extras = BlobExtras { gloss: gloss.map(GlossSection::data), ..base };
+    let blob = written(contents, &extras)?;
+    if gloss.is_none() {
+        return Ok(blob);
+    }
+    let view = BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
+    let (widest, own) = peak_resolution::recorded(&peak_resolution::black_glass_widths(&view, &spec.zones, plans)?);
+    if widest.is_none() {
+        return Ok(blob);
+    }
+    written(contents, &BlobExtras { peak_resolution_deg: widest, pixel_peak_resolution_deg: &own, ..extras })
 }
 
 /// The blob of `contents` and `extras`, parsed back.
@@ -777,7 +794,9 @@ impl ZoneGloss {
     }
 
     /// Calls `read` once per held-out fold of the samples (the black glass
-    /// in every fold's fit) with the fold's held-out pairs, each
+    /// in every fold's fit; with `by_kind`, each fold a kind of material,
+    /// `scale_free::kind_folds`, or by sample where the pairs cannot be
+    /// normalised to find their kinds) with the fold's held-out pairs, each
     /// [`gloss_rows::HELD_OUT_DRAWS`] times with its own noise (the same
     /// draws on every call for zone `z`), and the other folds' pairs and
     /// targets.
@@ -861,19 +880,45 @@ fn gloss_clusters(zones: &[TrainedZone], prepared: &[ZoneGloss], plans: &[F32Pla
     let options: Vec<Option<usize>> = std::iter::once(None)
         .chain(scale_free::CLUSTER_COUNTS.iter().copied().filter(|k| *k <= most).map(Some))
         .collect();
-    let error = |o: Option<usize>| -> f64 {
-        (0..zones.len()).into_par_iter().map(|z| prepared[z].held_out_error(z, &zones[z], &plans[z], o)).sum()
-    };
-    let scored: Vec<(Option<usize>, f64)> = options.iter().map(|o| (*o, error(*o))).collect();
+    if options.len() == 1 {
+        return None;
+    }
+    // Per option, each zone's error (in zone order, so the sums do not
+    // depend on how rayon splits the work).
+    let per_zone: Vec<Vec<f64>> = options
+        .iter()
+        .map(|o| {
+            (0..zones.len()).into_par_iter().map(|z| prepared[z].held_out_error(z, &zones[z], &plans[z], *o)).collect()
+        })
+        .collect();
+    chosen_gloss_clusters(&options, &per_zone)
+}
+
+/// [`gloss_clusters`]' choice among `options` (the first `None`, the
+/// maps' clusters) from each option's held-out error per zone: the maps'
+/// own unless the best count of the rows' own leaves at most
+/// [`OWN_GLOSS_CLUSTERS_GAIN`] of their error, summed over the zones the
+/// maps' clusters read at all. A zone that holds no held-out reading (it
+/// cannot see the standard: an infinite error) says nothing about either
+/// choice, and would make every option's sum infinite.
+fn chosen_gloss_clusters(options: &[Option<usize>], per_zone: &[Vec<f64>]) -> Option<usize> {
+    let read = |e: &[f64]| -> f64 { e.iter().zip(&per_zone[0]).filter(|(_, m)| m.is_finite()).map(|(x, _)| x).sum() };
+    let maps = read(&per_zone[0]);
+    if !maps.is_finite() || maps <= 0.0 {
+        return None;
+    }
     // The maps' own clusters unless clusters of the rows' own read clearly
     // better: their own cost the device a second cluster choice per point
-    // and the blob a table.
-    let own = scored[1..].iter().copied().fold(None, |best: Option<(Option<usize>, f64)>, s| match best {
-        Some(b) if b.1 <= s.1 => Some(b),
-        _ => Some(s),
-    });
+    // and the blob a table. Among equal errors, the fewest clusters.
+    let own = options[1..].iter().zip(&per_zone[1..]).map(|(o, e)| (*o, read(e))).fold(
+        None,
+        |best: Option<(Option<usize>, f64)>, s| match best {
+            Some(b) if b.1 <= s.1 => Some(b),
+            _ => Some(s),
+        },
+    );
     match own {
-        Some((k, e)) if e <= OWN_GLOSS_CLUSTERS_GAIN * scored[0].1 => k,
+        Some((k, e)) if e.is_finite() && e <= OWN_GLOSS_CLUSTERS_GAIN * maps => k,
         _ => None,
     }
 }
@@ -1189,6 +1234,35 @@ mod tests {
     use crate::forward::prior_measured::PriorMix;
     use crate::forward::reading_noise::ReadingNoise;
     use crate::forward::zone_optics::uniform_zones;
+
+    /// The gloss rows take clusters of their own only when those leave at
+    /// most three quarters of the maps' error, summed over the zones the
+    /// maps' rows read; a zone without a reading decides nothing.
+    #[test]
+    fn the_gloss_rows_own_clusters_are_taken_only_when_clearly_better_where_rows_read() {
+        let options = [None, Some(2), Some(3), Some(4)];
+        let inf = f64::INFINITY;
+        // Clearly better: the best count of their own; at a tie, the fewest.
+        let e = [vec![1.0, 1.0], vec![1.2, 1.0], vec![0.5, 0.4], vec![0.4, 0.5]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), Some(3));
+        // Better, but not by a quarter: the maps'.
+        let e = [vec![1.0, 1.0], vec![0.8, 0.8], vec![0.9, 0.9], vec![1.0, 1.0]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), None);
+        // A zone without a reading (infinite under every option) is left
+        // out of every sum; before, it made every sum infinite and
+        // `inf <= 0.75 inf` took the first count of their own.
+        let e = [vec![1.0, inf], vec![1.0, inf], vec![0.9, inf], vec![1.1, inf]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), None);
+        let e = [vec![1.0, inf], vec![1.0, inf], vec![0.5, inf], vec![1.1, inf]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), Some(3));
+        // A count of their own that reads a zone the maps' read not at all
+        // is no better there; one that fails where the maps' read loses.
+        let e = [vec![1.0, 1.0], vec![0.1, inf], vec![1.0, 1.0], vec![1.0, 1.0]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), None);
+        // No zone read at all: the maps'.
+        let e = [vec![inf, inf], vec![0.1, 0.1], vec![0.1, 0.1], vec![0.1, 0.1]];
+        assert_eq!(chosen_gloss_clusters(&options, &e), None);
+    }
 
     /// A form's name in reports is the one `--form` takes.
     #[test]

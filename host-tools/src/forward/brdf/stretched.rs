@@ -22,8 +22,17 @@
 //! are exactly the original's, and a direction tilted across the plane by
 //! a small angle is evaluated at `1/s` of that tilt, so the lobe is `s`
 //! times as wide across. The same map on both directions keeps the pair's
-//! reciprocity. The lobe's flux grows with its width (about `s` times); a
+//! reciprocity. The lobe's flux grows with its width (about `s` times), so
+//! a bright glossy material stretched three times may reflect more than it
+//! receives: as a prior sample it is a shape of lobe to learn, which the
+//! scale-free estimators scale by the readings, not a physical material. A
 //! mirror spike is a spike whichever way it is stretched and is kept.
+//!
+//! "Across the plane" is the frame's y axis: every pixel's plane of
+//! incidence is the x-z plane when the line runs along x (the handheld's,
+//! and the default). A line along y with 3-D geometry tilts the off-centre
+//! pixels' planes, and there a stretch is partly along their plane: their
+//! truth is then the stretched material's own, no longer the original's.
 use super::Brdf;
 use nalgebra::Vector3;
 use std::sync::Arc;
