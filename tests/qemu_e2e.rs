@@ -183,6 +183,11 @@ fn qemu_demo_provisions_what_train_writes_and_reads_its_scene_with_few_flags() {
     assert!(view.clusters() >= 2, "piecewise: {} clusters", view.clusters());
     let points = c.measure(4).unwrap();
     assert_eq!(points.len(), 4 * PIXELS);
+    // Bit for bit as the host's reference on the Cortex-M4F build: the
+    // estimates, and the gloss readings from the gloss rows' own clusters
+    // where training chose them (blob flag bit 9).
+    let frames = scene_frames(&DemoScene::default().scene(PIXELS).unwrap(), 4).unwrap();
+    check_bit_identical(blob, &frames, &points, 4, info.full_scale);
     assert!(points.iter().all(|p| p.values.iter().all(|v| *v >= 0.0)), "a negative value");
     assert!(points.iter().all(|p| p.readings[0].is_finite()), "a gloss reading not a number");
     let flagged = points.iter().filter(|p| p.flags & brdf_meter::protocol::flags::OUT_OF_PRIOR != 0).count();
