@@ -515,7 +515,7 @@ fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
 /// path in `brdf_meter::blob`'s tests.)
 #[test]
 fn gloss_rows_with_clusters_of_their_own_read_bit_identically() {
-    use host_tools::calibration::demo::{scene_prior, train_scene};
+    use host_tools::calibration::demo::{scene_prior, train_scene_for_slot};
     use host_tools::forward::scene::frames::scene_frames;
     let whole = host_tools::forward::scene::Scene::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
@@ -524,30 +524,16 @@ fn gloss_rows_with_clusters_of_their_own_read_bit_identically() {
     let mut scene = whole.for_device(P).unwrap();
     let prior = scene_prior(&scene, "merl").unwrap();
     let noise = host_tools::forward::scene::noise_level::relative_noise_level(&scene).unwrap();
-    let trained = train_scene(
-        &scene,
-        1,
-        noise,
-        brdf_meter::blob::EstimatorKind::ScaleFreePiecewise,
-        &prior,
-        host_tools::forward::pairs::Criterion::PeakRelative,
-    )
-    .unwrap();
+    let kind = brdf_meter::blob::EstimatorKind::ScaleFreePiecewise;
+    let criterion = host_tools::forward::pairs::Criterion::PeakRelative;
+    let for_slot = |slot| train_scene_for_slot(&scene, 1, noise, kind, &prior, criterion, slot).unwrap();
+    let trained = for_slot(host_tools::calibration::train::board_blob_capacity());
     let view = BlobView::parse(&trained.blob).unwrap();
     assert!(view.has_gloss_centroids(), "the handheld's gloss rows choose clusters of their own");
     // A slot a byte too small for them: the rows keep the maps' clusters,
     // and the maps keep their count.
     let slot = trained.blob.len() - 1;
-    let smaller = host_tools::calibration::demo::train_scene_for_slot(
-        &scene,
-        1,
-        noise,
-        brdf_meter::blob::EstimatorKind::ScaleFreePiecewise,
-        &prior,
-        host_tools::forward::pairs::Criterion::PeakRelative,
-        slot,
-    )
-    .unwrap();
+    let smaller = for_slot(slot);
     let small = BlobView::parse(&smaller.blob).unwrap();
     assert!(smaller.blob.len() <= slot && !small.has_gloss_centroids());
     assert_eq!((small.clusters(), small.gloss_clusters()), (view.clusters(), view.clusters()));
