@@ -467,6 +467,17 @@ fn a_zone_without_a_gloss_reading_streams_nan_readings_bit_identically() {
     assert!(pts.iter().any(|p| p.zone == 1));
 }
 
+/// The handheld's scene (`scenes/handheld.toml`) cut to the simulated
+/// device's pixels.
+fn handheld_cut() -> host_tools::forward::scene::Scene {
+    host_tools::forward::scene::Scene::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
+    )
+    .unwrap()
+    .for_device(P)
+    .unwrap()
+}
+
 /// The handheld's line cut to the simulated device, a black glass on it:
 /// its frames saturate the long exposure and the device takes the shorter
 /// ones (the scene's frames carry them), bit for bit as the host's
@@ -475,11 +486,7 @@ fn a_zone_without_a_gloss_reading_streams_nan_readings_bit_identically() {
 fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
     use host_tools::calibration::demo::{scene_prior, train_scene};
     use host_tools::forward::scene::frames::scene_frames;
-    let whole = host_tools::forward::scene::Scene::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
-    )
-    .unwrap();
-    let mut scene = whole.for_device(P).unwrap();
+    let mut scene = handheld_cut();
     let prior = scene_prior(&scene, "patent").unwrap();
     let trained = train_scene(
         &scene,
@@ -517,11 +524,7 @@ fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
 fn gloss_rows_with_clusters_of_their_own_read_bit_identically() {
     use host_tools::calibration::demo::{scene_prior, train_scene_for_slot};
     use host_tools::forward::scene::frames::scene_frames;
-    let whole = host_tools::forward::scene::Scene::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/handheld.toml"),
-    )
-    .unwrap();
-    let mut scene = whole.for_device(P).unwrap();
+    let mut scene = handheld_cut();
     let prior = scene_prior(&scene, "merl").unwrap();
     let noise = host_tools::forward::scene::noise_level::relative_noise_level(&scene).unwrap();
     let kind = brdf_meter::blob::EstimatorKind::ScaleFreePiecewise;
