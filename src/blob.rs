@@ -2041,13 +2041,7 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let g = GlossData {
-            assigned_gu: 100.0,
-            refractive_index: 1.567,
-            reference: &reference,
-            blocks: &blocks,
-            centroids: &[],
-        };
+        let g = gloss_data(&reference, &blocks, &[]);
         let ex = BlobExtras {
             clusters: 2,
             centroids: &cents,
@@ -2101,6 +2095,11 @@ mod tests {
         );
     }
 
+    /// A gloss section on the black glass (100 GU, n = 1.567).
+    fn gloss_data<'a>(reference: &'a [f32], blocks: &'a [f32], centroids: &'a [f32]) -> GlossData<'a> {
+        GlossData { assigned_gu: 100.0, refractive_index: 1.567, reference, blocks, centroids }
+    }
+
     /// A version 3 blob's gloss section for `o` with K clusters.
     fn gloss_parts(o: &Owned, k: usize) -> (Vec<f32>, Vec<f32>) {
         let d = o.dims;
@@ -2128,13 +2127,7 @@ mod tests {
         c.estimator = kind;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let g = GlossData {
-            assigned_gu: 100.0,
-            refractive_index: 1.567,
-            reference: &reference,
-            blocks: &blocks,
-            centroids,
-        };
+        let g = gloss_data(&reference, &blocks, centroids);
         let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).map(|n| {
@@ -2245,13 +2238,7 @@ mod tests {
         let d = o.dims;
         let reference: Vec<f32> = (0..d.pixels).map(|p| 90.0 + p as f32).collect();
         let c = contents(&o);
-        let g = GlossData {
-            assigned_gu: 100.0,
-            refractive_index: 1.567,
-            reference: &reference,
-            blocks: &blocks,
-            centroids: &[],
-        };
+        let g = gloss_data(&reference, &blocks, &[]);
         let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
@@ -2286,13 +2273,7 @@ mod tests {
         let o = sample(6, 4, 2, 5);
         let (reference, blocks) = gloss_parts(&o, 1);
         let c = contents(&o);
-        let g = GlossData {
-            assigned_gu: 100.0,
-            refractive_index: 1.567,
-            reference: &reference,
-            blocks: &blocks,
-            centroids: &[],
-        };
+        let g = gloss_data(&reference, &blocks, &[]);
         let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
