@@ -280,19 +280,12 @@ pub fn finishes_deg(arg: Option<&str>, scene: bool) -> anyhow::Result<Vec<f64>> 
     let Some(text) = arg else {
         return Ok(if scene { Vec::new() } else { DEFAULT_FINISHES_DEG.to_vec() });
     };
-    if text.trim() == "none" {
-        return Ok(Vec::new());
-    }
-    text.split(',')
-        .map(|x| {
-            let v: f64 = x.trim().parse().with_context(|| format!("--finishes {text:?}: {x:?} is not a number"))?;
-            ensure!(
-                v.is_finite() && v > 0.0 && v <= 10.0,
-                "--finishes {text:?}: a tilt spread of {v} deg is not in (0, 10]; give spreads in degrees, or `none`"
-            );
-            Ok(v)
-        })
-        .collect()
+    number_list(
+        "--finishes",
+        text,
+        |v| v > 0.0 && v <= 10.0,
+        |v| format!("a tilt spread of {v} deg is not in (0, 10]; give spreads in degrees, or `none`"),
+    )
 }
 
 /// `--across` as stretches across the plane of incidence: `none` is none,
@@ -301,16 +294,33 @@ pub fn across(arg: Option<&str>) -> anyhow::Result<Vec<f64>> {
     let Some(text) = arg else {
         return Ok(crate::forward::prior_models::DEFAULT_ACROSS.to_vec());
     };
+    number_list(
+        "--across",
+        text,
+        |v| (0.1..=10.0).contains(&v) && v != 1.0,
+        |v| {
+            format!(
+                "a stretch of {v} is not in [0.1, 10] or is 1 (the material as it is, always read); give factors such as 1.5,3, or `none`"
+            )
+        },
+    )
+}
+
+/// A flag's comma list of finite numbers, each passing `ok` (else the
+/// error says `wrong` of it), or `none` for an empty list.
+fn number_list(
+    flag: &str,
+    text: &str,
+    ok: impl Fn(f64) -> bool,
+    wrong: impl Fn(f64) -> String,
+) -> anyhow::Result<Vec<f64>> {
     if text.trim() == "none" {
         return Ok(Vec::new());
     }
     text.split(',')
         .map(|x| {
-            let v: f64 = x.trim().parse().with_context(|| format!("--across {text:?}: {x:?} is not a number"))?;
-            ensure!(
-                v.is_finite() && (0.1..=10.0).contains(&v) && v != 1.0,
-                "--across {text:?}: a stretch of {v} is not in [0.1, 10] or is 1 (the material as it is, always read); give factors such as 1.5,3, or `none`"
-            );
+            let v: f64 = x.trim().parse().with_context(|| format!("{flag} {text:?}: {x:?} is not a number"))?;
+            ensure!(v.is_finite() && ok(v), "{flag} {text:?}: {}", wrong(v));
             Ok(v)
         })
         .collect()
