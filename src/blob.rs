@@ -630,11 +630,8 @@ impl GlossData<'_> {
     /// when the rows have centroids, else cluster `c`'s.
     pub fn block(&self, z: usize, c: usize, k: usize, v: &[f32]) -> &[f32] {
         let m = v.len();
-        let c = if self.centroids.is_empty() {
-            c
-        } else {
-            crate::kernel::select_cluster(&self.centroids[z * k * m..(z + 1) * k * m], v)
-        };
+        let own = if self.centroids.is_empty() { &[][..] } else { &self.centroids[z * k * m..(z + 1) * k * m] };
+        let c = crate::gloss::cluster_of(own, c, v);
         let bl = crate::gloss::block_len(m);
         &self.blocks[(z * k + c) * bl..(z * k + c + 1) * bl]
     }

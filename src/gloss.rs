@@ -77,6 +77,16 @@ pub const fn block_len(m: usize) -> usize {
     LINEAR * m + COV_LEN + SD_LEN
 }
 
+/// The gloss rows' cluster of a point whose corrected readings are `v`
+/// (m values) and whose BRDF cluster is `brdf_cluster`: with rows that have
+/// clusters of their own (`crate::blob`, flag bit 9; `centroids` the
+/// zone's K_g x m) the nearest ([`crate::kernel::select_cluster`]), else
+/// the BRDF's. The device, the host's reference and training all choose
+/// with it.
+pub fn cluster_of(centroids: &[f32], brdf_cluster: usize, v: &[f32]) -> usize {
+    if centroids.is_empty() { brdf_cluster } else { crate::kernel::select_cluster(centroids, v) }
+}
+
 /// Index of `(i, j)`, `i <= j`, in the packed covariance.
 pub const fn cov_index(i: usize, j: usize) -> usize {
     // Row i starts after rows 0..i, row k holding LINEAR - k entries.

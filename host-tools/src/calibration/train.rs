@@ -741,8 +741,7 @@ fn gloss_section(
                 let t = g.target.column(k);
                 let d = if t[2] > 0.0 { 100.0 * (t[2] - t[3]) / t[2] } else { f64::NAN };
                 let truth = [t[0], t[1], d];
-                let c = gloss_cluster(tz, plan, cents.as_deref(), noisy);
-                let (_, x, sc) = kernel_input(tz, plan, noisy);
+                let (c, x, sc) = gloss_input(tz, plan, cents.as_deref(), noisy);
                 zs.push((c, gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz))));
             }
         });
@@ -754,8 +753,7 @@ fn gloss_section(
         // reads its assigned value at every pixel.
         for p in zo.first_pixel..end {
             let v = gloss_rows::black_glass_readings(zo.pixel(p));
-            let c = gloss_cluster(tz, plan, cents.as_deref(), &v);
-            let (_, x, _) = kernel_input(tz, plan, &v);
+            let (c, x, _) = gloss_input(tz, plan, cents.as_deref(), &v);
             out.reference.push(gloss_rows::standard_reading(&blocks[c], &x, root_of(tz)).unwrap_or(s));
         }
         out.blocks.extend(blocks.into_iter().flatten());
@@ -844,8 +842,7 @@ impl ZoneGloss {
             let Ok(Some((fb, fs))) = gloss_rows_of(tz, tr, tt, plan, &self.bg, cents.as_deref()) else { return };
             let q = (crate::forward::gloss::ASSIGNED_GU / f64::from(fs)) as f32;
             for (k, noisy) in fold {
-                let c = gloss_cluster(tz, plan, cents.as_deref(), noisy);
-                let (_, x, sc) = kernel_input(tz, plan, noisy);
+                let (c, x, sc) = gloss_input(tz, plan, cents.as_deref(), noisy);
                 let (r, _) = gloss_rows::device_readings(&fb[c], &x, q, sc, root_of(tz));
                 let e = f64::from(r[brdf_meter::gloss::SPECULAR_GU]) - self.target[(0, k)];
                 if e.is_finite() {
@@ -933,14 +930,18 @@ fn chosen_gloss_clusters(options: &[Option<usize>], per_zone: &[Vec<f64>]) -> Op
 /// 90.5 % (94.5 and 94.5 % with the maps' clusters) for no gain in error.
 const OWN_GLOSS_CLUSTERS_GAIN: f64 = 0.75;
 
-/// The gloss cluster of readings `v`: with the rows' own `centroids`, the
-/// device's choice among them (`brdf_meter::kernel::select_cluster` on
-/// the readings as the device corrects them), else the maps' cluster.
-fn gloss_cluster(tz: &TrainedZone, plan: &F32Plan, centroids: Option<&[f32]>, v: &DVector<f64>) -> usize {
-    match centroids {
-        Some(c) => brdf_meter::kernel::select_cluster(c, &plan.readings(v)),
-        None => kernel_input(tz, plan, v).0,
-    }
+/// The gloss rows' cluster of readings `v` (the device's choice,
+/// `brdf_meter::gloss::cluster_of`, among the rows' own `centroids` or
+/// else the maps' cluster) with the kernel's input and scale
+/// ([`kernel_input`]).
+fn gloss_input(
+    tz: &TrainedZone,
+    plan: &F32Plan,
+    centroids: Option<&[f32]>,
+    v: &DVector<f64>,
+) -> (usize, Vec<f32>, f32) {
+    let (c, x, s) = kernel_input(tz, plan, v);
+    (brdf_meter::gloss::cluster_of(centroids.unwrap_or(&[]), c, &plan.readings(v)), x, s)
 }
 
 /// One zone's gloss blocks (per cluster) fitted on `pairs` for `target`,
@@ -970,8 +971,7 @@ fn gloss_rows_of(
         .map(|mp| gloss_rows::block(&mp.w, &mp.err_unit))
         .collect(),
     };
-    let c = gloss_cluster(tz, plan, centroids, bg);
-    let (_, x, _) = kernel_input(tz, plan, bg);
+    let (c, x, _) = gloss_input(tz, plan, centroids, bg);
     Ok(gloss_rows::standard_reading(&blocks[c], &x, root_of(tz)).map(|s| (blocks, s)))
 }
 

@@ -217,11 +217,7 @@ impl<'a> PointEstimator<'a> {
             // The device's operation, so the same bits.
             let q = *assigned / self.view.gloss_reference(p).expect("the blob has the section");
             // The gloss rows' cluster, from the same readings as the BRDF's.
-            let gc = if self.gloss_centroids.is_empty() {
-                cluster as usize
-            } else {
-                brdf_meter::kernel::select_cluster(&self.gloss_centroids, v)
-            };
+            let gc = brdf_meter::gloss::cluster_of(&self.gloss_centroids, cluster as usize, v);
             // The kernel's input: the scale-free kinds replace the last reading by the scale.
             let mut x = v.to_vec();
             if matches!(self.view.estimator(), EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise) {
