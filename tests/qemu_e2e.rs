@@ -324,7 +324,7 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
         csv: dir.path().join("m.csv"),
         json: dir.path().join("m.json"),
         scene: Some("patent".into()),
-        scene_lines: 1,
+        scene_lines: Some(1),
         exports: host_tools::cli::exports::ExportArgs {
             plot: Some(dir.path().join("m.svg")),
             plot_points: vec![0, 15, 31],

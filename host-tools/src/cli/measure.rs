@@ -37,9 +37,12 @@ pub struct Args {
     /// a scene TOML file.
     #[arg(long, value_name = "patent|analytic|PATH")]
     pub scene: Option<String>,
-    /// Scene lines to load (the device cycles through them), 1..=4.
-    #[arg(long, default_value_t = 1)]
-    pub scene_lines: usize,
+    /// Scene lines to load, 1..=4; the device cycles through them, so line k
+    /// of the measurement sees scene line k mod this. Default: `--lines`, at
+    /// most 4, so the lines measured are distinct draws of the scene (its
+    /// noise, its position along the surface).
+    #[arg(long, value_name = "N")]
+    pub scene_lines: Option<usize>,
     /// Plot and standard files.
     #[command(flatten)]
     pub exports: crate::cli::exports::ExportArgs,
@@ -89,6 +92,18 @@ pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
     Ok(r)
 }
 
+/// How many scene lines to load: `--scene-lines`, or by default one per line
+/// measured up to what the simulated sensor holds, so that a measurement of a
+/// few lines sees as many draws of the scene and not one line repeated.
+fn scene_lines(asked: Option<usize>, measured: u32) -> anyhow::Result<usize> {
+    let held = brdf_meter::shape::qemu::FRAME_LINES;
+    let n = asked.unwrap_or_else(|| (measured as usize).min(held));
+    if !(1..=held).contains(&n) {
+        bail!("--scene-lines {n}: the simulated sensor holds 1 to {held} lines");
+    }
+    Ok(n)
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.lines == 0 {
@@ -116,10 +131,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !info.simulated {
             bail!("--scene is for simulated devices (QEMU); this device has a real sensor");
         }
-        if !(1..=4).contains(&a.scene_lines) {
-            bail!("--scene-lines {}: the simulated sensor holds 1 to 4 lines", a.scene_lines);
-        }
-        let frames = named_scene_frames(spec, &view, a.scene_lines, info.full_scale)?;
+        let frames = named_scene_frames(spec, &view, scene_lines(a.scene_lines, a.lines)?, info.full_scale)?;
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
     c.timeout = std::time::Duration::from_secs(10);
@@ -181,6 +193,18 @@ mod tests {
         for bad in ["0:2:42", "0:0:3", "1:1:0", "a:1:1", "1:1", "-1:1:1"] {
             let e = parse_bins(bad, 81).unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
+        }
+    }
+
+    #[test]
+    fn scene_lines_default_to_the_lines_measured_up_to_what_the_sensor_holds() {
+        assert_eq!(scene_lines(None, 1).unwrap(), 1);
+        assert_eq!(scene_lines(None, 3).unwrap(), 3);
+        assert_eq!(scene_lines(None, 200).unwrap(), brdf_meter::shape::qemu::FRAME_LINES);
+        assert_eq!(scene_lines(Some(1), 4).unwrap(), 1);
+        for bad in [0, brdf_meter::shape::qemu::FRAME_LINES + 1] {
+            let e = scene_lines(Some(bad), 4).unwrap_err().to_string();
+            assert!(e.contains(&format!("--scene-lines {bad}")), "{e}");
         }
     }
 }
