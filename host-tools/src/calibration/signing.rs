@@ -147,8 +147,8 @@ pub fn keygen(key: &Path, force: bool) -> anyhow::Result<PublicKeyBytes> {
 /// this build of the host tools and the firmware trust; returns the blob.
 pub fn check_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<&'a [u8]> {
     signed::verify(image, signed::TRUSTED_KEYS).map_err(|e| {
+        // An unsigned blob's fault already says how to sign it.
         let hint = match e {
-            SignatureFault::Unsigned => " (sign it: `host-tools sign --key KEY --blob IN --out OUT`)",
             SignatureFault::UnknownKey => {
                 " (its key is not among the keys the firmware was built with, BRDF_TRUSTED_KEYS)"
             }
