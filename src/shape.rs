@@ -41,9 +41,12 @@ pub mod board {
     pub const PIXELS: usize = 128;
     /// Largest calibration the product runs, in zones (at n = [`super::BINS`],
     /// m = [`super::LEDS`], P = [`PIXELS`]): the largest zone count whose
-    /// signed calibration fits one [`SLOT_LEN`] slot. The firmware budget
-    /// check proves it fits and that one zone more would not; change it
-    /// together with the shape.
+    /// signed calibration of bare matrices (`blob::Dims::blob_len`) fits one
+    /// [`SLOT_LEN`] slot. The firmware budget check proves it fits and that
+    /// one zone more would not; change it together with the shape. A trained
+    /// calibration also carries its gloss rows and per-pixel references, so
+    /// fewer of its zones fit (117 of the Wiener kind); host-tools' `train`
+    /// says when a blob is more than a slot takes.
     pub const MAX_ZONES: usize = 124;
     /// Zones whose matrices are copied to RAM (8 x 81 x 7 f32 = 18 KiB); a
     /// calibration with more zones runs in place from its flash slot.

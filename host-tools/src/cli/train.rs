@@ -454,10 +454,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view.version(),
         view.crc()
     );
+    if let Some(note) = over_slot_note(out.len(), crate::calibration::train::board_blob_capacity()) {
+        println!("{note}");
+    }
     if let Some(p) = &a.json {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// What to tell the user when the blob (`len` bytes, signature excluded)
+/// is more than the board's calibration slot takes (`capacity`): training
+/// lowers a cluster count it chose to fit the slot, but a zone count or a
+/// fixed cluster count is the user's, and the board refuses such a blob
+/// only when it is provisioned. The blob is still written: it serves
+/// `estimate` and the evaluations.
+fn over_slot_note(len: usize, capacity: usize) -> Option<String> {
+    (len > capacity).then(|| {
+        format!(
+            "note: this blob is {} bytes more than the board's calibration slot takes ({capacity} bytes): the board will refuse it; for the board, train fewer zones (--zones) or clusters (--clusters)",
+            len - capacity
+        )
+    })
 }
 
 /// The zones' optics `train` trains on: from the scene (`--scene`: its
@@ -496,6 +514,15 @@ pub fn zone_optics(
 pub(crate) mod tests {
     use super::*;
     use std::path::Path;
+
+    #[test]
+    fn a_blob_over_the_boards_slot_is_said_to_be_and_by_how_much() {
+        let cap = crate::calibration::train::board_blob_capacity();
+        assert_eq!(over_slot_note(cap, cap), None);
+        let note = over_slot_note(cap + 18_000, cap).unwrap();
+        assert!(note.contains("18000 bytes more") && note.contains(&format!("({cap} bytes)")), "{note}");
+        assert!(note.contains("--zones"), "{note}");
+    }
 
     #[test]
     fn finishes_default_on_an_instruments_own_optics_and_parse_or_say_what_is_wrong() {
