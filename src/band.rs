@@ -22,7 +22,7 @@
 
 /// A point's estimate is broad when its half-maximum width about its
 /// highest value is at least this (deg): over twice the widest peak
-/// resolution of the product's calibrations (1.14 deg on the handheld,
+/// resolution of the product's calibrations (1.16 deg on the handheld,
 /// 0.76 on the patent profile), so a broad estimate is a lobe the
 /// calibration resolves by a margin, never its response to a spike.
 pub const BROAD_WIDTH_DEG: f32 = 3.0;

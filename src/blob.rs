@@ -78,7 +78,7 @@
 //! width its own estimate of the black glass comes out with: a pixel's
 //! matrices are its zone's, but where the mirror direction falls between
 //! the LEDs moves along the line, and with it the narrowest lobe the pixel
-//! puts out (0.73 to 1.14 deg on the handheld). Each value is finite, > 0
+//! puts out (0.74 to 1.16 deg on the handheld). Each value is finite, > 0
 //! and at most the header's (the widest), or NaN for a pixel whose estimate
 //! of the standard has no width, which is then judged at the header's
 //! value ([`BlobView::peak_resolution_at`]). The host judges a point's peak

@@ -15,7 +15,7 @@
 //! recorded beside it when some pixel resolves finer (`brdf_meter::blob`,
 //! flag bit 7): on the handheld the mirror direction falls between the LEDs
 //! at some pixels and on one at others, and the pixels' widths run from
-//! 0.73 to 1.14 deg.
+//! 0.74 to 1.16 deg.
 //!
 //! The host then reads a specular peak whose width is within
 //! `crate::output::peak::RESOLVED_WIDTH_FACTOR` of its pixel's resolution
