@@ -1,8 +1,9 @@
 //! The documentation cannot rot: every relative link in README.md and
 //! docs/**/*.md points at a file of the tree (and, into a Markdown file, at
 //! a heading it has), and every host-tools command the pages name (`host-tools
-//! SUB ...`, `cargo run ... -p host-tools -- SUB ...`) uses a subcommand and
-//! flags the built binary has. The subcommands and their flags are read from
+//! SUB ...`, `cargo run ... -p host-tools -- SUB ...`, and an inline span
+//! that begins with a subcommand and names a flag, `train --sign`) uses a
+//! subcommand and flags the built binary has. The subcommands and their flags are read from
 //! the binary's own `--help`, so a page is checked against the tools as they
 //! are, never against a list kept here.
 use std::collections::{BTreeMap, BTreeSet};
@@ -43,6 +44,8 @@ fn pages() -> Vec<String> {
 struct Split {
     prose: String,
     code: Vec<String>,
+    /// The inline code spans (also in `code`).
+    spans: Vec<String>,
     headings: Vec<String>,
 }
 
@@ -85,6 +88,7 @@ fn split(text: &str) -> Split {
     }
     // Inline code spans, taken out of the prose.
     let mut rest = String::new();
+    let mut spans = Vec::new();
     let mut chars = prose.char_indices().peekable();
     let bytes = prose.as_bytes();
     while let Some((i, c)) = chars.next() {
@@ -101,7 +105,7 @@ fn split(text: &str) -> Split {
         let start = i + ticks;
         match prose[start..].find(&open) {
             Some(len) if !prose[start..start + len].contains("\n\n") => {
-                code.push(prose[start..start + len].replace('\n', " "));
+                spans.push(prose[start..start + len].replace('\n', " "));
                 let end = start + len + ticks;
                 while chars.peek().is_some_and(|&(j, _)| j < end) {
                     chars.next();
@@ -110,7 +114,8 @@ fn split(text: &str) -> Split {
             _ => rest.push_str(std::str::from_utf8(&bytes[i..start]).unwrap()),
         }
     }
-    Split { prose: rest, code, headings }
+    code.extend(spans.iter().cloned());
+    Split { prose: rest, code, spans, headings }
 }
 
 /// GitHub's anchor for a heading: lower case, markup and punctuation other
@@ -234,6 +239,15 @@ fn commands(code: &str) -> Vec<Vec<String>> {
     out
 }
 
+/// An inline span written as a command without `host-tools` in front
+/// (`train --sign`, `pixel-map --false-alarm 0.10`): its words, when the
+/// first is one of `subcommands` and a later one is a flag.
+fn bare_command(span: &str, subcommands: &BTreeSet<String>) -> Option<Vec<String>> {
+    let words: Vec<String> = span.split_whitespace().map(str::to_string).collect();
+    let first = words.first()?;
+    (subcommands.contains(first) && words[1..].iter().any(|w| w.starts_with("--"))).then_some(words)
+}
+
 /// The flags a command line names: `--name`, `--name=value`, `[--name`.
 fn flags_of(words: &[String]) -> Vec<String> {
     words
@@ -287,8 +301,10 @@ fn every_link_and_command_in_the_docs_exists() {
     let mut helps: BTreeMap<Vec<String>, Help> = BTreeMap::new();
     let mut pending_used = BTreeSet::new();
     for (page, s) in &texts {
-        for code in &s.code {
-            for cmd in commands(code) {
+        let bare =
+            s.spans.iter().filter(|c| !c.contains("host-tools")).filter_map(|c| bare_command(c, &top.subcommands));
+        for cmd in s.code.iter().flat_map(|c| commands(c)).chain(bare) {
+            {
                 let sub = &cmd[0];
                 if !top.subcommands.contains(sub) {
                     if let Some(entry) = PENDING.iter().find(|(p, c)| p == page && c == sub) {
@@ -356,4 +372,9 @@ fn the_checker_reads_links_commands_and_anchors_as_github_does() {
     assert!(train.flags.contains("zones") && train.flags.contains("sign") && !train.flags.contains("not-a-flag"));
     assert!(help(&[]).subcommands.contains("measure"));
     assert_eq!(normalise("docs/guide/../point-schema.md"), "docs/point-schema.md");
+    let subs = help(&[]).subcommands;
+    assert_eq!(bare_command("tradeoff --qemu", &subs).unwrap(), ["tradeoff", "--qemu"]);
+    for not_a_command in ["train", "cargo test --release", "the train --zones", "measure"] {
+        assert_eq!(bare_command(not_a_command, &subs), None, "{not_a_command}");
+    }
 }
