@@ -33,6 +33,14 @@ pub enum LinkError {
     Stream(#[from] DecodeError),
 }
 
+impl LinkError {
+    /// Whether the same request is worth sending again: a reply lost or
+    /// garbled on the way (either direction), not a refusal.
+    pub fn is_transient(&self) -> bool {
+        matches!(self, Self::Timeout(..) | Self::Frame(_) | Self::Device(DeviceError::Frame(_)))
+    }
+}
+
 /// A point's estimate, owned.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointRecord {
@@ -538,13 +546,7 @@ impl<T: Transport> Client<T> {
         loop {
             k += 1;
             match self.request(req) {
-                Err(e)
-                    if k < attempts
-                        && matches!(
-                            e,
-                            LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
-                        ) =>
-                {
+                Err(e) if k < attempts && e.is_transient() => {
                     self.count(&e);
                     self.stats.retries += 1;
                     self.resync()?;
@@ -619,13 +621,7 @@ impl<T: Transport> Client<T> {
                     Err(LinkError::Device(DeviceError::OutOfOrder { expected, .. })) if expected == next && k > 1 => {
                         break;
                     }
-                    Err(e)
-                        if k < tries
-                            && matches!(
-                                e,
-                                LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
-                            ) =>
-                    {
+                    Err(e) if k < tries && e.is_transient() => {
                         self.count(&e);
                         self.stats.retries += 1;
                         self.resync()?;
@@ -641,13 +637,7 @@ impl<T: Transport> Client<T> {
             k += 1;
             match self.request(&Request::ProvisionCommit) {
                 Ok(Response::Committed(c)) => return Ok(c),
-                Err(e)
-                    if k < tries
-                        && matches!(
-                            e,
-                            LinkError::Timeout(..) | LinkError::Frame(_) | LinkError::Device(DeviceError::Frame(_))
-                        ) =>
-                {
+                Err(e) if k < tries && e.is_transient() => {
                     self.count(&e);
                     self.stats.retries += 1;
                     self.resync()?;
