@@ -20,7 +20,8 @@ pub struct Args {
     #[command(flatten)]
     pub device: Endpoint,
     /// The calibration blob the device runs (for the angle grid and the
-    /// per-bin uncertainty; checked against the device's by CRC).
+    /// per-bin uncertainty; checked against the device's by CRC): the signed
+    /// file provisioned, or the unsigned blob it was signed from.
     #[arg(long, value_name = "PATH")]
     pub blob: PathBuf,
     /// Lines to measure.
@@ -92,6 +93,21 @@ pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
     Ok(r)
 }
 
+/// The calibration to decode the device's points with: a signed file is
+/// checked as provisioning checks it; an unsigned blob (what `train` wrote
+/// before it was signed) is taken as it parses, since what decides whether
+/// it is the one the device runs is the device's CRC, compared in [`run`].
+fn read_for_decoding(path: &std::path::Path) -> anyhow::Result<Vec<u8>> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let name = path.display().to_string();
+    if brdf_meter::signed::split(&bytes).is_ok() {
+        crate::device::provision::parse_signed(&bytes, &name)?;
+    } else {
+        crate::device::provision::parse_blob(&bytes, &name)?;
+    }
+    Ok(bytes)
+}
+
 /// How many scene lines to load: `--scene-lines`, or by default one per line
 /// measured up to what the simulated sensor holds, so that a measurement of a
 /// few lines sees as many draws of the scene and not one line repeated.
@@ -110,8 +126,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("--lines must be at least 1");
     }
     a.exports.check()?;
-    let bytes = crate::device::provision::read_blob(&a.blob)?;
-    let view = BlobView::parse(&bytes).expect("read_blob checked it");
+    let bytes = read_for_decoding(&a.blob)?;
+    let view = BlobView::parse(&bytes).expect("read_for_decoding checked it");
     let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
     match info.calibration {
@@ -206,5 +222,27 @@ mod tests {
             let e = scene_lines(Some(bad), 4).unwrap_err().to_string();
             assert!(e.contains(&format!("--scene-lines {bad}")), "{e}");
         }
+    }
+
+    #[test]
+    fn the_blob_to_decode_with_may_be_signed_or_not_but_must_be_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let blob = brdf_meter::test_blobs::test_blob(9, 3, 1, 4, 1.0);
+        let unsigned = dir.path().join("cal.blob");
+        std::fs::write(&unsigned, &blob).unwrap();
+        assert_eq!(read_for_decoding(&unsigned).unwrap(), blob);
+        use crate::calibration::signing::{DEV_SECRET, sign_blob};
+        let signed_path = dir.path().join("cal.signed.blob");
+        std::fs::write(&signed_path, sign_blob(&blob, &DEV_SECRET)).unwrap();
+        assert_eq!(
+            BlobView::parse(&read_for_decoding(&signed_path).unwrap()).unwrap().crc(),
+            BlobView::parse(&blob).unwrap().crc()
+        );
+        let mut tampered = std::fs::read(&signed_path).unwrap();
+        tampered[20] ^= 1;
+        std::fs::write(&signed_path, &tampered).unwrap();
+        assert!(read_for_decoding(&signed_path).unwrap_err().to_string().contains("refused"));
+        std::fs::write(&unsigned, &blob[..blob.len() / 2]).unwrap();
+        assert!(read_for_decoding(&unsigned).unwrap_err().to_string().contains("not a valid calibration blob"));
     }
 }
