@@ -344,6 +344,43 @@ fn saturated_and_dark_points_are_flagged() {
 }
 
 #[test]
+fn a_new_session_measuring_as_the_last_one_did_gets_its_stream_from_point_0() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(9.5);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    let mut device = c.into_transport();
+    // Two host processes in turn, each sending the same requests from seq
+    // 1: the same `Measure`, down to its sequence number.
+    for session in 0..2 {
+        let mut c = Client::new(device).unwrap();
+        c.format = StreamFormat::LOSSLESS;
+        let pts = c.measure(2).unwrap_or_else(|e| panic!("session {session}: {e}"));
+        check_points(&b, &scene, &pts, 2);
+        device = c.into_transport();
+    }
+}
+
+#[test]
+fn a_measurement_the_host_gives_up_on_is_stopped_so_the_next_session_measures() {
+    let mut c = client(flash(), ZONES);
+    let b = blob(9.75);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    // The host decodes with another calibration: it gives up at the first
+    // frame, with lines still to come.
+    c.set_calibration(&blob(5.0)).unwrap();
+    c.format = StreamFormat { encoding: Encoding::Sigma16, bins: None };
+    assert!(matches!(c.measure(3), Err(LinkError::Stream(DecodeError::OtherBlob { .. }))));
+    let mut c = Client::new(c.into_transport()).unwrap();
+    c.format = StreamFormat::LOSSLESS;
+    let pts = c.measure(2).unwrap();
+    check_points(&b, &scene, &pts, 2);
+}
+
+#[test]
 fn line_k_plus_1_is_acquired_while_line_k_is_estimated_and_sent() {
     let mut c = client(flash(), ZONES);
     let b = blob(10.0);

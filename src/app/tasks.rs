@@ -263,6 +263,10 @@ where
                 });
             }
             LineState::End { job, lines, error } => {
+                // The next job's stream starts at 0 even when its request is
+                // this one again: a new host session numbers its requests
+                // from 1, so the same `Measure` may well carry the same seq.
+                current = None;
                 if let Some(e) = error {
                     shared.out.send(frame(job.seq, &Response::Error(e))).await;
                 }

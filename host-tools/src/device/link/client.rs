@@ -217,6 +217,12 @@ impl<T: Transport> Client<T> {
         &mut self.t
     }
 
+    /// The transport back, for the next session on the same device (a new
+    /// `Client` numbers its requests from 1 again, as a new process does).
+    pub fn into_transport(self) -> T {
+        self.t
+    }
+
     /// Sends raw bytes (tests of malformed frames).
     pub fn send_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
         Ok(self.t.send(bytes)?)
@@ -433,8 +439,30 @@ impl<T: Transport> Client<T> {
     ) -> Result<Vec<PointRecord>, LinkError> {
         assert!(lines >= 1, "use start/stop for continuous measurement");
         let seq = self.send(&Request::Measure { lines, format: self.format })?;
-        let mut points = Vec::new();
         let mut started = false;
+        let result = self.measurement_stream(seq, lines, on_point, &mut started);
+        if result.is_err() && started {
+            // The device measures on: stop it and let what it already sent
+            // drain, so the link (and the next session on it) starts clean
+            // rather than behind a stream nobody reads.
+            let _ = self.send(&Request::Stop);
+            let timeout = std::mem::replace(&mut self.timeout, Duration::from_millis(500));
+            let _ = self.resync();
+            self.timeout = timeout;
+        }
+        result
+    }
+
+    /// The frames of the measurement requested with `seq`, up to its
+    /// `MeasureDone` (`started` set once the device has begun).
+    fn measurement_stream(
+        &mut self,
+        seq: u32,
+        lines: u32,
+        on_point: &mut dyn FnMut(&PointRecord),
+        started: &mut bool,
+    ) -> Result<Vec<PointRecord>, LinkError> {
+        let mut points = Vec::new();
         let mut error = None;
         loop {
             let f = self.next_frame(self.timeout).map_err(|e| match e {
@@ -445,10 +473,10 @@ impl<T: Transport> Client<T> {
                 continue;
             }
             match f.reply {
-                Reply::Msg(Response::MeasureStarted { .. }) => started = true,
+                Reply::Msg(Response::MeasureStarted { .. }) => *started = true,
                 Reply::Point(p) => Self::take_in_order(&mut points, vec![p], on_point)?,
                 Reply::Points(ps) => Self::take_in_order(&mut points, ps, on_point)?,
-                Reply::Msg(Response::Error(e)) if !started => return Err(LinkError::Device(e)),
+                Reply::Msg(Response::Error(e)) if !*started => return Err(LinkError::Device(e)),
                 Reply::Msg(Response::Error(e)) => error = Some(e),
                 Reply::Msg(Response::MeasureDone { lines_done }) => {
                     if let Some(e) = error {
