@@ -20,14 +20,14 @@ pub fn provision<T: Transport>(
     let info = c.info().context("asking the device for its sizes")?;
     if (d.n, d.m, d.pixels) != (info.bins as usize, info.leds as usize, info.pixels as usize) {
         bail!(
-            "{name} was made for n = {}, m = {}, P = {} but the device is n = {}, m = {}, P = {}: train for this device (e.g. `host-tools train --pixels {}`)",
+            "{name} was made for n = {}, m = {}, P = {} but the device is n = {}, m = {}, P = {}: train for this device (`host-tools train --pixels {p}`, or with a scene `train --scene SCENE --device-pixels {p}`)",
             d.n,
             d.m,
             d.pixels,
             info.bins,
             info.leds,
             info.pixels,
-            info.pixels
+            p = info.pixels
         );
     }
     if blob.len() > info.max_blob as usize {

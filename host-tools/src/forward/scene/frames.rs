@@ -72,7 +72,11 @@ pub fn named_scene_frames(
     let pixels = blob.dims().pixels;
     Ok(match spec {
         "analytic" => analytic_scene(blob, lines, full_scale),
-        "patent" => scene_frames(&patent_scene(pixels), lines)?,
+        "patent" => {
+            let s = patent_scene(pixels);
+            check_optics(&s, blob)?;
+            scene_frames(&s, lines)?
+        }
         path => {
             let whole =
                 super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
