@@ -351,6 +351,9 @@ impl From<CriterionArg> for Criterion {
 /// trains (`crate::calibration::train`), signs and writes. Nothing is
 /// written unless training succeeds.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    // The key is read before training, which may take minutes: a missing or
+    // malformed key file is said at once.
+    let seed = a.sign.as_deref().map(crate::calibration::signing::read_secret).transpose()?;
     let setup = a.cal.setup()?;
     let kind = setup.kind;
     let noise = setup.optics.4;
@@ -358,10 +361,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let trained = train(&setup.spec())?;
     // Everything is computed; serialise (and sign) before writing anything.
     let json = a.json.as_ref().map(|_| trained.to_json());
-    let out = match &a.sign {
-        Some(key) => {
-            crate::calibration::signing::sign_blob(&trained.blob, &crate::calibration::signing::read_secret(key)?)
-        }
+    let out = match &seed {
+        Some(seed) => crate::calibration::signing::sign_blob(&trained.blob, seed),
         None => trained.blob.clone(),
     };
     crate::output::io::write_atomic(&a.out, &out).with_context(|| format!("writing {}", a.out.display()))?;
@@ -443,9 +444,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else if let Some(note) = crate::calibration::gloss_rows::zones_without_reading_note(&view) {
         println!("{note}");
     }
-    let signed = match &a.sign {
-        Some(key) => format!("signed with {}", key.display()),
-        None => "unsigned: sign it with `host-tools sign` before provisioning".into(),
+    let signed = match (&a.sign, &seed) {
+        (Some(key), Some(seed)) => {
+            format!("signed with {}{}", key.display(), crate::calibration::signing::untrusted_note(seed))
+        }
+        _ => "unsigned: sign it with `host-tools sign` before provisioning".into(),
     };
     println!(
         "wrote {} ({} bytes, format {}, CRC {:#010x}, {signed})",
