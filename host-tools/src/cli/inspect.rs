@@ -13,7 +13,7 @@ use crate::inspection::lines::{DeviceModel, Line};
 use crate::inspection::roc::{self, RocSpec};
 use crate::inspection::spc::spc;
 use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
-use anyhow::{Context, ensure};
+use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
 use brdf_meter::inspect::recipe::DelayUnit;
@@ -172,9 +172,14 @@ pub struct RunArgs {
     /// Lines to inspect.
     #[arg(long, default_value_t = 100)]
     pub lines: u32,
-    /// Send a rejected line's points too.
-    #[arg(long)]
-    pub defect_points: bool,
+    /// Send a rejected line's points too, and write them (the point schema)
+    /// as CSV to PATH and as JSON beside it; needs `--blob` to read them.
+    #[arg(long, value_name = "PATH", requires = "blob")]
+    pub defect_points: Option<PathBuf>,
+    /// The calibration blob the device runs (signed or not; checked against
+    /// the device's by CRC), to read the rejected lines' points with.
+    #[arg(long, value_name = "PATH")]
+    pub blob: Option<PathBuf>,
     /// A defect scene (or scene) to load into a simulated device first (4 lines, cycled).
     #[arg(long, value_name = "PATH")]
     pub scene: Option<PathBuf>,
@@ -258,15 +263,11 @@ fn device_model<'a>(view: BlobView<'a>, scene: &Scene) -> anyhow::Result<DeviceM
 fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
     let image = provision::read_blob(&a.blob)?;
     let view = provision::parse_signed(&image, &a.blob.display().to_string())?;
-    let ds = DefectScene::load_any(&a.scene)?;
+    let (ds, cut) = DefectScene::load_any_for_device(&a.scene, view.dims().pixels)?;
+    if let Some(note) = cut {
+        eprintln!("{note}");
+    }
     let model = device_model(view, &ds.scene)?;
-    ensure!(
-        model.pixels() == ds.pixels(),
-        "{} has {} pixels but the calibration {}",
-        a.scene.display(),
-        ds.pixels(),
-        model.pixels()
-    );
     let lines: Vec<Line> = (a.first_line..a.first_line + a.lines as u64)
         .map(|l| Ok(model.correct(&ds.raw_frames_at(l)?)))
         .collect::<anyhow::Result<_>>()?;
@@ -333,16 +334,36 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
     let info = c.info()?;
     if let Some(path) = &a.scene {
         ensure!(info.simulated, "--scene is for simulated devices (QEMU); this device has a real sensor");
-        let ds = DefectScene::load_any(path)?;
+        let (ds, cut) = DefectScene::load_any_for_device(path, usize::from(info.pixels))?;
+        if let Some(note) = cut {
+            eprintln!("{note}");
+        }
         let lines = brdf_meter::shape::qemu::FRAME_LINES;
         let frames = (a.scene_line..a.scene_line + lines as u64)
             .map(|l| ds.raw_frames_at(l))
             .collect::<anyhow::Result<Vec<_>>>()?;
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
     }
+    // The rejected lines' points are read with the calibration the device runs.
+    let blob = match &a.blob {
+        Some(path) => {
+            let bytes = crate::cli::measure::read_for_decoding(path)?;
+            let crc = brdf_meter::blob::BlobView::parse(&bytes).expect("read_for_decoding checked it").crc();
+            match info.calibration {
+                Some(cal) if cal.blob_crc == crc => {}
+                _ => bail!(
+                    "{} ({crc:#010x}) is not the calibration the device runs: give the blob it runs",
+                    path.display()
+                ),
+            }
+            c.set_calibration(&bytes)?;
+            Some(bytes)
+        }
+        None => None,
+    };
     let progress = crate::output::progress::bar(a.lines as u64, "lines");
     let mut rejected = 0usize;
-    let run = c.inspect(a.lines, a.defect_points, &mut |v| {
+    let run = c.inspect(a.lines, a.defect_points.is_some(), &mut |v| {
         rejected += v.rejected() as usize;
         progress.set_position(v.line as u64 + 1);
         progress.set_message(format!("{rejected} rejected, EWMA {:+.3} GU", v.ewma));
@@ -385,6 +406,12 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &a.map {
         defect_map::write_png(path, &run.verdicts, usize::from(info.pixels), 4)?;
+    }
+    if let (Some(path), Some(bytes)) = (&a.defect_points, &blob) {
+        let view = brdf_meter::blob::BlobView::parse(bytes).expect("read_for_decoding checked it");
+        let json = path.with_extension("json");
+        crate::device::measurement::measurement_points(&view, &run.points, 45.0).write(path, Some(&json))?;
+        println!("the rejected lines' {} points: {} and {}", run.points.len(), path.display(), json.display());
     }
     Ok(())
 }

@@ -97,7 +97,7 @@ pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
 /// checked as provisioning checks it; an unsigned blob (what `train` wrote
 /// before it was signed) is taken as it parses, since what decides whether
 /// it is the one the device runs is the device's CRC, compared in [`run`].
-fn read_for_decoding(path: &std::path::Path) -> anyhow::Result<Vec<u8>> {
+pub(crate) fn read_for_decoding(path: &std::path::Path) -> anyhow::Result<Vec<u8>> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let name = path.display().to_string();
     if brdf_meter::signed::split(&bytes).is_ok() {

@@ -103,6 +103,20 @@ pub enum DefectSpec {
     },
 }
 
+impl DefectSpec {
+    /// The pixels and lines it covers (`None`: the whole line, drift and
+    /// motion).
+    fn extent_mut(&mut self) -> Option<&mut Extent> {
+        match self {
+            Self::Scratch { at, .. }
+            | Self::MattPatch { at, .. }
+            | Self::GlossStep { at, .. }
+            | Self::Film { at, .. } => Some(at),
+            Self::GlossDrift { .. } | Self::Motion { .. } => None,
+        }
+    }
+}
+
 /// Pixels and lines a defect covers.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -198,14 +212,60 @@ impl DefectScene {
         Self::new(&file.name, scene, &file.defects)
     }
 
-    /// A defect scene file, or a plain scene (no defects): told apart by
-    /// the defect scene's `scene` field.
-    pub fn load_any(path: &Path) -> anyhow::Result<Self> {
+    /// A defect scene file, or a plain scene (no defects; told apart by the
+    /// defect scene's `scene` field), for a device of `pixels` pixels: a
+    /// scene of more is cut to its centre pixels, as `measure --scene` cuts it
+    /// ([`Scene::for_device`]), each defect moved with the window (and cut
+    /// to it; one wholly outside is an error). Also returns the note to
+    /// print when the scene was cut.
+    pub fn load_any_for_device(path: &Path, pixels: usize) -> anyhow::Result<(Self, Option<String>)> {
+        let (name, whole, defects) = Self::read_any(path)?;
+        let p = whole.instrument.sensor.pixels;
+        if p == pixels {
+            return Ok((Self::new(&name, whole, &defects)?, None));
+        }
+        let scene = whole.for_device(pixels).with_context(|| format!("{}", path.display()))?;
+        let first = (p - pixels) / 2;
+        let moved = defects
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let mut d = d.clone();
+                if let Some(at) = d.extent_mut() {
+                    let (a, b) = (at.first_pixel.max(first), (at.first_pixel + at.pixels).min(first + pixels));
+                    anyhow::ensure!(
+                        a < b,
+                        "{}: defect {i} covers pixels {}..={} of the scene's {p}, none of the {pixels} the device reads \
+                         ({first}..={}): move it, or give a scene of the device's {pixels} pixels",
+                        path.display(),
+                        at.first_pixel,
+                        at.first_pixel + at.pixels - 1,
+                        first + pixels - 1
+                    );
+                    (at.first_pixel, at.pixels) = (a - first, b - a);
+                }
+                Ok(d)
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let note = format!(
+            "note: scene {} has {p} pixels; the device reads its pixels {first}..={}{}",
+            path.display(),
+            first + pixels - 1,
+            if defects.is_empty() { "" } else { " (the defects moved with them)" }
+        );
+        Ok((Self::new(&name, scene, &moved)?, Some(note)))
+    }
+
+    /// A defect scene file's or a plain scene's name, scene and defects.
+    fn read_any(path: &Path) -> anyhow::Result<(String, Scene, Vec<DefectSpec>)> {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         if text.lines().any(|l| l.trim_start().starts_with("scene ") || l.trim_start().starts_with("scene=")) {
-            Self::load(path)
+            let file: DefectSceneFile = crate::output::config::load_toml(path)?;
+            let base = path.parent().unwrap_or(Path::new(".")).join(&file.scene);
+            let scene = Scene::load(&base).with_context(|| format!("{}: field `scene`", path.display()))?;
+            Ok((file.name, scene, file.defects))
         } else {
-            Self::new("defect-free", Scene::load(path)?, &[])
+            Ok(("defect-free".into(), Scene::load(path)?, Vec::new()))
         }
     }
 
@@ -383,6 +443,31 @@ mod tests {
             assert_eq!(got[first_led], want[first_led], "the first LED's frames of line 9 see line 9");
         }
         assert_ne!(got, want, "the later LEDs' frames see part of line 10");
+    }
+
+    #[test]
+    fn a_scene_cut_to_the_devices_pixels_keeps_its_defects_where_they_were_on_the_surface() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/inspect");
+        let (whole, note) = DefectScene::load_any_for_device(&dir.join("scratch.toml"), 128).unwrap();
+        assert!(note.is_none());
+        assert_eq!(whole.defect_pixels(12), Some((62, 65)));
+        // 32 of 128 pixels: 48..=79; the scratch at 62..=65 is at 14..=17.
+        let (cut, note) = DefectScene::load_any_for_device(&dir.join("scratch.toml"), 32).unwrap();
+        assert!(note.unwrap().contains("48..=79"));
+        assert_eq!((cut.pixels(), cut.defect_pixels(12)), (32, Some((14, 17))));
+        let clean = DefectScene::new("clean", cut.scene.clone(), &[]).unwrap();
+        let (got, want) = (light(&cut, 12), light(&clean, 12));
+        let differs: Vec<usize> = (0..32).filter(|&p| got.iter().zip(&want).any(|(g, w)| g[p] != w[p])).collect();
+        assert!(!differs.is_empty() && differs.iter().all(|p| (14..18).contains(p)), "{differs:?}");
+        // Cut to the window: the matt patch at 40..=55 keeps 48..=55.
+        let (patch, _) = DefectScene::load_any_for_device(&dir.join("matt-patch.toml"), 32).unwrap();
+        assert_eq!(patch.defect_pixels(12), Some((0, 7)));
+        // The film at 20..=35 lies outside the window: said, not dropped.
+        let e = DefectScene::load_any_for_device(&dir.join("film.toml"), 32).err().unwrap().to_string();
+        assert!(e.contains("defect 0 covers pixels 20..=35") && e.contains("48..=79"), "{e}");
+        // A plain scene is cut the same way.
+        let (plain, note) = DefectScene::load_any_for_device(&dir.join("../handheld.toml"), 32).unwrap();
+        assert!(note.is_some() && plain.pixels() == 32 && plain.defect_pixels(12).is_none());
     }
 
     #[test]
