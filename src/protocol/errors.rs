@@ -269,6 +269,10 @@ impl core::fmt::Display for DeviceError {
                 "blob made for another instrument: {field:?} is {blob} in the blob but {device} on the device; the previous calibration is kept"
             ),
             Self::Storage => write!(f, "flash error; the previous calibration is kept"),
+            Self::Sensor(SensorError::NoData) => write!(
+                f,
+                "the sensor has no frame to give (a simulated sensor with no scene loaded: load one, `measure --scene`)"
+            ),
             Self::Sensor(e) => write!(f, "sensor error: {e:?}"),
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
             Self::SignatureRejected(e) => {
