@@ -343,6 +343,11 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
             .map(|l| ds.raw_frames_at(l))
             .collect::<anyhow::Result<Vec<_>>>()?;
         c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
+        if a.lines as usize > lines {
+            eprintln!(
+                "note: the simulated sensor holds {lines} scene lines and cycles through them: the gloss statistics below are of those {lines}, repeated"
+            );
+        }
     }
     // The rejected lines' points are read with the calibration the device runs.
     let blob = match &a.blob {
@@ -374,11 +379,12 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
     let s = spc(&means, lsl, usl);
     let status = c.inspect_status()?;
     println!(
-        "{} lines, {} rejected, {} defects, {} drift alarm(s), {} reject pulse(s); gloss change mean {:+.3} GU, sd {:.3}, Cp {:.2}, Cpk {:.2}; {:.1} link bytes per line",
+        "{} lines, {} rejected, {} defects, {} drift alarm(s) raised ({} lines in alarm), {} reject pulse(s); gloss change mean {:+.3} GU, sd {:.3}, Cp {:.2}, Cpk {:.2}; {:.1} link bytes per line",
         run.verdicts.len(),
         status.counters.rejected,
         status.counters.defects,
         status.counters.drift_alarms,
+        run.verdicts.iter().filter(|v| v.flags & brdf_meter::inspect::decide::verdict::DRIFT_ALARM != 0).count(),
         run.pulses.len(),
         s.mean,
         s.sd,
