@@ -153,6 +153,37 @@ pub struct MaterialRow {
     /// Per pixel, the share of the bins (over the lines) within k = 2 of
     /// their stated uncertainty.
     pub bin_coverage: Vec<f64>,
+    /// Per pixel, the absolute error of the mean haze (HU) and distinctness
+    /// (%) readings over the lines against the definitions in three
+    /// dimensions (NaN: no reading): the device's, then interpolation's.
+    pub haze_distinctness_error: [Vec<[f64; 2]>; 2],
+}
+
+/// Haze (HU) and distinctness (% points) absolute errors over every
+/// (material, pixel) with a reading: median and 90th percentile each.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct HazeDistinctnessErrors {
+    /// Haze, HU: [median, 90th].
+    pub haze_hu: [f64; 2],
+    /// Distinctness, % points: [median, 90th].
+    pub distinctness_pct: [f64; 2],
+}
+
+impl HazeDistinctnessErrors {
+    /// Over the rows' per-pixel errors: the device's (`which` 0) or
+    /// interpolation's (1).
+    fn of(rows: &[MaterialRow], which: usize) -> Self {
+        let q = |r: usize| {
+            let v: Vec<f64> = rows
+                .iter()
+                .flat_map(|m| m.haze_distinctness_error[which].iter().map(move |e| e[r]))
+                .filter(|e| e.is_finite())
+                .collect();
+            let q = quantiles(&v);
+            [q[0], q[1]]
+        };
+        Self { haze_hu: q(0), distinctness_pct: q(1) }
+    }
 }
 
 /// Gloss readings' relative error over every (material, pixel) with a
@@ -198,6 +229,9 @@ pub struct LineSummary {
     pub gloss: GlossErrors,
     /// Interpolation's.
     pub gloss_interpolation: GlossErrors,
+    /// Haze and distinctness readings' absolute errors: the device's, then
+    /// interpolation's.
+    pub haze_distinctness: [HazeDistinctnessErrors; 2],
     /// Share of the bins within k = 2 of their stated uncertainty.
     pub bin_coverage: f64,
     /// Its 95 % interval, resampling the materials
@@ -218,6 +252,7 @@ impl LineSummary {
             interpolation: quantiles(&all(|r| &r.interpolation)),
             gloss: gloss_of(|r| &r.gloss),
             gloss_interpolation: gloss_of(|r| &r.gloss_interpolation),
+            haze_distinctness: [HazeDistinctnessErrors::of(rows, 0), HazeDistinctnessErrors::of(rows, 1)],
             bin_coverage: covered.iter().sum::<f64>() / covered.len().max(1) as f64,
             // Each material's pixels weigh alike (each the same lines and bins).
             bin_coverage_interval: crate::evaluation::coverage_interval::coverage_interval(
@@ -254,6 +289,9 @@ pub struct PixelMap {
     pub interpolation: [f64; 3],
     /// Gloss readings of the held-out materials.
     pub gloss: GlossErrors,
+    /// Their haze and distinctness readings: the device's, then
+    /// interpolation's.
+    pub haze_distinctness: [HazeDistinctnessErrors; 2],
     /// Interpolation's.
     pub gloss_interpolation: GlossErrors,
     /// Share of every held-out bin within k = 2 of its stated uncertainty.
@@ -571,10 +609,15 @@ fn read_material(
     let mut ierr = vec![0.0; p];
     let mut fl = vec![PixelCounts::default(); p];
     let (mut g_true, mut g_est, mut g_int) = (vec![0.0; p], vec![0.0; p], vec![0.0; p]);
+    // Per pixel, the mean haze and distinctness over the lines: the device's and interpolation's.
+    let (mut hd_est, mut hd_int) = (vec![[0.0f64; 2]; p], vec![[0.0f64; 2]; p]);
+    let mut hd_true = vec![[0.0f64; 2]; p];
     let mut covered = vec![0.0; p];
     let mut flag = FlagScore::default();
     for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
-        g_true[px] = model_readings(b.as_ref(), &geo.views[px])[brdf_meter::gloss::SPECULAR_GU];
+        let true_readings = model_readings(b.as_ref(), &geo.views[px]);
+        g_true[px] = true_readings[brdf_meter::gloss::SPECULAR_GU];
+        hd_true[px] = [true_readings[brdf_meter::gloss::HAZE_HU], true_readings[brdf_meter::gloss::DISTINCTNESS]];
         let view_deg = geo.views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
         let truth = truth_at(b.as_ref(), &geo.views[px], &geo.grid);
         let truth32: Vec<f32> = truth.iter().map(|x| *x as f32).collect();
@@ -591,8 +634,12 @@ fn read_material(
             *ie += score.interpolation / spec.lines as f64;
             covered[px] += score.covered / spec.lines as f64;
             g_est[px] += f64::from(pt.readings[brdf_meter::gloss::SPECULAR_GU]) / spec.lines as f64;
-            let gi = profile_scaled_readings(&score.profile, geo.grid.bins_deg(), view_deg).map_or(f64::NAN, |l| l[0]);
-            g_int[px] += gi / spec.lines as f64;
+            let li = profile_scaled_readings(&score.profile, geo.grid.bins_deg(), view_deg);
+            g_int[px] += li.map_or(f64::NAN, |l| l[0]) / spec.lines as f64;
+            for (r, k) in [brdf_meter::gloss::HAZE_HU, brdf_meter::gloss::DISTINCTNESS].into_iter().enumerate() {
+                hd_est[px][r] += f64::from(pt.readings[k]) / spec.lines as f64;
+                hd_int[px][r] += li.map_or(f64::NAN, |l| l[k]) / spec.lines as f64;
+            }
             let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
             c.out_of_prior += usize::from(flagged);
             flag.add(score.error, flagged);
@@ -608,6 +655,8 @@ fn read_material(
         gloss: g_est,
         gloss_interpolation: g_int,
         bin_coverage: covered,
+        haze_distinctness_error: [&hd_est, &hd_int]
+            .map(|read| read.iter().zip(&hd_true).map(|(r, t)| [(r[0] - t[0]).abs(), (r[1] - t[1]).abs()]).collect()),
     };
     Ok((row, fl, flag, peaks))
 }
@@ -804,6 +853,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         interpolation: held_out.interpolation,
         gloss: held_out.gloss,
         gloss_interpolation: held_out.gloss_interpolation,
+        haze_distinctness: held_out.haze_distinctness,
         bin_coverage: held_out.bin_coverage,
         bin_coverage_interval: held_out.bin_coverage_interval,
         flag: held_out_flag,

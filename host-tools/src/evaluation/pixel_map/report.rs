@@ -71,6 +71,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     let _ = writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&map.gloss_interpolation));
     let _ = writeln!(
         s,
+        "| haze (HU) and distinctness (% points), held out: absolute error median / 90th (material x pixel) | {} |",
+        haze_distinctness(&map.haze_distinctness)
+    );
+    let _ = writeln!(
+        s,
         "| held-out bins within k = 2 of their stated uncertainty (95 % interval over the materials) | {} |",
         percent_with_interval(map.bin_coverage, map.bin_coverage_interval)
     );
@@ -166,6 +171,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             writeln!(s, "| linear interpolation's gloss, the same points | {} |", g(&u.summary.gloss_interpolation));
         let _ = writeln!(
             s,
+            "| unseen set's haze (HU) and distinctness (% points): absolute error median / 90th | {} |",
+            haze_distinctness(&u.summary.haze_distinctness)
+        );
+        let _ = writeln!(
+            s,
             "| unseen set's bins within k = 2 of their stated uncertainty (95 % interval over the surfaces) | {} |",
             percent_with_interval(u.summary.bin_coverage, u.summary.bin_coverage_interval)
         );
@@ -252,6 +262,17 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
         ])?;
     }
     Ok(w.into_inner()?)
+}
+
+/// "haze H50 / H90 HU, distinctness D50 / D90 % (interpolation: ...)".
+fn haze_distinctness(e: &[super::HazeDistinctnessErrors; 2]) -> String {
+    let one = |x: &super::HazeDistinctnessErrors| {
+        format!(
+            "haze {:.2} / {:.2} HU, distinctness {:.1} / {:.1} %",
+            x.haze_hu[0], x.haze_hu[1], x.distinctness_pct[0], x.distinctness_pct[1]
+        )
+    };
+    format!("{} (linear interpolation: {})", one(&e[0]), one(&e[1]))
 }
 
 struct MapPlot<'a>(&'a PixelMap);
