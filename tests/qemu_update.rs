@@ -40,6 +40,11 @@ fn qemu_takes_a_signed_update_over_its_link_and_refuses_what_it_must() {
     let other = [own[0], own[1].wrapping_add(1), own[2]];
     let e = sign(Some(other)).unwrap_err().to_string();
     assert!(e.contains("a device would show another version"), "{e}");
+    // Nor for the board: the ELF says which machine it is for.
+    let e = host_tools::cli::sign_firmware::sign_elf(&elf, Target::Board, None, &brdf_meter::test_blobs::DEV_SECRET)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("built for Qemu, not Board"), "{e}");
     assert!(today.len() as u32 > partition);
     match c.update_firmware(&today, |_, _| {}) {
         Err(LinkError::Device(DeviceError::Update(UpdateFault::TooLarge { len, max }))) => {

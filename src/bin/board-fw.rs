@@ -11,6 +11,11 @@
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
 use brdf_meter::firmware::image::Target;
+
+/// The machine this image is for, as a named symbol of its ELF
+/// ([`Target::declared`]).
+#[unsafe(no_mangle)]
+pub static BRDF_FIRMWARE_TARGET: u32 = Target::Board.code();
 use brdf_meter::hw::NoFrameInput;
 use brdf_meter::platform::board;
 use brdf_meter::platform::watchdog_health::Health;
@@ -119,7 +124,7 @@ async fn main(spawner: Spawner) {
         state,
         &mut ALIGNED.init(embassy_boot::AlignedBuffer([0; shape::FLASH_WRITE])).0,
         shape::board::ACTIVE_LEN,
-        Target::Board,
+        Target::declared(&BRDF_FIRMWARE_TARGET),
         brdf_meter::signed::TRUSTED_KEYS,
     ));
     let shared: &'static BoardShared =

@@ -13,6 +13,11 @@ use brdf_meter::acquire::AcqConfig;
 use brdf_meter::app::{self, LineBuf, Shared};
 use brdf_meter::platform::qemu;
 use brdf_meter::shape;
+
+/// The machine this image is for, as a named symbol of its ELF
+/// (`Target::declared`).
+#[unsafe(no_mangle)]
+pub static BRDF_FIRMWARE_TARGET: u32 = brdf_meter::firmware::image::Target::Qemu.code();
 use core::fmt::Write as _;
 use embassy_executor::Executor;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as Cs;
@@ -108,7 +113,7 @@ fn main() -> ! {
         qemu::flash::take(&STATE_MEM),
         &mut ALIGNED.init(embassy_boot::AlignedBuffer([0; shape::FLASH_WRITE])).0,
         DFU_LEN as u32,
-        brdf_meter::firmware::image::Target::Qemu,
+        brdf_meter::firmware::image::Target::declared(&BRDF_FIRMWARE_TARGET),
         brdf_meter::signed::TRUSTED_KEYS,
     ));
     let shared: &'static QemuShared =

@@ -60,6 +60,23 @@ impl Target {
     pub fn from_code(code: u32) -> Option<Self> {
         [Self::Board, Self::Qemu].into_iter().find(|t| t.code() == code)
     }
+
+    /// The target a firmware binary declares in its `BRDF_FIRMWARE_TARGET`
+    /// symbol (a `#[no_mangle]` static holding [`Self::code`]), read so the
+    /// linker keeps the symbol: `host-tools sign-firmware` reads it from the
+    /// ELF and refuses to sign the image for another machine.
+    ///
+    /// # Panics
+    /// If `declared` holds no target's code (a build error, not a runtime one).
+    pub fn declared(declared: &'static u32) -> Self {
+        // SAFETY: a valid, aligned, immutable static; volatile only so the
+        // read, and with it the symbol, is not optimised away.
+        let code = unsafe { core::ptr::read_volatile(declared) };
+        match Self::from_code(code) {
+            Some(t) => t,
+            None => panic!("BRDF_FIRMWARE_TARGET holds no target's code"),
+        }
+    }
 }
 
 /// What the trailer says about the image.

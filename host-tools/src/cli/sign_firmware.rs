@@ -87,12 +87,37 @@ pub fn elf_version(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Optio
     Ok(Some([v[0], v[1], v[2]]))
 }
 
+/// The machine a firmware ELF declares it is built for: its
+/// `BRDF_FIRMWARE_TARGET` symbol (`Target::declared`), read from its flash
+/// image. `None` for an ELF without the symbol.
+pub fn elf_target(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Option<Target>> {
+    use object::{Object as _, ObjectSymbol as _};
+    let file = object::File::parse(elf).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let Some(sym) = file.symbols().find(|s| s.name() == Ok("BRDF_FIRMWARE_TARGET")) else {
+        return Ok(None);
+    };
+    let at = (sym.address() as u32).wrapping_sub(ACTIVE) as usize;
+    let b = flash.get(at..at + 4).with_context(|| {
+        format!("{name}: BRDF_FIRMWARE_TARGET at {:#010x} is not in the image's flash bytes", sym.address())
+    })?;
+    let code = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    Target::from_code(code)
+        .map(Some)
+        .with_context(|| format!("{name}: BRDF_FIRMWARE_TARGET holds {code}, no target's code"))
+}
+
 /// Signs the ELF at `elf` (see [`Args`]) with `version`, or the version the
-/// firmware reports when `None`.
+/// firmware reports when `None`; refused when the ELF declares another
+/// target than `target`.
 pub fn sign_elf(elf: &Path, target: Target, version: Option<[u8; 3]>, seed: &[u8; 32]) -> anyhow::Result<Vec<u8>> {
     let name = elf.display().to_string();
     let bytes = std::fs::read(elf).with_context(|| format!("reading {name}"))?;
     let flash = flash_image(&bytes, &name)?;
+    if let Some(own) = elf_target(&bytes, &flash, &name)?
+        && own != target
+    {
+        bail!("{name} is built for {own:?}, not {target:?}: sign it with --target {}", target_arg(own));
+    }
     let version = match (version, elf_version(&bytes, &flash, &name)?) {
         (Some(given), Some(own)) if given != own => bail!(
             "{name} reports firmware {}.{}.{}, not {}.{}.{}: a device would show another version than the one signed (bump FIRMWARE_VERSION in src/app/mod.rs and rebuild, or leave out --fw-version)",
@@ -121,6 +146,14 @@ pub fn sign_elf(elf: &Path, target: Target, version: Option<[u8; 3]>, seed: &[u8
         signed.len()
     );
     Ok(signed)
+}
+
+/// `--target`'s word for `t`.
+fn target_arg(t: Target) -> &'static str {
+    match t {
+        Target::Board => "board",
+        Target::Qemu => "qemu",
+    }
 }
 
 /// Runs the command. Nothing is written unless the ELF and the key read.
