@@ -71,36 +71,36 @@ pub fn flash_image(elf: &[u8], name: &str) -> anyhow::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// The version a firmware ELF reports: the 3 bytes of its
-/// `BRDF_FIRMWARE_VERSION` symbol, read from its flash image. `None` for an
+/// The `N` bytes of a firmware ELF's symbol `symbol` (a `#[no_mangle]`
+/// static the firmware declares), read from its flash image. `None` for an
 /// ELF without the symbol.
-pub fn elf_version(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Option<[u8; 3]>> {
+fn symbol_bytes<const N: usize>(elf: &[u8], flash: &[u8], name: &str, symbol: &str) -> anyhow::Result<Option<[u8; N]>> {
     use object::{Object as _, ObjectSymbol as _};
     let file = object::File::parse(elf).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    let Some(sym) = file.symbols().find(|s| s.name() == Ok("BRDF_FIRMWARE_VERSION")) else {
+    let Some(sym) = file.symbols().find(|s| s.name() == Ok(symbol)) else {
         return Ok(None);
     };
     let at = (sym.address() as u32).wrapping_sub(ACTIVE) as usize;
-    let v = flash.get(at..at + 3).with_context(|| {
-        format!("{name}: BRDF_FIRMWARE_VERSION at {:#010x} is not in the image's flash bytes", sym.address())
-    })?;
-    Ok(Some([v[0], v[1], v[2]]))
+    let b = flash
+        .get(at..at + N)
+        .with_context(|| format!("{name}: {symbol} at {:#010x} is not in the image's flash bytes", sym.address()))?;
+    Ok(Some(b.try_into().expect("N bytes")))
+}
+
+/// The version a firmware ELF reports: the 3 bytes of its
+/// `BRDF_FIRMWARE_VERSION` symbol. `None` for an ELF without the symbol.
+pub fn elf_version(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Option<[u8; 3]>> {
+    symbol_bytes(elf, flash, name, "BRDF_FIRMWARE_VERSION")
 }
 
 /// The machine a firmware ELF declares it is built for: its
-/// `BRDF_FIRMWARE_TARGET` symbol (`Target::declared`), read from its flash
-/// image. `None` for an ELF without the symbol.
+/// `BRDF_FIRMWARE_TARGET` symbol (`Target::declared`). `None` for an ELF
+/// without the symbol.
 pub fn elf_target(elf: &[u8], flash: &[u8], name: &str) -> anyhow::Result<Option<Target>> {
-    use object::{Object as _, ObjectSymbol as _};
-    let file = object::File::parse(elf).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    let Some(sym) = file.symbols().find(|s| s.name() == Ok("BRDF_FIRMWARE_TARGET")) else {
+    let Some(b) = symbol_bytes::<4>(elf, flash, name, "BRDF_FIRMWARE_TARGET")? else {
         return Ok(None);
     };
-    let at = (sym.address() as u32).wrapping_sub(ACTIVE) as usize;
-    let b = flash.get(at..at + 4).with_context(|| {
-        format!("{name}: BRDF_FIRMWARE_TARGET at {:#010x} is not in the image's flash bytes", sym.address())
-    })?;
-    let code = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    let code = u32::from_le_bytes(b);
     Target::from_code(code)
         .map(Some)
         .with_context(|| format!("{name}: BRDF_FIRMWARE_TARGET holds {code}, no target's code"))
