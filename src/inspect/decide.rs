@@ -241,6 +241,11 @@ impl Verdict {
     pub fn rejected(&self) -> bool {
         self.flags & verdict::REJECT != 0
     }
+
+    /// Whether the line is in a drift alarm.
+    pub fn drift_alarm(&self) -> bool {
+        self.flags & verdict::DRIFT_ALARM != 0
+    }
 }
 
 /// The inspection's counters since it started.

@@ -5,6 +5,9 @@ use crate::output::profile::{ExportInfo, Profile};
 use anyhow::{bail, ensure};
 use std::path::PathBuf;
 
+/// The instrument's view angle the files assume unless told (deg).
+pub const DEFAULT_VIEW_DEG: f64 = 45.0;
+
 /// Plot and standard-file options.
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct ExportArgs {
@@ -26,7 +29,7 @@ pub struct ExportArgs {
     pub astm: Option<PathBuf>,
     /// The instrument's view angle (deg): the scatter direction in the files,
     /// and the mirror incidence the points' specular peak is sought about.
-    #[arg(long, default_value_t = 45.0, value_name = "DEG")]
+    #[arg(long, default_value_t = DEFAULT_VIEW_DEG, value_name = "DEG")]
     pub view_deg: f64,
     /// Solid angle one detector element sees (sr), for the BiRD file (its
     /// schema requires it; the meter's description does not hold it).

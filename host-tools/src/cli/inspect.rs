@@ -13,7 +13,7 @@ use crate::inspection::lines::{DeviceModel, Line};
 use crate::inspection::roc::{self, RocSpec};
 use crate::inspection::spc::spc;
 use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
-use anyhow::{Context, bail, ensure};
+use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
 use brdf_meter::inspect::recipe::DelayUnit;
@@ -352,15 +352,9 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
     // The rejected lines' points are read with the calibration the device runs.
     let blob = match &a.blob {
         Some(path) => {
-            let bytes = crate::cli::measure::read_for_decoding(path)?;
-            let crc = brdf_meter::blob::BlobView::parse(&bytes).expect("read_for_decoding checked it").crc();
-            match info.calibration {
-                Some(cal) if cal.blob_crc == crc => {}
-                _ => bail!(
-                    "{} ({crc:#010x}) is not the calibration the device runs: give the blob it runs",
-                    path.display()
-                ),
-            }
+            let bytes = provision::read_blob_to_decode(path)?;
+            let crc = BlobView::parse(&bytes).expect("read_blob_to_decode checked it").crc();
+            provision::check_device_runs(info.calibration, crc, path)?;
             c.set_calibration(&bytes)?;
             Some(bytes)
         }
@@ -384,7 +378,7 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
         status.counters.rejected,
         status.counters.defects,
         status.counters.drift_alarms,
-        run.verdicts.iter().filter(|v| v.flags & brdf_meter::inspect::decide::verdict::DRIFT_ALARM != 0).count(),
+        run.verdicts.iter().filter(|v| v.drift_alarm()).count(),
         run.pulses.len(),
         s.mean,
         s.sd,
@@ -414,9 +408,10 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
         defect_map::write_png(path, &run.verdicts, usize::from(info.pixels), 4)?;
     }
     if let (Some(path), Some(bytes)) = (&a.defect_points, &blob) {
-        let view = brdf_meter::blob::BlobView::parse(bytes).expect("read_for_decoding checked it");
+        let view = BlobView::parse(bytes).expect("read_blob_to_decode checked it");
         let json = path.with_extension("json");
-        crate::device::measurement::measurement_points(&view, &run.points, 45.0).write(path, Some(&json))?;
+        crate::device::measurement::measurement_points(&view, &run.points, crate::cli::exports::DEFAULT_VIEW_DEG)
+            .write(path, Some(&json))?;
         println!("the rejected lines' {} points: {} and {}", run.points.len(), path.display(), json.display());
     }
     Ok(())
@@ -439,7 +434,7 @@ fn verdict_rows(v: &[brdf_meter::inspect::Verdict]) -> Vec<VerdictRow> {
         .map(|v| VerdictRow {
             line: v.line,
             rejected: v.rejected(),
-            drift_alarm: v.flags & brdf_meter::inspect::decide::verdict::DRIFT_ALARM != 0,
+            drift_alarm: v.drift_alarm(),
             mean_gloss_gu: v.mean_gloss,
             ewma_gu: v.ewma,
             max_d2: v.max_d2,

@@ -93,21 +93,6 @@ pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
     Ok(r)
 }
 
-/// The calibration to decode the device's points with: a signed file is
-/// checked as provisioning checks it; an unsigned blob (what `train` wrote
-/// before it was signed) is taken as it parses, since what decides whether
-/// it is the one the device runs is the device's CRC, compared in [`run`].
-pub(crate) fn read_for_decoding(path: &std::path::Path) -> anyhow::Result<Vec<u8>> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let name = path.display().to_string();
-    if brdf_meter::signed::split(&bytes).is_ok() {
-        crate::device::provision::parse_signed(&bytes, &name)?;
-    } else {
-        crate::device::provision::parse_blob(&bytes, &name)?;
-    }
-    Ok(bytes)
-}
-
 /// How many scene lines to load: `--scene-lines`, or by default one per line
 /// measured up to what the simulated sensor holds, so that a measurement of a
 /// few lines sees as many draws of the scene and not one line repeated.
@@ -126,20 +111,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("--lines must be at least 1");
     }
     a.exports.check()?;
-    let bytes = read_for_decoding(&a.blob)?;
-    let view = BlobView::parse(&bytes).expect("read_for_decoding checked it");
+    let bytes = crate::device::provision::read_blob_to_decode(&a.blob)?;
+    let view = BlobView::parse(&bytes).expect("read_blob_to_decode checked it");
     let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
-    match info.calibration {
-        None => bail!("the device has no calibration: provision {} first (`host-tools provision`)", a.blob.display()),
-        Some(cal) if cal.blob_crc != view.crc() => bail!(
-            "the device runs calibration {:#010x} but {} is {:#010x}: give the blob it runs, or provision this one",
-            cal.blob_crc,
-            a.blob.display(),
-            view.crc()
-        ),
-        Some(_) => {}
-    }
+    crate::device::provision::check_device_runs(info.calibration, view.crc(), &a.blob)?;
     if let Some(k) = a.exports.plot_points.iter().find(|&&k| k >= usize::from(info.pixels)) {
         bail!("--plot-points {k}: the device has points 0..={} on a line; choose among them", info.pixels - 1);
     }
@@ -222,27 +198,5 @@ mod tests {
             let e = scene_lines(Some(bad), 4).unwrap_err().to_string();
             assert!(e.contains(&format!("--scene-lines {bad}")), "{e}");
         }
-    }
-
-    #[test]
-    fn the_blob_to_decode_with_may_be_signed_or_not_but_must_be_whole() {
-        let dir = tempfile::tempdir().unwrap();
-        let blob = brdf_meter::test_blobs::test_blob(9, 3, 1, 4, 1.0);
-        let unsigned = dir.path().join("cal.blob");
-        std::fs::write(&unsigned, &blob).unwrap();
-        assert_eq!(read_for_decoding(&unsigned).unwrap(), blob);
-        use crate::calibration::signing::{DEV_SECRET, sign_blob};
-        let signed_path = dir.path().join("cal.signed.blob");
-        std::fs::write(&signed_path, sign_blob(&blob, &DEV_SECRET)).unwrap();
-        assert_eq!(
-            BlobView::parse(&read_for_decoding(&signed_path).unwrap()).unwrap().crc(),
-            BlobView::parse(&blob).unwrap().crc()
-        );
-        let mut tampered = std::fs::read(&signed_path).unwrap();
-        tampered[20] ^= 1;
-        std::fs::write(&signed_path, &tampered).unwrap();
-        assert!(read_for_decoding(&signed_path).unwrap_err().to_string().contains("refused"));
-        std::fs::write(&unsigned, &blob[..blob.len() / 2]).unwrap();
-        assert!(read_for_decoding(&unsigned).unwrap_err().to_string().contains("not a valid calibration blob"));
     }
 }

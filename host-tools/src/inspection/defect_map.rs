@@ -38,7 +38,7 @@ pub fn render(verdicts: &[Verdict], pixels: usize) -> Vec<u8> {
                 line[3 * p..3 * p + 3].copy_from_slice(&colour(r.kind));
             }
         }
-        if v.flags & brdf_meter::inspect::decide::verdict::DRIFT_ALARM != 0 {
+        if v.drift_alarm() {
             line[..3].copy_from_slice(&ALARM);
         }
     }

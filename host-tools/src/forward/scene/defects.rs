@@ -206,10 +206,16 @@ pub struct DefectScene {
 impl DefectScene {
     /// Reads a defect scene file and its base scene.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let (name, scene, defects) = Self::read_file(path)?;
+        Self::new(&name, scene, &defects)
+    }
+
+    /// A defect scene file's name, base scene and defects.
+    fn read_file(path: &Path) -> anyhow::Result<(String, Scene, Vec<DefectSpec>)> {
         let file: DefectSceneFile = crate::output::config::load_toml(path)?;
         let base = path.parent().unwrap_or(Path::new(".")).join(&file.scene);
         let scene = Scene::load(&base).with_context(|| format!("{}: field `scene`", path.display()))?;
-        Self::new(&file.name, scene, &file.defects)
+        Ok((file.name, scene, file.defects))
     }
 
     /// A defect scene file, or a plain scene (no defects; told apart by the
@@ -260,10 +266,7 @@ impl DefectScene {
     fn read_any(path: &Path) -> anyhow::Result<(String, Scene, Vec<DefectSpec>)> {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         if text.lines().any(|l| l.trim_start().starts_with("scene ") || l.trim_start().starts_with("scene=")) {
-            let file: DefectSceneFile = crate::output::config::load_toml(path)?;
-            let base = path.parent().unwrap_or(Path::new(".")).join(&file.scene);
-            let scene = Scene::load(&base).with_context(|| format!("{}: field `scene`", path.display()))?;
-            Ok((file.name, scene, file.defects))
+            Self::read_file(path)
         } else {
             Ok(("defect-free".into(), Scene::load(path)?, Vec::new()))
         }
