@@ -29,6 +29,17 @@ fn client(flash: SimFlash, ram_zones: usize) -> Client<SimDevice> {
     c
 }
 
+/// A client on a fresh device running the test calibration of `seed`
+/// ([`blob`]), with an analytic scene of `lines` lines loaded.
+fn provisioned_with_scene(seed: f32, lines: usize) -> (Client<SimDevice>, Vec<u8>, SceneFrames) {
+    let mut c = client(flash(), ZONES);
+    let b = blob(seed);
+    c.provision(&b, |_, _| {}).unwrap();
+    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), lines, FULL_SCALE);
+    c.load_scene(&scene).unwrap();
+    (c, b, scene)
+}
+
 /// A signed test calibration (development key).
 fn blob(seed: f32) -> Vec<u8> {
     signed_test_blob(N, M, ZONES, P, seed)
@@ -271,11 +282,7 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
 
 #[test]
 fn continuous_measurement_refuses_provisioning_and_stops_on_request() {
-    let mut c = client(flash(), ZONES);
-    let b = blob(7.0);
-    c.provision(&b, |_, _| {}).unwrap();
-    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 3, FULL_SCALE);
-    c.load_scene(&scene).unwrap();
+    let (mut c, b, scene) = provisioned_with_scene(7.0, 3);
     let seq = c.send(&Request::Measure { lines: 0, format: StreamFormat::LOSSLESS }).unwrap();
     // Let a few lines stream.
     let mut points = Vec::new();
@@ -345,11 +352,7 @@ fn saturated_and_dark_points_are_flagged() {
 
 #[test]
 fn a_new_session_measuring_as_the_last_one_did_gets_its_stream_from_point_0() {
-    let mut c = client(flash(), ZONES);
-    let b = blob(9.5);
-    c.provision(&b, |_, _| {}).unwrap();
-    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
-    c.load_scene(&scene).unwrap();
+    let (c, b, scene) = provisioned_with_scene(9.5, 2);
     let mut device = c.into_transport();
     // Two host processes in turn, each sending the same requests from seq
     // 1: the same `Measure`, down to its sequence number.
@@ -364,11 +367,7 @@ fn a_new_session_measuring_as_the_last_one_did_gets_its_stream_from_point_0() {
 
 #[test]
 fn a_measurement_the_host_gives_up_on_is_stopped_so_the_next_session_measures() {
-    let mut c = client(flash(), ZONES);
-    let b = blob(9.75);
-    c.provision(&b, |_, _| {}).unwrap();
-    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
-    c.load_scene(&scene).unwrap();
+    let (mut c, b, scene) = provisioned_with_scene(9.75, 2);
     // The host decodes with another calibration: it gives up at the first
     // frame, with lines still to come.
     c.set_calibration(&blob(5.0)).unwrap();
@@ -382,11 +381,7 @@ fn a_measurement_the_host_gives_up_on_is_stopped_so_the_next_session_measures() 
 
 #[test]
 fn line_k_plus_1_is_acquired_while_line_k_is_estimated_and_sent() {
-    let mut c = client(flash(), ZONES);
-    let b = blob(10.0);
-    c.provision(&b, |_, _| {}).unwrap();
-    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 2, FULL_SCALE);
-    c.load_scene(&scene).unwrap();
+    let (mut c, b, scene) = provisioned_with_scene(10.0, 2);
     let before = c.transport().scene.switches_timed().len();
     let pts = c.measure(3).unwrap();
     check_points(&b, &scene, &pts, 3);
@@ -660,11 +655,7 @@ fn an_empty_or_out_of_range_bin_subset_is_refused() {
 
 #[test]
 fn values_decoded_with_another_calibration_or_none_are_refused() {
-    let mut c = client(flash(), ZONES);
-    let b = blob(2.0);
-    c.provision(&b, |_, _| {}).unwrap();
-    let scene = analytic_scene(&BlobView::parse(&b).unwrap(), 1, FULL_SCALE);
-    c.load_scene(&scene).unwrap();
+    let (mut c, b, _) = provisioned_with_scene(2.0, 1);
     c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
     match c.measure(1) {
         Err(LinkError::Stream(DecodeError::NeedsBlob(Encoding::Corrected))) => {}
