@@ -264,6 +264,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             reference: &reference,
             blocks: &blocks,
             centroids: &[],
+            distinctness: brdf_meter::gloss::DistinctnessRow::Shoulders,
         }),
         ..BlobExtras::NONE
     };
@@ -292,20 +293,30 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let reference4: Vec<f32> = (0..6).map(|p| 88.0 + 0.5 * p as f32).collect();
     let blocks4: Vec<f32> = (0..2 * kg * brdf_meter::gloss::block_len(3)).map(|i| 0.0625 * (i % 13) as f32).collect();
     let centroids4: Vec<f32> = (0..2 * kg * 3).map(|i| 0.25 + 0.03125 * i as f32).collect();
-    let ex4 = BlobExtras {
-        gloss: Some(brdf_meter::blob::GlossData {
-            assigned_gu: 100.0,
-            refractive_index: 1.567,
-            reference: &reference4,
-            blocks: &blocks4,
-            centroids: &centroids4,
-        }),
-        ..exb
+    let g4 = brdf_meter::blob::GlossData {
+        assigned_gu: 100.0,
+        refractive_index: 1.567,
+        reference: &reference4,
+        blocks: &blocks4,
+        centroids: &centroids4,
+        distinctness: brdf_meter::gloss::DistinctnessRow::Shoulders,
     };
+    let ex4 = BlobExtras { gloss: Some(g4), ..exb };
     let mut b4 = vec![0u8; p2.dims.blob_len_with(&ex4)];
     let n = write_blob_with(&c2, &ex4, &mut b4).expect("a valid format 4 blob with the gloss rows' own clusters");
     b4.truncate(n);
     out.push(("blob.v4.gloss-clusters".into(), b4));
+    // The same in the root form (flag bit 3) whose gloss rows read the
+    // peak's deficit over its shoulders (flag bit 10): same layout.
+    let ex4d = BlobExtras {
+        root_form: true,
+        gloss: Some(brdf_meter::blob::GlossData { distinctness: brdf_meter::gloss::DistinctnessRow::Deficit, ..g4 }),
+        ..ex4
+    };
+    let mut b4d = vec![0u8; p2.dims.blob_len_with(&ex4d)];
+    let n = write_blob_with(&c2, &ex4d, &mut b4d).expect("a valid root-form format 4 blob with the deficit row");
+    b4d.truncate(n);
+    out.push(("blob.v4.root-distinctness-deficit".into(), b4d));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

@@ -43,7 +43,7 @@ use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
 use crate::forward::pairs::{Pairs, PixelOptics};
 use crate::forward::prior_models::{PriorModels, SampleModel};
 use anyhow::Context;
-use brdf_meter::gloss::{LINEAR, block_len, cov_index};
+use brdf_meter::gloss::{DistinctnessRow, LINEAR, block_len, cov_index};
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
 
@@ -81,6 +81,10 @@ pub struct GlossSection {
     /// The rows' own centroids, per zone K_g x m, or empty: a point's
     /// block is then its BRDF cluster's (`brdf_meter::blob`, flag bit 9).
     pub centroids: Vec<f32>,
+    /// What the fourth row reads: the root form's rows are fitted to the
+    /// peak's deficit ([`deficit_target`]), the linear form's to the
+    /// shoulders.
+    pub distinctness: DistinctnessRow,
 }
 
 impl GlossSection {
@@ -106,6 +110,7 @@ impl GlossSection {
             reference: &self.reference,
             blocks: &self.blocks,
             centroids: &self.centroids,
+            distinctness: self.distinctness,
         }
     }
 }
@@ -147,6 +152,19 @@ pub fn black_glass_readings(px: &PixelOptics) -> DVector<f64> {
 /// specular aperture.
 pub fn targets(pairs: &Pairs) -> Option<DMatrix<f64>> {
     pairs.gloss.clone()
+}
+
+/// The root form's target: the linear readings with the shoulders' row
+/// replaced by the peak's deficit over them, `max(L_2 - L_3, 0)`
+/// (`brdf_meter::gloss::DistinctnessRow::Deficit`: a broad lobe's
+/// distinctness is then the square of a small root, learnt as such from
+/// the broad samples, not the difference of two near-equal roots).
+pub fn deficit_target(target: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut out = target.clone();
+    for k in 0..out.ncols() {
+        out[(3, k)] = (target[(2, k)] - target[(3, k)]).max(0.0);
+    }
+    out
 }
 
 /// The floor of the rows' relative criterion, GU: a pair's weight is divided
@@ -276,8 +294,8 @@ pub const COVERAGE_K: f64 = 2.0;
 pub const COVERAGE: f64 = 0.95;
 
 /// The device's readings of a point: `brdf_meter::gloss::readings`, or in
-/// the root form `readings_root` (`x` then over `sqrt(s)` and `s` its
-/// `sqrt(s)`).
+/// the root form `readings_root` with the deficit row training writes (`x`
+/// then over `sqrt(s)` and `s` its `sqrt(s)`).
 pub fn device_readings(
     block: &[f32],
     x: &[f32],
@@ -285,7 +303,11 @@ pub fn device_readings(
     s: f32,
     root: bool,
 ) -> ([f32; brdf_meter::shape::READINGS], [f32; brdf_meter::shape::READINGS]) {
-    if root { brdf_meter::gloss::readings_root(block, x, q, s) } else { brdf_meter::gloss::readings(block, x, q, s) }
+    if root {
+        brdf_meter::gloss::readings_root(block, x, q, s, DistinctnessRow::Deficit)
+    } else {
+        brdf_meter::gloss::readings(block, x, q, s)
+    }
 }
 
 /// The standardised errors `(reading - truth) / u` of one point's readings

@@ -711,7 +711,12 @@ fn gloss_section(
         }
     }
     let own = gloss_clusters(zones, &prepared, plans, most);
-    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new(), centroids: Vec::new() };
+    let distinctness = if zones.iter().any(root_of) {
+        brdf_meter::gloss::DistinctnessRow::Deficit
+    } else {
+        brdf_meter::gloss::DistinctnessRow::Shoulders
+    };
+    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new(), centroids: Vec::new(), distinctness };
     for (z, (((tz, zo), plan), g)) in zones.iter().zip(&spec.zones).zip(plans).zip(&prepared).enumerate() {
         let m = zo.h().nrows();
         let cents = own.map(|k| scale_free::reading_centroids(&g.aug, k, GLOSS_CLUSTER_SEED));
@@ -963,9 +968,20 @@ fn gloss_rows_of(
             let g = DMatrix::from_fn(r, m, |j, i| map.g[(j, i)] * 2f64.powi(plan.exponents[i]));
             vec![gloss_rows::block(&g, &map.err)]
         }
-        ZoneEstimator::ScaleFree(sz) => match centroids {
-            Some(c) => scale_free::fit_target_with(pairs, target, sz, c)?,
-            None => scale_free::fit_target(pairs, target, sz)?,
+        ZoneEstimator::ScaleFree(sz) => {
+            // The root form reads the peak's deficit over its shoulders
+            // as a root of its own (`brdf_meter::gloss::DistinctnessRow`).
+            let deficit;
+            let target = if sz.root {
+                deficit = gloss_rows::deficit_target(target);
+                &deficit
+            } else {
+                target
+            };
+            match centroids {
+                Some(c) => scale_free::fit_target_with(pairs, target, sz, c)?,
+                None => scale_free::fit_target(pairs, target, sz)?,
+            }
         }
         .iter()
         .map(|mp| gloss_rows::block(&mp.w, &mp.err_unit))
