@@ -66,13 +66,16 @@ pub enum SignatureFault {
     BadSignature,
 }
 
+/// What is wrong, without naming what was signed (a calibration or an
+/// inspection recipe: the store and its messages are shared), so the
+/// caller, who knows, says it: "the recipe is refused: it is not signed".
 impl fmt::Display for SignatureFault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Self::Unsigned => "the calibration is not signed (sign it with `host-tools sign` or `train --sign`)",
-            Self::BadTrailer => "the signature trailer is malformed",
-            Self::UnknownKey => "the calibration is signed by a key this firmware does not trust",
-            Self::BadSignature => "the signature does not verify (the blob or its signature was changed)",
+            Self::Unsigned => "it is not signed",
+            Self::BadTrailer => "its signature trailer is malformed",
+            Self::UnknownKey => "it is signed by a key this firmware does not trust",
+            Self::BadSignature => "its signature does not verify (it or its signature was changed)",
         })
     }
 }

@@ -37,7 +37,21 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
     assert_eq!(device_error(c.inspect(1, false, &mut |_| {})), DeviceError::NoRecipe);
     // Unsigned and malformed recipes are refused; the device keeps none.
     let unsigned = &f.recipe[..f.recipe.len() - brdf_meter::signed::TRAILER_LEN];
-    assert!(matches!(device_error(c.provision_recipe(unsigned, |_, _| {})), DeviceError::SignatureRejected(_)));
+    // The refusal is the recipe's, in what the user reads too: the
+    // device's error is the store's, which names the calibration.
+    match c.provision_recipe(unsigned, |_, _| {}) {
+        Err(e @ LinkError::RecipeSignature(brdf_meter::signed::SignatureFault::Unsigned)) => {
+            let text = e.to_string();
+            assert!(text.contains("refused the recipe") && text.contains("previous recipe is kept"), "{text}");
+            assert!(!text.contains("calibration"), "{text}");
+        }
+        other => panic!("expected the recipe's signature refused, got {other:?}"),
+    }
+    let foreign = host_tools::calibration::signing::sign_blob(unsigned, &[9; 32]);
+    assert!(matches!(
+        c.provision_recipe(&foreign, |_, _| {}),
+        Err(LinkError::RecipeSignature(brdf_meter::signed::SignatureFault::UnknownKey))
+    ));
     let mut bad = unsigned.to_vec();
     bad[16] = 7; // pixels: 7 (CRC made right, then signed): another device's shape
     let n = bad.len();

@@ -152,9 +152,11 @@ pub enum DeviceError {
     Sensor(SensorError),
     /// Simulation request on a device without a simulated sensor, or out of range.
     Simulation,
-    /// The calibration's signature was refused (unsigned, malformed trailer,
+    /// The signature of a calibration, or of an inspection recipe (the two
+    /// stores share the check), was refused (unsigned, malformed trailer,
     /// untrusted key, or a signature that does not verify); the previous
-    /// calibration is kept.
+    /// one is kept. Its message names the calibration; the host, which
+    /// knows it sent a recipe, says so (`inspect provision`).
     SignatureRejected(SignatureFault),
     /// A measurement's bin range is empty or beyond the device's n bins.
     BadBins {
@@ -276,7 +278,11 @@ impl core::fmt::Display for DeviceError {
             Self::Sensor(e) => write!(f, "sensor error: {e:?}"),
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
             Self::SignatureRejected(e) => {
-                write!(f, "the device refused the calibration's signature: {e}; the previous calibration is kept")
+                let hint = match e {
+                    SignatureFault::Unsigned => " (sign it with `host-tools sign` or `train --sign`)",
+                    _ => "",
+                };
+                write!(f, "the device refused the calibration: {e}{hint}; the previous calibration is kept")
             }
             Self::BadBins { bins } => {
                 write!(f, "the bin range is empty or beyond the device's {bins} bins: nothing was measured")

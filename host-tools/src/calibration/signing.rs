@@ -143,14 +143,27 @@ pub fn keygen(key: &Path, force: bool) -> anyhow::Result<PublicKeyBytes> {
     Ok(pk)
 }
 
-/// Checks a signed calibration (named `name` in the error) against the keys
-/// this build of the host tools and the firmware trust; returns the blob.
-pub fn check_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<&'a [u8]> {
+/// What a signed file holds: what signing it again means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Signed {
+    /// A calibration blob (`sign`, `train --sign`).
+    Calibration,
+    /// An inspection recipe (`inspect teach` signs what it writes).
+    Recipe,
+}
+
+/// Checks a signed calibration or recipe (`what`, named `name` in the
+/// error) against the keys this build of the host tools and the firmware
+/// trust; returns what was signed.
+pub fn check_signed<'a>(image: &'a [u8], name: &str, what: Signed) -> anyhow::Result<&'a [u8]> {
     signed::verify(image, signed::TRUSTED_KEYS).map_err(|e| {
-        // An unsigned blob's fault already says how to sign it.
-        let hint = match e {
-            SignatureFault::UnknownKey => {
+        let hint = match (e, what) {
+            (SignatureFault::UnknownKey, _) => {
                 " (its key is not among the keys the firmware was built with, BRDF_TRUSTED_KEYS)"
+            }
+            (SignatureFault::Unsigned, Signed::Calibration) => " (sign it with `host-tools sign` or `train --sign`)",
+            (SignatureFault::Unsigned, Signed::Recipe) => {
+                " (a recipe is signed when it is taught: teach it again with `host-tools inspect teach`)"
             }
             _ => "",
         };
@@ -206,10 +219,13 @@ mod tests {
         std::fs::write(&p, "# only a comment\n").unwrap();
         assert!(read_secret(&p).unwrap_err().to_string().contains("holds no key"));
         let blob = brdf_meter::test_blobs::test_blob(5, 3, 1, 4, 1.0);
-        let e = check_signed(&blob, "cal.blob").unwrap_err().to_string();
-        assert!(e.contains("cal.blob") && e.contains("not signed"), "{e}");
-        let e = check_signed(&sign_blob(&blob, &[3; 32]), "cal.blob").unwrap_err().to_string();
-        assert!(e.contains("does not trust"), "{e}");
-        assert_eq!(check_signed(&sign_with_dev_key(&blob), "cal.blob").unwrap(), &blob[..]);
+        let e = check_signed(&blob, "cal.blob", Signed::Calibration).unwrap_err().to_string();
+        assert!(e.contains("cal.blob") && e.contains("not signed") && e.contains("host-tools sign"), "{e}");
+        let e = check_signed(&blob, "r.bin", Signed::Recipe).unwrap_err().to_string();
+        assert!(e.contains("r.bin") && e.contains("not signed") && e.contains("inspect teach"), "{e}");
+        assert!(!e.contains("calibration"), "a recipe's refusal does not speak of a calibration: {e}");
+        let e = check_signed(&sign_blob(&blob, &[3; 32]), "cal.blob", Signed::Calibration).unwrap_err().to_string();
+        assert!(e.contains("does not trust") && e.contains("BRDF_TRUSTED_KEYS"), "{e}");
+        assert_eq!(check_signed(&sign_with_dev_key(&blob), "cal.blob", Signed::Calibration).unwrap(), &blob[..]);
     }
 }

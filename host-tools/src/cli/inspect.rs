@@ -301,10 +301,28 @@ fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses a recipe (`name`, taught for `(pixels, leds)`) for a device of
+/// another shape, saying what to do.
+fn check_recipe_shape(
+    name: &str,
+    (pixels, leds): (usize, usize),
+    info: &brdf_meter::protocol::DeviceInfo,
+) -> anyhow::Result<()> {
+    ensure!(
+        pixels == usize::from(info.pixels) && leds == usize::from(info.leds),
+        "{name} was taught for a device with {pixels} pixels and {leds} LEDs; this device has {} and {}: teach it \
+         again with the calibration this device runs (`host-tools inspect teach --blob`; `host-tools info` gives its \
+         CRC); nothing was sent, the device keeps its recipe",
+        info.pixels,
+        info.leds
+    );
+    Ok(())
+}
+
 /// Reads a signed recipe, checked as the device will.
 fn read_recipe(path: &Path) -> anyhow::Result<Vec<u8>> {
     let image = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let body = signing::check_signed(&image, &path.display().to_string())?;
+    let body = signing::check_signed(&image, &path.display().to_string(), signing::Signed::Recipe)?;
     RecipeView::parse(body)
         .map_err(|e| anyhow::anyhow!("{}: not a recipe this firmware reads ({e:?}); teach it again", path.display()))?;
     Ok(image)
@@ -313,6 +331,13 @@ fn read_recipe(path: &Path) -> anyhow::Result<Vec<u8>> {
 fn run_provision(a: ProvisionArgs) -> anyhow::Result<()> {
     let image = read_recipe(&a.recipe)?;
     let mut c = Client::new(a.device.open()?)?;
+    // The device would refuse another device's recipe too, but a board
+    // recipe is larger than a QEMU slot, and its refusal for size would
+    // come first and not say why.
+    let info = c.info()?;
+    let body = &image[..image.len() - brdf_meter::signed::TRAILER_LEN];
+    let view = RecipeView::parse(body).expect("read_recipe parsed it");
+    check_recipe_shape(&a.recipe.display().to_string(), (view.pixels(), view.leds()), &info)?;
     let info = c.provision_recipe(&image, |_, _| {}).with_context(|| format!("provisioning {}", a.recipe.display()))?;
     println!(
         "provisioned {}: recipe {:#010x} version {}, for calibration {:#010x}, slot {}, sequence {}",
@@ -526,4 +551,30 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
         crate::output::io::write_json(path, &lines)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_recipe_for_another_devices_shape_is_refused_before_sending_and_says_why() {
+        let qemu = brdf_meter::protocol::DeviceInfo {
+            protocol: brdf_meter::protocol::PROTOCOL_VERSION,
+            firmware: [0, 1, 0],
+            bins: 81,
+            leds: 7,
+            pixels: 32,
+            full_scale: 4095,
+            max_blob: 24_576,
+            ram_matrix_words: 0,
+            simulated: true,
+            calibration: None,
+        };
+        assert!(check_recipe_shape("r.bin", (32, 7), &qemu).is_ok());
+        let e = check_recipe_shape("r.bin", (128, 7), &qemu).unwrap_err().to_string();
+        assert!(e.contains("r.bin") && e.contains("128 pixels") && e.contains("has 32"), "{e}");
+        assert!(e.contains("inspect teach") && e.contains("nothing was sent"), "{e}");
+        assert!(check_recipe_shape("r.bin", (32, 8), &qemu).is_err(), "the LEDs count too");
+    }
 }

@@ -31,6 +31,13 @@ pub enum LinkError {
     /// A line frame that read as a frame but could not be decoded into points.
     #[error("{0}")]
     Stream(#[from] DecodeError),
+    /// The device refused an inspection recipe's signature (the device's
+    /// own error names the calibration store's subject).
+    #[error(
+        "the device refused the recipe: {0}; the previous recipe is kept (teach it again signed with a key the device \
+         trusts: `host-tools inspect teach --key`, and `host-tools info` lists the keys it trusts)"
+    )]
+    RecipeSignature(brdf_meter::signed::SignatureFault),
 }
 
 impl LinkError {

@@ -4,7 +4,7 @@
 use super::Transport;
 use super::client::{Client, LinkError, PointRecord, Reply, SlotKind};
 use brdf_meter::inspect::Verdict;
-use brdf_meter::protocol::{InspectStatus, RecipeInfo, Request, Response};
+use brdf_meter::protocol::{DeviceError, InspectStatus, RecipeInfo, Request, Response};
 
 /// A reject pulse the device reported.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -38,9 +38,11 @@ impl<T: Transport> Client<T> {
         recipe: &[u8],
         progress: impl FnMut(usize, usize),
     ) -> Result<RecipeInfo, LinkError> {
-        match self.send_signed(recipe, SlotKind::Recipe, progress)? {
-            Response::RecipeCommitted(r) => Ok(r),
-            r => Err(LinkError::Unexpected(format!("{r:?} to RecipeCommit"))),
+        match self.send_signed(recipe, SlotKind::Recipe, progress) {
+            Ok(Response::RecipeCommitted(r)) => Ok(r),
+            Ok(r) => Err(LinkError::Unexpected(format!("{r:?} to RecipeCommit"))),
+            Err(LinkError::Device(DeviceError::SignatureRejected(f))) => Err(LinkError::RecipeSignature(f)),
+            Err(e) => Err(e),
         }
     }
 

@@ -28,7 +28,8 @@ pub fn read_blob(path: &Path) -> anyhow::Result<Vec<u8>> {
 /// against the keys the firmware trusts, then the blob with the device's
 /// parser; returns the blob's view.
 pub fn parse_signed<'a>(image: &'a [u8], name: &str) -> anyhow::Result<BlobView<'a>> {
-    let blob = crate::calibration::signing::check_signed(image, name)?;
+    let blob =
+        crate::calibration::signing::check_signed(image, name, crate::calibration::signing::Signed::Calibration)?;
     let view = parse_blob(blob, name)?;
     anyhow::ensure!(
         view.as_bytes().len() == blob.len(),

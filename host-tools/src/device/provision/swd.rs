@@ -62,7 +62,11 @@ pub const WRITE_UNIT: usize = brdf_meter::shape::FLASH_WRITE;
 /// the blob and its signature trailer), padded with erased bytes (0xFF) to
 /// whole flash write units.
 pub fn slot_image(sequence: u32, blob: &[u8], slot_len: u32) -> Result<Vec<u8>> {
-    let unsigned = crate::calibration::signing::check_signed(blob, "the calibration")?;
+    let unsigned = crate::calibration::signing::check_signed(
+        blob,
+        "the calibration",
+        crate::calibration::signing::Signed::Calibration,
+    )?;
     let view =
         BlobView::parse(unsigned).map_err(|e| anyhow::anyhow!("the blob would be refused by the device: {e}"))?;
     ensure!(
