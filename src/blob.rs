@@ -144,18 +144,19 @@
 //! read them within 3.4 (`host-tools pixel-map`). A zone without a reading
 //! has NaN blocks as before and finite centroids (zeros).
 //!
-//! ## The distinctness deficit row (flag bit 10)
+//! ## The deficit row (flag bit 10)
 //! With the root form (flag bit 3) and the gloss section only. The layout
 //! is unchanged; the fourth row of every gloss block gives the root of the
 //! peak's deficit over its shoulders, `max(L_2 - L_3, 0)`, instead of the
-//! root of the shoulders' `L_3`, and distinctness is `100 (t_3 / t_2)^2`
-//! ([`crate::gloss::DistinctnessRow`]). Reading a broad lobe's near-zero
+//! root of the shoulders' `L_3`, distinctness is `100 (t_3 / t_2)^2`, and
+//! the gloss and haze uncertainties are the standard deviation of a
+//! square, not its first order ([`crate::gloss::RootReadings`]). Reading a broad lobe's near-zero
 //! deficit directly, instead of as the difference of two near-equal roots,
 //! read the handheld's held-out MERL distinctness within 1.0 / 15.4 %
 //! points (median / 90th) where the two roots read 1.9 / 19.4, and the
 //! scene's own broad Ward surface (truth 0.5 %) 9-12 % where they read
 //! 20-22 % in its worst zones (`host-tools pixel-map`). A blob without the
-//! flag reads distinctness as before, bit for bit.
+//! flag is read as before, bit for bit.
 //!
 //! A zone that cannot read the standard (no LED ray near the specular
 //! direction from where it looks) has no reading: its `S_z` is NaN and so
@@ -247,12 +248,13 @@ const FLAG_BROAD_BAND: u16 = 256;
 /// kind only). Firmware from before it rejects such a blob as having a
 /// reserved flag set, and keeps its last good calibration.
 const FLAG_GLOSS_CLUSTERS: u16 = 512;
-/// The root form's fourth gloss row is the root of the peak's deficit over
-/// its shoulders, not of the shoulders (with `FLAG_GLOSS` and `FLAG_ROOT`
-/// only; `crate::gloss::DistinctnessRow`). Firmware from before it rejects
+/// The root form's gloss rows are read in the second form: the fourth row
+/// is the root of the peak's deficit over its shoulders, not of the
+/// shoulders, and gloss and haze state the square's standard deviation
+/// (with `FLAG_GLOSS` and `FLAG_ROOT` only; `crate::gloss::RootReadings`). Firmware from before it rejects
 /// such a blob as having a reserved flag set, and keeps its last good
 /// calibration.
-const FLAG_DISTINCTNESS_DEFICIT: u16 = 1024;
+const FLAG_DEFICIT_READINGS: u16 = 1024;
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
@@ -639,10 +641,10 @@ pub struct GlossData<'a> {
     /// The gloss rows' own centroids, Z x K_g x m (flag bit 9), or empty:
     /// a point's block is then its BRDF cluster's.
     pub centroids: &'a [f32],
-    /// What the root form's fourth row is the root of (flag bit 10 for
-    /// [`crate::gloss::DistinctnessRow::Deficit`], which needs the root
-    /// form); the linear form's rows are the shoulders'.
-    pub distinctness: crate::gloss::DistinctnessRow,
+    /// How the root form's rows are read (flag bit 10 for
+    /// [`crate::gloss::RootReadings::Deficit`], which needs the root
+    /// form); the linear form's fourth row is the shoulders'.
+    pub root_readings: crate::gloss::RootReadings,
 }
 
 impl GlossData<'_> {
@@ -740,7 +742,7 @@ struct Extras {
     /// The gloss rows' own clusters per zone, K_g (flag bit 9), or 0.
     gloss_clusters: usize,
     /// The root form's fourth gloss row is the peak's deficit (flag bit 10).
-    distinctness_deficit: bool,
+    deficit_readings: bool,
 }
 
 impl Extras {
@@ -755,7 +757,7 @@ impl Extras {
         pixel_resolution: false,
         broad_band: false,
         gloss_clusters: 0,
-        distinctness_deficit: false,
+        deficit_readings: false,
     };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
@@ -770,7 +772,7 @@ impl Extras {
             pixel_resolution: !x.pixel_peak_resolution_deg.is_empty(),
             broad_band: !x.broad_uncertainty.is_empty(),
             gloss_clusters: x.gloss.map_or(0, |g| g.centroids.len() / (d.zones * d.m).max(1)),
-            distinctness_deficit: x.gloss.is_some_and(|g| g.distinctness == crate::gloss::DistinctnessRow::Deficit),
+            deficit_readings: x.gloss.is_some_and(|g| g.root_readings == crate::gloss::RootReadings::Deficit),
         }
     }
 
@@ -796,7 +798,7 @@ impl Extras {
             return Err(BlobError::ReservedNotZero);
         }
         // The deficit row is a root: only the root form's gloss rows have it.
-        if self.distinctness_deficit && !(self.gloss && self.root_form) {
+        if self.deficit_readings && !(self.gloss && self.root_form) {
             return Err(BlobError::ReservedNotZero);
         }
         if self.gloss_clusters != 0
@@ -933,7 +935,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 }
         | if ex.broad_band { FLAG_BROAD_BAND } else { 0 }
         | if ex.gloss_clusters > 0 { FLAG_GLOSS_CLUSTERS } else { 0 }
-        | if ex.distinctness_deficit { FLAG_DISTINCTNESS_DEFICIT } else { 0 };
+        | if ex.deficit_readings { FLAG_DEFICIT_READINGS } else { 0 };
     put_u16(
         out,
         22,
@@ -1060,7 +1062,7 @@ impl<'a> BlobView<'a> {
                 } else {
                     0
                 },
-                distinctness_deficit: flags & FLAG_DISTINCTNESS_DEFICIT != 0,
+                deficit_readings: flags & FLAG_DEFICIT_READINGS != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -1101,7 +1103,7 @@ impl<'a> BlobView<'a> {
                 | FLAG_PIXEL_RESOLUTION
                 | FLAG_BROAD_BAND
                 | FLAG_GLOSS_CLUSTERS
-                | FLAG_DISTINCTNESS_DEFICIT;
+                | FLAG_DEFICIT_READINGS;
             (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
                 && (ex.peak_resolution || !ex.pixel_resolution)
                 && (band || get_u32(bytes, 56) == 0)
@@ -1452,16 +1454,16 @@ impl<'a> BlobView<'a> {
             reference: &all[GLOSS_HEAD..GLOSS_HEAD + r],
             blocks: &all[GLOSS_HEAD + r..GLOSS_HEAD + r + blocks],
             centroids: &all[GLOSS_HEAD + r + blocks..],
-            distinctness: self.distinctness_row(),
+            root_readings: self.root_readings(),
         })
     }
-    /// What the gloss rows' fourth row is the root of in the root form
-    /// (flag bit 10): [`crate::gloss::readings_root`]'s `row`.
-    pub fn distinctness_row(&self) -> crate::gloss::DistinctnessRow {
-        if self.dims_flags() & FLAG_DISTINCTNESS_DEFICIT != 0 {
-            crate::gloss::DistinctnessRow::Deficit
+    /// How the gloss rows are read in the root form (flag bit 10):
+    /// [`crate::gloss::readings_root`]'s `form`.
+    pub fn root_readings(&self) -> crate::gloss::RootReadings {
+        if self.dims_flags() & FLAG_DEFICIT_READINGS != 0 {
+            crate::gloss::RootReadings::Deficit
         } else {
-            crate::gloss::DistinctnessRow::Shoulders
+            crate::gloss::RootReadings::Shoulders
         }
     }
     /// Whether the calibration is in the root form (flag bit 3): the
@@ -2144,7 +2146,7 @@ mod tests {
             reference,
             blocks,
             centroids,
-            distinctness: crate::gloss::DistinctnessRow::Shoulders,
+            root_readings: crate::gloss::RootReadings::Shoulders,
         }
     }
 
@@ -2280,8 +2282,8 @@ mod tests {
     }
 
     /// A piecewise blob (K = 3) with a version 4 gloss section, in the
-    /// root form or not, whose rows read distinctness by `row`.
-    fn distinctness_blob(root_form: bool, row: crate::gloss::DistinctnessRow) -> Result<Vec<u8>, BlobError> {
+    /// root form or not, whose rows are read in `form`.
+    fn deficit_readings_blob(root_form: bool, form: crate::gloss::RootReadings) -> Result<Vec<u8>, BlobError> {
         let o = sample(6, 4, 2, 5);
         let (unc, mats, cents, _) = v2_extras(&o, 3);
         let (_, blocks) = gloss_parts(&o, 3);
@@ -2290,7 +2292,7 @@ mod tests {
         c.estimator = EstimatorKind::ScaleFreePiecewise;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let g = GlossData { distinctness: row, ..gloss_data(&reference, &blocks, &[]) };
+        let g = GlossData { root_readings: form, ..gloss_data(&reference, &blocks, &[]) };
         let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), root_form, ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).map(|n| {
@@ -2300,30 +2302,30 @@ mod tests {
     }
 
     #[test]
-    fn the_distinctness_deficit_row_is_flag_bit_10_of_the_root_forms_gloss_rows() {
-        use crate::gloss::DistinctnessRow::{Deficit, Shoulders};
-        let shoulders = distinctness_blob(true, Shoulders).unwrap();
-        let deficit = distinctness_blob(true, Deficit).unwrap();
+    fn the_deficit_readings_are_flag_bit_10_of_the_root_forms_gloss_rows() {
+        use crate::gloss::RootReadings::{Deficit, Shoulders};
+        let shoulders = deficit_readings_blob(true, Shoulders).unwrap();
+        let deficit = deficit_readings_blob(true, Deficit).unwrap();
         // Same layout and values; only the flag differs (and the CRC).
         assert_eq!(shoulders.len(), deficit.len());
-        assert_eq!(get_u16(&deficit, 22), get_u16(&shoulders, 22) | FLAG_DISTINCTNESS_DEFICIT);
+        assert_eq!(get_u16(&deficit, 22), get_u16(&shoulders, 22) | FLAG_DEFICIT_READINGS);
         assert_eq!(shoulders[24..shoulders.len() - 4], deficit[24..deficit.len() - 4]);
         // The view and the in-place section say which row the device reads.
-        assert_eq!(BlobView::parse(&shoulders).unwrap().distinctness_row(), Shoulders);
+        assert_eq!(BlobView::parse(&shoulders).unwrap().root_readings(), Shoulders);
         let v = BlobView::parse(&deficit).unwrap();
-        assert_eq!(v.distinctness_row(), Deficit);
+        assert_eq!(v.root_readings(), Deficit);
         let aligned: Vec<u32> = deficit.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
         let bytes: &[u8] = bytemuck::cast_slice(&aligned);
-        assert_eq!(BlobView::parse(bytes).unwrap().gloss_in_place().unwrap().distinctness, Deficit);
+        assert_eq!(BlobView::parse(bytes).unwrap().gloss_in_place().unwrap().root_readings, Deficit);
         // The deficit is a root: the writer refuses it outside the root
         // form, and the parser refuses the bit there or without the gloss
         // section.
-        assert_eq!(distinctness_blob(false, Deficit), Err(BlobError::ReservedNotZero));
-        let linear = distinctness_blob(false, Shoulders).unwrap();
-        let flags = get_u16(&linear, 22) | FLAG_DISTINCTNESS_DEFICIT;
+        assert_eq!(deficit_readings_blob(false, Deficit), Err(BlobError::ReservedNotZero));
+        let linear = deficit_readings_blob(false, Shoulders).unwrap();
+        let flags = get_u16(&linear, 22) | FLAG_DEFICIT_READINGS;
         assert_eq!(resealed(linear, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
         let bare = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
-        let flags = get_u16(&bare, 22) | FLAG_ROOT | FLAG_DISTINCTNESS_DEFICIT;
+        let flags = get_u16(&bare, 22) | FLAG_ROOT | FLAG_DEFICIT_READINGS;
         assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
     }
 

@@ -361,7 +361,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(g) => {
                 let block = g.block(z, c, a.gloss_clusters, v.as_slice());
                 if a.root {
-                    crate::gloss::readings_root(block, x.as_slice(), a.gloss_q[p], root_sqrt_s, g.distinctness)
+                    crate::gloss::readings_root(block, x.as_slice(), a.gloss_q[p], root_sqrt_s, g.root_readings)
                 } else {
                     crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
                 }

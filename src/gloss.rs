@@ -28,7 +28,7 @@
 //!   with `r = L_3 / L_2` (peak against its shoulders;
 //!   NaN when `L_2 <= 0`, no peak to compare). The root form reads the
 //!   peak's deficit over its shoulders as a root of its own
-//!   ([`DistinctnessRow`], [`readings_root`]).
+//!   ([`RootReadings`], [`readings_root`]).
 //!
 //! # Uncertainties
 //! Training stores the covariance `C = A E A^T` of the linear readings'
@@ -128,8 +128,8 @@ pub fn readings(
     ([q * l[0], q * l[1], d], [qs * sd[0], qs * sd[1], u_d])
 }
 
-/// What the root form's fourth gloss row is the root of (`crate::blob`'s
-/// flag bit 10).
+/// How a root-form calibration's gloss rows are read (`crate::blob`'s
+/// flag bit 10 says [`RootReadings::Deficit`]).
 ///
 /// Distinctness compares the peak with its shoulders 0.5-1.5 deg off; a
 /// broad lobe's two are nearly equal. Read as two roots, `D = 100 (1 -
@@ -140,13 +140,19 @@ pub fn readings(
 /// its own makes a broad lobe's distinctness the square of a small root:
 /// its error is second order where the truth is near 0, and the rows
 /// learn "no deficit" directly from the broad samples.
+///
+/// Gloss and haze are squares of roots too, and the first-order
+/// uncertainty of a square, `2 |t| e`, says a reading near 0 is exact:
+/// the second form states the standard deviation of the square of a
+/// normal root, `sqrt(4 t^2 e^2 + 2 e^4)`, for them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DistinctnessRow {
-    /// The fourth row gives the root of the shoulders' reading `L_3`
-    /// (calibrations trained before the deficit row).
+pub enum RootReadings {
+    /// The fourth row gives the root of the shoulders' reading `L_3`; every
+    /// uncertainty to first order (calibrations trained before flag bit 10).
     Shoulders,
     /// The fourth row gives the root of the peak's deficit over its
-    /// shoulders, `max(L_2 - L_3, 0)`.
+    /// shoulders, `max(L_2 - L_3, 0)`; gloss and haze state the square's
+    /// standard deviation.
     Deficit,
 }
 
@@ -158,19 +164,21 @@ pub enum DistinctnessRow {
 /// non-negative by construction and every reading lies within its
 /// definition: gloss and haze >= 0, distinctness
 /// `D = 100 max(L_2 - L_3, 0) / L_2` in 0..=100 (0 for no peak, `t'_2 = 0`).
-/// The covariance is of `t / s` (per unit scale), so to first order
-/// `u(G) = 2 q sqrt(s) |t'_0| sqrt(C_00)`, likewise haze. Distinctness
-/// depends on `row` ([`DistinctnessRow`]), with `r = t'_3 / t'_2`:
-/// - [`DistinctnessRow::Shoulders`]: `D = 100 (1 - r^2)` (0 when `r^2 >=
-///   1`), `u(D) = 200 sqrt(s) |t'_3| sqrt(v) / t'_2^2`, `v = r^2 C_22 - 2 r
+/// The covariance is of `t / s` (per unit scale): `e_0 = sqrt(s C_00)` is
+/// the standard error of `t'_0`. How the rows are read is `form`
+/// ([`RootReadings`]), with `r = t'_3 / t'_2`:
+/// - [`RootReadings::Shoulders`]: to first order `u(G) = 2 q |t'_0| e_0`,
+///   likewise haze; `D = 100 (1 - r^2)` (0 when `r^2 >= 1`),
+///   `u(D) = 200 sqrt(s) |t'_3| sqrt(v) / t'_2^2`, `v = r^2 C_22 - 2 r
 ///   C_23 + C_33`;
-/// - [`DistinctnessRow::Deficit`]: `D = 100 r^2` (100 when `r^2 >= 1`),
-///   `u(D)` the same expression (to first order, as the other readings;
-///   the exact variance of a squared normal variable, `4 t^2 e^2 + 2 e^4`,
-///   was tried: it over-covered the held-out measured materials, 99.8 %
-///   of their distinctness within k = 2 against 97.8 %, since the factor
-///   training sets per cluster is then set by the sharp lobes' errors and
-///   widens every broad lobe's band by the second-order term).
+/// - [`RootReadings::Deficit`]: `u(G) = q e_0 sqrt(4 t'_0^2 + 2 e_0^2)`,
+///   likewise haze; `D = 100 r^2` (100 when `r^2 >= 1`), `u(D)` the
+///   expression above, to first order (the square's standard deviation
+///   was tried for it too and over-covered the held-out measured
+///   materials, 99.8 % of their distinctness within k = 2 against 97.8 %:
+///   the factor training sets per cluster is set by the sharp lobes'
+///   errors, and the second-order term then widened every broad lobe's
+///   band).
 ///
 /// `u(D)` is NaN with no peak. Readings of no light (`sqrt_s` not
 /// positive) give NaN.
@@ -183,7 +191,7 @@ pub fn readings_root(
     x: &[f32],
     q: f32,
     sqrt_s: f32,
-    row: DistinctnessRow,
+    form: RootReadings,
 ) -> ([f32; crate::shape::READINGS], [f32; crate::shape::READINGS]) {
     let m = x.len();
     assert!(block.len() == block_len(m), "a gloss block is LINEAR x m rows and the covariance");
@@ -198,19 +206,31 @@ pub fn readings_root(
     let (d, u_d) = if t2 != 0.0 {
         let r = t3 / t2;
         let r2 = r * r;
-        let d = match row {
-            DistinctnessRow::Shoulders if r2 < 1.0 => 100.0 - 100.0 * r2,
-            DistinctnessRow::Shoulders => 0.0,
-            DistinctnessRow::Deficit if r2 < 1.0 => 100.0 * r2,
-            DistinctnessRow::Deficit => 100.0,
+        let d = match form {
+            RootReadings::Shoulders if r2 < 1.0 => 100.0 - 100.0 * r2,
+            RootReadings::Shoulders => 0.0,
+            RootReadings::Deficit if r2 < 1.0 => 100.0 * r2,
+            RootReadings::Deficit => 100.0,
         };
         let var = r2 * c[7] - 2.0 * r * c[8] + c[9];
         (d, 200.0 * sqrt_s * (t3.abs() * crate::kernel::sqrt0(var)) / (t2 * t2))
     } else {
         (0.0, f32::NAN)
     };
-    let qs = 2.0 * q * sqrt_s;
-    ([q * (t[0] * t[0]), q * (t[1] * t[1]), d], [qs * t[0].abs() * sd[0], qs * t[1].abs() * sd[1], u_d])
+    let (u_g, u_h) = match form {
+        RootReadings::Shoulders => {
+            let qs = 2.0 * q * sqrt_s;
+            (qs * t[0].abs() * sd[0], qs * t[1].abs() * sd[1])
+        }
+        RootReadings::Deficit => {
+            let (e0, e1) = (sqrt_s * sd[0], sqrt_s * sd[1]);
+            (
+                q * e0 * crate::kernel::sqrt0(4.0 * (t[0] * t[0]) + 2.0 * (e0 * e0)),
+                q * e1 * crate::kernel::sqrt0(4.0 * (t[1] * t[1]) + 2.0 * (e1 * e1)),
+            )
+        }
+    };
+    ([q * (t[0] * t[0]), q * (t[1] * t[1]), d], [u_g, u_h, u_d])
 }
 
 #[cfg(test)]
@@ -226,7 +246,7 @@ mod tests {
         block[8 + cov_index(3, 3)] = 0.01;
         block[8 + COV_LEN] = 0.1;
         block[8 + COV_LEN + 1] = 0.2;
-        let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, DistinctnessRow::Shoulders);
+        let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, RootReadings::Shoulders);
         assert_eq!(r, [2.0 * 9.0, 2.0 * 1.0, 75.0]);
         assert_eq!([u[0], u[1]], [8.0 * 3.0 * 0.1, 8.0 * 1.0 * 0.2]);
         assert!(u[2] > 0.0);
@@ -238,10 +258,10 @@ mod tests {
         }
         neg[6] = -1.5;
         neg[7] = -1.5;
-        let (r, _) = readings_root(&neg, &[1.0, 1.0], 2.0, 2.0, DistinctnessRow::Shoulders);
+        let (r, _) = readings_root(&neg, &[1.0, 1.0], 2.0, 2.0, RootReadings::Shoulders);
         assert!(r[0] > 0.0 && r[1] > 0.0 && r[2] == 0.0, "{r:?}");
         // Readings of no light: no reading.
-        for row in [DistinctnessRow::Shoulders, DistinctnessRow::Deficit] {
+        for row in [RootReadings::Shoulders, RootReadings::Deficit] {
             assert!(readings_root(&block, &[0.0, 0.0], 2.0, 0.0, row).0.iter().all(|x| x.is_nan()));
         }
     }
@@ -253,7 +273,9 @@ mod tests {
         block[..8].copy_from_slice(&[1.5, 1.5, 0.5, 0.5, 1.0, 1.0, 0.5, 0.5]);
         block[8 + cov_index(2, 2)] = 0.01;
         block[8 + cov_index(3, 3)] = 0.01;
-        let deficit = DistinctnessRow::Deficit;
+        block[8 + COV_LEN] = 0.1;
+        block[8 + COV_LEN + 1] = 0.2;
+        let deficit = RootReadings::Deficit;
         // t_d = 1 against a peak of 2: a quarter of the peak is deficit.
         let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, deficit);
         assert_eq!(r[DISTINCTNESS], 25.0);
@@ -268,11 +290,22 @@ mod tests {
         block[6] = -3.0;
         block[7] = -3.0;
         assert_eq!(readings_root(&block, &[1.0, 1.0], 2.0, 2.0, deficit).0[DISTINCTNESS], 100.0);
-        // The other readings do not depend on the row.
-        let shoulders = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, DistinctnessRow::Shoulders);
+        // Gloss and haze read the same; their uncertainty is the square's
+        // standard deviation: q e sqrt(4 t^2 + 2 e^2), e = sqrt(s) sd.
+        let shoulders = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, RootReadings::Shoulders);
         let with_deficit = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, deficit);
         assert_eq!(shoulders.0[..2], with_deficit.0[..2]);
-        assert_eq!(shoulders.1[..2], with_deficit.1[..2]);
+        let (e0, e1) = (2.0 * 0.1f64, 2.0 * 0.2f64);
+        let want = [2.0 * e0 * (4.0 * 9.0 + 2.0 * e0 * e0).sqrt(), 2.0 * e1 * (4.0 * 1.0 + 2.0 * e1 * e1).sqrt()];
+        for (k, w) in want.iter().enumerate() {
+            assert!((f64::from(with_deficit.1[k]) - w).abs() < 1e-5 * w, "{k}: {} {w}", with_deficit.1[k]);
+            assert!(with_deficit.1[k] > shoulders.1[k], "{k}: above the first order");
+        }
+        // A reading near 0 is not stated exact.
+        let mut dark = block;
+        dark[..4].fill(0.0);
+        assert!(readings_root(&dark, &[1.0, 1.0], 2.0, 2.0, deficit).1[0] > 0.0);
+        assert_eq!(readings_root(&dark, &[1.0, 1.0], 2.0, 2.0, RootReadings::Shoulders).1[0], 0.0);
     }
 
     #[test]

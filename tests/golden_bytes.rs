@@ -264,7 +264,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
             reference: &reference,
             blocks: &blocks,
             centroids: &[],
-            distinctness: brdf_meter::gloss::DistinctnessRow::Shoulders,
+            root_readings: brdf_meter::gloss::RootReadings::Shoulders,
         }),
         ..BlobExtras::NONE
     };
@@ -299,7 +299,7 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
         reference: &reference4,
         blocks: &blocks4,
         centroids: &centroids4,
-        distinctness: brdf_meter::gloss::DistinctnessRow::Shoulders,
+        root_readings: brdf_meter::gloss::RootReadings::Shoulders,
     };
     let ex4 = BlobExtras { gloss: Some(g4), ..exb };
     let mut b4 = vec![0u8; p2.dims.blob_len_with(&ex4)];
@@ -310,13 +310,13 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     // peak's deficit over its shoulders (flag bit 10): same layout.
     let ex4d = BlobExtras {
         root_form: true,
-        gloss: Some(brdf_meter::blob::GlossData { distinctness: brdf_meter::gloss::DistinctnessRow::Deficit, ..g4 }),
+        gloss: Some(brdf_meter::blob::GlossData { root_readings: brdf_meter::gloss::RootReadings::Deficit, ..g4 }),
         ..ex4
     };
     let mut b4d = vec![0u8; p2.dims.blob_len_with(&ex4d)];
     let n = write_blob_with(&c2, &ex4d, &mut b4d).expect("a valid root-form format 4 blob with the deficit row");
     b4d.truncate(n);
-    out.push(("blob.v4.root-distinctness-deficit".into(), b4d));
+    out.push(("blob.v4.root-deficit-readings".into(), b4d));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

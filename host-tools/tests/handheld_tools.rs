@@ -198,6 +198,10 @@ fn pixel_map_reads_every_pixel() {
     // read beside interpolation's.
     assert_eq!(m.bin_coverage.len(), 12);
     assert!((0.5..=1.0).contains(&map.bin_coverage), "{}", map.bin_coverage);
+    // And each reading's: every held-out point here has all three readings.
+    assert_eq!(m.reading_coverage.len(), 12);
+    assert!(m.reading_coverage.iter().flatten().all(|c| (0.0..=1.0).contains(c)), "{:?}", m.reading_coverage);
+    assert!(map.reading_coverage.iter().all(|c| (0.5..=1.0).contains(c)), "{:?}", map.reading_coverage);
     let (per_tile, t) = (&map.tiles_brdf.per_tile, &map.tiles_brdf.all);
     assert_eq!(per_tile.len(), host_tools::evaluation::pixel_map::gloss_tiles().len());
     assert!(t.error[0] > 0.0 && t.interpolation[0] > 0.0 && t.error[1] <= t.error[2], "{t:?}");

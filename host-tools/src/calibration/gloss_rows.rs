@@ -43,7 +43,7 @@ use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
 use crate::forward::pairs::{Pairs, PixelOptics};
 use crate::forward::prior_models::{PriorModels, SampleModel};
 use anyhow::Context;
-use brdf_meter::gloss::{DistinctnessRow, LINEAR, block_len, cov_index};
+use brdf_meter::gloss::{LINEAR, RootReadings, block_len, cov_index};
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
 
@@ -81,10 +81,10 @@ pub struct GlossSection {
     /// The rows' own centroids, per zone K_g x m, or empty: a point's
     /// block is then its BRDF cluster's (`brdf_meter::blob`, flag bit 9).
     pub centroids: Vec<f32>,
-    /// What the fourth row reads: the root form's rows are fitted to the
-    /// peak's deficit ([`deficit_target`]), the linear form's to the
-    /// shoulders.
-    pub distinctness: DistinctnessRow,
+    /// How the rows are read: the root form's fourth row is fitted to the
+    /// peak's deficit ([`deficit_target`]) and read in the second form
+    /// (`RootReadings::Deficit`), the linear form's to the shoulders.
+    pub root_readings: RootReadings,
 }
 
 impl GlossSection {
@@ -110,7 +110,7 @@ impl GlossSection {
             reference: &self.reference,
             blocks: &self.blocks,
             centroids: &self.centroids,
-            distinctness: self.distinctness,
+            root_readings: self.root_readings,
         }
     }
 }
@@ -156,7 +156,7 @@ pub fn targets(pairs: &Pairs) -> Option<DMatrix<f64>> {
 
 /// The root form's target: the linear readings with the shoulders' row
 /// replaced by the peak's deficit over them, `max(L_2 - L_3, 0)`
-/// (`brdf_meter::gloss::DistinctnessRow::Deficit`: a broad lobe's
+/// (`brdf_meter::gloss::RootReadings::Deficit`: a broad lobe's
 /// distinctness is then the square of a small root, learnt as such from
 /// the broad samples, not the difference of two near-equal roots).
 pub fn deficit_target(target: &DMatrix<f64>) -> DMatrix<f64> {
@@ -304,7 +304,7 @@ pub fn device_readings(
     root: bool,
 ) -> ([f32; brdf_meter::shape::READINGS], [f32; brdf_meter::shape::READINGS]) {
     if root {
-        brdf_meter::gloss::readings_root(block, x, q, s, DistinctnessRow::Deficit)
+        brdf_meter::gloss::readings_root(block, x, q, s, RootReadings::Deficit)
     } else {
         brdf_meter::gloss::readings(block, x, q, s)
     }

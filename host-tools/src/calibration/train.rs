@@ -711,12 +711,12 @@ fn gloss_section(
         }
     }
     let own = gloss_clusters(zones, &prepared, plans, most);
-    let distinctness = if zones.iter().any(root_of) {
-        brdf_meter::gloss::DistinctnessRow::Deficit
+    let root_readings = if zones.iter().any(root_of) {
+        brdf_meter::gloss::RootReadings::Deficit
     } else {
-        brdf_meter::gloss::DistinctnessRow::Shoulders
+        brdf_meter::gloss::RootReadings::Shoulders
     };
-    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new(), centroids: Vec::new(), distinctness };
+    let mut out = GlossSection { reference: Vec::new(), blocks: Vec::new(), centroids: Vec::new(), root_readings };
     for (z, (((tz, zo), plan), g)) in zones.iter().zip(&spec.zones).zip(plans).zip(&prepared).enumerate() {
         let m = zo.h().nrows();
         let cents = own.map(|k| scale_free::reading_centroids(&g.aug, k, GLOSS_CLUSTER_SEED));
@@ -970,7 +970,7 @@ fn gloss_rows_of(
         }
         ZoneEstimator::ScaleFree(sz) => {
             // The root form reads the peak's deficit over its shoulders
-            // as a root of its own (`brdf_meter::gloss::DistinctnessRow`).
+            // as a root of its own (`brdf_meter::gloss::RootReadings`).
             let deficit;
             let target = if sz.root {
                 deficit = gloss_rows::deficit_target(target);

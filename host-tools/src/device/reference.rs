@@ -225,7 +225,7 @@ impl<'a> PointEstimator<'a> {
             }
             (readings, reading_sigma) = if root {
                 brdf_meter::kernel::scale_input(&mut x, brdf_meter::kernel::root_scales(s).1);
-                brdf_meter::gloss::readings_root(&blocks[gc], &x, q, sqrt_s, self.view.distinctness_row())
+                brdf_meter::gloss::readings_root(&blocks[gc], &x, q, sqrt_s, self.view.root_readings())
             } else {
                 brdf_meter::gloss::readings(&blocks[gc], &x, q, readings_scale)
             };

@@ -157,6 +157,21 @@ pub struct MaterialRow {
     /// (%) readings over the lines against the definitions in three
     /// dimensions (NaN: no reading): the device's, then interpolation's.
     pub haze_distinctness_error: [Vec<[f64; 2]>; 2],
+    /// Per pixel and reading (gloss, haze, distinctness), the share of the
+    /// lines whose reading is within k = 2 of the uncertainty the frame
+    /// states for it (NaN: no line has the reading).
+    pub reading_coverage: Vec<[f64; 3]>,
+}
+
+/// Per reading (gloss, haze, distinctness), the share of every (material,
+/// pixel, line) with a reading that is within k = 2 of its stated
+/// uncertainty (NaN: none), each (material, pixel) weighing alike.
+fn reading_coverage(rows: &[MaterialRow]) -> [f64; 3] {
+    std::array::from_fn(|r| {
+        let v: Vec<f64> =
+            rows.iter().flat_map(|m| m.reading_coverage.iter().map(move |c| c[r])).filter(|c| c.is_finite()).collect();
+        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
+    })
 }
 
 /// Haze (HU) and distinctness (% points) absolute errors over every
@@ -237,6 +252,9 @@ pub struct LineSummary {
     /// Its 95 % interval, resampling the materials
     /// (`evaluation::coverage_interval`).
     pub bin_coverage_interval: Option<[f64; 2]>,
+    /// Per reading (gloss, haze, distinctness), the share within k = 2 of
+    /// its stated uncertainty.
+    pub reading_coverage: [f64; 3],
 }
 
 impl LineSummary {
@@ -262,6 +280,7 @@ impl LineSummary {
                     .collect::<Vec<_>>(),
                 COVERAGE_INTERVAL_SEED,
             ),
+            reading_coverage: reading_coverage(rows),
         }
     }
 }
@@ -298,6 +317,9 @@ pub struct PixelMap {
     pub bin_coverage: f64,
     /// Its 95 % interval, resampling the materials.
     pub bin_coverage_interval: Option<[f64; 2]>,
+    /// Per reading (gloss, haze, distinctness), the share of the held-out
+    /// readings within k = 2 of their stated uncertainty.
+    pub reading_coverage: [f64; 3],
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
     /// The held-out points' specular peaks.
@@ -613,6 +635,8 @@ fn read_material(
     let (mut hd_est, mut hd_int) = (vec![[0.0f64; 2]; p], vec![[0.0f64; 2]; p]);
     let mut hd_true = vec![[0.0f64; 2]; p];
     let mut covered = vec![0.0; p];
+    // Per pixel and reading: lines with the reading, and of them within k = 2.
+    let mut readings_in = vec![[(0usize, 0usize); 3]; p];
     let mut flag = FlagScore::default();
     for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
         let true_readings = model_readings(b.as_ref(), &geo.views[px]);
@@ -640,6 +664,14 @@ fn read_material(
                 hd_est[px][r] += f64::from(pt.readings[k]) / spec.lines as f64;
                 hd_int[px][r] += li.map_or(f64::NAN, |l| l[k]) / spec.lines as f64;
             }
+            for (k, (n, inside)) in readings_in[px].iter_mut().enumerate() {
+                let (r, u) = (f64::from(pt.readings[k]), f64::from(pt.reading_sigma[k]));
+                if r.is_finite() && true_readings[k].is_finite() {
+                    *n += 1;
+                    // An uncertainty that is not stated (NaN) covers nothing.
+                    *inside += usize::from((r - true_readings[k]).abs() <= 2.0 * u);
+                }
+            }
             let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
             c.out_of_prior += usize::from(flagged);
             flag.add(score.error, flagged);
@@ -657,6 +689,10 @@ fn read_material(
         bin_coverage: covered,
         haze_distinctness_error: [&hd_est, &hd_int]
             .map(|read| read.iter().zip(&hd_true).map(|(r, t)| [(r[0] - t[0]).abs(), (r[1] - t[1]).abs()]).collect()),
+        reading_coverage: readings_in
+            .iter()
+            .map(|px| px.map(|(n, inside)| if n == 0 { f64::NAN } else { inside as f64 / n as f64 }))
+            .collect(),
     };
     Ok((row, fl, flag, peaks))
 }
@@ -856,6 +892,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         haze_distinctness: held_out.haze_distinctness,
         bin_coverage: held_out.bin_coverage,
         bin_coverage_interval: held_out.bin_coverage_interval,
+        reading_coverage: held_out.reading_coverage,
         flag: held_out_flag,
         peaks: held_out_peaks.summary(),
         flag_statistics,

@@ -81,6 +81,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let _ = writeln!(
         s,
+        "| held-out readings within k = 2 of their stated uncertainty: gloss / haze / distinctness (material x pixel x line) | {} |",
+        reading_coverage_cell(map.reading_coverage)
+    );
+    let _ = writeln!(
+        s,
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
         flag_cell(&map.flag)
     );
@@ -181,6 +186,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         );
         let _ = writeln!(
             s,
+            "| unseen set's readings within k = 2 of their stated uncertainty: gloss / haze / distinctness | {} |",
+            reading_coverage_cell(u.summary.reading_coverage)
+        );
+        let _ = writeln!(
+            s,
             "| unseen set's out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
             flag_cell(&u.flag)
         );
@@ -262,6 +272,11 @@ pub fn csv(map: &PixelMap) -> anyhow::Result<Vec<u8>> {
         ])?;
     }
     Ok(w.into_inner()?)
+}
+
+/// "G / H / D %" of per-reading coverages ("-" for a reading none has).
+fn reading_coverage_cell(c: [f64; 3]) -> String {
+    c.map(|x| if x.is_finite() { format!("{:.1}", 100.0 * x) } else { "-".into() }).join(" / ") + " %"
 }
 
 /// "haze H50 / H90 HU, distinctness D50 / D90 % (interpolation: ...)".
