@@ -2169,6 +2169,19 @@ mod tests {
 
     /// [`gloss_clusters_blob`] labelled as estimator `kind`.
     fn gloss_clusters_blob_of(kind: EstimatorKind, kg: usize, centroids: &[f32]) -> Result<Vec<u8>, BlobError> {
+        gloss_blob(kind, kg, centroids, false, crate::gloss::RootReadings::Shoulders)
+    }
+
+    /// A K = 3 blob of estimator `kind` with a version 4 gloss section whose
+    /// rows have `kg` clusters of their own (`kg = 0`: the maps'), in the
+    /// root form or not, its rows read in `form`.
+    fn gloss_blob(
+        kind: EstimatorKind,
+        kg: usize,
+        centroids: &[f32],
+        root_form: bool,
+        form: crate::gloss::RootReadings,
+    ) -> Result<Vec<u8>, BlobError> {
         let o = sample(6, 4, 2, 5);
         let (unc, mats, cents, _) = v2_extras(&o, 3);
         let (_, blocks) = gloss_parts(&o, if kg == 0 { 3 } else { kg });
@@ -2177,8 +2190,8 @@ mod tests {
         c.estimator = kind;
         c.uncertainty = &unc;
         c.matrices = &mats;
-        let g = gloss_data(&reference, &blocks, centroids);
-        let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), ..BlobExtras::NONE };
+        let g = GlossData { root_readings: form, ..gloss_data(&reference, &blocks, centroids) };
+        let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), root_form, ..BlobExtras::NONE };
         let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
         write_blob_with(&c, &ex, &mut buf).map(|n| {
             buf.truncate(n);
@@ -2281,24 +2294,10 @@ mod tests {
         assert_eq!(resealed(maps, &|b| put_u16(b, 50, 4)), Err(BlobError::ReservedNotZero));
     }
 
-    /// A piecewise blob (K = 3) with a version 4 gloss section, in the
-    /// root form or not, whose rows are read in `form`.
+    /// A piecewise blob with a version 4 gloss section (the maps'
+    /// clusters), in the root form or not, its rows read in `form`.
     fn deficit_readings_blob(root_form: bool, form: crate::gloss::RootReadings) -> Result<Vec<u8>, BlobError> {
-        let o = sample(6, 4, 2, 5);
-        let (unc, mats, cents, _) = v2_extras(&o, 3);
-        let (_, blocks) = gloss_parts(&o, 3);
-        let reference: Vec<f32> = (0..o.dims.pixels).map(|p| 90.0 + p as f32).collect();
-        let mut c = contents(&o);
-        c.estimator = EstimatorKind::ScaleFreePiecewise;
-        c.uncertainty = &unc;
-        c.matrices = &mats;
-        let g = GlossData { root_readings: form, ..gloss_data(&reference, &blocks, &[]) };
-        let ex = BlobExtras { clusters: 3, centroids: &cents, gloss: Some(g), root_form, ..BlobExtras::NONE };
-        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
-        write_blob_with(&c, &ex, &mut buf).map(|n| {
-            buf.truncate(n);
-            buf
-        })
+        gloss_blob(EstimatorKind::ScaleFreePiecewise, 0, &[], root_form, form)
     }
 
     #[test]

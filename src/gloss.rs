@@ -237,15 +237,21 @@ pub fn readings_root(
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_root_form_reads_within_the_definitions() {
-        // m = 2, x' = (1, 1) (already over sqrt(s) = 2): t' = (3, 1, 2, 1), L = t'^2.
+    /// A root-form block for m = 2 whose rows give, for x' = (1, 1)
+    /// (already over sqrt(s) = 2), t' = (3, 1, 2, 1): L = t'^2.
+    fn root_block() -> [f32; 4 * 2 + COV_LEN + SD_LEN] {
         let mut block = [0.0f32; 4 * 2 + COV_LEN + SD_LEN];
         block[..8].copy_from_slice(&[1.5, 1.5, 0.5, 0.5, 1.0, 1.0, 0.5, 0.5]);
         block[8 + cov_index(2, 2)] = 0.01;
         block[8 + cov_index(3, 3)] = 0.01;
         block[8 + COV_LEN] = 0.1;
         block[8 + COV_LEN + 1] = 0.2;
+        block
+    }
+
+    #[test]
+    fn the_root_form_reads_within_the_definitions() {
+        let block = root_block();
         let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, RootReadings::Shoulders);
         assert_eq!(r, [2.0 * 9.0, 2.0 * 1.0, 75.0]);
         assert_eq!([u[0], u[1]], [8.0 * 3.0 * 0.1, 8.0 * 1.0 * 0.2]);
@@ -268,13 +274,8 @@ mod tests {
 
     #[test]
     fn the_deficit_row_reads_distinctness_as_the_square_of_its_ratio() {
-        // m = 2, x' = (1, 1), sqrt(s) = 2: t' = (3, 1, 2, t_d).
-        let mut block = [0.0f32; 4 * 2 + COV_LEN + SD_LEN];
-        block[..8].copy_from_slice(&[1.5, 1.5, 0.5, 0.5, 1.0, 1.0, 0.5, 0.5]);
-        block[8 + cov_index(2, 2)] = 0.01;
-        block[8 + cov_index(3, 3)] = 0.01;
-        block[8 + COV_LEN] = 0.1;
-        block[8 + COV_LEN + 1] = 0.2;
+        // t' = (3, 1, 2, t_d).
+        let mut block = root_block();
         let deficit = RootReadings::Deficit;
         // t_d = 1 against a peak of 2: a quarter of the peak is deficit.
         let (r, u) = readings_root(&block, &[1.0, 1.0], 2.0, 2.0, deficit);
