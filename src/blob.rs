@@ -154,8 +154,8 @@
 //! deficit directly, instead of as the difference of two near-equal roots,
 //! read the handheld's held-out MERL distinctness within 1.0 / 15.4 %
 //! points (median / 90th) where the two roots read 1.9 / 19.4, and the
-//! scene's own broad Ward surface (truth 0.5 %) 9-12 % where they read
-//! 20-22 % in its worst zones (`host-tools pixel-map`). A blob without the
+//! scene's own broad Ward surface (truth 0.5 %) 8-19 % where they read
+//! 17-28 % in its worst zones (`host-tools pixel-map`, `estimate`). A blob without the
 //! flag is read as before, bit for bit.
 //!
 //! A zone that cannot read the standard (no LED ray near the specular
