@@ -66,6 +66,9 @@ pub enum SignatureFault {
     BadSignature,
 }
 
+/// How to sign a calibration that is not signed, as the refusals say it.
+pub const SIGN_CALIBRATION_HINT: &str = " (sign it with `host-tools sign` or `train --sign`)";
+
 /// What is wrong, without naming what was signed (a calibration or an
 /// inspection recipe: the store and its messages are shared), so the
 /// caller, who knows, says it: "the recipe is refused: it is not signed".

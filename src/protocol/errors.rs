@@ -279,7 +279,7 @@ impl core::fmt::Display for DeviceError {
             Self::Simulation => write!(f, "simulation request refused (not a simulated device, or out of range)"),
             Self::SignatureRejected(e) => {
                 let hint = match e {
-                    SignatureFault::Unsigned => " (sign it with `host-tools sign` or `train --sign`)",
+                    SignatureFault::Unsigned => crate::signed::SIGN_CALIBRATION_HINT,
                     _ => "",
                 };
                 write!(f, "the device refused the calibration: {e}{hint}; the previous calibration is kept")

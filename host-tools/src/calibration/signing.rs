@@ -161,7 +161,7 @@ pub fn check_signed<'a>(image: &'a [u8], name: &str, what: Signed) -> anyhow::Re
             (SignatureFault::UnknownKey, _) => {
                 " (its key is not among the keys the firmware was built with, BRDF_TRUSTED_KEYS)"
             }
-            (SignatureFault::Unsigned, Signed::Calibration) => " (sign it with `host-tools sign` or `train --sign`)",
+            (SignatureFault::Unsigned, Signed::Calibration) => signed::SIGN_CALIBRATION_HINT,
             (SignatureFault::Unsigned, Signed::Recipe) => {
                 " (a recipe is signed when it is taught: teach it again with `host-tools inspect teach`)"
             }

@@ -328,6 +328,11 @@ fn read_recipe(path: &Path) -> anyhow::Result<Vec<u8>> {
     Ok(image)
 }
 
+/// The recipe in an image [`read_recipe`] has checked.
+fn recipe_view(image: &[u8]) -> RecipeView<'_> {
+    RecipeView::parse(&image[..image.len() - brdf_meter::signed::TRAILER_LEN]).expect("read_recipe checked it")
+}
+
 fn run_provision(a: ProvisionArgs) -> anyhow::Result<()> {
     let image = read_recipe(&a.recipe)?;
     let mut c = Client::new(a.device.open()?)?;
@@ -335,8 +340,7 @@ fn run_provision(a: ProvisionArgs) -> anyhow::Result<()> {
     // recipe is larger than a QEMU slot, and its refusal for size would
     // come first and not say why.
     let info = c.info()?;
-    let body = &image[..image.len() - brdf_meter::signed::TRAILER_LEN];
-    let view = RecipeView::parse(body).expect("read_recipe parsed it");
+    let view = recipe_view(&image);
     check_recipe_shape(&a.recipe.display().to_string(), (view.pixels(), view.leds()), &info)?;
     let info = c.provision_recipe(&image, |_, _| {}).with_context(|| format!("provisioning {}", a.recipe.display()))?;
     println!(
@@ -354,7 +358,7 @@ fn run_provision(a: ProvisionArgs) -> anyhow::Result<()> {
 fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
     ensure!(a.lines >= 1, "--lines must be at least 1");
     let image = read_recipe(&a.recipe)?;
-    let recipe = RecipeView::parse(&image[..image.len() - brdf_meter::signed::TRAILER_LEN]).expect("checked");
+    let recipe = recipe_view(&image);
     let mut c = Client::new(a.device.open()?)?;
     let info = c.info()?;
     if let Some(path) = &a.scene {
