@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | K_g, the gloss rows' clusters per zone (2..=64, with bit 9 only; else 0) |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -59,8 +59,9 @@
 //!
 //! | 4P (bit 7 only) | per pixel, the peak resolution, deg (below) |
 //! | 4ZKn (bit 8 only) | the second per-bin uncertainty table, for broad estimates (below) |
+//! | 68 (bit 11 only) | the sensor's linearity correction: 17 factors, one per octave of counts (below) |
 //!
-//! before the CRC (these two after the gloss section, when the blob has
+//! before the CRC (these three after the gloss section, when the blob has
 //! one). A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
 //!
@@ -94,6 +95,20 @@
 //! point's scale; the sigma16 encoding's step is the first table's), so
 //! only the host's stated uncertainty depends on it
 //! ([`BlobView::point_uncertainty`]).
+//!
+//! ## The sensor's linearity (flag bit 11)
+//! The factor at each of [`crate::acquire::linearity::LINEARITY_KNOTS`]
+//! knots, `2^0 .. 2^16` counts, of the correction the device applies to
+//! every exposure's dark-corrected signal before it scales and
+//! white-calibrates it ([`crate::acquire::Linearity`]: finite, within
+//! [`crate::acquire::linearity::FACTOR_RANGE`], and the corrected response
+//! increasing). The white reference is then the white tile's corrected
+//! reading too. The host measures the factors at the factory from an
+//! exposure sweep; the handheld's sensor (a response `c = FS (x / FS)^1.01`)
+//! read dark samples 2-4 % low against the white without it. A blob
+//! without the flag is read as before, bit for bit; firmware from before
+//! it rejects such a blob as having a reserved flag set, and keeps its
+//! last good calibration.
 //!
 //! ## The root form (flag bit 3, the scale-free kinds)
 //! A scale-free calibration may be trained in the root form: its matrices
@@ -194,6 +209,7 @@
 //! - Reserved bytes and flag bits are zero in version 1 so that a later version
 //!   can give them meaning without ambiguity.
 
+use crate::acquire::linearity::{LINEARITY_KNOTS, Linearity, LinearityError};
 use crate::kernel::scale_free::OutOfPriorForm;
 use core::fmt;
 
@@ -255,6 +271,10 @@ const FLAG_GLOSS_CLUSTERS: u16 = 512;
 /// such a blob as having a reserved flag set, and keeps its last good
 /// calibration.
 const FLAG_DEFICIT_READINGS: u16 = 1024;
+/// The sensor's linearity correction follows the second uncertainty table.
+/// Firmware from before it rejects such a blob as having a reserved flag
+/// set, and keeps its last good calibration.
+const FLAG_LINEARITY: u16 = 2048;
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
@@ -373,6 +393,8 @@ pub enum Section {
     Gloss,
     /// The per-pixel peak resolutions (header flag bit 7).
     PeakResolution,
+    /// The sensor's linearity correction (header flag bit 11).
+    Linearity,
 }
 
 /// Why a blob was rejected.
@@ -523,6 +545,8 @@ struct Layout {
     pixel_resolution: usize,
     /// The second uncertainty table (as long as the first, or empty).
     broad_uncertainty: usize,
+    /// The linearity correction (its knots, or empty).
+    linearity: usize,
     crc: usize,
     total: usize,
     clusters: usize,
@@ -563,7 +587,8 @@ impl Dims {
                 0
             };
         let broad_uncertainty = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
-        let crc = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
+        let linearity = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
+        let crc = linearity + if x.linearity { 4 * LINEARITY_KNOTS } else { 0 };
         Layout {
             grid,
             led_order,
@@ -576,6 +601,7 @@ impl Dims {
             gloss,
             pixel_resolution,
             broad_uncertainty,
+            linearity,
             crc,
             total: crc + 4,
             clusters: k,
@@ -707,6 +733,9 @@ pub struct BlobExtras<'a> {
     /// The second per-bin uncertainty table, for broad estimates (as the
     /// first: Z x K x n; empty for none; header flag bit 8): the module docs.
     pub broad_uncertainty: &'a [f32],
+    /// The sensor's linearity correction (header flag bit 11, format
+    /// version 2 and up): the module docs.
+    pub linearity: Option<Linearity>,
 }
 
 impl BlobExtras<'_> {
@@ -720,6 +749,7 @@ impl BlobExtras<'_> {
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
         broad_uncertainty: &[],
+        linearity: None,
     };
 }
 
@@ -743,6 +773,8 @@ struct Extras {
     gloss_clusters: usize,
     /// The root form's fourth gloss row is the peak's deficit (flag bit 10).
     deficit_readings: bool,
+    /// The sensor's linearity correction follows (flag bit 11).
+    linearity: bool,
 }
 
 impl Extras {
@@ -758,6 +790,7 @@ impl Extras {
         broad_band: false,
         gloss_clusters: 0,
         deficit_readings: false,
+        linearity: false,
     };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
@@ -773,6 +806,7 @@ impl Extras {
             broad_band: !x.broad_uncertainty.is_empty(),
             gloss_clusters: x.gloss.map_or(0, |g| g.centroids.len() / (d.zones * d.m).max(1)),
             deficit_readings: x.gloss.is_some_and(|g| g.root_readings == crate::gloss::RootReadings::Deficit),
+            linearity: x.linearity.is_some(),
         }
     }
 
@@ -783,6 +817,7 @@ impl Extras {
             || self.root_form
             || self.peak_resolution
             || self.broad_band
+            || self.linearity
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
@@ -935,7 +970,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         | if ex.pixel_resolution { FLAG_PIXEL_RESOLUTION } else { 0 }
         | if ex.broad_band { FLAG_BROAD_BAND } else { 0 }
         | if ex.gloss_clusters > 0 { FLAG_GLOSS_CLUSTERS } else { 0 }
-        | if ex.deficit_readings { FLAG_DEFICIT_READINGS } else { 0 };
+        | if ex.deficit_readings { FLAG_DEFICIT_READINGS } else { 0 }
+        | if ex.linearity { FLAG_LINEARITY } else { 0 };
     put_u16(
         out,
         22,
@@ -983,6 +1019,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         (lay.out_of_prior, oop),
         (lay.pixel_resolution, extras.pixel_peak_resolution_deg),
         (lay.broad_uncertainty, extras.broad_uncertainty),
+        (lay.linearity, extras.linearity.as_ref().map_or(&[][..], |l| &l.factors()[..])),
     ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);
@@ -1063,6 +1100,7 @@ impl<'a> BlobView<'a> {
                     0
                 },
                 deficit_readings: flags & FLAG_DEFICIT_READINGS != 0,
+                linearity: flags & FLAG_LINEARITY != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -1103,7 +1141,8 @@ impl<'a> BlobView<'a> {
                 | FLAG_PIXEL_RESOLUTION
                 | FLAG_BROAD_BAND
                 | FLAG_GLOSS_CLUSTERS
-                | FLAG_DEFICIT_READINGS;
+                | FLAG_DEFICIT_READINGS
+                | FLAG_LINEARITY;
             (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
                 && (ex.peak_resolution || !ex.pixel_resolution)
                 && (band || get_u32(bytes, 56) == 0)
@@ -1184,17 +1223,25 @@ impl<'a> BlobView<'a> {
         view.check_finite(Section::Uncertainty, lay.uncertainty, dims.zones * k * dims.n, false)?;
         // The second table, its values indexed on from the first's.
         let first = dims.zones * k * dims.n;
-        view.check_finite(Section::Uncertainty, lay.broad_uncertainty, (lay.crc - lay.broad_uncertainty) / 4, false)
-            .map_err(|e| match e {
-                BlobError::NonFinite { section, index } => BlobError::NonFinite { section, index: first + index },
-                BlobError::OutOfRange { section, index } => BlobError::OutOfRange { section, index: first + index },
-                e => e,
-            })?;
+        view.check_finite(
+            Section::Uncertainty,
+            lay.broad_uncertainty,
+            (lay.linearity - lay.broad_uncertainty) / 4,
+            false,
+        )
+        .map_err(|e| match e {
+            BlobError::NonFinite { section, index } => BlobError::NonFinite { section, index: first + index },
+            BlobError::OutOfRange { section, index } => BlobError::OutOfRange { section, index: first + index },
+            e => e,
+        })?;
         view.check_finite(Section::Matrices, lay.matrices, dims.zones * k * dims.n * dims.m, false)?;
         view.check_finite(Section::Centroids, lay.centroids, (lay.out_of_prior - lay.centroids) / 4, false)?;
         view.check_finite(Section::OutOfPrior, lay.out_of_prior, (lay.gloss - lay.out_of_prior) / 4, false)?;
         if ex.gloss {
             view.check_gloss()?;
+        }
+        if ex.linearity {
+            view.check_linearity()?;
         }
         Ok(view)
     }
@@ -1267,6 +1314,36 @@ impl<'a> BlobView<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The linearity section's rules ([`Linearity::new`]'s), knot by knot
+    /// in place.
+    fn check_linearity(&self) -> Result<(), BlobError> {
+        let mut last = f32::NAN;
+        for index in 0..(self.lay.crc - self.lay.linearity) / 4 {
+            let f = get_f32(self.bytes, self.lay.linearity + 4 * index);
+            match crate::acquire::linearity::fault(index, f, last) {
+                None => last = f,
+                Some(_) if !f.is_finite() => return Err(BlobError::NonFinite { section: Section::Linearity, index }),
+                Some(LinearityError::OutOfRange { index } | LinearityError::NotMonotone { index }) => {
+                    return Err(BlobError::OutOfRange { section: Section::Linearity, index });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The sensor's linearity correction (flag bit 11), when the blob has one.
+    pub fn linearity(&self) -> Option<Linearity> {
+        (self.lay.crc != self.lay.linearity).then(|| Linearity::validated(self.linearity_factors()))
+    }
+
+    fn linearity_factors(&self) -> [f32; LINEARITY_KNOTS] {
+        let mut f = [0.0; LINEARITY_KNOTS];
+        for (k, x) in f.iter_mut().enumerate() {
+            *x = get_f32(self.bytes, self.lay.linearity + 4 * k);
+        }
+        f
     }
 
     /// The blob's bytes (exactly its length).
@@ -1343,7 +1420,7 @@ impl<'a> BlobView<'a> {
     }
     /// Whether the blob carries the second uncertainty table (flag bit 8).
     pub fn has_broad_band(&self) -> bool {
-        self.lay.crc != self.lay.broad_uncertainty
+        self.lay.linearity != self.lay.broad_uncertainty
     }
     /// The table the point of estimate `rho` (on the angles `bins_deg`:
     /// the grid's, or the subset a frame carries) takes: [`crate::band`].
@@ -2326,6 +2403,38 @@ mod tests {
         let bare = out_of_prior_blob(OutOfPriorForm::Linear, 1.0);
         let flags = get_u16(&bare, 22) | FLAG_ROOT | FLAG_DEFICIT_READINGS;
         assert_eq!(resealed(bare, &|b| put_u16(b, 22, flags)), Err(BlobError::ReservedNotZero));
+    }
+
+    #[test]
+    fn the_sensors_linearity_is_flag_bit_11_and_its_factors_before_the_crc() {
+        let o = sample(6, 4, 2, 5);
+        let c = contents(&o);
+        let factors: [f32; LINEARITY_KNOTS] = core::array::from_fn(|k| 1.04 - 0.0025 * k as f32);
+        let lin = Linearity::new(factors).unwrap();
+        let ex = BlobExtras { linearity: Some(lin), ..BlobExtras::NONE };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        assert_eq!(buf.len(), o.dims.blob_len() + 4 * LINEARITY_KNOTS);
+        let v = BlobView::parse(&buf).unwrap();
+        // A version 1 blob's kind, but the flag needs version 2's header.
+        assert_eq!((v.version(), get_u16(&buf, 22)), (FORMAT_VERSION_2, FLAG_LINEARITY));
+        assert_eq!(v.linearity(), Some(lin));
+        // Everything else reads as the blob without it (no second table).
+        assert!(!v.has_broad_band());
+        let plain = encode(&o);
+        assert_eq!(BlobView::parse(&plain).unwrap().linearity(), None);
+        assert_eq!(buf[64..plain.len() - 4], plain[64..plain.len() - 4]);
+        // A factor out of range, not finite, or a falling response: refused,
+        // naming the knot.
+        let at = buf.len() - 4 - 4 * LINEARITY_KNOTS;
+        let edit = |k: usize, x: f32| resealed(buf.clone(), &move |b| put_f32(b, at + 4 * k, x));
+        let section = Section::Linearity;
+        assert_eq!(edit(5, 9.0), Err(BlobError::OutOfRange { section, index: 5 }));
+        assert_eq!(edit(16, f32::NAN), Err(BlobError::NonFinite { section, index: 16 }));
+        assert_eq!(edit(9, 0.6), Err(BlobError::OutOfRange { section, index: 8 }));
+        // The bit in a version 1 header is reserved.
+        let flagged = resealed(plain, &|b| put_u16(b, 22, FLAG_LINEARITY));
+        assert_eq!(flagged, Err(BlobError::ReservedNotZero));
     }
 
     #[test]

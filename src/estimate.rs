@@ -42,6 +42,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     pub led_order: [u8; M],
     /// White reference per pixel and reading.
     pub white: [[f32; M]; P],
+    /// The sensor's linearity correction, when the calibration has one.
+    pub linearity: Option<crate::acquire::Linearity>,
     /// Zone of each pixel.
     pub zone_of: [u16; P],
     zones: usize,
@@ -201,6 +203,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             },
             led_order,
             white,
+            linearity: view.linearity(),
             zone_of,
             zones: z,
             home: if in_ram { MatrixHome::Ram } else { MatrixHome::InPlace },

@@ -67,7 +67,7 @@ fn each_defect_is_flagged_on_its_own_point_only() {
     raw.lit[0][6] = 104; // 4 counts: below MIN_SIGNAL_COUNTS
     let mut v = [SVector::<f32, MM>::zeros(); PX];
     let mut fl = [0u8; PX];
-    correct_line(&raw, &white, fs, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
+    correct_line(&raw, &white, None, fs, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
     assert_eq!(fl[0], 0);
     assert_eq!(fl[1], flags::SATURATED);
     assert_eq!(fl[2], flags::SATURATED | flags::UNDER_EXPOSED);
@@ -103,7 +103,7 @@ fn correction_flags_match_first_principles_on_random_points() {
             })
             .collect();
         let mut v = vec![0.0f32; m];
-        let f = correct_point_into(dark, &lit, &white, fs, &[], &mut v);
+        let f = correct_point_into(dark, &lit, &white, fs, &[], None, &mut v);
         assert_eq!(f, expected_flags(dark, &lit, &white, fs), "case {case}: dark {dark}, lit {lit:?}, white {white:?}");
         // Unflagged readings are finite and positive.
         if f == 0 {

@@ -317,6 +317,18 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&c2, &ex4d, &mut b4d).expect("a valid root-form format 4 blob with the deficit row");
     b4d.truncate(n);
     out.push(("blob.v4.root-deficit-readings".into(), b4d));
+    // The same with the sensor's linearity correction (flag bit 11, 17
+    // factors before the CRC).
+    let factors: [f32; brdf_meter::acquire::linearity::LINEARITY_KNOTS] =
+        core::array::from_fn(|k| 1.0625 - 0.00390625 * k as f32);
+    let ex4l = BlobExtras {
+        linearity: Some(brdf_meter::acquire::Linearity::new(factors).expect("a valid correction")),
+        ..ex4d
+    };
+    let mut b4l = vec![0u8; p2.dims.blob_len_with(&ex4l)];
+    let n = write_blob_with(&c2, &ex4l, &mut b4l).expect("a valid format 4 blob with the linearity correction");
+    b4l.truncate(n);
+    out.push(("blob.v4.sensor-linearity".into(), b4l));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

@@ -120,7 +120,15 @@ where
             }
             let ok = shared.core.lock(|c| match c.borrow().cal.active() {
                 Some(a) => {
-                    correct_line(&buf.raw, &a.white, shared.full_scale, &shared.acq, &mut buf.v, &mut buf.flags);
+                    correct_line(
+                        &buf.raw,
+                        &a.white,
+                        a.linearity.as_ref(),
+                        shared.full_scale,
+                        &shared.acq,
+                        &mut buf.v,
+                        &mut buf.flags,
+                    );
                     true
                 }
                 None => false,

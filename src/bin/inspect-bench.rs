@@ -96,7 +96,8 @@ fn main() -> ! {
     }
     let recipe = RecipeView::parse(recipe).unwrap_or_else(|_| fail(b"inspect-bench: bad recipe"));
     let acq = brdf_meter::platform::timing::ACQUISITION;
-    let white = &cal.active().expect("loaded").white;
+    let active = cal.active().expect("loaded");
+    let (white, linearity) = (&active.white, active.linearity.as_ref());
     let lines = frames.len() / LINE_BYTES;
     for marking in [false, true] {
         for l in 0..lines {
@@ -104,7 +105,7 @@ fn main() -> ! {
             let mut v = [SVector::<f32, M>::zeros(); P];
             let mut fl = [0u8; P];
             at(marking, l, b"correct");
-            correct_line(&raw, white, full_scale, &acq, &mut v, &mut fl);
+            correct_line(&raw, white, linearity, full_scale, &acq, &mut v, &mut fl);
             at(marking, l, b"decide");
             let verdict = inspector.line(&recipe, l as u32, &v, &fl, |p| {
                 let mut rho = SVector::<f32, N>::zeros();

@@ -9,8 +9,9 @@
 //! calibration blob and one line of raw frames from the scene simulator.
 //! For each build it runs the library functions the firmware runs, between
 //! calls of [`bench_mark`]:
-//! - `correct`: `acquire::correct_line` (dark, white, saturation and
-//!   exposure flags) of the whole line;
+//! - `correct`: `acquire::correct_line` (dark, the sensor's linearity when
+//!   the calibration has it, white, saturation and exposure flags) of the
+//!   whole line;
 //! - `estimate`: `Calibration::estimate_point` for every point (zone,
 //!   cluster selection, the kernel, scale, out-of-prior, the derived gloss
 //!   readings when the device computes them, the guard);
@@ -127,12 +128,12 @@ fn send_msg(b: &Bounds, msg: &Response<'_>, enc: &str, seq: u32, prefix: &'stati
 
 /// One build's line, stage by stage.
 fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, P>, full_scale: u16) {
-    let white = &cal.active().expect("loaded").white;
-    let crc = cal.active().expect("loaded").info.blob_crc;
+    let active = cal.active().expect("loaded");
+    let (white, linearity, crc) = (&active.white, active.linearity.as_ref(), active.info.blob_crc);
     let mut v = [SVector::<f32, M>::zeros(); P];
     let mut fl = [0u8; P];
     b.at("correct", "-");
-    correct_line(raw, white, full_scale, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
+    correct_line(raw, white, linearity, full_scale, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
     let mut block = PointsBlock::new();
     let mut rho = SVector::<f32, N>::zeros();
     let estimate = |p: usize, rho: &mut SVector<f32, N>| {

@@ -54,6 +54,7 @@ pub fn train_scene_for_slot(
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white),
+        linearity: optics.linearity.map(|l| l.correction),
         max_blob_len,
     })
 }

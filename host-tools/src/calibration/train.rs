@@ -75,6 +75,9 @@ pub struct TrainSpec<'a> {
     /// White reference, P x m; `None` = 1.0 everywhere (a simulated sensor
     /// that is already white-normalised).
     pub white: Option<Vec<f32>>,
+    /// The sensor's linearity correction the white and the readings take
+    /// (`brdf_meter::acquire::Linearity`), when the sensor needs one.
+    pub linearity: Option<brdf_meter::acquire::Linearity>,
     /// The most bytes of blob the device's calibration slot takes: a
     /// cluster count chosen in training (`clusters` `None`) is taken only if
     /// its blob fits, else the choice is made again among fewer. A fixed
@@ -118,6 +121,7 @@ impl<'a> TrainSpec<'a> {
             far_field: false,
             led_order: None,
             white: None,
+            linearity: None,
             max_blob_len: board_blob_capacity(),
         }
     }
@@ -414,6 +418,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         peak_resolution_deg: None,
         pixel_peak_resolution_deg: &[],
         broad_uncertainty: if broad.len() == uncertainty.len() { &broad } else { &[] },
+        linearity: spec.linearity,
     };
     let chosen = gloss_section(spec, &zones, zone_pairs, &plans, most)?;
     let mut blob = with_gloss(&contents, base, chosen.as_ref(), spec, &plans)?;

@@ -183,7 +183,7 @@ pub struct Setup {
 impl Setup {
     /// The training specification `train` trains with.
     pub fn spec(&self) -> TrainSpec<'_> {
-        let (zones, pixels, white, far_field, noise) = self.optics.clone();
+        let TrainingZones { zones, pixels, white, linearity, far_field, noise } = self.optics.clone();
         TrainSpec {
             bins_deg: self.grid.bins_deg(),
             zones,
@@ -199,6 +199,7 @@ impl Setup {
             far_field,
             led_order: None,
             white,
+            linearity: linearity.map(|l| l.correction),
             max_blob_len: crate::calibration::train::board_blob_capacity(),
         }
     }
@@ -356,7 +357,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let seed = a.sign.as_deref().map(crate::calibration::signing::read_secret).transpose()?;
     let setup = a.cal.setup()?;
     let kind = setup.kind;
-    let noise = setup.optics.4;
+    let noise = setup.optics.noise;
     let (mix, prior) = (&setup.mix, &setup.prior);
     let trained = train(&setup.spec())?;
     // Everything is computed; serialise (and sign) before writing anything.
@@ -382,6 +383,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         prior.len(),
         families.join(" + "),
     );
+    if let Some(l) = &setup.optics.linearity {
+        println!("{}", linearity_note(l));
+    }
     match trained.worst_zone() {
         Some((worst, s)) => {
             println!(
@@ -481,12 +485,45 @@ fn over_slot_note(len: usize, capacity: usize) -> Option<String> {
     })
 }
 
+/// What `train` says of the sensor's measured linearity.
+fn linearity_note(l: &crate::forward::scene::sensor_linearity::SensorLinearity) -> String {
+    let pct = |c: f64| 100.0 * l.bend(c, 2000.0);
+    format!(
+        "sensor linearity: measured by an exposure sweep ({} exposures x {} lines): the sensor reads 30, 100 and 1000 counts {:.1}, {:.1} and {:.1} % low against 2000 counts; the blob's correction gives the sweep back within {:.2} % (rms){}",
+        l.exposures,
+        crate::forward::scene::sensor_linearity::LINES,
+        pct(30.0),
+        pct(100.0),
+        pct(1000.0),
+        100.0 * l.residual_rms,
+        if l.clamped {
+            "; the sensor bends more than a correction may undo: its dimmest readings stay partly bent"
+        } else {
+            ""
+        }
+    )
+}
+
 /// The zones' optics `train` trains on: from the scene (`--scene`: its
-/// optics, white reference, field model and noise, `--noise` overriding
-/// it) or the instrument's uniform zones (relative noise `--noise`, 0.02
-/// by default): the zones, P, the white reference, the far-field flag and
-/// the noise level the blob records.
-pub type TrainingZones = (Vec<crate::forward::zone_optics::ZoneOptics>, usize, Option<Vec<f32>>, bool, f64);
+/// optics, white reference, sensor linearity, field model and noise,
+/// `--noise` overriding it) or the instrument's uniform zones (relative
+/// noise `--noise`, 0.02 by default).
+#[derive(Clone, Debug)]
+pub struct TrainingZones {
+    /// The zones' optics.
+    pub zones: Vec<crate::forward::zone_optics::ZoneOptics>,
+    /// Pixels P.
+    pub pixels: usize,
+    /// The white reference (`None`: a sensor already white-normalised).
+    pub white: Option<Vec<f32>>,
+    /// The factory's measurement of the sensor's linearity, when the
+    /// scene's sensor needs a correction (the blob carries it).
+    pub linearity: Option<crate::forward::scene::sensor_linearity::SensorLinearity>,
+    /// Whether the optics are modelled far-field.
+    pub far_field: bool,
+    /// The noise level the blob records.
+    pub noise: f64,
+}
 
 /// See [`TrainingZones`].
 pub fn zone_optics(
@@ -498,17 +535,25 @@ pub fn zone_optics(
     Ok(match scene {
         Some(s) => {
             let t = crate::forward::scene::training_optics(s, a.zones, a.noise).context("--zones with --scene")?;
-            (t.zones, t.pixels, Some(t.white), !s.has("near-field"), t.noise_level)
+            TrainingZones {
+                zones: t.zones,
+                pixels: t.pixels,
+                white: Some(t.white),
+                linearity: t.linearity,
+                far_field: !s.has("near-field"),
+                noise: t.noise_level,
+            }
         }
         None => {
             let noise = a.noise.unwrap_or(0.02);
-            (
-                uniform_zones(inst, grid, a.zones, a.pixels, a.far_field, noise).context("--zones/--pixels")?,
-                a.pixels,
-                None,
-                a.far_field,
+            TrainingZones {
+                zones: uniform_zones(inst, grid, a.zones, a.pixels, a.far_field, noise).context("--zones/--pixels")?,
+                pixels: a.pixels,
+                white: None,
+                linearity: None,
+                far_field: a.far_field,
                 noise,
-            )
+            }
         }
     })
 }

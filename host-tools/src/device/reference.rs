@@ -284,6 +284,7 @@ pub fn corrected_line(
     let d = blob.dims();
     let order = blob.led_order();
     let levels = (frames.len() / (d.m + 1)).saturating_sub(1).min(acq.short_levels());
+    let linearity = blob.linearity();
     (0..d.pixels)
         .map(|p| {
             let lit_at = |level: usize| -> Vec<u16> {
@@ -302,7 +303,8 @@ pub fn corrected_line(
                 .collect();
             let white: Vec<f32> = (0..d.m).map(|i| blob.white(p, i)).collect();
             let mut v = vec![0.0f32; d.m];
-            let flags = correct_point_into(frames[0][p], &lit, &white, full_scale, &shorter, &mut v);
+            let flags =
+                correct_point_into(frames[0][p], &lit, &white, full_scale, &shorter, linearity.as_ref(), &mut v);
             (v, flags)
         })
         .collect()

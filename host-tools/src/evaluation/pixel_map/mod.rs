@@ -723,6 +723,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         far_field: !scene.has("near-field"),
         led_order: None,
         white: Some(optics.white.clone()),
+        linearity: optics.linearity.as_ref().map(|l| l.correction),
         max_blob_len: crate::calibration::train::board_blob_capacity(),
     };
     progress("sample pairs of every zone");

@@ -27,6 +27,8 @@
 //! - [`zone_system_matrices`] / [`pixel_system_matrix`]: H per zone or pixel
 //!   (the optics the scene says it has; no noise draw, no surface, no truth);
 //! - [`white_reference`]: the blob's white reference per pixel and LED;
+//! - [`sensor_linearity`]: the factory's measurement of a nonlinear sensor,
+//!   the correction the blob carries;
 //! - [`raw_frames`]: one line's raw u16 frames (dark first, then the LEDs in
 //!   physical order) for the simulated line sensor; [`frames`] for whole
 //!   lines and the synthetic analytic pattern.
@@ -36,6 +38,7 @@ pub mod frames;
 pub mod noise_level;
 pub mod pipeline;
 pub mod readings;
+pub mod sensor_linearity;
 
 use crate::forward::brdf::{Brdf, BrdfSpec};
 use crate::forward::optics::{Instrument, Optics, OpticsError, RayModel, system_matrix_at};
@@ -400,6 +403,10 @@ pub struct TrainingOptics {
     /// The relative noise of a perfect diffuser's readings
     /// ([`noise_level::relative_noise_level`]).
     pub noise_level: f64,
+    /// The factory's measurement of the sensor, when the scene makes it
+    /// nonlinear: its correction goes into the blob (the white above
+    /// already took it).
+    pub linearity: Option<sensor_linearity::SensorLinearity>,
 }
 
 /// The optics of `zones` zones of the scene, for `train` (no noise draw, no
@@ -458,7 +465,13 @@ pub fn training_optics(scene: &Scene, zones: usize, noise_override: Option<f64>)
         Some(s) => s,
         None => noise_level::relative_noise_level(scene)?,
     };
-    Ok(TrainingOptics { zones: out, pixels: p, white: sim.white().iter().map(|w| *w as f32).collect(), noise_level })
+    Ok(TrainingOptics {
+        zones: out,
+        pixels: p,
+        white: sim.white().iter().map(|w| *w as f32).collect(),
+        noise_level,
+        linearity: sim.linearity().cloned(),
+    })
 }
 
 /// The blob's white reference: for every pixel p and LED i (physical order),

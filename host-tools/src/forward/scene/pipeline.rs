@@ -7,6 +7,9 @@
 //! The host then white-calibrates: `corrected = (raw - dark) / white`, where
 //! `white` is the same pipeline's noise-free, drift-free reading of a perfect
 //! diffuser, dark-corrected (so a perfect diffuser reads 1 in every geometry).
+//! A sensor the scene makes nonlinear (`nonlinearity`) is measured as a
+//! factory would ([`super::sensor_linearity`]) and every signal, the white's
+//! too, is made linear with that correction first, as the device does.
 //!
 //! Geometric effects configure the optics (a flag that is off is a
 //! computation that never runs); the others are boxed [`Stage`]s, one per
@@ -324,6 +327,9 @@ pub struct Simulator {
     white: Vec<f64>,
     /// The dark frame's noise-free counts (P).
     dark: Vec<f64>,
+    /// The factory's measurement of a nonlinear sensor (scenes that list
+    /// `nonlinearity`), whose correction the readings and the white take.
+    linearity: Option<super::sensor_linearity::SensorLinearity>,
 }
 
 impl Simulator {
@@ -376,7 +382,15 @@ impl Simulator {
             signal[px * m..(px + 1) * m].copy_from_slice(memo[key].as_deref().unwrap());
             white_signal[px * m..(px + 1) * m].copy_from_slice(white_memo[pt].as_deref().unwrap());
         }
-        let (white, dark) = reference(&pipeline, &white_signal, m, p);
+        let linearity = if scene.has("nonlinearity") {
+            Some(super::sensor_linearity::measure(&pipeline, m, p, inst.sensor.full_scale)?)
+        } else {
+            None
+        };
+        let (mut white, dark) = reference(&pipeline, &white_signal, m, p);
+        if let Some(l) = &linearity {
+            white.iter_mut().for_each(|w| *w = linear(&l.correction, *w));
+        }
         for px in 0..p {
             for k in 0..m {
                 let w = white[px * m + k];
@@ -389,7 +403,7 @@ impl Simulator {
                 }
             }
         }
-        Ok(Self { pipeline, m, p, signal, white, dark })
+        Ok(Self { pipeline, m, p, signal, white, dark, linearity })
     }
 
     /// The pipeline.
@@ -416,6 +430,12 @@ impl Simulator {
     /// White reference, `p * m + k`.
     pub fn white(&self) -> &[f64] {
         &self.white
+    }
+
+    /// The sensor's linearity as the factory measured it, when the scene
+    /// makes the sensor nonlinear (the correction is the blob's).
+    pub fn linearity(&self) -> Option<&super::sensor_linearity::SensorLinearity> {
+        self.linearity.as_ref()
     }
 
     /// The dark frame's noise-free, drift-free counts per pixel (what the
@@ -465,19 +485,21 @@ impl Simulator {
     /// with the short frames after them ([`Self::short_frames`], each level's
     /// dark frame and LED frames), a pixel whose long frame saturated is read
     /// from its longest unsaturated exposure, `(short - its dark) ratio /
-    /// white` (the shortest's when every one saturates): the device's rule
-    /// (`brdf_meter::acquire::correct_point_into`).
+    /// white` (the shortest's when every one saturates), each exposure's
+    /// signal made linear first when the sensor is measured nonlinear: the
+    /// device's rule (`brdf_meter::acquire::correct_point_into`).
     pub fn correct(&self, raw: &[Vec<f64>]) -> Vec<f64> {
         let (m, fs) = (self.m, self.pipeline.full_scale);
+        let lin = |s: f64| self.linearity.as_ref().map_or(s, |l| linear(&l.correction, s));
         let levels = (raw.len() / (m + 1)).saturating_sub(1).min(self.pipeline.short_ratios.len());
         let mut out = vec![0.0; self.p * m];
         for px in 0..self.p {
             for k in 0..m {
-                let mut s = raw[1 + k][px] - raw[0][px];
+                let mut s = lin(raw[1 + k][px] - raw[0][px]);
                 if raw[1 + k][px] >= fs {
                     for (l, r) in self.pipeline.short_ratios[..levels].iter().enumerate() {
                         let base = (l + 1) * (m + 1);
-                        s = (raw[base + 1 + k][px] - raw[base][px]) * r;
+                        s = lin(raw[base + 1 + k][px] - raw[base][px]) * r;
                         if raw[base + 1 + k][px] < fs {
                             break;
                         }
@@ -552,6 +574,12 @@ fn light(
             (gain * s, gain * w * seen)
         })
         .unzip()
+}
+
+/// `s` counts made linear by `correction`: the device's function (in f32,
+/// which is all the sensor's counts need).
+fn linear(correction: &brdf_meter::acquire::Linearity, s: f64) -> f64 {
+    f64::from(correction.linear(s as f32))
 }
 
 /// Dark-corrected reference readings of the white signal (`p * m + k`) and

@@ -10,8 +10,17 @@
 //! it. A saturated reading is then taken from its longest unsaturated
 //! exposure, scaled by the exposures' ratio (exact: integer microseconds).
 //!
-//! [`correct_point`] is the one definition of a corrected reading: the device
-//! runs it, and the host runs it to reproduce the device's numbers bit for bit.
+//! With the calibration's [`Linearity`] each exposure's dark-corrected
+//! signal is made linear before it is scaled and white-calibrated
+//! ([`linearity`]).
+//!
+//! [`correct_point_into`] is the one definition of a corrected reading: the
+//! device runs it, and the host runs it to reproduce the device's numbers
+//! bit for bit.
+pub mod linearity;
+
+pub use linearity::Linearity;
+
 use crate::protocol::flags;
 use nalgebra::SVector;
 
@@ -107,11 +116,12 @@ impl<const M: usize, const P: usize> Default for RawLine<M, P> {
 /// Corrects one point: `v[i] = (lit[i] - dark) / white[i]`, in f32, and flags
 /// saturation (a raw value at full scale), under-exposure (signal below
 /// [`MIN_SIGNAL_COUNTS`]) and non-finite results. Fixed-size form of
-/// [`correct_point_into`] without shorter exposures (same operations, same bits).
+/// [`correct_point_into`] without shorter exposures or a linearity
+/// correction (same operations, same bits).
 #[inline]
 pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M], full_scale: u16) -> ([f32; M], u8) {
     let mut v = [0.0f32; M];
-    let f = correct_point_into(dark, lit, white, full_scale, &[], &mut v);
+    let f = correct_point_into(dark, lit, white, full_scale, &[], None, &mut v);
     (v, f)
 }
 
@@ -120,7 +130,9 @@ pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M]
 /// the device's numbers). A reading whose long frame saturated is taken
 /// from the first of `shorter` (longest first) whose frame did not,
 /// `(lit - dark) ratio / white`; it is flagged saturated only when the
-/// shortest saturated too (or there is none).
+/// shortest saturated too (or there is none). With `linearity`, each
+/// exposure's `lit - dark` is made linear first ([`Linearity::linear`]);
+/// the under-exposure test is on the counts as read.
 ///
 /// # Panics
 /// If `lit`, `white`, `v` and every shorter exposure's `lit` differ in length.
@@ -131,6 +143,7 @@ pub fn correct_point_into(
     white: &[f32],
     full_scale: u16,
     shorter: &[Shorter<'_>],
+    linearity: Option<&Linearity>,
     v: &mut [f32],
 ) -> u8 {
     assert!(lit.len() == white.len() && lit.len() == v.len(), "one white value and one output per reading");
@@ -138,6 +151,9 @@ pub fn correct_point_into(
         shorter.iter().all(|s| s.lit.len() == lit.len() && s.taken.len() == lit.len()),
         "one value per reading at every exposure"
     );
+    // Without a correction the identity's, which changes no bit: one path,
+    // not a copy of the loop per case.
+    let lin = linearity.unwrap_or(&Linearity::IDENTITY);
     let mut f = 0u8;
     if dark >= full_scale {
         f |= flags::SATURATED;
@@ -148,11 +164,12 @@ pub fn correct_point_into(
         if s < MIN_SIGNAL_COUNTS {
             f |= flags::UNDER_EXPOSED;
         }
+        s = lin.linear(s);
         for e in shorter {
             if !saturated || !e.taken[i] {
                 break;
             }
-            s = (e.lit[i] as f32 - e.dark as f32) * e.ratio;
+            s = lin.linear(e.lit[i] as f32 - e.dark as f32) * e.ratio;
             saturated = e.lit[i] >= full_scale;
         }
         if saturated {
@@ -167,10 +184,12 @@ pub fn correct_point_into(
 }
 
 /// Corrects a whole line into `v` and `fl` (one entry per pixel), its
-/// shorter exposures taken at `cfg.short_exposures_us`.
+/// shorter exposures taken at `cfg.short_exposures_us`, made linear by
+/// `linearity` when the calibration has one.
 pub fn correct_line<const M: usize, const P: usize>(
     raw: &RawLine<M, P>,
     white: &[[f32; M]; P],
+    linearity: Option<&Linearity>,
     full_scale: u16,
     cfg: &AcqConfig,
     v: &mut [SVector<f32, M>; P],
@@ -187,7 +206,15 @@ pub fn correct_line<const M: usize, const P: usize>(
             lit: &short[l],
             taken: &raw.short_taken[l],
         });
-        fl[p] = correct_point_into(raw.dark[p], &lit, &white[p], full_scale, &shorter[..levels], v[p].as_mut_slice());
+        fl[p] = correct_point_into(
+            raw.dark[p],
+            &lit,
+            &white[p],
+            full_scale,
+            &shorter[..levels],
+            linearity,
+            v[p].as_mut_slice(),
+        );
     }
 }
 
@@ -352,19 +379,38 @@ mod tests {
         let s16 = Shorter { dark: 7, ratio: 16.0, lit: &[4095, 99], taken: &[true, false] };
         let s80 = Shorter { dark: 5, ratio: 80.0, lit: &[1005, 99], taken: &[true, false] };
         let mut v = [0.0f32; 2];
-        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16, s80], &mut v);
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16, s80], None, &mut v);
         assert_eq!(f, 0);
         assert_eq!(v, [(1005.0 - 5.0) * 80.0 / 1000.0, 500.0 / 500.0]);
         // Only the first shorter exposure configured: still saturated.
-        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16], &mut v);
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[s16], None, &mut v);
         assert_eq!(f, flags::SATURATED);
         // A shorter frame the sensor could not give: saturated stays so.
         let none = Shorter { taken: &[false, false], ..s16 };
-        let f = correct_point_into(100, &[4095, 600], &white, fs, &[none, s80], &mut v);
+        let f = correct_point_into(100, &[4095, 600], &white, fs, &[none, s80], None, &mut v);
         assert_eq!((f, v[0]), (flags::SATURATED, 3995.0 / 1000.0));
         let cfg = AcqConfig { exposure_us: 2000, short_exposures_us: [125, 25], ..AcqConfig::default() };
         assert_eq!((cfg.short_levels(), cfg.ratio(0), cfg.ratio(1)), (2, 16.0, 80.0));
         assert_eq!((cfg.level_of(2000), cfg.level_of(125), cfg.level_of(25)), (0, 1, 2));
+    }
+
+    #[test]
+    fn each_exposure_is_made_linear_before_it_is_scaled() {
+        // A correction of 1.25 below 2^8 counts and 1 from 2^9 up.
+        let mut f = [1.0f32; linearity::LINEARITY_KNOTS];
+        f[..=8].fill(1.25);
+        let lin = Linearity::new(f).unwrap();
+        let white = [1000.0f32, 500.0];
+        let s16 = Shorter { dark: 7, ratio: 16.0, lit: &[107, 99], taken: &[true, false] };
+        let mut v = [0.0f32; 2];
+        // Reading 0 saturates and is read at 1/16 (100 counts, x 1.25);
+        // reading 1's 5 counts are under-exposed as read, and corrected too.
+        let f = correct_point_into(100, &[4095, 105], &white, 4095, &[s16], Some(&lin), &mut v);
+        assert_eq!(f, flags::UNDER_EXPOSED);
+        assert_eq!(v, [100.0 * 1.25 * 16.0 / 1000.0, 5.0 * 1.25 / 500.0]);
+        // Without it, the same frames read as before.
+        correct_point_into(100, &[4095, 105], &white, 4095, &[s16], None, &mut v);
+        assert_eq!(v, [100.0 * 16.0 / 1000.0, 5.0 / 500.0]);
     }
 
     #[test]
@@ -375,7 +421,7 @@ mod tests {
         let white = [[100.0, 50.0], [200.0, 25.0], [300.0, 10.0]];
         let mut v = [SVector::<f32, 2>::zeros(); 3];
         let mut fl = [0; 3];
-        correct_line(&raw, &white, 4095, &AcqConfig::default(), &mut v, &mut fl);
+        correct_line(&raw, &white, None, 4095, &AcqConfig::default(), &mut v, &mut fl);
         for p in 0..3 {
             let (vp, f) = correct_point(raw.dark[p], &[raw.lit[0][p], raw.lit[1][p]], &white[p], 4095);
             assert_eq!(v[p], SVector::from(vp));
