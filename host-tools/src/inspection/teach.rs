@@ -6,7 +6,9 @@
 //! fits its slot) the correlation of the standardised readings pooled over
 //! the group's pixels and lines, whitened by its Cholesky factor, and the
 //! gloss readings' gradient at the reference, by central differences of the
-//! device's own readings (`PointEstimator`) averaged over the group.
+//! device's own readings (`PointEstimator`) averaged over the group (one-sided
+//! where the reference sits on the border of two of the gloss rows'
+//! clusters, so the jump between them is not taken for a slope).
 //!
 //! The distance threshold is set from the false-call rate asked for: a
 //! false call needs `min_pixels` adjacent pixels out at once, so each pixel
@@ -26,6 +28,24 @@ use brdf_meter::inspect::recipe::{self, DelayUnit, RecipeData, RecipeSettings, g
 use brdf_meter::protocol::flags;
 use brdf_meter::shape::{LEDS as M, READINGS};
 use nalgebra::{DMatrix, SVector};
+
+/// The slope of a reading from its values a step `h` above (`a`), at (`c`)
+/// and below (`b`) the reference. The readings are smooth but for the
+/// gloss rows' cluster choice, which jumps where the reference sits on the
+/// border of two clusters (GU apart): a step across that border is a jump,
+/// not a slope, and it would make the gradient of the whole group. Where
+/// the two one-sided differences disagree, the smaller is the slope; else
+/// the central difference.
+fn slope(a: f64, c: f64, b: f64, h: f64) -> f64 {
+    let (fwd, bwd) = ((a - c) / h, (c - b) / h);
+    if (fwd - bwd).abs() <= 0.5 * fwd.abs().max(bwd.abs()) + 1e-9 {
+        (a - b) / (2.0 * h)
+    } else if fwd.abs() < bwd.abs() {
+        fwd
+    } else {
+        bwd
+    }
+}
 
 /// Fewest lines a recipe is taught from.
 pub const MIN_LINES: usize = 50;
@@ -241,9 +261,9 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
                 v[i] += s * h;
                 model.estimate(px, &v.map(|x| x as f32)).readings
             };
-            let (a, b) = (at(1.0), at(-1.0));
+            let (a, c, b) = (at(1.0), at(0.0), at(-1.0));
             for r in 0..READINGS {
-                j[(r, i)] = (a[r] as f64 - b[r] as f64) / (2.0 * h);
+                j[(r, i)] = slope(a[r].into(), c[r].into(), b[r].into(), h);
             }
         }
         j
@@ -494,6 +514,21 @@ fn ln_gamma(x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_jump_between_gloss_clusters_is_not_taken_for_a_slope() {
+        let h = 1e-3;
+        // Smooth (slope 3, a little curvature): the central difference.
+        let f = |x: f64| 3.0 * x + 0.5 * x * x;
+        assert!((slope(f(h), f(0.0), f(-h), h) - 3.0).abs() < 1e-9);
+        // The step above the reference crosses to a cluster 2.2 GU higher:
+        // the slope below it, not 1,100 GU per unit.
+        assert!((slope(f(h) + 2.2, f(0.0), f(-h), h) - 3.0).abs() < 1e-3);
+        // The step below crosses: the slope above it.
+        assert!((slope(f(h), f(0.0), f(-h) - 2.2, h) - 3.0).abs() < 1e-3);
+        // No reading stays no reading.
+        assert!(slope(f64::NAN, f64::NAN, f64::NAN, h).is_nan());
+    }
 
     #[test]
     fn chi_square_quantiles_match_the_tables() {
