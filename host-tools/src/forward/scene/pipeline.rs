@@ -383,7 +383,7 @@ impl Simulator {
             white_signal[px * m..(px + 1) * m].copy_from_slice(white_memo[pt].as_deref().unwrap());
         }
         let linearity = if scene.has("nonlinearity") {
-            Some(super::sensor_linearity::measure(&pipeline, m, p, inst.sensor.full_scale)?)
+            Some(super::sensor_linearity::measure_once(&pipeline, m, p, inst.sensor.full_scale)?)
         } else {
             None
         };

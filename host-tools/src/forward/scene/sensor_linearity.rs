@@ -119,6 +119,31 @@ pub fn measure(pipeline: &Pipeline, m: usize, pixels: usize, full_scale: f64) ->
     fit(&sweep).context("the sensor's linearity sweep")
 }
 
+/// [`measure`], once per sensor: the sweep is a function of the pipeline's
+/// stages and the sensor's shape alone (every draw is seeded), and every
+/// simulator of a scene (one per material an evaluation reads) would
+/// otherwise sweep again, 4.4 ms each on the handheld (+39 % on a line
+/// simulated from scratch, `examples/scene_speed`).
+pub fn measure_once(pipeline: &Pipeline, m: usize, pixels: usize, full_scale: f64) -> anyhow::Result<SensorLinearity> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    /// Sensors kept; a process that meets more starts the cache again.
+    const KEPT: usize = 64;
+    static DONE: OnceLock<Mutex<HashMap<String, SensorLinearity>>> = OnceLock::new();
+    let key = format!("{pipeline:?} m={m} pixels={pixels} full_scale={full_scale}");
+    let done = DONE.get_or_init(Default::default);
+    if let Some(l) = done.lock().expect("not poisoned").get(&key) {
+        return Ok(l.clone());
+    }
+    let l = measure(pipeline, m, pixels, full_scale)?;
+    let mut done = done.lock().expect("not poisoned");
+    if done.len() >= KEPT {
+        done.clear();
+    }
+    done.insert(key, l.clone());
+    Ok(l)
+}
+
 /// Octave of `s` counts and the position within it, as the device reads
 /// them (`brdf_meter::acquire::Linearity::linear`): `s = 2^k (1 + t)`.
 fn octave(s: f64) -> (usize, f64) {
