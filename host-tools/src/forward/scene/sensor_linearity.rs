@@ -59,14 +59,11 @@ pub struct SensorLinearity {
     /// ([`brdf_meter::acquire::linearity::FACTOR_RANGE`]), so the fitted
     /// factors were limited and the dimmest readings stay partly bent.
     pub clamped: bool,
-    /// Mean dark-corrected signal (counts) and the light the fit gives back
-    /// for it (`K e_j`), per exposure, brightest first.
-    pub sweep: Vec<(f64, f64)>,
 }
 
 impl SensorLinearity {
     /// How much the correction raises a reading of `counts` against one of
-    /// `reference` counts (e.g. -0.037 for a sensor that reads 3.7 % low
+    /// `reference` counts (about 0.037 for a sensor that reads 3.7 % low
     /// there, relative to the reference).
     pub fn bend(&self, counts: f64, reference: f64) -> f64 {
         let f = |c: f64| f64::from(self.correction.linear(c as f32)) / c;
@@ -207,14 +204,13 @@ fn fit(sweep: &[(f64, f64, f64)]) -> anyhow::Result<SensorLinearity> {
     let correction = Linearity::new(factors).map_err(|e| {
         anyhow::anyhow!("the fitted correction is not one a device can run ({e:?}; factors {factors:?})")
     })?;
-    let back: Vec<(f64, f64)> = sweep.iter().map(|&(e, s, _)| (s, k_scale * e)).collect();
-    let read: Vec<f64> = back
+    let read: Vec<f64> = sweep
         .iter()
-        .filter(|f| f.0 >= f64::from(brdf_meter::acquire::MIN_SIGNAL_COUNTS))
-        .map(|&(s, light)| (f64::from(correction.linear(s as f32)) / light - 1.0).powi(2))
+        .filter(|f| f.1 >= f64::from(brdf_meter::acquire::MIN_SIGNAL_COUNTS))
+        .map(|&(e, s, _)| (f64::from(correction.linear(s as f32)) / (k_scale * e) - 1.0).powi(2))
         .collect();
     let residual_rms = (read.iter().sum::<f64>() / read.len().max(1) as f64).sqrt();
-    Ok(SensorLinearity { correction, exposures: sweep.len(), residual_rms, clamped, sweep: back })
+    Ok(SensorLinearity { correction, exposures: sweep.len(), residual_rms, clamped })
 }
 
 #[cfg(test)]
