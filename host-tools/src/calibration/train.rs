@@ -752,7 +752,8 @@ fn gloss_section(
                 let d = if t[2] > 0.0 { 100.0 * (t[2] - t[3]) / t[2] } else { f64::NAN };
                 let truth = [t[0], t[1], d];
                 let (c, x, sc) = gloss_input(tz, plan, cents.as_deref(), noisy);
-                zs.push((c, gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz))));
+                let z = gloss_rows::z_scores(&fb[c], &x, q, sc, &truth, root_of(tz));
+                zs.push(gloss_rows::HeldOutZ { cluster: c, family: g.family(k), z });
             }
         });
         for (c, b) in blocks.iter_mut().enumerate() {
@@ -782,6 +783,8 @@ struct ZoneGloss {
     aug: Pairs,
     target: DMatrix<f64>,
     glass: usize,
+    /// The first sample of the standards (the prior's are below it).
+    first_standard: usize,
     bg: DVector<f64>,
 }
 
@@ -798,7 +801,18 @@ impl ZoneGloss {
         let first_standard = zone_pairs.prior[z].sample.iter().copied().max().map_or(0, |x| x + 1);
         let glass = first_standard + gloss_rows::BLACK_GLASS_STANDARD;
         let aug = gloss_rows::anchored(&aug, glass);
-        Some(Self { aug, target, glass, bg: gloss_rows::black_glass_readings(&zo.centre) })
+        Some(Self { aug, target, glass, first_standard, bg: gloss_rows::black_glass_readings(&zo.centre) })
+    }
+
+    /// The family of pair `k`'s sample.
+    fn family(&self, k: usize) -> gloss_rows::Family {
+        if self.aug.sample[k] >= self.first_standard {
+            gloss_rows::Family::Standard
+        } else if self.aug.variant[k] == 0 {
+            gloss_rows::Family::AsTheyAre
+        } else {
+            gloss_rows::Family::Variant
+        }
     }
 
     /// Calls `read` once per held-out fold of the samples (the black glass

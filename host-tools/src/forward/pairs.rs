@@ -239,6 +239,11 @@ pub struct Pairs {
     pub sample: Vec<usize>,
     /// The pixel of each pair (index into the pixels it was built over).
     pub pixel: Vec<usize>,
+    /// Which of its sample's variants each pair reads: 0 the sample as it
+    /// is, 1.. its rougher finishes and stretches (`PriorModels::variants`'
+    /// order). An uncertainty stated for the materials as they are must
+    /// hold on them, not only on them pooled with their variants.
+    pub variant: Vec<usize>,
     /// The gloss rows' target of each pair (LINEAR x K,
     /// [`PixelOptics::gloss_target`]), when built with it and every pair has one.
     pub gloss: Option<DMatrix<f64>>,
@@ -262,8 +267,14 @@ impl Pairs {
     fn build_inner(pixels: &[PixelOptics], prior: &PriorModels, gloss: bool) -> Self {
         assert!(!pixels.is_empty(), "pairs need at least one pixel");
         let np = pixels.len();
-        type Col =
-            (DVector<f64>, DVector<f64>, DVector<f64>, f64, usize, usize, Option<[f64; brdf_meter::gloss::LINEAR]>);
+        type Col = (
+            DVector<f64>,
+            DVector<f64>,
+            DVector<f64>,
+            f64,
+            (usize, usize, usize),
+            Option<[f64; brdf_meter::gloss::LINEAR]>,
+        );
         // Each sample's variants (itself, and its rougher finishes and
         // stretches across the plane when the prior has them and the
         // optics see across the plane): pairs of one sample, sharing its weight.
@@ -281,11 +292,11 @@ impl Pairs {
                 let v = po.readings(model, &t);
                 let var = DVector::from_iterator(v.len(), v.iter().enumerate().map(|(j, x)| po.noise.variance(j, *x)));
                 let g = if gloss { po.gloss_target(model, &t) } else { None };
-                (t, v, var, prior.samples[k].weight * share / np as f64, k, p, g)
+                (t, v, var, prior.samples[k].weight * share / np as f64, (k, p, j), g)
             })
             .collect();
-        let gloss = if gloss && cols.iter().all(|c| c.6.is_some()) {
-            Some(DMatrix::from_fn(brdf_meter::gloss::LINEAR, cols.len(), |r, c| cols[c].6.expect("checked")[r]))
+        let gloss = if gloss && cols.iter().all(|c| c.5.is_some()) {
+            Some(DMatrix::from_fn(brdf_meter::gloss::LINEAR, cols.len(), |r, c| cols[c].5.expect("checked")[r]))
         } else {
             None
         };
@@ -300,8 +311,9 @@ impl Pairs {
             noise_var,
             base: weights.clone(),
             weights,
-            sample: cols.iter().map(|c| c.4).collect(),
-            pixel: cols.iter().map(|c| c.5).collect(),
+            sample: cols.iter().map(|c| c.4.0).collect(),
+            pixel: cols.iter().map(|c| c.4.1).collect(),
+            variant: cols.iter().map(|c| c.4.2).collect(),
             gloss,
         }
     }
@@ -323,6 +335,7 @@ impl Pairs {
             weights: w,
             sample: (0..k).collect(),
             pixel: vec![0; k],
+            variant: vec![0; k],
             gloss: None,
         }
     }
@@ -387,6 +400,7 @@ impl Pairs {
             base: idx.iter().map(|&k| self.base[k] / base).collect(),
             sample: idx.iter().map(|&k| self.sample[k]).collect(),
             pixel: idx.iter().map(|&k| self.pixel[k]).collect(),
+            variant: idx.iter().map(|&k| self.variant[k]).collect(),
             gloss: self.gloss.as_ref().map(pick),
         }
     }
@@ -413,6 +427,7 @@ impl Pairs {
                 self.sample.iter().copied().chain(other.sample.iter().map(|s| s + off)).collect()
             },
             pixel: self.pixel.iter().chain(&other.pixel).copied().collect(),
+            variant: self.variant.iter().chain(&other.variant).copied().collect(),
             gloss: match (&self.gloss, &other.gloss) {
                 (Some(a), Some(b)) => Some(cat(a, b)),
                 _ => None,
@@ -511,13 +526,16 @@ mod tests {
         // The glossy lobe as it is and at two finishes; the polished glass,
         // whose reflection is a mirror spike, only as it is.
         assert_eq!(pairs.sample, vec![0, 0, 0, 1]);
+        assert_eq!(pairs.variant, vec![0, 1, 2, 0], "each pair knows whether it is its sample as it is");
         let w: Vec<f64> = pairs.base.clone();
         assert!((w[0] - 0.25).abs() < 1e-12 && (w[1] - 0.125).abs() < 1e-12 && (w[3] - 0.5).abs() < 1e-12, "{w:?}");
         // The rougher the finish, the lower and wider its peak.
         let peak = |k: usize| pairs.truth.column(k).amax();
         assert!(peak(0) > 2.0 * peak(1) && peak(1) > 2.0 * peak(2), "{} {} {}", peak(0), peak(1), peak(2));
         // Holding the material out holds out its finishes with it.
-        assert_eq!(pairs.of_samples(|s| s != 0).len(), 1);
+        let rest = pairs.of_samples(|s| s != 0);
+        assert_eq!((rest.len(), rest.variant.clone()), (1, vec![0]));
+        assert_eq!(pairs.joined(&rest, 0.5).variant, vec![0, 1, 2, 0, 0]);
     }
 
     #[test]
