@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below), bit 12 the specular peak's uncertainty factors follow (with bit 6 only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | K_g, the gloss rows' clusters per zone (2..=64, with bit 9 only; else 0) |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -60,8 +60,9 @@
 //! | 4P (bit 7 only) | per pixel, the peak resolution, deg (below) |
 //! | 4ZKn (bit 8 only) | the second per-bin uncertainty table, for broad estimates (below) |
 //! | 68 (bit 11 only) | the sensor's linearity correction: 17 factors, one per octave of counts (below) |
+//! | 8 (bit 12 only) | the specular peak's uncertainty factors: height, width (below) |
 //!
-//! before the CRC (these three after the gloss section, when the blob has
+//! before the CRC (these after the gloss section, when the blob has
 //! one). A scale-free matrix is `[W' | b]`: its last column
 //! multiplies the readings' scale (`crate::kernel::scale_free`).
 //!
@@ -84,6 +85,19 @@
 //! of the standard has no width, which is then judged at the header's
 //! value ([`BlobView::peak_resolution_at`]). The host judges a point's peak
 //! at its pixel's resolution; the device does not use them.
+//!
+//! ## The specular peak's uncertainty factors (flag bit 12)
+//! Two f32, finite and > 0: what the host multiplies the first-order
+//! standard uncertainty of a resolved specular peak's height and of its
+//! width by (`host_tools::output::peak`). The first-order values take the
+//! peak bin's per-bin uncertainty for the height, but the per-bin table is
+//! set over every held-out estimate, and a bin is an estimate's peak only
+//! where its errors are largest; training sets the factors so that the
+//! resolved peaks of samples held out of it are covered at k = 2 as each
+//! bin is ([`PeakFactors`]). The device does not use them. A blob without
+//! the flag states the first-order values (factors 1); firmware from before
+//! it rejects such a blob as having a reserved flag set, and keeps its last
+//! good calibration.
 //!
 //! ## The second uncertainty table (flag bit 8)
 //! Laid out as the first (Z x K x n, per unit scale for the scale-free
@@ -275,6 +289,21 @@ const FLAG_DEFICIT_READINGS: u16 = 1024;
 /// Firmware from before it rejects such a blob as having a reserved flag
 /// set, and keeps its last good calibration.
 const FLAG_LINEARITY: u16 = 2048;
+/// The specular peak's uncertainty factors follow the linearity correction
+/// (with `FLAG_PEAK_RESOLUTION` only). Firmware from before it rejects
+/// such a blob as having a reserved flag set, and keeps its last good
+/// calibration.
+const FLAG_PEAK_FACTORS: u16 = 4096;
+
+/// What the host multiplies a resolved specular peak's first-order
+/// standard uncertainties by (the module docs, flag bit 12): finite, > 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PeakFactors {
+    /// On the peak's height.
+    pub height: f32,
+    /// On its full width at half maximum.
+    pub width: f32,
+}
 /// A peak resolution must be a finite width above zero.
 fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
     if !r.is_finite() {
@@ -395,6 +424,8 @@ pub enum Section {
     PeakResolution,
     /// The sensor's linearity correction (header flag bit 11).
     Linearity,
+    /// The specular peak's uncertainty factors (header flag bit 12).
+    PeakFactors,
 }
 
 /// Why a blob was rejected.
@@ -547,6 +578,8 @@ struct Layout {
     broad_uncertainty: usize,
     /// The linearity correction (its knots, or empty).
     linearity: usize,
+    /// The peak's uncertainty factors (two, or empty).
+    peak_factors: usize,
     crc: usize,
     total: usize,
     clusters: usize,
@@ -588,7 +621,8 @@ impl Dims {
             };
         let broad_uncertainty = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
         let linearity = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
-        let crc = linearity + if x.linearity { 4 * LINEARITY_KNOTS } else { 0 };
+        let peak_factors = linearity + if x.linearity { 4 * LINEARITY_KNOTS } else { 0 };
+        let crc = peak_factors + if x.peak_factors { 8 } else { 0 };
         Layout {
             grid,
             led_order,
@@ -602,6 +636,7 @@ impl Dims {
             pixel_resolution,
             broad_uncertainty,
             linearity,
+            peak_factors,
             crc,
             total: crc + 4,
             clusters: k,
@@ -736,6 +771,9 @@ pub struct BlobExtras<'a> {
     /// The sensor's linearity correction (header flag bit 11, format
     /// version 2 and up): the module docs.
     pub linearity: Option<Linearity>,
+    /// The specular peak's uncertainty factors (header flag bit 12, with
+    /// `peak_resolution_deg` only): the module docs.
+    pub peak_factors: Option<PeakFactors>,
 }
 
 impl BlobExtras<'_> {
@@ -750,6 +788,7 @@ impl BlobExtras<'_> {
         pixel_peak_resolution_deg: &[],
         broad_uncertainty: &[],
         linearity: None,
+        peak_factors: None,
     };
 }
 
@@ -775,6 +814,8 @@ struct Extras {
     deficit_readings: bool,
     /// The sensor's linearity correction follows (flag bit 11).
     linearity: bool,
+    /// The peak's uncertainty factors follow (flag bit 12).
+    peak_factors: bool,
 }
 
 impl Extras {
@@ -791,6 +832,7 @@ impl Extras {
         gloss_clusters: 0,
         deficit_readings: false,
         linearity: false,
+        peak_factors: false,
     };
 
     fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
@@ -807,6 +849,7 @@ impl Extras {
             gloss_clusters: x.gloss.map_or(0, |g| g.centroids.len() / (d.zones * d.m).max(1)),
             deficit_readings: x.gloss.is_some_and(|g| g.root_readings == crate::gloss::RootReadings::Deficit),
             linearity: x.linearity.is_some(),
+            peak_factors: x.peak_factors.is_some(),
         }
     }
 
@@ -818,6 +861,7 @@ impl Extras {
             || self.peak_resolution
             || self.broad_band
             || self.linearity
+            || self.peak_factors
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 
@@ -932,6 +976,9 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
             check_pixel_resolution(*r, widest, p)?;
         }
     }
+    if ex.peak_factors && !ex.peak_resolution {
+        return Err(BlobError::ContentMismatch { section: Section::PeakFactors });
+    }
     if out.len() < lay.total {
         return Err(BlobError::BufferTooSmall { need: lay.total });
     }
@@ -971,7 +1018,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         | if ex.broad_band { FLAG_BROAD_BAND } else { 0 }
         | if ex.gloss_clusters > 0 { FLAG_GLOSS_CLUSTERS } else { 0 }
         | if ex.deficit_readings { FLAG_DEFICIT_READINGS } else { 0 }
-        | if ex.linearity { FLAG_LINEARITY } else { 0 };
+        | if ex.linearity { FLAG_LINEARITY } else { 0 }
+        | if ex.peak_factors { FLAG_PEAK_FACTORS } else { 0 };
     put_u16(
         out,
         22,
@@ -1002,6 +1050,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         put_u16(out, lay.zones + 2 * i, *z);
     }
     let oop: &[f32] = extras.out_of_prior.map_or(&[], |o| o.data);
+    let peak_factors = extras.peak_factors.map_or([0.0; 2], |f| [f.height, f.width]);
     if let Some(g) = &extras.gloss {
         put_f32(out, lay.gloss, g.assigned_gu);
         put_f32(out, lay.gloss + 4, g.refractive_index);
@@ -1020,6 +1069,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         (lay.pixel_resolution, extras.pixel_peak_resolution_deg),
         (lay.broad_uncertainty, extras.broad_uncertainty),
         (lay.linearity, extras.linearity.as_ref().map_or(&[][..], |l| &l.factors()[..])),
+        (lay.peak_factors, &peak_factors[..if ex.peak_factors { 2 } else { 0 }]),
     ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);
@@ -1101,6 +1151,7 @@ impl<'a> BlobView<'a> {
                 },
                 deficit_readings: flags & FLAG_DEFICIT_READINGS != 0,
                 linearity: flags & FLAG_LINEARITY != 0,
+                peak_factors: flags & FLAG_PEAK_FACTORS != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -1142,9 +1193,10 @@ impl<'a> BlobView<'a> {
                 | FLAG_BROAD_BAND
                 | FLAG_GLOSS_CLUSTERS
                 | FLAG_DEFICIT_READINGS
-                | FLAG_LINEARITY;
+                | FLAG_LINEARITY
+                | FLAG_PEAK_FACTORS;
             (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
-                && (ex.peak_resolution || !ex.pixel_resolution)
+                && (ex.peak_resolution || !(ex.pixel_resolution || ex.peak_factors))
                 && (band || get_u32(bytes, 56) == 0)
                 && (ex.peak_resolution || get_u32(bytes, 60) == 0)
                 && flags & !known == 0
@@ -1243,6 +1295,7 @@ impl<'a> BlobView<'a> {
         if ex.linearity {
             view.check_linearity()?;
         }
+        view.check_finite(Section::PeakFactors, lay.peak_factors, (lay.crc - lay.peak_factors) / 4, true)?;
         Ok(view)
     }
 
@@ -1320,7 +1373,7 @@ impl<'a> BlobView<'a> {
     /// in place.
     fn check_linearity(&self) -> Result<(), BlobError> {
         let mut last = f32::NAN;
-        for index in 0..(self.lay.crc - self.lay.linearity) / 4 {
+        for index in 0..(self.lay.peak_factors - self.lay.linearity) / 4 {
             let f = get_f32(self.bytes, self.lay.linearity + 4 * index);
             match crate::acquire::linearity::fault(index, f, last) {
                 None => last = f,
@@ -1335,7 +1388,7 @@ impl<'a> BlobView<'a> {
 
     /// The sensor's linearity correction (flag bit 11), when the blob has one.
     pub fn linearity(&self) -> Option<Linearity> {
-        (self.lay.crc != self.lay.linearity).then(|| Linearity::validated(self.linearity_factors()))
+        (self.lay.peak_factors != self.lay.linearity).then(|| Linearity::validated(self.linearity_factors()))
     }
 
     fn linearity_factors(&self) -> [f32; LINEARITY_KNOTS] {
@@ -1646,6 +1699,13 @@ impl<'a> BlobView<'a> {
     /// the blob carries it: the module docs.
     pub fn peak_resolution_deg(&self) -> Option<f32> {
         (get_u16(self.bytes, 22) & FLAG_PEAK_RESOLUTION != 0).then(|| get_f32(self.bytes, 60))
+    }
+
+    /// The specular peak's uncertainty factors (flag bit 12), when the blob
+    /// has them.
+    pub fn peak_factors(&self) -> Option<PeakFactors> {
+        let at = |i: usize| get_f32(self.bytes, self.lay.peak_factors + 4 * i);
+        (self.lay.crc != self.lay.peak_factors).then(|| PeakFactors { height: at(0), width: at(1) })
     }
 
     /// Pixel `p`'s peak resolution (deg): its own (flag bit 7) when it has
@@ -2435,6 +2495,52 @@ mod tests {
         // The bit in a version 1 header is reserved.
         let flagged = resealed(plain, &|b| put_u16(b, 22, FLAG_LINEARITY));
         assert_eq!(flagged, Err(BlobError::ReservedNotZero));
+    }
+
+    #[test]
+    fn the_peaks_uncertainty_factors_are_flag_bit_12_after_the_linearity() {
+        let o = sample(6, 4, 2, 5);
+        let c = contents(&o);
+        let lin = Linearity::new([1.0; LINEARITY_KNOTS]).unwrap();
+        let factors = PeakFactors { height: 1.25, width: 0.8 };
+        let ex = BlobExtras {
+            peak_resolution_deg: Some(0.9),
+            linearity: Some(lin),
+            peak_factors: Some(factors),
+            ..BlobExtras::NONE
+        };
+        let mut buf = vec![0u8; o.dims.blob_len_with(&ex)];
+        assert_eq!(write_blob_with(&c, &ex, &mut buf), Ok(buf.len()));
+        assert_eq!(buf.len(), o.dims.blob_len() + 4 * LINEARITY_KNOTS + 8);
+        let v = BlobView::parse(&buf).unwrap();
+        assert_eq!(get_u16(&buf, 22), FLAG_PEAK_RESOLUTION | FLAG_LINEARITY | FLAG_PEAK_FACTORS);
+        assert_eq!((v.peak_factors(), v.linearity()), (Some(factors), Some(lin)));
+        assert_eq!(get_f32(&buf, buf.len() - 12), 1.25, "height, then width, just before the CRC");
+        // Without them the blob reads as before.
+        let without = BlobExtras { peak_factors: None, ..ex };
+        let mut plain = vec![0u8; o.dims.blob_len_with(&without)];
+        write_blob_with(&c, &without, &mut plain).unwrap();
+        assert_eq!(BlobView::parse(&plain).unwrap().peak_factors(), None);
+        assert_eq!(buf[64..plain.len() - 4], plain[64..plain.len() - 4]);
+        // A factor not finite or not above zero: refused, naming it.
+        let section = Section::PeakFactors;
+        let at = buf.len() - 12;
+        let edit = |k: usize, x: f32| resealed(buf.clone(), &move |b| put_f32(b, at + 4 * k, x));
+        assert_eq!(edit(1, f32::INFINITY), Err(BlobError::NonFinite { section, index: 1 }));
+        assert_eq!(edit(0, 0.0), Err(BlobError::OutOfRange { section, index: 0 }));
+        // Only with the peak resolution they scale the peaks of: the writer
+        // refuses them without it, and so does the parser.
+        let alone = BlobExtras { peak_resolution_deg: None, ..ex };
+        let mut out = vec![0u8; o.dims.blob_len_with(&alone)];
+        assert_eq!(write_blob_with(&c, &alone, &mut out), Err(BlobError::ContentMismatch { section }));
+        let flags = FLAG_LINEARITY | FLAG_PEAK_FACTORS;
+        assert_eq!(
+            resealed(buf.clone(), &move |b| {
+                put_u16(b, 22, flags);
+                put_u32(b, 60, 0);
+            }),
+            Err(BlobError::ReservedNotZero)
+        );
     }
 
     #[test]

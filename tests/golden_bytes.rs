@@ -329,6 +329,18 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     let n = write_blob_with(&c2, &ex4l, &mut b4l).expect("a valid format 4 blob with the linearity correction");
     b4l.truncate(n);
     out.push(("blob.v4.sensor-linearity".into(), b4l));
+    // The same with its peak resolution (flag bit 6) and the factors on a
+    // resolved peak's uncertainties (flag bit 12, height and width after
+    // the linearity correction).
+    let ex4f = BlobExtras {
+        peak_resolution_deg: Some(0.8125),
+        peak_factors: Some(brdf_meter::blob::PeakFactors { height: 1.25, width: 2.5 }),
+        ..ex4l
+    };
+    let mut b4f = vec![0u8; p2.dims.blob_len_with(&ex4f)];
+    let n = write_blob_with(&c2, &ex4f, &mut b4f).expect("a valid format 4 blob with the peak's factors");
+    b4f.truncate(n);
+    out.push(("blob.v4.peak-factors".into(), b4f));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
     out.push(("recipe.v1".into(), golden_recipe()));

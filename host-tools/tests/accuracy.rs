@@ -264,14 +264,19 @@ fn the_stated_per_bin_uncertainty_holds_on_kinds_of_surface_the_calibration_neve
     // over-covered.
     assert!(coverage("ward") > 0.90, "{}", r.tables());
     assert!(coverage("ggx") > 0.92, "{}", r.tables());
-    // The specular peak's stated height, over the peaks the calibration
-    // resolves (an unresolved one states none): it holds on the smooth
-    // lobes, and on the measured materials' resolved peaks 85-90 % of the
-    // time (their mid-width lobes; 94 % over all peaks, the unresolved
-    // polished ones included, which a prior made of them read near their
-    // height; 61 % with `H rho` training).
+    // The specular peak's stated height and width, over the peaks the
+    // calibration resolves (an unresolved one states none), with the
+    // factors training sets on held-out peaks
+    // (`host_tools::calibration::peak_factors`): they hold on the smooth
+    // lobes, and on the measured materials' resolved peaks the width is
+    // inside the target and the height 90 % in this one draw (94.4 % over
+    // `accuracy`'s 4; 61 % with `H rho` training). Without the factors the
+    // width was covered 88.4 % over `accuracy`'s 4 draws and the height
+    // 91.2 %.
     let peak = |family: &str| row(&r, family, "estimator").peak_height_coverage.unwrap();
-    assert!(peak("measured") > 0.80, "{}", r.tables());
+    let width = |family: &str| row(&r, family, "estimator").peak_width_coverage.unwrap();
+    assert!(peak("measured") >= 0.88, "{}", r.tables());
+    assert!((0.92..=0.98).contains(&width("measured")), "{}", r.tables());
     assert!(peak("ward") > 0.85 && peak("ggx") > 0.75, "{}", r.tables());
     // The polished standards' mirror spikes come out at the calibration's
     // resolution, spread over three bins and 45 % low (no prior of the maps

@@ -115,7 +115,7 @@ fn every_pixel_reads_the_black_glass_and_a_white_tile_true() {
     for px in 0..128 {
         let view_deg = pixel_view(&sc, px).z.acos().to_degrees();
         let p = &bg[0][px];
-        let peak = specular_peak(&bins, &p.values, &vec![0.0; bins.len()], view_deg).at_resolution(Some(own[px]));
+        let peak = specular_peak(&bins, &p.values, &vec![0.0; bins.len()], view_deg).stated(Some(own[px]), None);
         assert_eq!(
             peak.resolved,
             Some(false),

@@ -1,14 +1,15 @@
 //! Calibration: the estimators (W from H, the prior and the noise model) and
 //! training (one W per zone, the f32 gate, the gloss readings' rows and the
 //! calibration on the gloss standard, the blob) and signing (key files,
-//! the signed calibration), and the calibration's peak resolution (what
+//! the signed calibration), the calibration's peak resolution (what
 //! the device's rule, `crate::device::reference`, makes of the black
-//! glass). Consumes the forward model; knows nothing of the device link or
+//! glass) and the factors on its peaks' uncertainties. Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;
 pub mod f32_gate;
 pub mod gloss_rows;
+pub mod peak_factors;
 pub mod peak_resolution;
 pub mod signing;
 pub mod train;

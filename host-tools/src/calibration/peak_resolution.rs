@@ -21,7 +21,7 @@
 //! `crate::output::peak::RESOLVED_WIDTH_FACTOR` of its pixel's resolution
 //! as not resolved: its
 //! height and width are the prior's, not the readings', so no uncertainty
-//! is stated for them (`crate::output::peak::Peak::at_resolution`). On the
+//! is stated for them (`crate::output::peak::Peak::stated`). On the
 //! patent profile the black glass comes out 0.76 deg wide, the gloss
 //! standards' mirror spikes 0.75-0.96 deg against a truth of one 0.5 deg
 //! bin, 45 % low at the peak; the measured set's polished materials come

@@ -419,15 +419,16 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         pixel_peak_resolution_deg: &[],
         broad_uncertainty: if broad.len() == uncertainty.len() { &broad } else { &[] },
         linearity: spec.linearity,
+        peak_factors: None,
     };
     let chosen = gloss_section(spec, &zones, zone_pairs, &plans, most)?;
-    let mut blob = with_gloss(&contents, base, chosen.as_ref(), spec, &plans)?;
+    let mut blob = with_gloss(&contents, base, chosen.as_ref(), spec, &plans, &zones)?;
     // The rows' own clusters make the gloss section larger: where that
     // takes the blob over the slot, the rows keep the maps' clusters before
     // the maps are offered fewer (`train_on`).
     if chosen.as_ref().is_some_and(|g| !g.centroids.is_empty()) && blob.len() > spec.max_blob_len {
         let maps = gloss_section(spec, &zones, zone_pairs, &plans, 1)?;
-        blob = with_gloss(&contents, base, maps.as_ref(), spec, &plans)?;
+        blob = with_gloss(&contents, base, maps.as_ref(), spec, &plans, &zones)?;
     }
     let f32_exponents = plans.into_iter().map(|p| p.exponents).collect();
     let flag_on_kinds = (spec.root && threshold.is_some())
@@ -454,13 +455,16 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
 
 /// The blob of `contents` and `base` with `gloss`, and with it the peak
 /// resolution: what the device makes of the black glass, so it is
-/// measured on the blob itself, then recorded in it.
+/// measured on the blob itself, then recorded in it; and the factors on
+/// the resolved peaks' uncertainties, set on the `zones`' held-out peaks
+/// judged at that resolution (`crate::calibration::peak_factors`).
 fn with_gloss(
     contents: &BlobContents<'_>,
     base: BlobExtras<'_>,
     gloss: Option<&GlossSection>,
     spec: &TrainSpec<'_>,
     plans: &[F32Plan],
+    zones: &[TrainedZone],
 ) -> anyhow::Result<Vec<u8>> {
     let extras = BlobExtras { gloss: gloss.map(GlossSection::data), ..base };
     let blob = written(contents, &extras)?;
@@ -472,7 +476,20 @@ fn with_gloss(
     if widest.is_none() {
         return Ok(blob);
     }
-    written(contents, &BlobExtras { peak_resolution_deg: widest, pixel_peak_resolution_deg: &own, ..extras })
+    let with_resolution = BlobExtras { peak_resolution_deg: widest, pixel_peak_resolution_deg: &own, ..extras };
+    let resolved = written(contents, &with_resolution)?;
+    let view = BlobView::parse(&resolved).map_err(|e| anyhow::anyhow!("the written blob does not parse: {e}"))?;
+    let peaks =
+        zones.iter().zip(&spec.zones).filter_map(|(tz, zo)| Some((tz.scale_free()?, zo))).flat_map(|(sf, zo)| {
+            sf.held_out_peaks.iter().map(move |p| {
+                let pixel = zo.pixels[p.pixel].pixel.round() as usize;
+                (p, view.peak_resolution_at(pixel).map(f64::from))
+            })
+        });
+    match crate::calibration::peak_factors::factors(peaks) {
+        Some(f) => written(contents, &BlobExtras { peak_factors: Some(f), ..with_resolution }),
+        None => Ok(resolved),
+    }
 }
 
 /// The blob of `contents` and `extras`, parsed back.
@@ -567,11 +584,14 @@ fn scale_free_zones(spec: &TrainSpec<'_>, pairs: &[Pairs], most: usize) -> anyho
     // of material held out whole no worse than the fewest clusters do,
     // summed over the zones.
     let best = scale_free::guarded_count(&scores);
+    // Each zone's training pixels' views: where their held-out peaks are sought.
+    let views: Vec<Vec<f64>> = spec.zones.iter().map(|zo| zo.pixels.iter().map(|p| p.theta_o_deg).collect()).collect();
     let mut trained: Vec<ScaleFreeZone> = pairs
         .par_iter()
         .zip(&scores)
         .enumerate()
         .map(|(z, (p, c))| {
+            let opts = ScaleFreeOptions { peak_views_deg: views.get(z).map(Vec::as_slice), ..opts };
             scale_free::train_with(p, &opts, c[best].ridge, counts[best], c[best].random)
                 .with_context(|| format!("zone {z}: training the scale-free estimator"))
         })
@@ -1153,6 +1173,9 @@ pub struct ScaleFreeJson {
     /// Each pixel's peak resolution, deg: its own, or the calibration's
     /// when the blob records none for it (null: none).
     pub pixel_peak_resolution_deg: Vec<Option<f32>>,
+    /// The factors on a resolved peak's uncertainties, height then width
+    /// (`crate::calibration::peak_factors`; null: none).
+    pub peak_uncertainty_factors: Option<[f32; 2]>,
 }
 
 /// One zone in [`ScaleFreeJson`].
@@ -1255,6 +1278,7 @@ impl Trained {
                 blob_crc: view.crc(),
                 peak_resolution_deg: view.peak_resolution_deg(),
                 pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
+                peak_uncertainty_factors: view.peak_factors().map(|f| [f.height, f.width]),
             })
         };
         value.expect("the inspection JSON serialises")

@@ -163,6 +163,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         view_deg: a.exports.view_deg,
         peak_resolution_deg,
         pixel_peak_resolution_deg,
+        peak_factors: view.peak_factors(),
         bins_deg: (0..d.n).map(|j| view.grid_deg(j)).collect(),
         points: schema_points,
     };

@@ -442,6 +442,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!(
             "peak resolution {range}: the width it puts out for a mirror (the black glass); a specular peak narrower than {limit} is reported as not resolved, with no uncertainty"
         );
+        if let Some(pf) = view.peak_factors() {
+            println!(
+                "a resolved peak's uncertainties: {:.2} x the first-order height's, {:.2} x the width's (what covers 95 % of the resolved peaks of samples held out of training at k = 2)",
+                pf.height, pf.width
+            );
+        }
     }
     if !view.has_gloss() {
         println!("{}", crate::calibration::gloss_rows::NO_GLOSS_NOTE);

@@ -25,6 +25,7 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
         view_deg,
         peak_resolution_deg,
         pixel_peak_resolution_deg,
+        peak_factors: view.peak_factors(),
         bins_deg: bins.bins().map(|j| view.grid_deg(j)).collect(),
         points: points
             .iter()

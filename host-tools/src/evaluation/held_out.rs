@@ -239,6 +239,7 @@ pub fn run(set: &NbrdfSet, cfg: &HeldOutConfig) -> anyhow::Result<HeldOutReport>
         seed: cfg.seed,
         root: false,
         band_bins: None,
+        peak_views_deg: None,
     };
     let sf_t5 = train_zone(&h, &WeightedSamples::equal(t5.samples.clone()), &sf_opts)
         .context("scale-free with the Table 5 prior")?;

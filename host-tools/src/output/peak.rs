@@ -65,7 +65,18 @@
 //! the patent profile the gloss standards' mirror spikes come out 45 %
 //! below their height, 6 standard uncertainties). A peak without a width
 //! (a lobe on a level above half its height) is resolved: it is wide.
+//!
+//! # The calibration's factors
+//! A resolved peak's first-order uncertainties are multiplied by the
+//! factors a calibration records (`brdf_meter::blob::PeakFactors`, flag
+//! bit 12; [`Peak::stated`]). The height's first-order value is its bin's
+//! per-bin uncertainty, which training sets to cover that bin's held-out
+//! errors over every estimate; a bin is an estimate's peak where its
+//! errors are largest, so on held-out materials the peaks were covered
+//! less often than the bins. Training sets the factors on the resolved
+//! peaks of the samples it holds out (`crate::calibration::peak_factors`).
 use crate::forward::gloss::SPECULAR_APERTURE_DEG;
+pub use brdf_meter::blob::PeakFactors;
 
 /// A peak narrower than this times its pixel's peak resolution is not
 /// resolved (module docs).
@@ -104,17 +115,24 @@ impl Peak {
         resolved: None,
     };
 
-    /// The peak read at a pixel of peak resolution `resolution_deg`
-    /// (`None`: the calibration records none, and the peak is as it was): an unresolved
-    /// peak's uncertainties are not stated (module docs).
-    pub fn at_resolution(self, resolution_deg: Option<f64>) -> Self {
+    /// The peak as a calibration states it at a pixel of peak resolution
+    /// `resolution_deg` (`None`: the calibration records none, and the peak
+    /// is as it was): an unresolved peak's uncertainties are not stated; a
+    /// resolved one's are the first-order values times the calibration's
+    /// `factors` (`None`: as they are; module docs).
+    pub fn stated(self, resolution_deg: Option<f64>, factors: Option<PeakFactors>) -> Self {
         let Some(res) = resolution_deg.filter(|_| self.rf.is_finite()) else { return self };
         // No width (NaN): a lobe on a level above half its height, wide.
         let resolved = self.width_deg.is_nan() || self.width_deg >= RESOLVED_WIDTH_FACTOR * res;
-        if resolved {
-            Self { resolved: Some(true), ..self }
-        } else {
-            Self { u_rf: f64::NAN, u_width_deg: f64::NAN, resolved: Some(false), ..self }
+        if !resolved {
+            return Self { u_rf: f64::NAN, u_width_deg: f64::NAN, resolved: Some(false), ..self };
+        }
+        let f = factors.unwrap_or(PeakFactors { height: 1.0, width: 1.0 });
+        Self {
+            u_rf: self.u_rf * f64::from(f.height),
+            u_width_deg: self.u_width_deg * f64::from(f.width),
+            resolved: Some(true),
+            ..self
         }
     }
 }
@@ -210,7 +228,7 @@ mod tests {
         let x = grid();
         let u = vec![0.02f32; x.len()];
         let at = |fwhm: f64, res: Option<f64>| {
-            specular_peak(&x, &gaussian(&x, 1.0, fwhm, 45.0, 0.0), &u, 45.0).at_resolution(res)
+            specular_peak(&x, &gaussian(&x, 1.0, fwhm, 45.0, 0.0), &u, 45.0).stated(res, None)
         };
         // Without a recorded resolution nothing changes.
         let bare = specular_peak(&x, &gaussian(&x, 1.0, 1.2, 45.0, 0.0), &u, 45.0);
@@ -227,11 +245,26 @@ mod tests {
         assert_eq!(wide.resolved, Some(true));
         assert!(wide.u_rf.is_finite() && wide.u_width_deg.is_finite());
         // A lobe on a level above half its height has no width: it is wide.
-        let flat = specular_peak(&x, &gaussian(&x, 0.5, 3.0, 45.0, 0.6), &u, 45.0).at_resolution(Some(1.0));
+        let flat = specular_peak(&x, &gaussian(&x, 0.5, 3.0, 45.0, 0.6), &u, 45.0).stated(Some(1.0), None);
         assert!(flat.width_deg.is_nan());
         assert_eq!(flat.resolved, Some(true));
         // No peak stays no peak.
-        assert_eq!(Peak::NONE.at_resolution(Some(1.0)).resolved, None);
+        assert_eq!(Peak::NONE.stated(Some(1.0), None).resolved, None);
+    }
+
+    #[test]
+    fn a_resolved_peak_states_its_uncertainties_times_the_calibrations_factors() {
+        let x = grid();
+        let u = vec![0.02f32; x.len()];
+        let f = Some(PeakFactors { height: 1.5, width: 2.0 });
+        let peak = |fwhm: f64| specular_peak(&x, &gaussian(&x, 1.0, fwhm, 45.0, 0.0), &u, 45.0);
+        let (plain, scaled) = (peak(1.6).stated(Some(1.0), None), peak(1.6).stated(Some(1.0), f));
+        assert_eq!((scaled.rf, scaled.width_deg, scaled.resolved), (plain.rf, plain.width_deg, Some(true)));
+        assert!((scaled.u_rf - 1.5 * plain.u_rf).abs() <= 1e-15 && plain.u_rf > 0.0);
+        assert!((scaled.u_width_deg - 2.0 * plain.u_width_deg).abs() <= 1e-15 && plain.u_width_deg > 0.0);
+        // An unresolved peak still states none.
+        let narrow = peak(1.2).stated(Some(1.0), f);
+        assert!(narrow.u_rf.is_nan() && narrow.u_width_deg.is_nan());
     }
 
     /// 0.5 deg bins over 25..65 deg, the instrument's grid.

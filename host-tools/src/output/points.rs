@@ -126,6 +126,9 @@ pub struct Points {
     /// Each pixel's own peak resolution (deg, by pixel; NaN or past the end:
     /// the calibration's): a point's peak is judged at its pixel's.
     pub pixel_peak_resolution_deg: Vec<f64>,
+    /// The calibration's factors on a resolved peak's uncertainties
+    /// (`crate::output::peak`; `None`: it records none).
+    pub peak_factors: Option<crate::output::peak::PeakFactors>,
     /// Incidence of each bin (deg).
     pub bins_deg: Vec<f32>,
     /// The points.
@@ -233,7 +236,7 @@ impl Points {
     /// Point `p`'s specular peak as the files write it: sought about the
     /// view, read at its pixel's resolution.
     fn peak(&self, p: &Point) -> Peak {
-        specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).at_resolution(self.resolution_of(p))
+        specular_peak(&self.bins_deg, &p.rho, &p.u_rho, self.view_deg).stated(self.resolution_of(p), self.peak_factors)
     }
 
     /// The CSV's first line: schema, version, where the points came from, and the units.
@@ -388,6 +391,7 @@ mod tests {
             view_deg: 45.0,
             peak_resolution_deg: Some(0.75),
             pixel_peak_resolution_deg: vec![],
+            peak_factors: None,
             bins_deg: bins.clone(),
             points: vec![
                 Point {

@@ -82,6 +82,7 @@
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
 use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
+use crate::calibration::peak_factors::{self, HeldOutPeak};
 use crate::forward::pairs::{Criterion, Pairs};
 use crate::forward::reading_noise::ReadingNoise;
 use anyhow::{Context, ensure};
@@ -193,6 +194,11 @@ pub struct ScaleFreeZone {
     /// The grid the band's table is decided on, when the maps have the
     /// broad estimates' table (`ScaleFreeMap::sigma_broad`).
     pub band_bins: Option<Vec<f32>>,
+    /// The specular peaks of the held-out readings the band was set from,
+    /// against their truths' (with `ScaleFreeOptions::peak_views_deg`; else
+    /// empty): what the peaks' uncertainty factors are set on
+    /// (`crate::calibration::peak_factors`).
+    pub held_out_peaks: Vec<HeldOutPeak>,
 }
 
 impl ScaleFreeZone {
@@ -459,6 +465,10 @@ pub struct ScaleFreeOptions<'a> {
     /// second table per cluster for the broad estimates, `sigma_unit`
     /// then being the sharp ones'; without it, one table for every point.
     pub band_bins: Option<&'a [f32]>,
+    /// Each of the pairs' pixels' view (deg, by `Pairs::pixel`): with it
+    /// (and `band_bins`, the root form), training keeps the held-out
+    /// readings' specular peaks (`ScaleFreeZone::held_out_peaks`).
+    pub peak_views_deg: Option<&'a [f64]>,
 }
 
 impl Default for ScaleFreeOptions<'_> {
@@ -471,6 +481,7 @@ impl Default for ScaleFreeOptions<'_> {
             seed: 7,
             root: false,
             band_bins: None,
+            peak_views_deg: None,
         }
     }
 }
@@ -821,6 +832,7 @@ pub fn train_with(
         linear_model: &linear_model,
     };
     let mut out_of_prior_forms = out_of_prior::train(&held, opts.false_alarm)?;
+    let mut held_out_peaks = Vec::new();
     if opts.root {
         // The band and what a flag adds to it, both from kinds of material
         // held out whole, each flagged as a kind the prior lacks would be.
@@ -830,11 +842,11 @@ pub fn train_with(
             out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[0])?,
             out_of_prior::held_out_flagged(&by_kind, &out_of_prior_forms[1])?,
         ];
-        let ratios = held_out_uncertainty(
+        let (ratios, peaks) = held_out_uncertainty(
             pairs,
             &nz,
             (&cv.readings, &by_shape),
-            (opts.seed, opts.band_bins),
+            (opts.seed, opts.band_bins, opts.peak_views_deg),
             ridge,
             clusters,
             &mut fitted,
@@ -844,6 +856,7 @@ pub fn train_with(
             o.band_ratios = r;
             o.on_kinds = on_kinds;
         }
+        held_out_peaks = peaks;
     }
     let band_bins = opts.band_bins.filter(|_| fitted.maps.iter().all(|m| m.sigma_broad.is_some())).map(<[f32]>::to_vec);
     let mut zone = ScaleFreeZone {
@@ -855,6 +868,7 @@ pub fn train_with(
         cv_error,
         root: opts.root,
         band_bins,
+        held_out_peaks,
     };
     zone.use_out_of_prior_form(out_of_prior::choose_form([&zone.out_of_prior_forms]));
     Ok(zone)
@@ -897,21 +911,27 @@ fn covering_unit(est: f64, e: f64, s: f64) -> f64 {
 /// band (`out_of_prior::band_factor`): for each held-out reading in that
 /// form's `flagged` (pair, draw), per bin, its covering unit over the
 /// band's, with its weight shared over the bins; and how that form's flag
-/// did on the same readings ([`out_of_prior::FlagOnKinds`]).
+/// did on the same readings ([`out_of_prior::FlagOnKinds`]). With
+/// `peak_views` (and `band_bins`), also each held-out reading's specular
+/// peak against its truth's, read with the tables just set
+/// (`crate::calibration::peak_factors`).
 #[allow(clippy::too_many_arguments)]
 fn held_out_uncertainty(
     pairs: &Pairs,
     nz: &Normalised,
     (readings, fold): (&[Vec<DVector<f64>>], &[usize]),
-    (seed, band_bins): (u64, Option<&[f32]>),
+    (seed, band_bins, peak_views): (u64, Option<&[f32]>, Option<&[f64]>),
     ridge: f64,
     clusters: usize,
     fitted: &mut Fitted,
     flagged: &[Vec<(usize, usize)>; 2],
-) -> anyhow::Result<[KindsEvidence; 2]> {
+) -> anyhow::Result<([KindsEvidence; 2], Vec<HeldOutPeak>)> {
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
+    // The held-out estimates and their scales, where their peaks are kept.
+    let keep_peaks = peak_views.is_some() && band_bins.is_some();
+    let mut estimates: Vec<(Vec<f32>, f32)> = Vec::new();
     for f in 0..nf {
         let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| fold[*k] != f).collect();
         let fold_fit = fit(nz, &train_idx, seed, ridge, clusters, true)?;
@@ -928,6 +948,9 @@ fn held_out_uncertainty(
                 let est32: Vec<f32> = est.iter().map(|x| *x as f32).collect();
                 let broad = band_bins.is_some_and(|b| brdf_meter::band::is_broad(b, &est32));
                 held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d), error, broad));
+                if keep_peaks {
+                    estimates.push((est32, s as f32));
+                }
             }
         }
     }
@@ -992,7 +1015,23 @@ fn held_out_uncertainty(
         }
         (ratios, on_kinds)
     };
-    Ok([evidence(&flagged[0]), evidence(&flagged[1])])
+    let peaks = match (peak_views, band_bins) {
+        (Some(views), Some(bins)) => held
+            .iter()
+            .zip(&estimates)
+            .filter_map(|(h, (est, s))| {
+                let map = &fitted.maps[h.0];
+                let band = if h.5 { map.sigma_broad.as_ref().unwrap_or(&map.sigma_unit) } else { &map.sigma_unit };
+                let u: Vec<f32> = (0..n).map(|j| root_uncertainty(band[j] as f32, est[j], *s)).collect();
+                let truth: Vec<f32> = pairs.truth.column(h.3.0).iter().map(|x| *x as f32).collect();
+                let pixel = pairs.pixel[h.3.0];
+                let variant = pairs.variant[h.3.0] != 0;
+                peak_factors::held_out_peak(bins, (est, &u, &truth), views[pixel], (h.1, pixel, variant))
+            })
+            .collect(),
+        _ => Vec::new(),
+    };
+    Ok(([evidence(&flagged[0]), evidence(&flagged[1])], peaks))
 }
 
 /// Trains one zone of in-plane optics `h` on samples on the grid (the

@@ -71,6 +71,8 @@ pub struct Readers<'a> {
     /// The peak resolution (`output::peak`) of the pixel read (the zone's
     /// first), if the calibration records one.
     resolution_deg: Option<f64>,
+    /// The calibration's factors on a resolved peak's uncertainties.
+    peak_factors: Option<crate::output::peak::PeakFactors>,
 }
 
 impl<'a> Readers<'a> {
@@ -88,6 +90,7 @@ impl<'a> Readers<'a> {
             bins32: grid.bins_deg().iter().map(|x| *x as f32).collect(),
             view_deg,
             resolution_deg: view.peak_resolution_at(view.zone_start(0) as usize).map(f64::from),
+            peak_factors: view.peak_factors(),
         })
     }
 
@@ -108,7 +111,8 @@ impl<'a> Readers<'a> {
             gloss: p.readings.map(f64::from),
             gloss_u: Some(p.reading_sigma.map(f64::from)),
             flagged: Some(p.flag_bits != 0),
-            specular: specular_peak(&self.bins32, &p.rho, &p.sigma, self.view_deg).at_resolution(self.resolution_deg),
+            specular: specular_peak(&self.bins32, &p.rho, &p.sigma, self.view_deg)
+                .stated(self.resolution_deg, self.peak_factors),
             stat: f64::from(p.stat),
             brightest_share: brightest_share(v),
         }

@@ -649,7 +649,11 @@ fn read_material(
             let pt = &line[px];
             let score = PointScore::of(blob, &geo.bins32, &truth, pt, &geo.interp[px]);
             let profile: Vec<f32> = score.profile.iter().map(|x| *x as f32).collect();
-            let at = PixelPeaks { view_deg, resolution_deg: blob.peak_resolution_at(px).map(f64::from) };
+            let at = PixelPeaks {
+                view_deg,
+                resolution_deg: blob.peak_resolution_at(px).map(f64::from),
+                factors: blob.peak_factors(),
+            };
             if let Some(unresolved) = peaks.add(&geo.bins32, &truth32, pt, &score.u, &profile, at) {
                 c.peaks += 1;
                 c.unresolved += usize::from(unresolved);

@@ -2,7 +2,7 @@
 //! as `measure` writes them): each point's peak against its truth's at the
 //! pixel's own view, the height's relative error over every point with a
 //! peak, the share the calibration does not resolve, and the k = 2
-//! coverage of the heights it does (an unresolved peak states no
+//! coverage of the heights and widths it does (an unresolved peak states no
 //! uncertainty); linear interpolation's peak heights on the same points
 //! beside them.
 use crate::device::reference::ExpectedPoint;
@@ -10,6 +10,10 @@ use crate::evaluation::metrology::metrics::K;
 use crate::evaluation::pixel_error::quantiles;
 use crate::output::peak::{Peak, specular_peak};
 use serde::Serialize;
+
+fn share(within: usize, of: usize) -> f64 {
+    if of > 0 { within as f64 / of as f64 } else { f64::NAN }
+}
 
 /// The running count, mergeable over materials.
 #[derive(Clone, Debug, Default)]
@@ -19,6 +23,10 @@ pub struct PeakTally {
     interpolation_height_rel: Vec<f64>,
     resolved: usize,
     resolved_within: usize,
+    /// Resolved peaks whose width and the truth's are both defined, and
+    /// those within k = 2.
+    widths: usize,
+    widths_within: usize,
     unresolved: usize,
     missed: usize,
 }
@@ -40,6 +48,9 @@ pub struct PeakSummary {
     /// Share of the resolved peaks' heights within k = 2 of their stated
     /// uncertainty.
     pub resolved_coverage: f64,
+    /// Share of the resolved peaks' widths within k = 2 of theirs (where
+    /// the estimate and the truth both have a width).
+    pub width_coverage: f64,
     /// Points without a peak where the truth has one.
     pub missed: usize,
 }
@@ -53,6 +64,8 @@ pub struct PixelPeaks {
     pub view_deg: f64,
     /// The pixel's peak resolution, deg.
     pub resolution_deg: Option<f64>,
+    /// The calibration's factors on a resolved peak's uncertainties.
+    pub factors: Option<crate::output::peak::PeakFactors>,
 }
 
 impl PeakTally {
@@ -80,7 +93,7 @@ impl PeakTally {
         if i.rf.is_finite() {
             self.interpolation_height_rel.push((i.rf - t.rf).abs() / t.rf);
         }
-        let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).at_resolution(pixel.resolution_deg);
+        let e: Peak = specular_peak(bins_deg, &pt.values, u, view_deg).stated(pixel.resolution_deg, pixel.factors);
         if !e.rf.is_finite() {
             self.missed += 1;
             return None;
@@ -93,6 +106,10 @@ impl PeakTally {
             self.resolved += 1;
             self.resolved_height_rel.push(err / t.rf);
             self.resolved_within += usize::from(err <= K * e.u_rf);
+            if e.u_width_deg.is_finite() && t.width_deg.is_finite() {
+                self.widths += 1;
+                self.widths_within += usize::from((e.width_deg - t.width_deg).abs() <= K * e.u_width_deg);
+            }
         }
         Some(e.resolved == Some(false))
     }
@@ -104,6 +121,8 @@ impl PeakTally {
         self.interpolation_height_rel.extend(o.interpolation_height_rel);
         self.resolved += o.resolved;
         self.resolved_within += o.resolved_within;
+        self.widths += o.widths;
+        self.widths_within += o.widths_within;
         self.unresolved += o.unresolved;
         self.missed += o.missed;
         self
@@ -121,11 +140,8 @@ impl PeakTally {
             resolved_height_rel: [qr[0], qr[1]],
             interpolation_height_rel: [qi[0], qi[1]],
             unresolved: self.unresolved as f64 / with_peak.max(1) as f64,
-            resolved_coverage: if self.resolved > 0 {
-                self.resolved_within as f64 / self.resolved as f64
-            } else {
-                f64::NAN
-            },
+            resolved_coverage: share(self.resolved_within, self.resolved),
+            width_coverage: share(self.widths_within, self.widths),
             missed: self.missed,
         }
     }

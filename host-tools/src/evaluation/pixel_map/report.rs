@@ -25,10 +25,11 @@ fn flag_cell(f: &FlagScore) -> String {
 
 /// A [`PeakSummary`] as one cell: height error median / 90th, all peaks,
 /// the resolved ones and interpolation's; share not resolved; resolved
-/// heights within k = 2 (points with a peak in truth, read without one).
+/// heights and widths within k = 2 (points with a peak in truth, read
+/// without one).
 fn peak_cell(p: &PeakSummary) -> String {
     format!(
-        "{:.1} / {:.1} % (resolved {:.1} / {:.1} %; interpolation {:.1} / {:.1} %); {}; {} ({}, {})",
+        "{:.1} / {:.1} % (resolved {:.1} / {:.1} %; interpolation {:.1} / {:.1} %); {}; {} / {} ({}, {})",
         100.0 * p.height_rel[0],
         100.0 * p.height_rel[1],
         100.0 * p.resolved_height_rel[0],
@@ -37,6 +38,7 @@ fn peak_cell(p: &PeakSummary) -> String {
         100.0 * p.interpolation_height_rel[1],
         pct(p.unresolved),
         pct(p.resolved_coverage),
+        pct(p.width_coverage),
         p.points,
         p.missed
     )
@@ -91,7 +93,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let _ = writeln!(
         s,
-        "| specular peaks, held out: height relative error median / 90th (all peaks; resolved ones; interpolation's); not resolved by the calibration; resolved heights within k = 2 (points with a peak in truth, read without one) | {} |",
+        "| specular peaks, held out: height relative error median / 90th (all peaks; resolved ones; interpolation's); not resolved by the calibration; resolved heights / widths within k = 2 (points with a peak in truth, read without one) | {} |",
         peak_cell(&map.peaks)
     );
     if let Some(k) = &map.flag_in_training {
