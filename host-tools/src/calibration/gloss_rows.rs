@@ -377,17 +377,22 @@ pub fn cluster_uncertainty_factors(z: &[HeldOutZ], c: usize) -> [f64; 3] {
 }
 
 /// Per reading, the largest factor of the pool `z` and of its families with
-/// enough points to set one.
+/// enough points to set one ([`covering_each_family`]).
 fn family_factors(z: &[HeldOutZ]) -> [f64; 3] {
-    let of = |f: Family| z.iter().filter(|p| p.family == f).map(|p| p.z).collect::<Vec<_>>();
-    let each: Vec<[f64; 3]> = [Family::AsTheyAre, Family::Variant, Family::Standard]
-        .into_iter()
-        .map(of)
-        .filter(|pts| pts.len() >= MIN_CLUSTER_POINTS)
-        .chain(std::iter::once(z.iter().map(|p| p.z).collect()))
-        .map(|pts| uncertainty_factors(&pts))
-        .collect();
-    std::array::from_fn(|r| each.iter().map(|f| f[r]).fold(0.0, f64::max))
+    let families = [Family::AsTheyAre, Family::Variant, Family::Standard]
+        .map(|f| z.iter().filter(|p| p.family == f).map(|p| p.z).collect::<Vec<_>>());
+    std::array::from_fn(|r| covering_each_family(&families, |pts| Some(uncertainty_factors(pts)[r])).unwrap_or(1.0))
+}
+
+/// The rule every factor on a stated uncertainty follows (the gloss
+/// readings', the specular peak's, `crate::calibration::peak_factors`):
+/// each family of held-out samples covered on its own. The largest of
+/// `factor` over all of them and over each family with at least
+/// [`MIN_CLUSTER_POINTS`] (a smaller one still counts in the whole);
+/// `None` when the whole's is.
+pub fn covering_each_family<T: Clone>(families: &[Vec<T>], factor: impl Fn(&[T]) -> Option<f64>) -> Option<f64> {
+    let all = factor(&families.concat())?;
+    Some(families.iter().filter(|f| f.len() >= MIN_CLUSTER_POINTS).filter_map(|f| factor(f)).fold(all, f64::max))
 }
 
 /// Fewest held-out points a cluster's (or a family's) own uncertainty

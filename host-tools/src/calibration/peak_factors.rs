@@ -26,7 +26,7 @@
 //! seen were covered 89.0 %. Training data only: the test set never
 //! enters it.
 use crate::calibration::estimators::scale_free::weighted_quantile;
-use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
+use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K, covering_each_family};
 use crate::output::peak::{Peak, PeakFactors, RESOLVED_WIDTH_FACTOR, specular_peak};
 
 /// One held-out estimate's peak against its truth's.
@@ -96,8 +96,7 @@ pub fn factors<'a>(peaks: impl IntoIterator<Item = (&'a HeldOutPeak, Option<f64>
         (xs.len() >= MIN_PEAKS).then(|| weighted_quantile(&mut xs.to_vec(), COVERAGE) / COVERAGE_K)
     };
     let factor = |fam: &[Vec<(f64, f64)>; 2]| -> Option<f32> {
-        let pool = quantile(&fam.concat())?;
-        let f = fam.iter().filter_map(|xs| quantile(xs)).fold(pool, f64::max) as f32;
+        let f = covering_each_family(fam, quantile)? as f32;
         (f.is_finite() && f > 0.0).then_some(f)
     };
     let h = factor(&height)?;
