@@ -132,7 +132,8 @@ pub struct CalibrationArgs {
     /// (what `reproduce` evaluates).
     #[arg(long, conflicts_with_all = ["estimator", "prior", "criterion", "form", "clusters"])]
     pub patent: bool,
-    /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples.
+    /// Out-of-prior flag (scale-free kinds): false-alarm rate on held-out prior samples, held on the
+    /// materials as they are and on their variants (rougher finishes, stretches) each.
     #[arg(long, default_value_t = crate::calibration::estimators::scale_free::DEFAULT_FALSE_ALARM)]
     pub false_alarm: f64,
     /// Instrument description (TOML); default: the built-in patent profile.
@@ -402,7 +403,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => {
             let z0 = trained.zones[0].scale_free().expect("a scale-free calibration");
             println!(
-                "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior flag: the {} statistic, each zone's threshold at {:.0} % false alarms on held-out samples, a flagged point's band {:.2}x wider; f32 vs f64 {:.1e}",
+                "zone 0: ridge {:.0e} (cross-validated peak-normalised error {:.4}); out-of-prior flag: the {} statistic, each zone's threshold at {:.0} % false alarms on held-out samples (materials and their variants each), a flagged point's band {:.2}x wider; f32 vs f64 {:.1e}",
                 z0.ridge,
                 z0.cv_error,
                 z0.out_of_prior.form.name(),

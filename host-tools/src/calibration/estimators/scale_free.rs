@@ -828,6 +828,7 @@ pub fn train_with(
         readings: &cv.readings,
         weight: &weight,
         fold: &cv.fold,
+        variant: &pairs.variant,
         error: &error,
         linear_model: &linear_model,
     };
