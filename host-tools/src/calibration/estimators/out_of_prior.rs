@@ -9,7 +9,7 @@
 //! the statistic of held-out prior readings (k-fold, each scored by a model
 //! fitted without its fold), the largest of the materials' as they are, of
 //! their variants' and of both together, so that neither sees more false
-//! alarms than alpha ([`threshold_of`]); it is folded into G so that every
+//! alarms than alpha (`threshold_of`); it is folded into G so that every
 //! zone's threshold is [`FOLDED_THRESHOLD`] (the blob holds one).
 //!
 //! Which form a calibration flags with is decided by what the flag is for,
