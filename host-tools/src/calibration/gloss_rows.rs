@@ -41,6 +41,7 @@
 //! standards bought the materials' coverage: on the handheld 95 % of the
 //! pool was covered and 91-92 % of the materials as they are.
 //! Training data only: the test set never enters it.
+use crate::calibration::families::covering_each_family;
 use crate::forward::brdf::smooth_dielectric::BLACK_GLASS_INDEX;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric};
 use crate::forward::gloss::{ASSIGNED_GU, reading_weights};
@@ -364,7 +365,7 @@ pub struct HeldOutZ {
 
 /// Cluster `c`'s factors from the held-out points `z` it selected: per
 /// reading the largest of its families' [`uncertainty_factors`] (each
-/// family with at least [`MIN_CLUSTER_POINTS`] points) and all of its
+/// family with at least [`MIN_FAMILY_POINTS`](crate::calibration::families::MIN_FAMILY_POINTS) points) and all of its
 /// points' together (where a family too small to set its own still
 /// counts), so each family is covered on its own. Each
 /// cluster's readings are covered on their own too, not by a factor that a
@@ -384,21 +385,10 @@ fn family_factors(z: &[HeldOutZ]) -> [f64; 3] {
     std::array::from_fn(|r| covering_each_family(&families, |pts| Some(uncertainty_factors(pts)[r])).unwrap_or(1.0))
 }
 
-/// The rule every factor on a stated uncertainty follows (the gloss
-/// readings', the specular peak's, `crate::calibration::peak_factors`):
-/// each family of held-out samples covered on its own. The largest of
-/// `factor` over all of them and over each family with at least
-/// [`MIN_CLUSTER_POINTS`] (a smaller one still counts in the whole);
-/// `None` when the whole's is.
-pub fn covering_each_family<T: Clone>(families: &[Vec<T>], factor: impl Fn(&[T]) -> Option<f64>) -> Option<f64> {
-    let all = factor(&families.concat())?;
-    Some(families.iter().filter(|f| f.len() >= MIN_CLUSTER_POINTS).filter_map(|f| factor(f)).fold(all, f64::max))
-}
-
-/// Fewest held-out points a cluster's (or a family's) own uncertainty
-/// factors are set from: the 95th percentile of 40 points is the third
-/// largest.
-pub const MIN_CLUSTER_POINTS: usize = 40;
+/// Fewest held-out points a cluster's own uncertainty factors are set
+/// from: as many as a family's
+/// (`crate::calibration::families::MIN_FAMILY_POINTS`).
+pub const MIN_CLUSTER_POINTS: usize = crate::calibration::families::MIN_FAMILY_POINTS;
 
 /// Scales a block's covariance and standard deviations by the factors
 /// `f` (gloss, haze, distinctness: the distinctness factor on both the peak

@@ -3,11 +3,14 @@
 //! calibration on the gloss standard, the blob) and signing (key files,
 //! the signed calibration), the calibration's peak resolution (what
 //! the device's rule, `crate::device::reference`, makes of the black
-//! glass) and the factors on its peaks' uncertainties. Consumes the forward model; knows nothing of the device link or
+//! glass) and the factors on its peaks' uncertainties; `families`: the rule
+//! those factors and the out-of-prior flag's threshold share (each family
+//! of held-out samples covered on its own). Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;
 pub mod f32_gate;
+pub mod families;
 pub mod gloss_rows;
 pub mod peak_factors;
 pub mod peak_resolution;

@@ -26,7 +26,8 @@
 //! seen were covered 89.0 %. Training data only: the test set never
 //! enters it.
 use crate::calibration::estimators::scale_free::weighted_quantile;
-use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K, covering_each_family};
+use crate::calibration::families::covering_each_family;
+use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
 use crate::output::peak::{Peak, PeakFactors, RESOLVED_WIDTH_FACTOR, specular_peak};
 
 /// One held-out estimate's peak against its truth's.

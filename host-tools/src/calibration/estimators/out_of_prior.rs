@@ -30,7 +30,7 @@
 //! LEDs the few points read badly are the most specular, whose one bright
 //! share the linear form measures directly (`docs/guide/real-materials.md`,
 //! `docs/handheld.md`).
-use crate::calibration::gloss_rows::covering_each_family;
+use crate::calibration::families::covering_each_family;
 use anyhow::{Context, ensure};
 use brdf_meter::kernel::scale_free::{LOG_RATIO_FLOOR, OutOfPriorForm, scale, whitening_len};
 use nalgebra::{DMatrix, DVector};
@@ -276,7 +276,7 @@ fn held_out_stats(held: &HeldOut<'_>, form: OutOfPriorForm) -> anyhow::Result<Ve
 /// weight, whether a variant of its material): the smallest that raises at
 /// most `false_alarm` of the weight of the materials as they are, of their
 /// variants and of both together, each on its own
-/// (`gloss_rows::covering_each_family`). Pooled, the variants set the rate
+/// (`crate::calibration::families`). Pooled, the variants set the rate
 /// the materials see: on the patent profile the rougher finishes are
 /// flagged less often, and the pooled 5 % threshold raised 9 % of the
 /// materials as they are. No readings: `f64::MAX` (it never flags).

@@ -930,8 +930,9 @@ fn held_out_uncertainty(
     let n = pairs.n();
     let nf = fold.iter().copied().max().map_or(0, |x| x + 1);
     let mut held: Vec<HeldOutRoot> = Vec::new();
-    // The held-out estimates and their scales, where their peaks are kept.
-    let keep_peaks = peak_views.is_some() && band_bins.is_some();
+    // The held-out estimates and their scales, where their peaks are kept
+    // (the views to seek them at, the grid the band's kinds are set on).
+    let peak_grid = peak_views.zip(band_bins);
     let mut estimates: Vec<(Vec<f32>, f32)> = Vec::new();
     for f in 0..nf {
         let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| fold[*k] != f).collect();
@@ -949,7 +950,7 @@ fn held_out_uncertainty(
                 let est32: Vec<f32> = est.iter().map(|x| *x as f32).collect();
                 let broad = band_bins.is_some_and(|b| brdf_meter::band::is_broad(b, &est32));
                 held.push((fitted.cluster(v), pairs.base[k] / DRAWS as f64, unit, (k, d), error, broad));
-                if keep_peaks {
+                if peak_grid.is_some() {
                     estimates.push((est32, s as f32));
                 }
             }
@@ -1016,8 +1017,8 @@ fn held_out_uncertainty(
         }
         (ratios, on_kinds)
     };
-    let peaks = match (peak_views, band_bins) {
-        (Some(views), Some(bins)) => held
+    let peaks = match peak_grid {
+        Some((views, bins)) => held
             .iter()
             .zip(&estimates)
             .filter_map(|(h, (est, s))| {
@@ -1030,7 +1031,7 @@ fn held_out_uncertainty(
                 peak_factors::held_out_peak(bins, (est, &u, &truth), views[pixel], (h.1, pixel, variant))
             })
             .collect(),
-        _ => Vec::new(),
+        None => Vec::new(),
     };
     Ok(([evidence(&flagged[0]), evidence(&flagged[1])], peaks))
 }
