@@ -211,6 +211,13 @@ fn pixel_map_reads_every_pixel() {
     let f = &map.flag;
     assert_eq!(f.bad + f.good, 12 * 20, "{f:?}");
     assert!(f.bad_flagged <= f.bad && f.good_flagged <= f.good, "{f:?}");
+    // Each material's own points, which together are the map's.
+    assert!(map.materials.iter().all(|m| m.flag.bad + m.flag.good == 12), "{:?}", map.materials[0].flag);
+    let summed = map
+        .materials
+        .iter()
+        .fold(Default::default(), |a: host_tools::evaluation::metrology::metrics::FlagScore, m| a.merged(m.flag));
+    assert_eq!(summed, *f);
     assert_eq!(t.flag.bad + t.flag.good, 12 * per_tile.len() * 3, "{:?}", t.flag);
     // And on the scene's own surface, the one it is set up to read (a flag
     // raised there is what inspection cannot be taught on), and the
@@ -251,6 +258,13 @@ fn pixel_map_reads_every_pixel() {
     assert!(md.contains("(what `train` prints)") && md.contains("statistic of each calibration"), "{md}");
     assert!(md.contains("| gloss tiles' BRDF error / peak") && md.contains("stated uncertainty"), "{md}");
     assert!(md.contains("| out-of-prior flag, held out: of points worse than 0.10"), "{md}");
+    // Which materials it reads worst, when any point is worse than 0.10.
+    if f.bad > 0 {
+        assert!(
+            md.contains("Held-out materials read worst: ") && md.contains("| material | points worse than 0.10 |"),
+            "{md}"
+        );
+    }
     // The unseen set: the two surfaces the truncated prior lacks are read
     // at every pixel beside interpolation; the prior sample among them is
     // left out and named.

@@ -161,6 +161,11 @@ pub struct MaterialRow {
     /// lines whose reading is within k = 2 of the uncertainty the frame
     /// states for it (NaN: no line has the reading).
     pub reading_coverage: Vec<[f64; 3]>,
+    /// Its points (every line of every pixel) worse than `BAD_ERROR` and
+    /// not, and of each how many the out-of-prior flag raised: whether a
+    /// material the calibration reads badly is read badly everywhere, and
+    /// whether the flag says so ([`report`]'s materials read worst).
+    pub flag: FlagScore,
 }
 
 /// Per reading (gloss, haze, distinctness), the share of every (material,
@@ -614,8 +619,8 @@ struct LineGeometry {
 }
 
 /// Material `b` (named `name`) read on the whole line by `blob` for the
-/// spec's lines (noise seed `seed`): its row, per pixel its flag counts,
-/// and the flag's score over its points.
+/// spec's lines (noise seed `seed`): its row (with the flag's score over
+/// its points), per pixel its flag counts, and its peaks.
 fn read_material(
     spec: &MapSpec,
     geo: &LineGeometry,
@@ -697,13 +702,14 @@ fn read_material(
             .iter()
             .map(|px| px.map(|(n, inside)| if n == 0 { f64::NAN } else { inside as f64 / n as f64 }))
             .collect(),
+        flag,
     };
-    Ok((row, fl, flag, peaks))
+    Ok((row, fl, peaks))
 }
 
-/// A held-out material's row, per pixel its counts, its flag score and its
-/// peaks.
-type MaterialRead = (MaterialRow, Vec<PixelCounts>, FlagScore, PeakTally);
+/// A held-out material's row (with its flag score), per pixel its counts
+/// and its peaks.
+type MaterialRead = (MaterialRow, Vec<PixelCounts>, PeakTally);
 
 /// The map.
 pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> {
@@ -766,8 +772,8 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 read_material(spec, &geo, &s.name, b, &blob, k as u64)
             })
             .collect::<anyhow::Result<_>>()?;
-        for (row, fl, f, pk) in results {
-            held_out_flag = held_out_flag.merged(f);
+        for (row, fl, pk) in results {
+            held_out_flag = held_out_flag.merged(row.flag);
             held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in pixel_counts.iter_mut().zip(fl) {
                 acc.add(x);

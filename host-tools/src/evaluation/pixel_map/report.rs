@@ -199,6 +199,10 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         let _ = writeln!(s, "| unseen set's specular peaks | {} |", peak_cell(&u.peaks));
     }
     let _ = writeln!(s);
+    s.push_str(&read_worst("Held-out materials", &map.materials));
+    if let Some(u) = &map.unseen {
+        s.push_str(&read_worst(&format!("Unseen set `{}`", u.source), &u.materials));
+    }
     let _ = writeln!(
         s,
         "| pixel | view deg | zone | error median / 90th / worst | interpolation median / 90th / worst | out of prior | saturated | black glass GU (1 sigma) | tiles mean / worst abs dGU | peak resolution deg | peaks not resolved |"
@@ -224,6 +228,63 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             100.0 * r.peaks_unresolved
         );
     }
+    s
+}
+
+/// How many materials [`read_worst`] lists.
+pub const READ_WORST: usize = 8;
+
+/// The materials of `rows` with the most points worse than [`BAD_ERROR`]
+/// (at most [`READ_WORST`], by that share, then by their median error),
+/// each with what the flag raised on it and its error beside
+/// interpolation's, and the share of all the bad points they hold: a
+/// calibration's bad estimates are mostly whole materials, read badly at
+/// every pixel, and this says which, and whether the flag says so. Empty
+/// when no point is worse.
+pub fn read_worst(what: &str, rows: &[super::MaterialRow]) -> String {
+    let bad_share = |r: &super::MaterialRow| r.flag.bad as f64 / (r.flag.bad + r.flag.good).max(1) as f64;
+    let total: usize = rows.iter().map(|r| r.flag.bad).sum();
+    if total == 0 {
+        return String::new();
+    }
+    let mut worst: Vec<&super::MaterialRow> = rows.iter().filter(|r| r.flag.bad > 0).collect();
+    let median = |x: &[f64]| crate::evaluation::pixel_error::quantiles(x)[0];
+    worst.sort_by(|a, b| bad_share(b).total_cmp(&bad_share(a)).then(median(&b.error).total_cmp(&median(&a.error))));
+    let with_bad = worst.len();
+    worst.truncate(READ_WORST);
+    let held: usize = worst.iter().map(|r| r.flag.bad).sum();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{what} read worst: {with_bad} of {} have points worse than {BAD_ERROR:.2} of their peak; these {} hold {} of those {total} points.\n",
+        rows.len(),
+        worst.len(),
+        pct(held as f64 / total as f64)
+    );
+    let _ = writeln!(
+        s,
+        "| material | points worse than {BAD_ERROR:.2} | of them flagged | of the rest flagged | error median / 90th over pixels | interpolation median / 90th |\n|---|---|---|---|---|---|"
+    );
+    for r in worst {
+        let (e, i) = (
+            crate::evaluation::pixel_error::quantiles(&r.error),
+            crate::evaluation::pixel_error::quantiles(&r.interpolation),
+        );
+        let _ = writeln!(
+            s,
+            "| {} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.3} / {:.3} |",
+            r.name,
+            pct(bad_share(r)),
+            r.flag.bad,
+            pct(r.flag.caught()),
+            pct(r.flag.false_alarms()),
+            e[0],
+            e[1],
+            i[0],
+            i[1]
+        );
+    }
+    let _ = writeln!(s);
     s
 }
 
@@ -401,4 +462,51 @@ pub fn write(dir: &Path, map: &PixelMap, stride: usize) -> anyhow::Result<Vec<Pa
     put("pixel-map.svg", svg.as_bytes())?;
     put("pixel-map.png", &png)?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evaluation::pixel_map::MaterialRow;
+
+    /// A material of two pixels with `bad` of its `points` worse than
+    /// `BAD_ERROR`, `caught` of them flagged, and `errors` per pixel.
+    fn material(name: &str, points: usize, bad: usize, caught: usize, errors: [f64; 2]) -> MaterialRow {
+        MaterialRow {
+            name: name.into(),
+            error: errors.to_vec(),
+            interpolation: vec![0.15; 2],
+            gloss_true: vec![10.0; 2],
+            gloss: vec![10.0; 2],
+            gloss_interpolation: vec![10.0; 2],
+            bin_coverage: vec![1.0; 2],
+            haze_distinctness_error: [vec![[0.0; 2]; 2], vec![[0.0; 2]; 2]],
+            reading_coverage: vec![[1.0; 3]; 2],
+            flag: FlagScore { bad, bad_flagged: caught, good: points - bad, good_flagged: 1 },
+        }
+    }
+
+    #[test]
+    fn the_materials_read_worst_are_those_with_the_most_bad_points_and_hold_their_share() {
+        let mut rows = vec![
+            material("fine", 10, 0, 0, [0.02, 0.03]),
+            material("half", 10, 5, 1, [0.09, 0.12]),
+            material("all", 10, 10, 0, [0.2, 0.3]),
+            material("half-worse", 10, 5, 5, [0.11, 0.2]),
+        ];
+        rows.extend((0..READ_WORST).map(|i| material(&format!("one-{i}"), 10, 1, 0, [0.05, 0.11])));
+        let s = read_worst("Held-out materials", &rows);
+        // Eleven materials have bad points; the eight listed hold 25 of 28.
+        assert!(s.starts_with("Held-out materials read worst: 11 of 12 have points worse than 0.10"), "{s}");
+        assert!(s.contains("these 8 hold 89.3 % of those 28 points"), "{s}");
+        let listed: Vec<&str> = s.lines().filter(|l| l.starts_with("| ") && !l.starts_with("| material")).collect();
+        assert_eq!(listed.len(), READ_WORST, "{s}");
+        // By the share of bad points, ties by the median error.
+        assert!(listed[0].starts_with("| all | 100.0 % (10) | 0.0 % | - |"), "{s}");
+        assert!(listed[1].starts_with("| half-worse | 50.0 % (5) | 100.0 % | 20.0 % |"), "{s}");
+        assert!(listed[2].starts_with("| half | 50.0 % (5) | 20.0 % | 20.0 % |"), "{s}");
+        assert!(!s.contains("| fine |"), "{s}");
+        // Nothing to say when no point is worse.
+        assert_eq!(read_worst("x", &rows[..1]), "");
+    }
 }

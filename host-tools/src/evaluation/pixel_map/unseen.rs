@@ -64,8 +64,8 @@ pub(super) fn read(
         .par_iter()
         .map(|(i, (name, b))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
         .collect::<anyhow::Result<_>>()?;
-    let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.2));
-    let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.3.clone())).summary();
+    let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.0.flag));
+    let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.2.clone())).summary();
     let materials: Vec<MaterialRow> = reads.into_iter().map(|r| r.0).collect();
     Ok(UnseenSet {
         source: set.source.clone(),
