@@ -33,7 +33,9 @@
 //!   whether the out-of-prior flag predicts error ([`FlagScore`]): of the
 //!   points (each line of each pixel) worse than 0.10 of their peak,
 //!   the share flagged, and of the rest, on the held-out materials and on
-//!   the tiles.
+//!   the tiles; and per material, so the report can say which materials
+//!   hold the bad points and whether the flag is raised on them
+//!   ([`report::read_worst`]).
 //! - **Specular peaks** of the held-out points ([`peaks`]): height error,
 //!   the share the calibration does not resolve, the resolved heights'
 //!   coverage.
