@@ -5,7 +5,8 @@
 //! gloss rows also the gloss standards. The families err, and are flagged,
 //! at different rates, and pooled, an easy family buys a hard one's
 //! coverage: a factor or a threshold set on the pool did not hold on the
-//! materials the instrument is sold to read. Used by the gloss readings'
+//! materials the instrument is sold to read. Used by the per-bin band
+//! (`crate::calibration::estimators::scale_free`), the gloss readings'
 //! uncertainty factors (`crate::calibration::gloss_rows`), the specular
 //! peak's (`crate::calibration::peak_factors`) and the out-of-prior
 //! flag's threshold (`crate::calibration::estimators::out_of_prior`).

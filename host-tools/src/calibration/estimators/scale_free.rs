@@ -81,6 +81,7 @@
 //! 1.00 on the patent profile); on the handheld they are not (1.08).
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
+use crate::calibration::families::covering_each_family;
 use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
 use crate::calibration::peak_factors::{self, HeldOutPeak};
 use crate::forward::pairs::{Criterion, Pairs};
@@ -967,13 +968,22 @@ fn held_out_uncertainty(
     // estimate (sharp, broad: `brdf_meter::band`) are covered on their own
     // too: a cluster's readings may be read as smooth lobes or as sharp
     // peaks, which err differently at the specular bins.
+    //
+    // And the prior's materials as they are and their variants (rougher
+    // finishes, stretches across the plane) are covered each on its own
+    // (`crate::calibration::families`), as every other quantile set on
+    // held-out samples is: pooled, by their shared weight, the materials'
+    // errors set most of the band and the variants' smooth lobes, the
+    // kind of surface no measured set holds, were covered less often.
     let quantile = |c: Option<usize>, broad: Option<bool>, j: usize| -> Option<f64> {
-        let mut xs: Vec<(f64, f64)> = held
-            .iter()
-            .filter(|h| c.is_none_or(|c| h.0 == c) && broad.is_none_or(|b| h.5 == b))
-            .map(|h| (h.2[j], h.1))
-            .collect();
-        (!xs.is_empty()).then(|| weighted_quantile(&mut xs, COVERAGE))
+        let family = |variant: bool| -> Vec<(f64, f64)> {
+            held.iter()
+                .filter(|h| c.is_none_or(|c| h.0 == c) && broad.is_none_or(|b| h.5 == b))
+                .filter(|h| (pairs.variant[h.3.0] != 0) == variant)
+                .map(|h| (h.2[j], h.1))
+                .collect()
+        };
+        band_quantile(&[family(false), family(true)])
     };
     let count =
         |c: Option<usize>, broad: bool| held.iter().filter(|h| c.is_none_or(|c| h.0 == c) && h.5 == broad).count();
@@ -1047,6 +1057,15 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
     train_pairs(&pairs, opts)
 }
 
+/// One bin's band from its held-out readings' covering units (value,
+/// weight), grouped by family (the materials as they are, their
+/// variants): the largest of the pool's `COVERAGE` quantile and each
+/// family's with enough readings ([`covering_each_family`]); `None` with
+/// no reading at all.
+fn band_quantile(families: &[Vec<(f64, f64)>]) -> Option<f64> {
+    covering_each_family(families, |xs| (!xs.is_empty()).then(|| weighted_quantile(&mut xs.to_vec(), COVERAGE)))
+}
+
 /// The weighted `q` quantile of `xs` (value, weight): the first value, in
 /// ascending order, at which the weights reach `q` of their total
 /// (`f64::MAX` when there is none).
@@ -1105,6 +1124,28 @@ mod tests {
         assert_eq!(weighted_quantile(&mut xs, 0.75), 2.0);
         assert_eq!(weighted_quantile(&mut xs, 0.95), 3.0);
         assert_eq!(weighted_quantile(&mut [], 0.5), f64::MAX);
+    }
+
+    #[test]
+    fn a_bins_band_covers_the_materials_and_their_variants_each_on_its_own() {
+        // 100 materials' covering units 1..=100 and 100 variants', the two
+        // families of equal weight (a material's variants share half of it).
+        let materials: Vec<(f64, f64)> = (1..=100).map(|i| (f64::from(i), 1.0)).collect();
+        let easy: Vec<(f64, f64)> = (1..=100).map(|i| (0.01 * f64::from(i), 1.0)).collect();
+        let hard: Vec<(f64, f64)> = (1..=100).map(|i| (10.0 * f64::from(i), 1.0)).collect();
+        // Pooled, easy variants narrow the band to cover 90 % of the
+        // materials, and hard ones are covered at 900 where 95 % of them
+        // need 950.
+        let pooled = |v: &[(f64, f64)]| weighted_quantile(&mut [materials.clone(), v.to_vec()].concat(), COVERAGE);
+        assert_eq!((pooled(&easy), pooled(&hard)), (90.0, 900.0));
+        assert_eq!(band_quantile(&[materials.clone(), easy]), Some(95.0), "easy variants do not narrow it");
+        assert_eq!(band_quantile(&[materials.clone(), hard]), Some(950.0), "hard variants are covered too");
+        // A family too small to set its own (its 95th percentile: 37,000)
+        // only counts in the pool (33,000: the 33rd of its 39 completes 95 %
+        // of the 139 readings' weight).
+        let few: Vec<(f64, f64)> = (1..=39).map(|i| (1e3 * f64::from(i), 1.0)).collect();
+        assert_eq!(band_quantile(&[materials.clone(), few]), Some(33_000.0));
+        assert_eq!(band_quantile(&[Vec::new(), Vec::new()]), None);
     }
 
     #[test]
