@@ -339,3 +339,35 @@ fn a_mirror_spike_is_read_as_not_resolved_and_a_broad_lobe_as_resolved() {
     assert!(lobe.peak_height_coverage.is_some());
     assert_eq!(row(&r, "lobes", "interpolation").peak_unresolved, None, "interpolation states no resolution");
 }
+
+#[test]
+fn the_surfaces_read_worst_are_listed_with_their_flags_and_interpolation() {
+    // The patent's Table 5 Wiener misreads measured materials (a tenth of
+    // their peak and more): the report names the ones it reads worst,
+    // most bad draws first, beside interpolation's error on the same draws.
+    use host_tools::evaluation::metrology::metrics::BAD_ERROR;
+    use host_tools::evaluation::metrology::report::READ_WORST;
+    let set = host_tools::forward::brdf::NbrdfSet::merl();
+    let spectral = host_tools::forward::optics::Instrument::patent_profile().spectral_weights;
+    let fams = vec![TestFamily::measured("merl", &set, spectral).at_most(12)];
+    let r = evaluate(&["--patent"], &fams, 0.02);
+    let bad =
+        |m: &host_tools::evaluation::metrology::MaterialResult| m.draws.iter().filter(|d| d.error > BAD_ERROR).count();
+    let mut worst: Vec<_> = r.materials.iter().filter(|m| bad(m) > 0).collect();
+    assert!(worst.len() > 1, "the Table 5 Wiener misreads some of them");
+    worst.sort_by(|a, b| bad(b).cmp(&bad(a)).then(b.error_estimator.total_cmp(&a.error_estimator)));
+    let t = r.tables();
+    let listed: Vec<&str> = t
+        .lines()
+        .skip_while(|l| !l.starts_with("Surfaces read worst"))
+        .filter(|l| l.starts_with("| measured |"))
+        .collect();
+    assert_eq!(listed.len(), worst.len().min(READ_WORST) + usize::from(worst.len() > READ_WORST), "{t}");
+    let first = worst[0];
+    let row = format!("| measured | {} | {} of {} |", first.name, bad(first), first.draws.len());
+    assert!(listed[0].starts_with(&row), "{} should lead: {t}", first.name);
+    assert!(
+        listed[0].ends_with(&format!("| {:.4} | {:.4} |", first.error_estimator, first.error_interpolation)),
+        "{t}"
+    );
+}

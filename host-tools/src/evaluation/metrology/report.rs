@@ -247,6 +247,58 @@ impl Report {
                 cov
             );
         }
+        s += &self.read_worst();
+        s
+    }
+
+    /// Per family, the surfaces with estimates worse than [`BAD_ERROR`] (at
+    /// most [`READ_WORST`], by the share of their draws that are, then by
+    /// their error), each with what the flag raised on it and
+    /// interpolation's error beside: which surfaces of a set the
+    /// calibration cannot read, and whether its flag says so. Empty when
+    /// no estimate is worse.
+    fn read_worst(&self) -> String {
+        let bad = |m: &MaterialResult| m.draws.iter().filter(|d| d.error > BAD_ERROR).count();
+        let mut s = String::new();
+        for f in &self.families {
+            let mut worst: Vec<&MaterialResult> =
+                self.materials.iter().filter(|m| m.family == f.family && bad(m) > 0).collect();
+            if worst.is_empty() {
+                continue;
+            }
+            if s.is_empty() {
+                s += &format!(
+                    "\nSurfaces read worst (estimates worse than {BAD_ERROR:.2} of the truth's peak; error = RMS over the bins and draws / peak)\n\n\
+                     | family | surface | draws worse than {BAD_ERROR:.2} | flagged | error | interpolation |\n|---|---|---|---|---|---|\n"
+                );
+            }
+            let share = |m: &MaterialResult| bad(m) as f64 / m.draws.len().max(1) as f64;
+            worst.sort_by(|a, b| share(b).total_cmp(&share(a)).then(b.error_estimator.total_cmp(&a.error_estimator)));
+            let (with_bad, total) = (worst.len(), worst.iter().map(|m| bad(m)).sum::<usize>());
+            worst.truncate(READ_WORST);
+            for m in &worst {
+                s += &format!(
+                    "| {} | {} | {} of {} | {} | {:.4} | {:.4} |\n",
+                    f.family,
+                    m.name,
+                    bad(m),
+                    m.draws.len(),
+                    pct(m.flagged),
+                    m.error_estimator,
+                    m.error_interpolation
+                );
+            }
+            if with_bad > worst.len() {
+                s += &format!(
+                    "| {} | ({} more surfaces; {total} such estimates in all) | | | | |\n",
+                    f.family,
+                    with_bad - worst.len()
+                );
+            }
+        }
         s
     }
 }
+
+/// How many surfaces of a family the report lists as read worst.
+pub const READ_WORST: usize = 8;
