@@ -60,6 +60,10 @@
 //! `MIN_BAND_READINGS` in the cluster takes the kind's over the zone): a
 //! cluster's readings may be read either way, and a smooth lobe's specular
 //! bins do not err as a mirror's read as the prior's idea of one does.
+//! Each quantile also covers the prior's materials as they are and their
+//! variants (rougher finishes, stretches across the plane) each on its
+//! own (`crate::calibration::families`), so the variants' smooth lobes are
+//! not covered at the rate the materials' errors set.
 //!
 //! The folds of that uncertainty hold out whole *kinds* of material
 //! (`shape_folds`: the prior's samples grouped by the shape of their
@@ -77,8 +81,10 @@
 //! (`out_of_prior::band_factor`, one factor per calibration, at least 1;
 //! the device applies it through the point's `sigma_scale`,
 //! `brdf_meter::kernel::scale_free::flagged_sigma_scale`). On the MERL
-//! prior the flagged held-out kinds are covered as the rest are (factor
-//! 1.00 on the patent profile); on the handheld they are not (1.08).
+//! prior the flagged held-out kinds are covered about as the rest are
+//! (factor 1.02 on the patent profile, 1.00 on the handheld since the
+//! band covers each family on its own; 1.08 there before it held its
+//! materials stretched across the plane).
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
 use crate::calibration::families::covering_each_family;
