@@ -23,6 +23,16 @@ pub fn covering_each_family<T: Clone>(families: &[Vec<T>], quantile: impl Fn(&[T
     Some(families.iter().filter(|f| f.len() >= MIN_FAMILY_POINTS).filter_map(|f| quantile(f)).fold(all, f64::max))
 }
 
+/// [`covering_each_family`] of the weighted `q` quantile of (value,
+/// weight) pairs (`estimators::scale_free::weighted_quantile`), the form
+/// the per-bin band and the flag's threshold take; `None` when no family
+/// holds a pair.
+pub fn weighted_quantile_of_each(families: &[Vec<(f64, f64)>], q: f64) -> Option<f64> {
+    covering_each_family(families, |xs| {
+        (!xs.is_empty()).then(|| crate::calibration::estimators::scale_free::weighted_quantile(&mut xs.to_vec(), q))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

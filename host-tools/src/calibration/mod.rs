@@ -4,8 +4,9 @@
 //! the signed calibration), the calibration's peak resolution (what
 //! the device's rule, `crate::device::reference`, makes of the black
 //! glass) and the factors on its peaks' uncertainties; `families`: the rule
-//! those factors and the out-of-prior flag's threshold share (each family
-//! of held-out samples covered on its own). Consumes the forward model; knows nothing of the device link or
+//! those factors, the gloss readings', the per-bin band and the
+//! out-of-prior flag's threshold share (each family of held-out samples
+//! covered on its own). Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;

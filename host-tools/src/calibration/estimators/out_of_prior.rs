@@ -30,7 +30,7 @@
 //! LEDs the few points read badly are the most specular, whose one bright
 //! share the linear form measures directly (`docs/guide/real-materials.md`,
 //! `docs/handheld.md`).
-use crate::calibration::families::covering_each_family;
+use crate::calibration::families::weighted_quantile_of_each;
 use anyhow::{Context, ensure};
 use brdf_meter::kernel::scale_free::{LOG_RATIO_FLOOR, OutOfPriorForm, scale, whitening_len};
 use nalgebra::{DMatrix, DVector};
@@ -285,10 +285,7 @@ fn threshold_of(stats: impl IntoIterator<Item = (f64, f64, bool)>, false_alarm: 
     for (s, w, variant) in stats {
         families[usize::from(variant)].push((s, w));
     }
-    let quantile = |xs: &[(f64, f64)]| {
-        Some(crate::calibration::estimators::scale_free::weighted_quantile(&mut xs.to_vec(), 1.0 - false_alarm))
-    };
-    covering_each_family(&families, quantile).unwrap_or(f64::MAX)
+    weighted_quantile_of_each(&families, 1.0 - false_alarm).unwrap_or(f64::MAX)
 }
 
 fn train_form(held: &HeldOut<'_>, false_alarm: f64, form: OutOfPriorForm) -> anyhow::Result<OutOfPrior> {

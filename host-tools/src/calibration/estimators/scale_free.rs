@@ -87,7 +87,7 @@
 //! materials stretched across the plane).
 use crate::calibration::estimators::clustered::kmeans;
 use crate::calibration::estimators::out_of_prior;
-use crate::calibration::families::covering_each_family;
+use crate::calibration::families::weighted_quantile_of_each;
 use crate::calibration::gloss_rows::{COVERAGE, COVERAGE_K};
 use crate::calibration::peak_factors::{self, HeldOutPeak};
 use crate::forward::pairs::{Criterion, Pairs};
@@ -1066,10 +1066,11 @@ pub fn train_zone(h: &DMatrix<f64>, prior: &WeightedSamples, opts: &ScaleFreeOpt
 /// One bin's band from its held-out readings' covering units (value,
 /// weight), grouped by family (the materials as they are, their
 /// variants): the largest of the pool's `COVERAGE` quantile and each
-/// family's with enough readings ([`covering_each_family`]); `None` with
-/// no reading at all.
+/// family's with enough readings
+/// (`crate::calibration::families::weighted_quantile_of_each`); `None`
+/// with no reading at all.
 fn band_quantile(families: &[Vec<(f64, f64)>]) -> Option<f64> {
-    covering_each_family(families, |xs| (!xs.is_empty()).then(|| weighted_quantile(&mut xs.to_vec(), COVERAGE)))
+    weighted_quantile_of_each(families, COVERAGE)
 }
 
 /// The weighted `q` quantile of `xs` (value, weight): the first value, in
