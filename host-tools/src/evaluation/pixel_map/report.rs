@@ -247,9 +247,14 @@ pub fn read_worst(what: &str, rows: &[super::MaterialRow]) -> String {
     if total == 0 {
         return String::new();
     }
-    let mut worst: Vec<&super::MaterialRow> = rows.iter().filter(|r| r.flag.bad > 0).collect();
-    let median = |x: &[f64]| crate::evaluation::pixel_error::quantiles(x)[0];
-    worst.sort_by(|a, b| bad_share(b).total_cmp(&bad_share(a)).then(median(&b.error).total_cmp(&median(&a.error))));
+    // Each material's keys once (its median sorts its pixels), not per comparison.
+    let mut keyed: Vec<(f64, f64, &super::MaterialRow)> = rows
+        .iter()
+        .filter(|r| r.flag.bad > 0)
+        .map(|r| (bad_share(r), crate::evaluation::pixel_error::quantiles(&r.error)[0], r))
+        .collect();
+    keyed.sort_by(|a, b| b.0.total_cmp(&a.0).then(b.1.total_cmp(&a.1)));
+    let mut worst: Vec<&super::MaterialRow> = keyed.into_iter().map(|k| k.2).collect();
     let with_bad = worst.len();
     worst.truncate(READ_WORST);
     let held: usize = worst.iter().map(|r| r.flag.bad).sum();
