@@ -28,6 +28,16 @@ pub struct TestFamily {
     pub materials: Vec<(String, Arc<dyn Brdf>)>,
 }
 
+/// Whether `b` reflects any light in the plane of incidence where an
+/// instrument of this kind looks: incidence 0-85 deg (1 deg apart), views
+/// 30-60 deg (5 deg apart), a mirror's reflection included.
+fn reflects_in_plane(b: &dyn Brdf) -> bool {
+    (0..=85).any(|ti| {
+        let ti = f64::from(ti);
+        b.mirror_reflectance(ti) > 0.0 || (30..=60).step_by(5).any(|to| b.reflectance(ti, f64::from(to)) > 0.0)
+    })
+}
+
 impl TestFamily {
     /// Every material of a measured NBRDF set, seen through `spectral`.
     pub fn measured(source: &str, set: &NbrdfSet, spectral: [f64; 3]) -> Self {
@@ -85,6 +95,13 @@ impl TestFamily {
             }
         }
         ensure!(!materials.is_empty(), "--set {arg:?}: no surfaces in it");
+        if let Some((name, _)) = materials.iter().find(|(_, b)| !reflects_in_plane(b.as_ref())) {
+            bail!(
+                "--set {arg:?}: surface {name:?} reflects no light in the plane of incidence (zero at every incidence \
+                 0-85 deg, for views 30-60 deg): every figure is relative to a surface's peak, so it cannot be \
+                 scored; leave it out of the set"
+            );
+        }
         Ok(Self { name: "measured".into(), source: arg.into(), materials })
     }
 
@@ -186,6 +203,32 @@ mod tests {
             TestFamily::measured_files(&format!("merl@0.5+{}@0.5", json.display()), LUMINANCE).unwrap_err()
         );
         assert!(e.contains("not a mixture"), "{e}");
+    }
+
+    /// A table measured only away from the plane of incidence has nothing
+    /// its figures could be relative to: refused, naming the surface.
+    #[test]
+    fn a_surface_that_reflects_nothing_in_the_plane_is_refused_by_name() {
+        use crate::forward::brdf::{light_dir, view_dir};
+        let cells = 4 * 4 * 8;
+        let mut t = MerlTable { dims: [4, 4, 8], values: vec![1500.0; 3 * cells], channel_weights: LUMINANCE };
+        for ti in 0..=85 {
+            for to in (30..=60).step_by(5) {
+                if let Some(c) = t.cell(&light_dir(f64::from(ti)), &view_dir(f64::from(to))) {
+                    (0..3).for_each(|k| t.values[k * cells + c] = 0.0);
+                }
+            }
+        }
+        assert!(t.values.iter().any(|v| *v > 0.0), "some cell out of the plane keeps its value");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dark.binary");
+        t.save(&path).unwrap();
+        let e = format!("{:#}", TestFamily::measured_files(&path.display().to_string(), LUMINANCE).unwrap_err());
+        assert!(e.contains("\"dark\"") && e.contains("reflects no light in the plane"), "{e}");
+        // The same table lit in the plane is a surface.
+        t.values.iter_mut().for_each(|v| *v = 1500.0);
+        t.save(&path).unwrap();
+        assert_eq!(TestFamily::measured_files(&path.display().to_string(), LUMINANCE).unwrap().materials.len(), 1);
     }
 
     #[test]

@@ -59,6 +59,14 @@ impl MerlTable {
         if let Some(i) = values.iter().position(|x| !x.is_finite()) {
             bail!("{origin}: value {i} (channel {}, cell {}) is not finite", i / cells, i % cells);
         }
+        // MERL marks a cell it did not measure with a negative value, and
+        // the lookup reads such a cell as black: a table of nothing else
+        // would pass for a black surface.
+        ensure!(
+            values.iter().any(|x| *x > 0.0),
+            "{origin}: no cell holds a measurement (every value is zero or negative, and MERL marks a cell it did \
+             not measure negative); check that the file is the material's table"
+        );
         Ok(Self { dims, values, channel_weights: LUMINANCE })
     }
 
@@ -165,5 +173,9 @@ mod tests {
         b[12..20].copy_from_slice(&f64::NAN.to_le_bytes());
         assert!(format!("{:#}", MerlTable::parse(&b, "x.binary").unwrap_err()).contains("not finite"));
         assert!(MerlTable::parse(&[0; 5], "x.binary").is_err());
+        // Every cell unmeasured: no surface, not a black one.
+        let empty = MerlTable { values: vec![-1.0; t.values.len()], ..t.clone() };
+        let e = format!("{:#}", MerlTable::parse(&empty.to_bytes(), "x.binary").unwrap_err());
+        assert!(e.contains("x.binary") && e.contains("no cell holds a measurement"), "{e}");
     }
 }
