@@ -109,6 +109,15 @@ fn measured_materials_in_the_prior_are_read_by_calibrations_trained_without_them
     );
     assert_eq!(r.families[0].in_training, 6);
     assert!(r.materials.iter().all(|m| m.fold.is_some()));
+    // The nearest prior sample is one the reading calibration trained on:
+    // another material, never the surface itself (which its fold left out).
+    for m in &r.materials {
+        let n = m.nearest_training.as_ref().expect("a nearest training sample");
+        assert!(n.name != format!("merl:{}", m.name) && n.distance > 1e-6, "{}: {n:?}", m.name);
+    }
+    let near = r.families[0].nearest.expect("the family's nearness");
+    assert_eq!(near.surfaces, 6);
+    assert!(near.median > 0.0 && near.near_twins <= 6 && near.read_better <= 6, "{near:?}");
 }
 
 #[test]

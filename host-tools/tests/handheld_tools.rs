@@ -278,6 +278,16 @@ fn pixel_map_reads_every_pixel() {
     assert_eq!(u.summary.gloss.low_count + u.summary.gloss.high_count, 12 * 2);
     assert_eq!(u.flag.bad + u.flag.good, 12 * 2, "{:?}", u.flag);
     assert!(md.contains("| unseen set `test set` (2 surfaces; 1 left out as prior samples"), "{md}");
+    // Each is named with the prior sample nearest it: one of the 20 the
+    // truncated prior holds, at a distance above 0 (it is not one of them).
+    assert_eq!(u.nearest_training.len(), 2);
+    for n in &u.nearest_training {
+        let n = n.as_ref().expect("a nearest prior sample");
+        assert!(spec.prior.samples.iter().any(|s| s.name == n.name) && n.distance > 1e-6, "{n:?}");
+    }
+    let near = u.nearness.expect("the set's nearness");
+    assert_eq!(near.surfaces, 2);
+    assert!(md.contains("| unseen set's nearest prior sample"), "{md}");
 }
 
 /// Two of the vendored materials the truncated prior lacks (renamed) and

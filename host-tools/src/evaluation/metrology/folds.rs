@@ -33,6 +33,22 @@ pub fn matching(v: &DVector<f64>, samples: &DMatrix<f64>) -> Vec<usize> {
         .collect()
 }
 
+/// The prior sample (a column of `samples`, none of `left_out`) nearest
+/// the binned BRDF `rho` whose peak is `peak`, and how far: the RMS over
+/// the bins of their difference over the peak, the BRDF error's own unit,
+/// so an estimator that took the surface for that sample would read it
+/// that well. `None` when no sample is left or the peak is not above 0.
+pub fn nearest(rho: &DVector<f64>, peak: f64, samples: &DMatrix<f64>, left_out: &[usize]) -> Option<(usize, f64)> {
+    let scale = peak * (rho.len() as f64).sqrt();
+    if scale.is_nan() || scale <= 0.0 || samples.nrows() != rho.len() {
+        return None;
+    }
+    (0..samples.ncols())
+        .filter(|k| !left_out.contains(k))
+        .map(|k| (k, (samples.column(k) - rho).norm() / scale))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
 /// One calibration to train: the training samples it leaves out.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct HeldOut {
@@ -141,6 +157,23 @@ pub fn plan(families: &[Vec<Membership>], folds: usize, seed: u64) -> Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_nearest_sample_is_the_closest_one_not_left_out_in_the_errors_unit() {
+        // Three samples on four bins; the surface peaks at 2.
+        let samples = DMatrix::from_column_slice(4, 3, &[1.0, 2.0, 1.0, 0.0, 1.0, 2.0, 1.0, 0.5, 0.0, 0.0, 0.0, 0.0]);
+        let rho = DVector::from_column_slice(&[1.0, 2.0, 1.0, 0.0]);
+        assert_eq!(nearest(&rho, 2.0, &samples, &[]), Some((0, 0.0)));
+        // Left out, the surface's twin is passed over: the second sample
+        // differs by 0.5 in one bin, RMS 0.25, over the peak 0.125.
+        let (k, d) = nearest(&rho, 2.0, &samples, &[0]).unwrap();
+        assert_eq!(k, 1);
+        assert!((d - 0.125).abs() < 1e-12, "{d}");
+        // Nothing left, a surface without a peak, or another grid: none.
+        assert_eq!(nearest(&rho, 2.0, &samples, &[0, 1, 2]), None);
+        assert_eq!(nearest(&rho, 0.0, &samples, &[]), None);
+        assert_eq!(nearest(&DVector::zeros(3), 1.0, &samples, &[]), None);
+    }
 
     #[test]
     fn members_are_read_only_by_folds_that_left_them_out() {

@@ -50,7 +50,8 @@ pub struct Spread {
 }
 
 impl Spread {
-    fn of(x: &[f64]) -> Self {
+    /// Of the values `x` (NaN when empty).
+    pub fn of(x: &[f64]) -> Self {
         let [median, p90, max] = quantiles(x);
         Self { median, p90, max }
     }

@@ -41,11 +41,11 @@ use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use anyhow::{Context, ensure};
 use families::TestFamily;
-use folds::{Membership, matching, plan};
+use folds::{Membership, matching, nearest, plan};
 use metrics::Tally;
 use rayon::prelude::*;
 use reading::{Readers, Reading, noisy_draws};
-pub use report::{FamilyProtocol, MaterialResult, Report};
+pub use report::{FamilyProtocol, MaterialResult, NearestSample, Nearness, Report};
 use truth::Truth;
 
 /// How the surfaces are read.
@@ -149,11 +149,21 @@ pub fn run(
             est.add(name, t, e);
             interp.add(name, t, li);
             let held = &plan.calibrations[plan.reader[fi][i]];
-            materials.push(MaterialResult::new(&fam.name, name, held.fold, t, e, li));
+            let nearest = nearest(&t.rho, t.peak, &prior_grid, &held.prior)
+                .map(|(k, distance)| NearestSample { name: spec.prior.samples[k].name.clone(), distance });
+            materials.push(MaterialResult::new((&fam.name, name), (held.fold, nearest), t, e, li));
         }
         let in_training = membership[fi].iter().filter(|m| m.in_training()).count();
         let references = membership[fi].iter().filter(|m| m.reference && !m.in_training()).count();
-        protocols.push(FamilyProtocol::new(fam, in_training, references, plan.folds));
+        let mut protocol = FamilyProtocol::new(fam, in_training, references, plan.folds);
+        let family_results = &materials[materials.len() - fam.materials.len()..];
+        protocol.nearest = Nearness::of(
+            &family_results
+                .iter()
+                .filter_map(|m: &MaterialResult| m.nearest_training.as_ref().map(|n| (n.distance, m.error_estimator)))
+                .collect::<Vec<_>>(),
+        );
+        protocols.push(protocol);
         rows.push(est.row(&fam.name, "estimator"));
         rows.push(interp.row(&fam.name, "interpolation"));
     }

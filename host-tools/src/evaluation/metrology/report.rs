@@ -21,6 +21,44 @@ pub struct FamilyProtocol {
     pub in_training: usize,
     /// In words.
     pub protocol: String,
+    /// How near its surfaces are to what read them (`None`: no surface
+    /// has a nearest training sample).
+    pub nearest: Option<Nearness>,
+}
+
+/// How near a family's surfaces are to the prior samples of the
+/// calibrations that read them (`MaterialResult::nearest_training`): a
+/// family of near twins says little of materials unlike the prior's.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Nearness {
+    /// Median over the surfaces of the distance to the nearest sample.
+    pub median: f64,
+    /// Surfaces within [`NEAR_TWIN`] of one.
+    pub near_twins: usize,
+    /// Surfaces the estimator reads better than its nearest sample is
+    /// to them (its error below that distance).
+    pub read_better: usize,
+    /// Surfaces with a nearest sample.
+    pub surfaces: usize,
+}
+
+/// A surface this near a training sample (RMS over the bins / its peak)
+/// is a near twin: taking it for that sample would read it about as well
+/// as the estimator reads the measured materials (median 0.02 of the peak).
+pub const NEAR_TWIN: f64 = 0.02;
+
+impl Nearness {
+    /// Over one family's surfaces, each its nearest sample's distance and
+    /// the estimator's error on it (`None`: no surface has a nearest sample).
+    pub fn of(with: &[(f64, f64)]) -> Option<Self> {
+        let d: Vec<f64> = with.iter().map(|w| w.0).collect();
+        (!d.is_empty()).then(|| Self {
+            median: Spread::of(&d).median,
+            near_twins: with.iter().filter(|w| w.0 < NEAR_TWIN).count(),
+            read_better: with.iter().filter(|w| w.1 < w.0).count(),
+            surfaces: with.len(),
+        })
+    }
 }
 
 impl FamilyProtocol {
@@ -42,7 +80,14 @@ impl FamilyProtocol {
                  meter is set on it), read by the one on everything"
             ));
         }
-        Self { family: fam.name.clone(), source: fam.source.clone(), materials: n, in_training, protocol }
+        Self {
+            family: fam.name.clone(),
+            source: fam.source.clone(),
+            materials: n,
+            in_training,
+            protocol,
+            nearest: None,
+        }
     }
 }
 
@@ -55,6 +100,9 @@ pub struct MaterialResult {
     pub name: String,
     /// The fold whose calibration read it (`None`: the calibration on everything).
     pub fold: Option<usize>,
+    /// The prior sample nearest it among those that calibration trained
+    /// on (`None`: the prior holds only in-plane profiles or nothing left).
+    pub nearest_training: Option<NearestSample>,
     /// Its peak bin.
     pub peak: f64,
     /// Its gloss GU, haze HU, distinctness % by the definitions.
@@ -72,6 +120,15 @@ pub struct MaterialResult {
     /// The estimator's draws one by one: what a flag or a per-point
     /// uncertainty could be built on, beside the error it would predict.
     pub draws: Vec<DrawResult>,
+}
+
+/// The training sample nearest a surface (`folds::nearest`).
+#[derive(Clone, Debug, Serialize)]
+pub struct NearestSample {
+    /// The sample's name, e.g. `merl:blue-acrylic`.
+    pub name: String,
+    /// RMS over the bins of the difference / the surface's peak.
+    pub distance: f64,
 }
 
 /// One draw of a surface read by the estimator.
@@ -115,11 +172,18 @@ fn mean_readings(rs: &[Reading]) -> [f64; 3] {
 
 impl MaterialResult {
     /// The result of one surface from its estimates by each method.
-    pub fn new(family: &str, name: &str, fold: Option<usize>, t: &Truth, est: &[Reading], interp: &[Reading]) -> Self {
+    pub fn new(
+        (family, name): (&str, &str),
+        (fold, nearest_training): (Option<usize>, Option<NearestSample>),
+        t: &Truth,
+        est: &[Reading],
+        interp: &[Reading],
+    ) -> Self {
         Self {
             family: family.into(),
             name: name.into(),
             fold,
+            nearest_training,
             peak: t.peak,
             readings_true: t.readings,
             error_estimator: rms_over(est, t),
@@ -192,7 +256,16 @@ impl Report {
             self.flag_forms.join(", ")
         );
         for f in &self.families {
-            s += &format!("- {} ({} surfaces, {}): {}\n", f.family, f.materials, f.source, f.protocol);
+            s += &format!("- {} ({} surfaces, {}): {}", f.family, f.materials, f.source, f.protocol);
+            if let Some(n) = f.nearest {
+                s += &format!(
+                    "; the nearest prior sample in its calibration's training is {:.3} of the peak away (median; RMS over \
+                     the bins), {} of {} within {NEAR_TWIN} (near twins), and the estimator reads {} of them better than \
+                     that sample is to them",
+                    n.median, n.near_twins, n.surfaces, n.read_better
+                );
+            }
+            s += "\n";
         }
         s += &format!(
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \

@@ -6,6 +6,7 @@ use super::peaks::PeakSummary;
 use super::{FlagScore, PixelMap};
 use crate::evaluation::coverage_interval::percent_with_interval;
 use crate::evaluation::metrology::metrics::BAD_ERROR;
+use crate::evaluation::metrology::report::NEAR_TWIN;
 use crate::output::plot::{Figure, labelled_line, legend_upper_right, render};
 use anyhow::anyhow;
 use plotters::coord::Shift;
@@ -197,6 +198,13 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             flag_cell(&u.flag)
         );
         let _ = writeln!(s, "| unseen set's specular peaks | {} |", peak_cell(&u.peaks));
+        if let Some(n) = u.nearness {
+            let _ = writeln!(
+                s,
+                "| unseen set's nearest prior sample (RMS over the bins / the surface's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); surfaces the estimator reads better (median over the pixels) than that sample is to them | {:.3}; {} of {}; {} |",
+                n.median, n.near_twins, n.surfaces, n.read_better
+            );
+        }
     }
     let _ = writeln!(s);
     s.push_str(&read_worst("Held-out materials", &map.materials));

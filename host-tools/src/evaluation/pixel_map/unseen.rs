@@ -3,10 +3,14 @@
 //! the whole prior (what `train` writes for the scene), with the figures
 //! the held-out materials get, beside linear interpolation's. A surface
 //! that is also a prior sample is left out and named: the calibration has
-//! seen it, and the held-out figures already read it without.
+//! seen it, and the held-out figures already read it without. Each of the
+//! rest is named with the prior sample nearest it, so a set of near twins
+//! of the prior's materials is seen for what it is.
 use super::peaks::{PeakSummary, PeakTally};
 use super::{LineGeometry, LineSummary, MapSpec, MaterialRead, MaterialRow, read_material};
-use crate::evaluation::metrology::metrics::FlagScore;
+use crate::evaluation::metrology::folds::nearest;
+use crate::evaluation::metrology::metrics::{FlagScore, Spread};
+use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::forward::brdf::Brdf;
 use crate::forward::prior_models::SampleModel;
 use brdf_meter::blob::BlobView;
@@ -38,6 +42,12 @@ pub struct UnseenSet {
     pub peaks: PeakSummary,
     /// Per surface.
     pub materials: Vec<MaterialRow>,
+    /// Per surface (as `materials`), the prior sample nearest it at the
+    /// scene's view (`folds::nearest`).
+    pub nearest_training: Vec<Option<NearestSample>>,
+    /// How near the surfaces are to the prior (the estimator's error of a
+    /// surface: its median over the pixels).
+    pub nearness: Option<Nearness>,
 }
 
 /// Whether `a` and `b` are the same profile (to a relative 1e-9 of the larger).
@@ -56,10 +66,18 @@ pub(super) fn read(
     let view_deg = spec.scene.instrument.view_deg;
     let prior: Vec<nalgebra::DVector<f64>> =
         spec.prior.samples.iter().map(|s| s.model.on_grid(&geo.grid, view_deg)).collect();
-    let (seen, unseen): (Vec<_>, Vec<_>) = set.materials.iter().enumerate().partition(|(_, (_, b))| {
-        let v = SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg);
-        prior.iter().any(|p| same_profile(p, &v))
-    });
+    let on_grid = |b: &Arc<dyn Brdf>| SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg);
+    let (seen, unseen): (Vec<_>, Vec<_>) =
+        set.materials.iter().enumerate().partition(|(_, (_, b))| prior.iter().any(|p| same_profile(p, &on_grid(b))));
+    let prior_matrix = nalgebra::DMatrix::from_columns(&prior);
+    let nearest_training: Vec<Option<NearestSample>> = unseen
+        .iter()
+        .map(|(_, (_, b))| {
+            let v = on_grid(b);
+            nearest(&v, v.amax(), &prior_matrix, &[])
+                .map(|(k, distance)| NearestSample { name: spec.prior.samples[k].name.clone(), distance })
+        })
+        .collect();
     let reads: Vec<MaterialRead> = unseen
         .par_iter()
         .map(|(i, (name, b))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
@@ -67,6 +85,13 @@ pub(super) fn read(
     let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.0.flag));
     let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.2.clone())).summary();
     let materials: Vec<MaterialRow> = reads.into_iter().map(|r| r.0).collect();
+    let nearness = Nearness::of(
+        &materials
+            .iter()
+            .zip(&nearest_training)
+            .filter_map(|(m, n)| n.as_ref().map(|n| (n.distance, Spread::of(&m.error).median)))
+            .collect::<Vec<_>>(),
+    );
     Ok(UnseenSet {
         source: set.source.clone(),
         in_prior: seen.into_iter().map(|(_, (n, _))| n.clone()).collect(),
@@ -74,5 +99,7 @@ pub(super) fn read(
         flag,
         peaks,
         materials,
+        nearest_training,
+        nearness,
     })
 }
