@@ -66,21 +66,25 @@ pub(super) fn read(
     let view_deg = spec.scene.instrument.view_deg;
     let prior: Vec<nalgebra::DVector<f64>> =
         spec.prior.samples.iter().map(|s| s.model.on_grid(&geo.grid, view_deg)).collect();
-    let on_grid = |b: &Arc<dyn Brdf>| SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg);
-    let (seen, unseen): (Vec<_>, Vec<_>) =
-        set.materials.iter().enumerate().partition(|(_, (_, b))| prior.iter().any(|p| same_profile(p, &on_grid(b))));
+    let on_grid: Vec<nalgebra::DVector<f64>> =
+        set.materials.iter().map(|(_, b)| SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg)).collect();
+    let (seen, unseen): (Vec<_>, Vec<_>) = set
+        .materials
+        .iter()
+        .zip(&on_grid)
+        .enumerate()
+        .partition(|(_, (_, v))| prior.iter().any(|p| same_profile(p, v)));
     let prior_matrix = nalgebra::DMatrix::from_columns(&prior);
     let nearest_training: Vec<Option<NearestSample>> = unseen
         .iter()
-        .map(|(_, (_, b))| {
-            let v = on_grid(b);
-            nearest(&v, v.amax(), &prior_matrix, &[])
+        .map(|(_, (_, v))| {
+            nearest(v, v.amax(), &prior_matrix, &[])
                 .map(|(k, distance)| NearestSample { name: spec.prior.samples[k].name.clone(), distance })
         })
         .collect();
     let reads: Vec<MaterialRead> = unseen
         .par_iter()
-        .map(|(i, (name, b))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
+        .map(|(i, ((name, b), _))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
         .collect::<anyhow::Result<_>>()?;
     let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.0.flag));
     let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.2.clone())).summary();
@@ -94,7 +98,7 @@ pub(super) fn read(
     );
     Ok(UnseenSet {
         source: set.source.clone(),
-        in_prior: seen.into_iter().map(|(_, (n, _))| n.clone()).collect(),
+        in_prior: seen.into_iter().map(|(_, ((n, _), _))| n.clone()).collect(),
         summary: LineSummary::of(&materials),
         flag,
         peaks,
