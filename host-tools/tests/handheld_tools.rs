@@ -265,6 +265,10 @@ fn pixel_map_reads_every_pixel() {
             "{md}"
         );
     }
+    // Every held-out material is named near a sample its fold trained on.
+    let near = map.held_out_nearness.expect("the held-out materials' nearness");
+    assert_eq!(near.surfaces, 20);
+    assert!(near.median > 0.0 && md.contains("| held out: nearest prior sample its fold trained on"), "{md}");
     // The unseen set: the two surfaces the truncated prior lacks are read
     // at every pixel beside interpolation; the prior sample among them is
     // left out and named.

@@ -49,7 +49,9 @@ use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K};
+use crate::evaluation::metrology::Nearness;
+use crate::evaluation::metrology::folds::nearest;
+use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K, Spread};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -329,6 +331,10 @@ pub struct PixelMap {
     pub reading_coverage: [f64; 3],
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
+    /// How near the held-out materials are to the prior samples their
+    /// fold trained on, at the scene's view (`folds::nearest`; a
+    /// material's error: its median over the pixels).
+    pub held_out_nearness: Option<Nearness>,
     /// The held-out points' specular peaks.
     pub peaks: PeakSummary,
     /// Each calibration's out-of-prior statistic as its training chose it:
@@ -759,6 +765,12 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let mut held_out_flag = FlagScore::default();
     let mut held_out_peaks = PeakTally::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
+    // Each held-out material's distance to the nearest sample its fold
+    // trained on, with its error.
+    let prior_grid = nalgebra::DMatrix::from_columns(
+        &spec.prior.samples.iter().map(|s| s.model.on_grid(&grid, inst.view_deg)).collect::<Vec<_>>(),
+    );
+    let mut nearness = Vec::with_capacity(materials.len());
     let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
@@ -774,7 +786,11 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 read_material(spec, &geo, &s.name, b, &blob, k as u64)
             })
             .collect::<anyhow::Result<_>>()?;
-        for (row, fl, pk) in results {
+        for ((row, fl, pk), k) in results.into_iter().zip(&held) {
+            let v = prior_grid.column(*k).into_owned();
+            if let Some((_, d)) = nearest(&v, v.amax(), &prior_grid, &held) {
+                nearness.push((d, Spread::of(&row.error).median));
+            }
             held_out_flag = held_out_flag.merged(row.flag);
             held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in pixel_counts.iter_mut().zip(fl) {
@@ -907,6 +923,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         bin_coverage_interval: held_out.bin_coverage_interval,
         reading_coverage: held_out.reading_coverage,
         flag: held_out_flag,
+        held_out_nearness: Nearness::of(&nearness),
         peaks: held_out_peaks.summary(),
         flag_statistics,
         flag_in_training: full.flag_on_kinds.map(|f| f.weights),

@@ -92,6 +92,13 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
         flag_cell(&map.flag)
     );
+    if let Some(n) = map.held_out_nearness {
+        let _ = writeln!(
+            s,
+            "| held out: nearest prior sample its fold trained on (RMS over the bins / the material's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); materials the estimator reads better (median over the pixels) than that sample is to them | {:.3}; {} of {}; {} |",
+            n.median, n.near_twins, n.surfaces, n.read_better
+        );
+    }
     let _ = writeln!(
         s,
         "| specular peaks, held out: height relative error median / 90th (all peaks; resolved ones; interpolation's); not resolved by the calibration; resolved heights / widths within k = 2 (points with a peak in truth, read without one) | {} |",
