@@ -375,8 +375,13 @@ fn the_surfaces_read_worst_are_listed_with_their_flags_and_interpolation() {
     let first = worst[0];
     let row = format!("| measured | {} | {} of {} |", first.name, bad(first), first.draws.len());
     assert!(listed[0].starts_with(&row), "{} should lead: {t}", first.name);
+    // Beside interpolation, the prior sample nearest it (a Table 5 Ward).
+    let near = first.nearest_training.as_ref().expect("the prior's nearest sample");
     assert!(
-        listed[0].ends_with(&format!("| {:.4} | {:.4} |", first.error_estimator, first.error_interpolation)),
+        listed[0].ends_with(&format!(
+            "| {:.4} | {:.4} | {} ({:.3}) |",
+            first.error_estimator, first.error_interpolation, near.name, near.distance
+        )),
         "{t}"
     );
 }

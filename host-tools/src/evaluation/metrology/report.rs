@@ -342,7 +342,7 @@ impl Report {
             if s.is_empty() {
                 s += &format!(
                     "\nSurfaces read worst (estimates worse than {BAD_ERROR:.2} of the truth's peak; error = RMS over the bins and draws / peak)\n\n\
-                     | family | surface | draws worse than {BAD_ERROR:.2} | flagged | error | interpolation |\n|---|---|---|---|---|---|\n"
+                     | family | surface | draws worse than {BAD_ERROR:.2} | flagged | error | interpolation | nearest prior sample (RMS over the bins / peak) |\n|---|---|---|---|---|---|---|\n"
                 );
             }
             let share = |m: &MaterialResult| bad(m) as f64 / m.draws.len().max(1) as f64;
@@ -350,8 +350,10 @@ impl Report {
             let (with_bad, total) = (worst.len(), worst.iter().map(|m| bad(m)).sum::<usize>());
             worst.truncate(READ_WORST);
             for m in &worst {
+                let nearest =
+                    m.nearest_training.as_ref().map_or("-".into(), |n| format!("{} ({:.3})", n.name, n.distance));
                 s += &format!(
-                    "| {} | {} | {} of {} | {} | {:.4} | {:.4} |\n",
+                    "| {} | {} | {} of {} | {} | {:.4} | {:.4} | {nearest} |\n",
                     f.family,
                     m.name,
                     bad(m),
@@ -363,7 +365,7 @@ impl Report {
             }
             if with_bad > worst.len() {
                 s += &format!(
-                    "| {} | ({} more surfaces; {total} such estimates in all) | | | | |\n",
+                    "| {} | ({} more surfaces; {total} such estimates in all) | | | | | |\n",
                     f.family,
                     with_bad - worst.len()
                 );

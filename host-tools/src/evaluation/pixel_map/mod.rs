@@ -49,9 +49,9 @@ use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::Nearness;
 use crate::evaluation::metrology::folds::nearest;
 use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K, Spread};
+use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
 use crate::forward::gloss::{model_readings, profile_scaled_readings};
@@ -170,6 +170,22 @@ pub struct MaterialRow {
     /// material the calibration reads badly is read badly everywhere, and
     /// whether the flag says so ([`report`]'s materials read worst).
     pub flag: FlagScore,
+    /// The prior sample nearest it among those its calibration trained
+    /// on, at the scene's view (`folds::nearest`; `None`: none left).
+    pub nearest_training: Option<NearestSample>,
+}
+
+impl MaterialRow {
+    /// Its nearest training sample's distance and its error (median over
+    /// the pixels), for [`Nearness`].
+    fn nearness(&self) -> Option<(f64, f64)> {
+        self.nearest_training.as_ref().map(|n| (n.distance, Spread::of(&self.error).median))
+    }
+}
+
+/// How near `rows` are to the prior samples that read them.
+fn nearness_of(rows: &[MaterialRow]) -> Option<Nearness> {
+    Nearness::of(&rows.iter().filter_map(MaterialRow::nearness).collect::<Vec<_>>())
 }
 
 /// Per reading (gloss, haze, distinctness), the share of every (material,
@@ -711,6 +727,7 @@ fn read_material(
             .map(|px| px.map(|(n, inside)| if n == 0 { f64::NAN } else { inside as f64 / n as f64 }))
             .collect(),
         flag,
+        nearest_training: None,
     };
     Ok((row, fl, peaks))
 }
@@ -770,7 +787,6 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let prior_grid = nalgebra::DMatrix::from_columns(
         &spec.prior.samples.iter().map(|s| s.model.on_grid(&grid, inst.view_deg)).collect::<Vec<_>>(),
     );
-    let mut nearness = Vec::with_capacity(materials.len());
     let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
@@ -786,11 +802,10 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
                 read_material(spec, &geo, &s.name, b, &blob, k as u64)
             })
             .collect::<anyhow::Result<_>>()?;
-        for ((row, fl, pk), k) in results.into_iter().zip(&held) {
+        for ((mut row, fl, pk), k) in results.into_iter().zip(&held) {
             let v = prior_grid.column(*k).into_owned();
-            if let Some((_, d)) = nearest(&v, v.amax(), &prior_grid, &held) {
-                nearness.push((d, Spread::of(&row.error).median));
-            }
+            row.nearest_training = nearest(&v, v.amax(), &prior_grid, &held)
+                .map(|(j, distance)| NearestSample { name: spec.prior.samples[j].name.clone(), distance });
             held_out_flag = held_out_flag.merged(row.flag);
             held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in pixel_counts.iter_mut().zip(fl) {
@@ -923,7 +938,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         bin_coverage_interval: held_out.bin_coverage_interval,
         reading_coverage: held_out.reading_coverage,
         flag: held_out_flag,
-        held_out_nearness: Nearness::of(&nearness),
+        held_out_nearness: nearness_of(&rows),
         peaks: held_out_peaks.summary(),
         flag_statistics,
         flag_in_training: full.flag_on_kinds.map(|f| f.weights),

@@ -283,16 +283,17 @@ pub fn read_worst(what: &str, rows: &[super::MaterialRow]) -> String {
     );
     let _ = writeln!(
         s,
-        "| material | points worse than {BAD_ERROR:.2} | of them flagged | of the rest flagged | error median / 90th over pixels | interpolation median / 90th |\n|---|---|---|---|---|---|"
+        "| material | points worse than {BAD_ERROR:.2} | of them flagged | of the rest flagged | error median / 90th over pixels | interpolation median / 90th | nearest prior sample (RMS over the bins / peak) |\n|---|---|---|---|---|---|---|"
     );
     for r in worst {
         let (e, i) = (
             crate::evaluation::pixel_error::quantiles(&r.error),
             crate::evaluation::pixel_error::quantiles(&r.interpolation),
         );
+        let nearest = r.nearest_training.as_ref().map_or("-".into(), |n| format!("{} ({:.3})", n.name, n.distance));
         let _ = writeln!(
             s,
-            "| {} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.3} / {:.3} |",
+            "| {} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.3} / {:.3} | {nearest} |",
             r.name,
             pct(bad_share(r)),
             r.flag.bad,
@@ -503,6 +504,10 @@ mod tests {
             haze_distinctness_error: [vec![[0.0; 2]; 2], vec![[0.0; 2]; 2]],
             reading_coverage: vec![[1.0; 3]; 2],
             flag: FlagScore { bad, bad_flagged: caught, good: points - bad, good_flagged: 1 },
+            nearest_training: Some(crate::evaluation::metrology::NearestSample {
+                name: format!("near-{name}"),
+                distance: 0.05,
+            }),
         }
     }
 
@@ -523,6 +528,7 @@ mod tests {
         assert_eq!(listed.len(), READ_WORST, "{s}");
         // By the share of bad points, ties by the median error.
         assert!(listed[0].starts_with("| all | 100.0 % (10) | 0.0 % | - |"), "{s}");
+        assert!(listed[0].ends_with("| near-all (0.050) |"), "{s}");
         assert!(listed[1].starts_with("| half-worse | 50.0 % (5) | 100.0 % | 20.0 % |"), "{s}");
         assert!(listed[2].starts_with("| half | 50.0 % (5) | 20.0 % | 20.0 % |"), "{s}");
         assert!(!s.contains("| fine |"), "{s}");

@@ -9,7 +9,7 @@
 use super::peaks::{PeakSummary, PeakTally};
 use super::{LineGeometry, LineSummary, MapSpec, MaterialRead, MaterialRow, read_material};
 use crate::evaluation::metrology::folds::nearest;
-use crate::evaluation::metrology::metrics::{FlagScore, Spread};
+use crate::evaluation::metrology::metrics::FlagScore;
 use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::forward::brdf::Brdf;
 use crate::forward::prior_models::SampleModel;
@@ -40,11 +40,8 @@ pub struct UnseenSet {
     pub flag: FlagScore,
     /// Their points' specular peaks.
     pub peaks: PeakSummary,
-    /// Per surface.
+    /// Per surface (each with the prior sample nearest it).
     pub materials: Vec<MaterialRow>,
-    /// Per surface (as `materials`), the prior sample nearest it at the
-    /// scene's view (`folds::nearest`).
-    pub nearest_training: Vec<Option<NearestSample>>,
     /// How near the surfaces are to the prior (the estimator's error of a
     /// surface: its median over the pixels).
     pub nearness: Option<Nearness>,
@@ -88,14 +85,12 @@ pub(super) fn read(
         .collect::<anyhow::Result<_>>()?;
     let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.0.flag));
     let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.2.clone())).summary();
-    let materials: Vec<MaterialRow> = reads.into_iter().map(|r| r.0).collect();
-    let nearness = Nearness::of(
-        &materials
-            .iter()
-            .zip(&nearest_training)
-            .filter_map(|(m, n)| n.as_ref().map(|n| (n.distance, Spread::of(&m.error).median)))
-            .collect::<Vec<_>>(),
-    );
+    let materials: Vec<MaterialRow> = reads
+        .into_iter()
+        .zip(nearest_training)
+        .map(|(r, nearest_training)| MaterialRow { nearest_training, ..r.0 })
+        .collect();
+    let nearness = super::nearness_of(&materials);
     Ok(UnseenSet {
         source: set.source.clone(),
         in_prior: seen.into_iter().map(|(_, ((n, _), _))| n.clone()).collect(),
@@ -103,7 +98,6 @@ pub(super) fn read(
         flag,
         peaks,
         materials,
-        nearest_training,
         nearness,
     })
 }
