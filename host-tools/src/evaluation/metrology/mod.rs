@@ -41,7 +41,7 @@ use crate::forward::grid::AngleGrid;
 use crate::forward::optics::Instrument;
 use anyhow::{Context, ensure};
 use families::TestFamily;
-use folds::{Membership, matching, nearest, plan};
+use folds::{Membership, matching, plan};
 use metrics::Tally;
 use rayon::prelude::*;
 use reading::{Readers, Reading, noisy_draws};
@@ -149,8 +149,7 @@ pub fn run(
             est.add(name, t, e);
             interp.add(name, t, li);
             let held = &plan.calibrations[plan.reader[fi][i]];
-            let nearest = nearest(&t.rho, t.peak, &prior_grid, &held.prior)
-                .map(|(k, distance)| NearestSample { name: spec.prior.samples[k].name.clone(), distance });
+            let nearest = NearestSample::in_prior(spec.prior, &prior_grid, (&t.rho, t.peak), &held.prior);
             materials.push(MaterialResult::new((&fam.name, name), (held.fold, nearest), t, e, li));
         }
         let in_training = membership[fi].iter().filter(|m| m.in_training()).count();

@@ -2,10 +2,13 @@
 //! figures per family and method, one line per surface, and the tables
 //! printed from them.
 use super::families::TestFamily;
+use super::folds::nearest;
 use super::metrics::{BAD_ERROR, GLOSS_SPLIT_GU, Row, Spread, bins_within, peak_relative_rms};
 use super::reading::Reading;
 use super::truth::Truth;
 use crate::evaluation::coverage_interval::percent_with_interval;
+use crate::forward::prior_models::PriorModels;
+use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 /// How one family was held out.
@@ -46,6 +49,13 @@ pub struct Nearness {
 /// is a near twin: taking it for that sample would read it about as well
 /// as the estimator reads the measured materials (median 0.02 of the peak).
 pub const NEAR_TWIN: f64 = 0.02;
+
+impl std::fmt::Display for Nearness {
+    /// As the reports' rows show it: `median; near twins of surfaces; read better`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:.3}; {} of {}; {}", self.median, self.near_twins, self.surfaces, self.read_better)
+    }
+}
 
 impl Nearness {
     /// Over one family's surfaces, each its nearest sample's distance and
@@ -129,6 +139,27 @@ pub struct NearestSample {
     pub name: String,
     /// RMS over the bins of the difference / the surface's peak.
     pub distance: f64,
+}
+
+impl NearestSample {
+    /// The sample of `prior` (its grid vectors the columns of `grid`, none
+    /// of `left_out`) nearest the binned BRDF `rho` of peak `peak`
+    /// (`folds::nearest`), by its name.
+    pub fn in_prior(
+        prior: &PriorModels,
+        grid: &DMatrix<f64>,
+        (rho, peak): (&DVector<f64>, f64),
+        left_out: &[usize],
+    ) -> Option<Self> {
+        nearest(rho, peak, grid, left_out).map(|(k, distance)| Self { name: prior.samples[k].name.clone(), distance })
+    }
+}
+
+impl std::fmt::Display for NearestSample {
+    /// As the lists of surfaces read worst show it: `name (distance)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({:.3})", self.name, self.distance)
+    }
 }
 
 /// One draw of a surface read by the estimator.
@@ -259,10 +290,8 @@ impl Report {
             s += &format!("- {} ({} surfaces, {}): {}", f.family, f.materials, f.source, f.protocol);
             if let Some(n) = f.nearest {
                 s += &format!(
-                    "; the nearest prior sample in its calibration's training is {:.3} of the peak away (median; RMS over \
-                     the bins), {} of {} within {NEAR_TWIN} (near twins), and the estimator reads {} of them better than \
-                     that sample is to them",
-                    n.median, n.near_twins, n.surfaces, n.read_better
+                    "; the nearest prior sample in its calibration's training (RMS over the bins / the peak): median; \
+                     within {NEAR_TWIN} (near twins); surfaces the estimator reads better than that sample is to them: {n}"
                 );
             }
             s += "\n";
@@ -350,8 +379,7 @@ impl Report {
             let (with_bad, total) = (worst.len(), worst.iter().map(|m| bad(m)).sum::<usize>());
             worst.truncate(READ_WORST);
             for m in &worst {
-                let nearest =
-                    m.nearest_training.as_ref().map_or("-".into(), |n| format!("{} ({:.3})", n.name, n.distance));
+                let nearest = m.nearest_training.as_ref().map_or("-".into(), NearestSample::to_string);
                 s += &format!(
                     "| {} | {} | {} of {} | {} | {:.4} | {:.4} | {nearest} |\n",
                     f.family,

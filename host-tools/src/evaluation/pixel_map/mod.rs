@@ -49,7 +49,6 @@ use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::folds::nearest;
 use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K, Spread};
 use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::evaluation::pixel_error::quantiles;
@@ -635,6 +634,9 @@ impl PixelCounts {
 /// Per pixel of the line: its view, and linear interpolation's weights
 /// between the LEDs' centre angles there; the scene's grid.
 struct LineGeometry {
+    /// The prior's samples on the grid at the scene's view (columns): what
+    /// a material's nearest training sample is sought among.
+    prior: nalgebra::DMatrix<f64>,
     views: Vec<nalgebra::Vector3<f64>>,
     interp: Vec<nalgebra::DMatrix<f64>>,
     grid: crate::forward::grid::AngleGrid,
@@ -776,17 +778,15 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         })
         .collect::<anyhow::Result<_>>()?;
     let bins32 = grid.bins_deg().iter().map(|x| *x as f32).collect();
-    let geo = LineGeometry { views, interp, grid: grid.clone(), bins32 };
+    let prior = nalgebra::DMatrix::from_columns(
+        &spec.prior.samples.iter().map(|s| s.model.on_grid(&grid, inst.view_deg)).collect::<Vec<_>>(),
+    );
+    let geo = LineGeometry { prior, views, interp, grid: grid.clone(), bins32 };
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut pixel_counts = vec![PixelCounts::default(); p];
     let mut held_out_flag = FlagScore::default();
     let mut held_out_peaks = PeakTally::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
-    // Each held-out material's distance to the nearest sample its fold
-    // trained on, with its error.
-    let prior_grid = nalgebra::DMatrix::from_columns(
-        &spec.prior.samples.iter().map(|s| s.model.on_grid(&grid, inst.view_deg)).collect::<Vec<_>>(),
-    );
     let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
     for f in 0..folds {
         let held: Vec<usize> = order.iter().enumerate().filter(|(i, _)| i % folds == f).map(|(_, k)| *k).collect();
@@ -803,9 +803,9 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             })
             .collect::<anyhow::Result<_>>()?;
         for ((mut row, fl, pk), k) in results.into_iter().zip(&held) {
-            let v = prior_grid.column(*k).into_owned();
-            row.nearest_training = nearest(&v, v.amax(), &prior_grid, &held)
-                .map(|(j, distance)| NearestSample { name: spec.prior.samples[j].name.clone(), distance });
+            // The nearest sample its fold trained on.
+            let v = geo.prior.column(*k).into_owned();
+            row.nearest_training = NearestSample::in_prior(&spec.prior, &geo.prior, (&v, v.amax()), &held);
             held_out_flag = held_out_flag.merged(row.flag);
             held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in pixel_counts.iter_mut().zip(fl) {

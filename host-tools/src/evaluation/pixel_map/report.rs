@@ -95,8 +95,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     if let Some(n) = map.held_out_nearness {
         let _ = writeln!(
             s,
-            "| held out: nearest prior sample its fold trained on (RMS over the bins / the material's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); materials the estimator reads better (median over the pixels) than that sample is to them | {:.3}; {} of {}; {} |",
-            n.median, n.near_twins, n.surfaces, n.read_better
+            "| held out: nearest prior sample its fold trained on (RMS over the bins / the material's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); materials the estimator reads better (median over the pixels) than that sample is to them | {n} |"
         );
     }
     let _ = writeln!(
@@ -208,8 +207,7 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         if let Some(n) = u.nearness {
             let _ = writeln!(
                 s,
-                "| unseen set's nearest prior sample (RMS over the bins / the surface's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); surfaces the estimator reads better (median over the pixels) than that sample is to them | {:.3}; {} of {}; {} |",
-                n.median, n.near_twins, n.surfaces, n.read_better
+                "| unseen set's nearest prior sample (RMS over the bins / the surface's peak, at the scene's view): median; within {NEAR_TWIN} (near twins); surfaces the estimator reads better (median over the pixels) than that sample is to them | {n} |"
             );
         }
     }
@@ -290,7 +288,7 @@ pub fn read_worst(what: &str, rows: &[super::MaterialRow]) -> String {
             crate::evaluation::pixel_error::quantiles(&r.error),
             crate::evaluation::pixel_error::quantiles(&r.interpolation),
         );
-        let nearest = r.nearest_training.as_ref().map_or("-".into(), |n| format!("{} ({:.3})", n.name, n.distance));
+        let nearest = r.nearest_training.as_ref().map_or("-".into(), ToString::to_string);
         let _ = writeln!(
             s,
             "| {} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.3} / {:.3} | {nearest} |",

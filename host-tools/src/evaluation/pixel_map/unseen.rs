@@ -8,7 +8,7 @@
 //! of the prior's materials is seen for what it is.
 use super::peaks::{PeakSummary, PeakTally};
 use super::{LineGeometry, LineSummary, MapSpec, MaterialRead, MaterialRow, read_material};
-use crate::evaluation::metrology::folds::nearest;
+use crate::evaluation::metrology::folds::matching;
 use crate::evaluation::metrology::metrics::FlagScore;
 use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::forward::brdf::Brdf;
@@ -47,12 +47,6 @@ pub struct UnseenSet {
     pub nearness: Option<Nearness>,
 }
 
-/// Whether `a` and `b` are the same profile (to a relative 1e-9 of the larger).
-fn same_profile(a: &nalgebra::DVector<f64>, b: &nalgebra::DVector<f64>) -> bool {
-    let top = a.amax().max(b.amax());
-    a.len() == b.len() && (a - b).amax() <= 1e-9 * top
-}
-
 /// Reads `set` with `blob` (the calibration on the whole prior).
 pub(super) fn read(
     spec: &MapSpec,
@@ -61,24 +55,12 @@ pub(super) fn read(
     blob: &BlobView<'_>,
 ) -> anyhow::Result<UnseenSet> {
     let view_deg = spec.scene.instrument.view_deg;
-    let prior: Vec<nalgebra::DVector<f64>> =
-        spec.prior.samples.iter().map(|s| s.model.on_grid(&geo.grid, view_deg)).collect();
     let on_grid: Vec<nalgebra::DVector<f64>> =
         set.materials.iter().map(|(_, b)| SampleModel::Brdf(b.clone()).on_grid(&geo.grid, view_deg)).collect();
-    let (seen, unseen): (Vec<_>, Vec<_>) = set
-        .materials
-        .iter()
-        .zip(&on_grid)
-        .enumerate()
-        .partition(|(_, (_, v))| prior.iter().any(|p| same_profile(p, v)));
-    let prior_matrix = nalgebra::DMatrix::from_columns(&prior);
-    let nearest_training: Vec<Option<NearestSample>> = unseen
-        .iter()
-        .map(|(_, (_, v))| {
-            nearest(v, v.amax(), &prior_matrix, &[])
-                .map(|(k, distance)| NearestSample { name: spec.prior.samples[k].name.clone(), distance })
-        })
-        .collect();
+    let (seen, unseen): (Vec<_>, Vec<_>) =
+        set.materials.iter().zip(&on_grid).enumerate().partition(|(_, (_, v))| !matching(v, &geo.prior).is_empty());
+    let nearest_training: Vec<Option<NearestSample>> =
+        unseen.iter().map(|(_, (_, v))| NearestSample::in_prior(&spec.prior, &geo.prior, (v, v.amax()), &[])).collect();
     let reads: Vec<MaterialRead> = unseen
         .par_iter()
         .map(|(i, ((name, b), _))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
