@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Firmware checks for CI (called by scripts/test-all.sh):
 #  1. every firmware binary (board-fw; qemu-fw when the package has it) builds
-#     for thumbv7em-none-eabihf with no warning at all: board-fw in release,
-#     qemu-fw in the firmware profile (release + fat LTO) its QEMU tests use,
-#     so the test run builds it once;
+#     for thumbv7em-none-eabihf with no warning at all: board-fw and qemu-fw
+#     in the firmware profile (release + fat LTO), qemu-fw as its QEMU tests
+#     use it, so the test run builds it once;
 #  2. clippy is clean (-D warnings) for each of them, library included;
 #  3. the board image links its logger and memory.x's slot symbols, and a
 #     size report (flash and RAM per section). The budget check on that image
@@ -21,7 +21,7 @@ target_dir=${CARGO_TARGET_DIR:-target}
 # place the firmware command lines live). qemu-fw only if the package has it.
 # The bootloaders (board and QEMU: one binary, two features) are
 # alias:profile:bin, their alias not being their binary's name.
-firmwares=("board-fw:release" "bootloader:bootloader:bootloader" "qemu-bootloader:qemu-bootloader:bootloader")
+firmwares=("board-fw:firmware" "bootloader:bootloader:bootloader" "qemu-bootloader:qemu-bootloader:bootloader")
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
   firmwares+=("qemu-fw:firmware")
 fi
@@ -56,7 +56,7 @@ done
 
 # The board image must carry its logger (RTT control block) and find the
 # calibration slots through memory.x's symbols at the addresses memory.x gives.
-board_elf="$target_dir/$TARGET/release/board-fw"
+board_elf="$target_dir/$TARGET/firmware/board-fw"
 syms=$(arm-none-eabi-nm "$board_elf")
 for want in "D _SEGGER_RTT" "A __cal_slot_a_start" "A __cal_slot_b_start"; do
   if ! grep -q " $want\$" <<<"$syms"; then

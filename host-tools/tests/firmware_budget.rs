@@ -1,7 +1,7 @@
 //! The board firmware's flash/RAM budget for the largest calibration
 //! (Z = 128 zones of 81 x 7 matrices, P = 128), checked on the real image:
-//! builds `board-fw` (a no-op when scripts/check-firmware.sh already did, same
-//! command and profile) and fails if it is over budget. Run with
+//! builds `board-fw` (`cargo board-fw`: a no-op when scripts/check-firmware.sh
+//! already did, same command and profile) and fails if it is over budget. Run with
 //! `-- --nocapture` to see the table.
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -14,7 +14,7 @@ fn build_board_fw(root: &Path) -> PathBuf {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
-        .args(["build", "--release", "--target", "thumbv7em-none-eabihf", "--features", "board", "--bin", "board-fw"])
+        .arg("board-fw")
         // The enclosing `cargo test`'s host settings must not reach the firmware build.
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
@@ -26,7 +26,7 @@ fn build_board_fw(root: &Path) -> PathBuf {
         "board-fw does not build ({status}); is the target installed? (scripts/install-test-deps.sh)"
     );
     let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
-    target_dir.join("thumbv7em-none-eabihf/release/board-fw")
+    target_dir.join("thumbv7em-none-eabihf/firmware/board-fw")
 }
 
 /// Builds the board bootloader (`cargo bootloader`) and returns its ELF.
