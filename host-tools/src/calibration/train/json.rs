@@ -23,6 +23,16 @@ pub struct TrainJson {
     pub uncertainty: Vec<f64>,
     /// Zone 0's training summary.
     pub summary: EstimatorSummary,
+    /// What the blob is.
+    #[serde(flatten)]
+    pub blob: BlobJson,
+    /// Every zone.
+    pub zones: Vec<ZoneJson>,
+}
+
+/// What both forms of `train --json` say of the blob written.
+#[derive(Debug, Serialize)]
+pub struct BlobJson {
     /// Largest relative f32 vs f64 difference on the prior.
     pub f32_rel_error: f64,
     /// Blob size in bytes.
@@ -34,8 +44,6 @@ pub struct TrainJson {
     /// Each pixel's peak resolution, deg: its own, or the calibration's
     /// when the blob records none for it (null: none).
     pub pixel_peak_resolution_deg: Vec<Option<f32>>,
-    /// Every zone.
-    pub zones: Vec<ZoneJson>,
 }
 
 /// One zone in `train --json`.
@@ -67,17 +75,9 @@ pub struct ScaleFreeJson {
     pub zones: Vec<ScaleFreeZoneJson>,
     /// The out-of-prior threshold.
     pub out_of_prior_threshold: f32,
-    /// f32 vs f64 on the prior.
-    pub f32_rel_error: f64,
-    /// Blob size in bytes.
-    pub blob_bytes: usize,
-    /// Blob CRC-32.
-    pub blob_crc: u32,
-    /// The peak resolution the blob records, deg (`crate::calibration::peak_resolution`; null: none).
-    pub peak_resolution_deg: Option<f32>,
-    /// Each pixel's peak resolution, deg: its own, or the calibration's
-    /// when the blob records none for it (null: none).
-    pub pixel_peak_resolution_deg: Vec<Option<f32>>,
+    /// What the blob is.
+    #[serde(flatten)]
+    pub blob: BlobJson,
     /// The factors on a resolved peak's uncertainties, height then width
     /// (`crate::calibration::peak_factors`; null: none).
     pub peak_uncertainty_factors: Option<[f32; 2]>,
@@ -123,6 +123,17 @@ impl Trained {
             .max_by(|a, b| a.1.condition_system.total_cmp(&b.1.condition_system))
     }
 
+    /// What the JSON says of the blob (`view`, this calibration's).
+    fn blob_json(&self, view: &BlobView<'_>) -> BlobJson {
+        BlobJson {
+            f32_rel_error: self.f32_rel_error,
+            blob_bytes: self.blob.len(),
+            blob_crc: view.crc(),
+            peak_resolution_deg: view.peak_resolution_deg(),
+            pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
+        }
+    }
+
     /// The inspection JSON.
     pub fn to_json(&self) -> serde_json::Value {
         let view = BlobView::parse(&self.blob).expect("validated when built");
@@ -149,11 +160,7 @@ impl Trained {
                 w: rows(&z0.w),
                 uncertainty: z0.uncertainty.iter().copied().collect(),
                 summary: z0.summary.clone(),
-                f32_rel_error: self.f32_rel_error,
-                blob_bytes: self.blob.len(),
-                blob_crc: view.crc(),
-                peak_resolution_deg: view.peak_resolution_deg(),
-                pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
+                blob: self.blob_json(&view),
                 zones,
             })
         } else {
@@ -178,11 +185,7 @@ impl Trained {
                     })
                     .collect(),
                 out_of_prior_threshold: self.out_of_prior_threshold.unwrap_or(f32::INFINITY),
-                f32_rel_error: self.f32_rel_error,
-                blob_bytes: self.blob.len(),
-                blob_crc: view.crc(),
-                peak_resolution_deg: view.peak_resolution_deg(),
-                pixel_peak_resolution_deg: (0..view.dims().pixels).map(|p| view.peak_resolution_at(p)).collect(),
+                blob: self.blob_json(&view),
                 peak_uncertainty_factors: view.peak_factors().map(|f| [f.height, f.width]),
             })
         };
