@@ -76,7 +76,7 @@ pub struct RecipeArgs {
     #[arg(long, default_value_t = 1)]
     pub min_lines: u16,
     /// Hysteresis: a point out stays out until below this share of the thresholds.
-    #[arg(long, default_value_t = 0.7)]
+    #[arg(long, default_value_t = crate::inspection::teach::HYSTERESIS)]
     pub hysteresis: f32,
     /// Drift alarm: EWMA weight.
     #[arg(long, default_value_t = 0.1)]

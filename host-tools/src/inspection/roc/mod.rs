@@ -4,11 +4,13 @@
 //! decision (`lines`).
 //!
 //! The ROC: each line gets a score, the smallest factor by which every
-//! threshold of the recipe (distance and windows) would have to be raised
-//! for the line to pass: the line is rejected at threshold factor c when a
-//! run of at least `min_pixels` adjacent pixels all score above c (an
-//! unreadable pixel scores infinity). c = 1 is the recipe's operating
-//! point; sweeping c gives the curve. Defect lines reuse the defect-free
+//! threshold of the recipe (distance and windows, entering and leaving)
+//! would have to be raised for the line to pass: the line is rejected at
+//! threshold factor c when a run of at least `min_pixels` adjacent pixels
+//! is out at c times the leaving thresholds, one of them at c times the
+//! entering ones, as the device decides (an unreadable pixel is out at
+//! any factor). c = 1 is the recipe's operating point; sweeping c gives
+//! the curve. Defect lines reuse the defect-free
 //! lines' numbers (and so their noise draws): each defect is compared with
 //! the same noise without it. Lines are decided one by one (`min_lines` 1,
 //! no hysteresis carried between lines: a line's own verdict).
@@ -148,7 +150,9 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
     let p = recipe.pixels();
     let mut group = 0;
     let scale = brdf_meter::inspect::decide::line_scale(recipe, &line.v, &mut vec![0.0f32; p]);
-    let scores: Vec<f64> = (0..p)
+    // Per pixel, the factor up to which it is out at the entering
+    // thresholds and at the leaving ones.
+    let scores: Vec<[f64; 2]> = (0..p)
         .map(|px| {
             while group + 1 < recipe.groups() && recipe.group_start(group + 1) <= px {
                 group += 1;
@@ -156,24 +160,54 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
             let st = point_stat_at::<M>(recipe, group, px, &line.v[px].data.0[0], scale);
             if line.flags[px] & (flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE) != 0 || !st.d2.is_finite()
             {
-                return f64::INFINITY;
+                return [f64::INFINITY; 2];
             }
-            let mut score = st.d2 as f64 / s.threshold_on as f64;
-            for r in 0..READINGS {
-                let [lo, hi] = s.windows[r];
-                let d = st.delta[r] as f64;
-                if d < 0.0 && lo.is_finite() {
-                    score = score.max(d / lo as f64);
+            let score = |threshold: f32, window_factor: f32| {
+                let mut score = st.d2 as f64 / threshold as f64;
+                for r in 0..READINGS {
+                    let [lo, hi] = s.windows[r].map(|x| x as f64 * window_factor as f64);
+                    let d = st.delta[r] as f64;
+                    if d < 0.0 && lo.is_finite() {
+                        score = score.max(d / lo);
+                    }
+                    if d > 0.0 && hi.is_finite() {
+                        score = score.max(d / hi);
+                    }
                 }
-                if d > 0.0 && hi.is_finite() {
-                    score = score.max(d / hi as f64);
-                }
-            }
-            score
+                score
+            };
+            [score(s.threshold_on, 1.0), score(s.threshold_off, s.window_hysteresis)]
         })
         .collect();
-    let k = s.min_pixels as usize;
-    scores.windows(k).map(|w| w.iter().copied().fold(f64::INFINITY, f64::min)).fold(0.0, f64::max)
+    run_score(&scores, s.min_pixels as usize)
+}
+
+/// The largest factor c at which a line with these per-pixel factors
+/// (entering, leaving) is still rejected: a run of at least `k` adjacent
+/// pixels whose leaving factor is at least c, one of whose entering factor
+/// is too. 0 when no factor rejects it.
+fn run_score(scores: &[[f64; 2]], k: usize) -> f64 {
+    let rejected_at = |c: f64| {
+        let (mut len, mut entered) = (0, false);
+        for &[on, off] in scores {
+            if off >= c {
+                len += 1;
+                entered |= on >= c;
+                if len >= k.max(1) && entered {
+                    return true;
+                }
+            } else {
+                (len, entered) = (0, false);
+            }
+        }
+        false
+    };
+    // Rejection only gets harder as c grows, and changes only at a pixel's
+    // factor: the largest of them that still rejects.
+    let mut candidates: Vec<f64> = scores.iter().flatten().copied().filter(|c| *c > 0.0).collect();
+    candidates.sort_by(f64::total_cmp);
+    let passing = candidates.partition_point(|&c| rejected_at(c));
+    if passing == 0 { 0.0 } else { candidates[passing - 1] }
 }
 
 /// Runs teach, defect-free lines and every case on `scene` with `model`.
@@ -249,3 +283,24 @@ fn decide(
 }
 
 pub mod report;
+
+#[cfg(test)]
+mod tests {
+    use super::run_score;
+
+    #[test]
+    fn a_line_scores_the_largest_factor_its_runs_reject_at() {
+        // Pixels 1-3 are out at the leaving thresholds up to 1.2, and one of
+        // them at the entering ones beyond it: rejected up to 1.2 (all three
+        // at the entering thresholds only up to 0.9).
+        let line = [[0.5, 0.6], [2.0, 2.5], [0.9, 1.2], [1.5, 1.9], [0.1, 0.1]];
+        assert_eq!(run_score(&line, 3), 1.2);
+        // Two pixels far out and a third barely: the run is only as far out as its weakest.
+        assert_eq!(run_score(&[[3.0, 3.0], [3.0, 3.0], [0.2, 0.3]], 3), 0.3);
+        // The entering factor bounds it when no pixel of the run is out at it.
+        assert_eq!(run_score(&[[0.4, 2.0], [0.5, 2.0], [0.3, 2.0]], 3), 0.5);
+        // Unreadable pixels reject at any factor; too short a line at none.
+        assert_eq!(run_score(&[[f64::INFINITY; 2]; 3], 3), f64::INFINITY);
+        assert_eq!(run_score(&line, 6), 0.0);
+    }
+}
