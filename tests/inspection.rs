@@ -3,14 +3,16 @@
 //! calibration, unsigned, or malformed; power cuts leave the old or the new
 //! recipe whole), the device inspects a scene with a scratch and sends one
 //! verdict per line, bit for bit the host's reference, drives its reject
-//! output, and a defect-free line costs at most 64 link bytes.
+//! output, and a defect-free line costs at most 64 link bytes. A recipe
+//! taught on the device, from the lines it measures, is the recipe taught
+//! from the host's simulation of the same lines, byte for byte.
 use brdf_meter::blob::CRC32;
 use brdf_meter::inspect::RecipeStore;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{DeviceError, Response};
 use host_tools::device::link::{Client, LinkError, frame_len};
-use system_tests::inspection::{bytes, fixture, host_verdicts, recipe_cal, scene_lines};
-use system_tests::sim::{P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
+use system_tests::inspection::{TEACH_LINES, bytes, fixture, host_verdicts, recipe_cal, scene_lines, teach_spec};
+use system_tests::sim::{ACQ, FULL_SCALE, P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
 
 fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
     match r {
@@ -141,4 +143,35 @@ fn a_power_cut_while_provisioning_a_recipe_leaves_the_old_or_the_new_whole() {
         cuts += 1;
     }
     assert!(cuts > 100, "cut at every step ({cuts})");
+}
+
+#[test]
+fn a_recipe_taught_on_the_device_is_the_one_taught_from_its_simulation() {
+    let f = fixture();
+    let mut c = Client::new(SimDevice::boot(SimFlash::new(2 * SLOT_LEN as usize), 4)).unwrap();
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    // The scene's first lines (the scratch comes later), fed to the
+    // simulated sensor a few at a time and measured in the corrected encoding.
+    let mut done = Vec::new();
+    let lines =
+        host_tools::inspection::measured::measure_reference(&mut c, P, TEACH_LINES, Some((&f.scene, 0)), &mut |n| {
+            done.push(n)
+        })
+        .unwrap();
+    assert_eq!(done.last(), Some(&TEACH_LINES));
+    assert_eq!(c.format.encoding, brdf_meter::protocol::Encoding::Sigma16, "the client's format is given back");
+    let cal = brdf_meter::blob::BlobView::parse(&f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN]).unwrap();
+    let model = host_tools::inspection::lines::DeviceModel::new(cal, FULL_SCALE, ACQ).unwrap();
+    // Each line as the device measured it is the host's correction of it, bit for bit ...
+    for (l, line) in lines.iter().enumerate() {
+        let host = model.correct(&f.scene.raw_frames_at(l as u64).unwrap());
+        let bits = |l: &host_tools::inspection::lines::Line| {
+            l.v.iter().flat_map(|x| x.iter().map(|y| y.to_bits())).collect::<Vec<_>>()
+        };
+        assert_eq!((bits(line), &line.flags), (bits(&host), &host.flags), "line {l}");
+    }
+    // ... so the recipe taught from them is the one the fixture taught on the host.
+    let taught = host_tools::inspection::teach::teach(&model, &lines, &teach_spec()).unwrap();
+    assert_eq!(host_tools::calibration::signing::sign_with_dev_key(&taught.bytes), f.recipe);
 }

@@ -1,14 +1,17 @@
 //! Inspection end to end in QEMU: the QEMU firmware on QEMU's
-//! b-l475e-iot01a takes a recipe taught by host-tools (its RAM recipe
-//! slots, refused for another calibration), inspects a scene with a scratch
+//! b-l475e-iot01a measures the reference a recipe is taught from (the
+//! recipe byte for byte the one taught from the host's simulation), takes
+//! the recipe (its RAM recipe slots, refused for another calibration),
+//! inspects a scene with a scratch
 //! and sends one verdict per line, bit for bit the host's reference, drives
 //! its reject output (PA4, which QEMU cannot show the host) and reports each
 //! pulse on the link; a defect-free line costs one verdict frame.
 use brdf_meter::protocol::{DeviceError, Response};
 use host_tools::device::link::{LinkError, frame_len};
 use std::time::Duration;
-use system_tests::inspection::{bytes, fixture, host_verdicts, recipe_cal, scene_lines};
+use system_tests::inspection::{TEACH_LINES, bytes, fixture, host_verdicts, recipe_cal, scene_lines, teach_spec};
 use system_tests::qemu::start;
+use system_tests::sim::{ACQ, FULL_SCALE, P};
 
 #[test]
 fn qemu_inspects_bit_for_bit_as_the_host_and_reports_its_reject_pulses() {
@@ -24,6 +27,19 @@ fn qemu_inspects_bit_for_bit_as_the_host_and_reports_its_reject_pulses() {
         other => panic!("expected RecipeForOtherCalibration, got {other:?}"),
     }
     c.provision(&f.cal, |_, _| {}).unwrap();
+    // Taught on the device: the reference's lines fed to its sensor and
+    // measured in the corrected encoding give the host's recipe, byte for byte.
+    c.set_calibration(&f.cal).unwrap();
+    let reference =
+        host_tools::inspection::measured::measure_reference(&mut c, P, TEACH_LINES, Some((&f.scene, 0)), &mut |_| {})
+            .unwrap();
+    let cal = brdf_meter::blob::BlobView::parse(&f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN]).unwrap();
+    let model = host_tools::inspection::lines::DeviceModel::new(cal, FULL_SCALE, ACQ).unwrap();
+    let taught = host_tools::inspection::teach::teach(&model, &reference, &teach_spec()).unwrap();
+    assert!(
+        host_tools::calibration::signing::sign_with_dev_key(&taught.bytes) == f.recipe,
+        "the recipe taught in QEMU"
+    );
     let info = c.provision_recipe(&f.recipe, |_, _| {}).unwrap();
     assert_eq!(info.calibration_crc, recipe_cal(&f.recipe));
     let frames = scene_lines(&f);

@@ -61,6 +61,7 @@ fn record(line: u32, point: u16, zone: u16, flags: u8, sigma_scale: f32, reading
         bins: BinRange::all(21),
         encoding: Encoding::F32,
         values: Vec::new(),
+        corrected: Vec::new(),
     }
 }
 

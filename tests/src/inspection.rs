@@ -39,8 +39,23 @@ pub fn fixture() -> Fixture {
     let view = brdf_meter::blob::BlobView::parse(&cal).unwrap();
     let model = DeviceModel::new(view, FULL_SCALE, ACQ).unwrap();
     let clean = DefectScene::new("clean", scene.clone(), &[]).unwrap();
-    let lines: Vec<_> = (0..60).map(|l| model.correct(&clean.raw_frames_at(l).unwrap())).collect();
-    let spec = TeachSpec {
+    let lines: Vec<_> = (0..TEACH_LINES).map(|l| model.correct(&clean.raw_frames_at(l as u64).unwrap())).collect();
+    let taught = teach(&model, &lines, &teach_spec()).unwrap();
+    let recipe = host_tools::calibration::signing::sign_with_dev_key(&taught.bytes);
+    let scratch = |first_line| DefectSpec::Scratch {
+        at: Extent { first_pixel: 10, pixels: 3, first_line, lines: 1 },
+        brdf: BrdfSpec::Ward { rho_d: 0.9, rho_s: Some(0.05), alpha: 0.4 },
+    };
+    let scene = DefectScene::new("scratch", scene, &[scratch(61), scratch(63)]).unwrap();
+    Fixture { cal: host_tools::calibration::signing::sign_with_dev_key(&cal), recipe, scene }
+}
+
+/// Lines the recipe is taught from (the scene's first).
+pub const TEACH_LINES: usize = 60;
+
+/// The recipe's settings.
+pub fn teach_spec() -> TeachSpec {
+    TeachSpec {
         max_bytes: RECIPE_SLOT_LEN as usize - brdf_meter::store::SLOT_HEADER_LEN - brdf_meter::signed::TRAILER_LEN,
         pulse_us: 20_000,
         // The patent scene's gloss (hundreds of GU, 2 % noise) spreads by
@@ -50,15 +65,7 @@ pub fn fixture() -> Fixture {
         // surface beside it: 2 adjacent pixels make a defect here.
         min_pixels: 2,
         ..TeachSpec::default()
-    };
-    let taught = teach(&model, &lines, &spec).unwrap();
-    let recipe = host_tools::calibration::signing::sign_with_dev_key(&taught.bytes);
-    let scratch = |first_line| DefectSpec::Scratch {
-        at: Extent { first_pixel: 10, pixels: 3, first_line, lines: 1 },
-        brdf: BrdfSpec::Ward { rho_d: 0.9, rho_s: Some(0.05), alpha: 0.4 },
-    };
-    let scene = DefectScene::new("scratch", scene, &[scratch(61), scratch(63)]).unwrap();
-    Fixture { cal: host_tools::calibration::signing::sign_with_dev_key(&cal), recipe, scene }
+    }
 }
 
 /// The scene lines the tests load (60..64: the scratch on the 2nd and 4th).

@@ -8,11 +8,11 @@ use crate::device::link::{Client, Endpoint};
 use crate::device::provision;
 use crate::forward::scene::Scene;
 use crate::forward::scene::defects::DefectScene;
-use crate::inspection::defect_map;
 use crate::inspection::lines::{DeviceModel, Line};
 use crate::inspection::roc::{self, RocSpec};
 use crate::inspection::spc::spc;
 use crate::inspection::teach::{DriftLimit, TeachSpec, Window, teach};
+use crate::inspection::{defect_map, measured};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::inspect::RecipeView;
@@ -30,8 +30,9 @@ pub struct Args {
 /// The inspection subcommands.
 #[derive(Debug, clap::Subcommand)]
 pub enum Sub {
-    /// Teach a recipe from lines of a reference sample (a scene, simulated
-    /// as the device reads it) and write it signed.
+    /// Teach a recipe from lines of a reference sample, measured by the
+    /// device (`--port`, `--tcp`) or simulated from a scene as the device
+    /// reads it (`--scene`), and write it signed.
     Teach(TeachArgs),
     /// Provision a signed recipe onto a device.
     Provision(ProvisionArgs),
@@ -129,13 +130,23 @@ pub struct TeachArgs {
     /// The signed calibration the device runs.
     #[arg(long, value_name = "PATH")]
     pub blob: PathBuf,
-    /// The reference sample: a scene (its surface, with every effect it lists).
-    #[arg(long, value_name = "PATH")]
-    pub scene: PathBuf,
+    /// The reference sample as a scene (its surface, with every effect it
+    /// lists), simulated as the device reads it; with `--tcp`, the scene fed
+    /// to the simulated device's sensor.
+    #[arg(long, value_name = "PATH", required_unless_present_any = ["port", "tcp"])]
+    pub scene: Option<PathBuf>,
+    /// Teach on the instrument: its serial port (e.g. /dev/ttyACM0). It
+    /// measures the reference sample under it, with the calibration `--blob`.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["tcp", "scene"])]
+    pub port: Option<String>,
+    /// Teach on the QEMU instrument: its TCP serial (e.g. 127.0.0.1:4555);
+    /// give `--scene` for the reference its simulated sensor is fed.
+    #[arg(long, value_name = "HOST:PORT", requires = "scene")]
+    pub tcp: Option<String>,
     /// Lines of the reference to teach from.
     #[arg(long, default_value_t = 1000)]
     pub lines: usize,
-    /// First line (its noise draw).
+    /// First scene line (its noise draw).
     #[arg(long, default_value_t = 0)]
     pub first_line: u64,
     /// Secret key to sign the recipe with (default: the DEVELOPMENT key).
@@ -252,26 +263,64 @@ fn recipe_room() -> usize {
 /// its pixel count, else the QEMU build's (the same exposure ratios).
 fn device_model<'a>(view: BlobView<'a>, scene: &Scene) -> anyhow::Result<DeviceModel<'a>> {
     let full_scale = scene.instrument.sensor.full_scale.round() as u16;
-    let acq = if scene.instrument.sensor.pixels == brdf_meter::shape::board::PIXELS {
+    DeviceModel::new(view, full_scale, acquisition_for(scene.instrument.sensor.pixels))
+}
+
+/// The acquisition of a device of `pixels` pixels: the board's, else the
+/// QEMU build's (the same exposure ratios).
+fn acquisition_for(pixels: usize) -> brdf_meter::acquire::AcqConfig {
+    if pixels == brdf_meter::shape::board::PIXELS {
         brdf_meter::platform::timing::ACQUISITION
     } else {
         brdf_meter::platform::timing::QEMU_ACQUISITION
-    };
-    DeviceModel::new(view, full_scale, acq)
+    }
 }
 
 fn run_teach(a: TeachArgs) -> anyhow::Result<()> {
     let image = provision::read_blob(&a.blob)?;
     let view = provision::parse_signed(&image, &a.blob.display().to_string())?;
-    let (ds, cut) = DefectScene::load_any_for_device(&a.scene, view.dims().pixels)?;
-    if let Some(note) = cut {
-        eprintln!("{note}");
-    }
-    let model = device_model(view, &ds.scene)?;
-    let lines: Vec<Line> = (a.first_line..a.first_line + a.lines as u64)
-        .map(|l| Ok(model.correct(&ds.raw_frames_at(l)?)))
-        .collect::<anyhow::Result<_>>()?;
-    let taught = teach(&model, &lines, &a.recipe.spec(recipe_room())?)?;
+    let pixels = view.dims().pixels;
+    let scene = match &a.scene {
+        Some(path) => {
+            let (ds, cut) = DefectScene::load_any_for_device(path, pixels)?;
+            if let Some(note) = cut {
+                eprintln!("{note}");
+            }
+            Some(ds)
+        }
+        None => None,
+    };
+    let spec = a.recipe.spec(recipe_room())?;
+    let (model, lines) = if a.port.is_some() || a.tcp.is_some() {
+        let endpoint = Endpoint { port: a.port.clone(), tcp: a.tcp.clone() };
+        let mut c = Client::new(endpoint.open()?)?;
+        let info = c.info().context("asking the device for its information")?;
+        provision::check_device_runs(info.calibration, view.crc(), &a.blob)?;
+        ensure!(
+            scene.is_none() || info.simulated,
+            "--scene is for simulated devices (QEMU); this device has a real sensor: put the reference under it"
+        );
+        c.timeout = std::time::Duration::from_secs(10);
+        c.set_calibration(&image)?;
+        let progress = crate::output::progress::bar(a.lines as u64, "reference lines");
+        let lines = measured::measure_reference(
+            &mut c,
+            pixels,
+            a.lines,
+            scene.as_ref().map(|ds| (ds, a.first_line)),
+            &mut |done| progress.set_position(done as u64),
+        )?;
+        progress.finish_and_clear();
+        (DeviceModel::new(view, info.full_scale, acquisition_for(pixels))?, lines)
+    } else {
+        let ds = scene.expect("clap requires --scene without a device");
+        let model = device_model(view, &ds.scene)?;
+        let lines: Vec<Line> = (a.first_line..a.first_line + a.lines as u64)
+            .map(|l| Ok(model.correct(&ds.raw_frames_at(l)?)))
+            .collect::<anyhow::Result<_>>()?;
+        (model, lines)
+    };
+    let taught = teach(&model, &lines, &spec)?;
     let seed = match &a.key {
         Some(k) => signing::read_secret(k)?,
         None => signing::read_secret(&signing::dev_key_path())?,

@@ -101,6 +101,7 @@ mod tests {
             bins: brdf_meter::protocol::BinRange::all(9),
             encoding: brdf_meter::protocol::Encoding::F32,
             values: (0..9).map(|j| 0.5 + 0.1 * j as f32 * scale).collect(),
+            corrected: Vec::new(),
         }
     }
 

@@ -76,6 +76,10 @@ pub struct PointRecord {
     pub encoding: Encoding,
     /// The values of `bins`.
     pub values: Vec<f32>,
+    /// The corrected readings the device sent and the values were
+    /// estimated from (the corrected encoding; empty otherwise): what its
+    /// inspection decides on, and what a recipe is taught from.
+    pub corrected: Vec<f32>,
 }
 
 /// A decoded frame from the device.

@@ -94,6 +94,7 @@ impl From<PointFrame<'_>> for PointRecord {
             bins: BinRange::all(values.len()),
             encoding: Encoding::F32,
             values,
+            corrected: Vec::new(),
         }
     }
 }
@@ -131,6 +132,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
     for (k, (meta, data)) in recs.enumerate() {
         let point = f.first_point as u32 + k as u32;
         let zone_ok = |v: &BlobView<'_>| (meta.zone as usize) < v.dims().zones;
+        let mut corrected = Vec::new();
         let values: Vec<f32> = match f.encoding {
             Encoding::F32 => data.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
             Encoding::Sigma16 => {
@@ -181,6 +183,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
                     return Err(DecodeError::Disagrees { point, host, device });
                 }
                 let rho = if meta.flags & flags::NON_FINITE != 0 { vec![0.0; v.dims().n] } else { e.rho };
+                corrected = readings;
                 f.bins.bins().map(|j| rho[j]).collect()
             }
         };
@@ -197,6 +200,7 @@ pub fn decode_with(f: &PointsFrame<'_>, view: Option<&BlobView<'_>>) -> Result<V
             bins: f.bins,
             encoding: f.encoding,
             values,
+            corrected,
         });
     }
     Ok(out)
