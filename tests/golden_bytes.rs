@@ -162,8 +162,9 @@ fn verdict() -> brdf_meter::inspect::Verdict {
     }
 }
 
-/// A recipe with every field set.
-fn golden_recipe() -> Vec<u8> {
+/// A recipe with every field set, decided with hysteresis along the line
+/// (format 2) or not (format 1, as recipes taught before it are).
+fn golden_recipe(along_line_hysteresis: bool) -> Vec<u8> {
     use brdf_meter::inspect::recipe::{DelayUnit, RecipeData, RecipeSettings, group_len, pixel_len, write};
     let m = 3;
     write(&RecipeData {
@@ -188,6 +189,7 @@ fn golden_recipe() -> Vec<u8> {
             windows: [[-1.5, 1.5], [-0.5, 2.0], [f32::NEG_INFINITY, f32::INFINITY]],
             teach_quality: 1.25,
             teach_lines: 200,
+            along_line_hysteresis,
         },
     })
     .expect("a valid recipe")
@@ -343,7 +345,8 @@ fn encodings() -> Vec<(String, Vec<u8>)> {
     out.push(("blob.v4.peak-factors".into(), b4f));
 
     // The inspection recipe: 6 pixels, 3 readings, 2 groups.
-    out.push(("recipe.v1".into(), golden_recipe()));
+    out.push(("recipe.v1".into(), golden_recipe(false)));
+    out.push(("recipe.v2".into(), golden_recipe(true)));
 
     // The store's slot header.
     out.push(("slot_header".into(), encode_slot_header(7, 4096, 0x1234_5678).to_vec()));

@@ -41,7 +41,9 @@
 //! brought it back in: a 2 GU gloss step over 8 pixels of the handheld in
 //! 1.2 % of lines, 0.7 % now, at the same false-call rate. A pixel counts
 //! once it has been out (at the leaving thresholds) for `min_lines`
-//! consecutive lines. A defect's kind is out-of-prior when the calibration
+//! consecutive lines. (A format 1 recipe, taught before, was taught for
+//! every pixel of a defect out at the entering thresholds, and is decided
+//! so.) A defect's kind is out-of-prior when the calibration
 //! flags any of its pixels out of its prior (asked only of a defect's
 //! pixels: an estimate each), else the highest of the kinds of its pixels
 //! out at the entering thresholds, in the order above.
@@ -562,7 +564,8 @@ impl<const P: usize> Inspector<P> {
             let kind = classify(r, &stat, reading_flags[p], was_out);
             // The leaving thresholds are looser: out at the entering ones
             // (or already judged at the leaving ones) is out at them too.
-            let held = kind.is_some() || (!was_out && classify(r, &stat, reading_flags[p], true).is_some());
+            let held = kind.is_some()
+                || (s.along_line_hysteresis && !was_out && classify(r, &stat, reading_flags[p], true).is_some());
             self.out[p] = kind;
             self.held[p] = held;
             self.age[p] = if held { self.age[p].saturating_add(1) } else { 0 };
@@ -644,7 +647,7 @@ impl<const P: usize> Inspector<P> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::recipe::{RecipeData, group_len, write};
+    use super::super::recipe::{RecipeData, RecipeSettings, group_len, write};
     use super::*;
 
     const M: usize = 3;
@@ -653,6 +656,17 @@ mod tests {
     /// A recipe whose reference is v = 1 at every pixel, sd 0.1, no
     /// correlation, gloss gradient 10 GU per unit of reading 0.
     fn recipe(min_pixels: u16, min_lines: u16) -> Vec<u8> {
+        let mut settings = super::super::recipe::tests::settings();
+        settings.threshold_on = 25.0; // 5 sd
+        settings.threshold_off = 9.0;
+        settings.windows = [[-2.0, 2.0], [f32::NEG_INFINITY, f32::INFINITY], [f32::NEG_INFINITY, f32::INFINITY]];
+        settings.ewma_lambda = 0.5;
+        settings.ewma_limit = 0.5;
+        recipe_with(min_pixels, min_lines, settings)
+    }
+
+    /// [`recipe`]'s reference with `settings` and the minimum sizes.
+    fn recipe_with(min_pixels: u16, min_lines: u16, mut settings: RecipeSettings) -> Vec<u8> {
         let mut group = vec![0.0f32; group_len(M)];
         // Identity whitening, packed lower triangle.
         let mut k = 0;
@@ -663,14 +677,8 @@ mod tests {
             }
         }
         group[k] = 10.0; // d gloss / d f_0
-        let mut settings = super::super::recipe::tests::settings();
         settings.min_pixels = min_pixels;
         settings.min_lines = min_lines;
-        settings.threshold_on = 25.0; // 5 sd
-        settings.threshold_off = 9.0;
-        settings.windows = [[-2.0, 2.0], [f32::NEG_INFINITY, f32::INFINITY], [f32::NEG_INFINITY, f32::INFINITY]];
-        settings.ewma_lambda = 0.5;
-        settings.ewma_limit = 0.5;
         write(&RecipeData {
             pixels: P,
             m: M,
@@ -776,6 +784,14 @@ mod tests {
         assert!(!verdict(&[(3, high), (4, high), (5, inside)]).rejected());
         // Pixels out only at the leaving thresholds are never a defect on their own.
         assert!(!verdict(&[(3, held), (4, held), (5, held), (6, held)]).rejected());
+        // A format 1 recipe is decided as it was taught: every pixel at the entering thresholds.
+        let mut old = *RecipeView::parse(&bytes).unwrap().settings();
+        old.along_line_hysteresis = false;
+        let bytes = recipe_with(3, 1, old);
+        let r = RecipeView::parse(&bytes).unwrap();
+        assert_eq!(super::super::recipe::FORMAT_VERSION_ENTERING_RUNS, u16::from_le_bytes([bytes[4], bytes[5]]));
+        let line = line(&[(3, high), (4, held), (5, high)]);
+        assert!(!Inspector::<P>::new().line(&r, 0, &line, &[0; P], |_| false).rejected());
     }
 
     #[test]

@@ -5,11 +5,20 @@
 //! bytes, then [`crate::signed`]'s 80-byte trailer) and stored A/B by
 //! [`crate::store`].
 //!
-//! # Layout (format version 1), little-endian
+//! # Layout (format version 2), little-endian
+//! Format 2 differs from format 1 only in what the decision does with it:
+//! a format 2 recipe was taught for hysteresis along the line (a defect's
+//! pixels out at least at the leaving thresholds, one of them at the
+//! entering ones), a format 1 recipe for every pixel of a defect out at the
+//! entering thresholds. The device reads both and decides each by the rule
+//! its thresholds were set for
+//! ([`RecipeSettings::along_line_hysteresis`]), so a firmware update does
+//! not change what an installed recipe calls.
+//!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 4 | magic `b"BRDI"` |
-//! | 4 | 2 | format version (1) |
+//! | 4 | 2 | format version (2; 1 is read too) |
 //! | 6 | 2 | header length ([`HEADER_LEN`]) |
 //! | 8 | 4 | total length (CRC included, signature trailer not) |
 //! | 12 | 4 | CRC of the calibration blob it was taught with |
@@ -45,8 +54,10 @@ use serde::{Deserialize, Serialize};
 
 /// First bytes of a recipe.
 pub const MAGIC: [u8; 4] = *b"BRDI";
-/// Recipe format version.
-pub const FORMAT_VERSION: u16 = 1;
+/// Recipe format version (the one written).
+pub const FORMAT_VERSION: u16 = 2;
+/// The format before hysteresis along the line, still read.
+pub const FORMAT_VERSION_ENTERING_RUNS: u16 = 1;
 /// Header length.
 pub const HEADER_LEN: usize = 96;
 /// Most groups a recipe may have.
@@ -117,6 +128,10 @@ pub struct RecipeSettings {
     pub teach_quality: f32,
     /// Lines the reference was taught from.
     pub teach_lines: u32,
+    /// Whether a defect's pixels need only be out at the leaving
+    /// thresholds, one of them at the entering ones (format 2), or each at
+    /// the entering ones (format 1): the rule the thresholds were taught for.
+    pub along_line_hysteresis: bool,
 }
 
 /// A parsed recipe, read in place.
@@ -171,7 +186,10 @@ impl<'a> RecipeView<'a> {
         if bytes[0..4] != MAGIC {
             return Err(RecipeFault::BadMagic);
         }
-        if u16_at(bytes, 4) != FORMAT_VERSION || u16_at(bytes, 6) as usize != HEADER_LEN {
+        let format = u16_at(bytes, 4);
+        if !(format == FORMAT_VERSION || format == FORMAT_VERSION_ENTERING_RUNS)
+            || u16_at(bytes, 6) as usize != HEADER_LEN
+        {
             return Err(RecipeFault::UnsupportedVersion);
         }
         let total = u32_at(bytes, 8) as usize;
@@ -306,6 +324,7 @@ fn decode_settings(b: &[u8]) -> Result<RecipeSettings, RecipeFault> {
         windows,
         teach_quality: f32_at(b, 88),
         teach_lines: u32_at(b, 92),
+        along_line_hysteresis: u16_at(b, 4) == FORMAT_VERSION,
     };
     check_settings(&s)?;
     Ok(s)
@@ -366,7 +385,8 @@ pub fn write(d: &RecipeData) -> Result<Vec<u8>, RecipeFault> {
     let total = recipe_len(p, m, g);
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    let format = if s.along_line_hysteresis { FORMAT_VERSION } else { FORMAT_VERSION_ENTERING_RUNS };
+    out.extend_from_slice(&format.to_le_bytes());
     out.extend_from_slice(&(HEADER_LEN as u16).to_le_bytes());
     out.extend_from_slice(&(total as u32).to_le_bytes());
     out.extend_from_slice(&s.calibration_crc.to_le_bytes());
@@ -432,6 +452,7 @@ pub(crate) mod tests {
             windows: [[-2.0, 2.0], [-1.0, 1.0], [f32::NEG_INFINITY, f32::INFINITY]],
             teach_quality: 2.5,
             teach_lines: 200,
+            along_line_hysteresis: true,
         }
     }
 
@@ -458,6 +479,20 @@ pub(crate) mod tests {
         assert_eq!(v.group_bytes(1)[20..24], 5.0f32.to_le_bytes());
         assert_eq!(v.pixel_value(4, 6), 46.0);
         assert_eq!(v.crc(), CRC32.checksum(&bytes[..bytes.len() - 4]));
+    }
+
+    #[test]
+    fn a_format_1_recipe_is_read_with_the_rule_it_was_taught_for() {
+        let mut d = data();
+        d.settings.along_line_hysteresis = false;
+        let bytes = write(&d).unwrap();
+        assert_eq!(u16_at(&bytes, 4), FORMAT_VERSION_ENTERING_RUNS);
+        assert_eq!(*RecipeView::parse(&bytes).unwrap().settings(), d.settings);
+        assert_eq!(u16_at(&write(&data()).unwrap(), 4), FORMAT_VERSION);
+        // A format this firmware does not know is refused as such.
+        let mut later = bytes.clone();
+        later[4..6].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
+        assert_eq!(RecipeView::parse(&later).unwrap_err(), RecipeFault::UnsupportedVersion);
     }
 
     #[test]

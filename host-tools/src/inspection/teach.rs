@@ -406,6 +406,7 @@ pub fn teach(model: &DeviceModel<'_>, lines: &[Line], spec: &TeachSpec) -> anyho
         windows,
         teach_quality: if quality.is_finite() { quality as f32 } else { 0.0 },
         teach_lines: n as u32,
+        along_line_hysteresis: true,
     };
     let data = RecipeData {
         pixels: p,

@@ -176,7 +176,9 @@ pub fn line_score(recipe: &RecipeView<'_>, line: &Line) -> f64 {
                 }
                 score
             };
-            [score(s.threshold_on, 1.0), score(s.threshold_off, s.window_hysteresis)]
+            let on = score(s.threshold_on, 1.0);
+            // A format 1 recipe's defect needs every pixel at the entering thresholds.
+            [on, if s.along_line_hysteresis { score(s.threshold_off, s.window_hysteresis) } else { on }]
         })
         .collect();
     run_score(&scores, s.min_pixels as usize)
