@@ -126,6 +126,7 @@ impl RecipeArgs {
 
 /// `inspect teach`.
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("reference").required(true).multiple(true).args(["scene", "port", "tcp"])))]
 pub struct TeachArgs {
     /// The signed calibration the device runs.
     #[arg(long, value_name = "PATH")]
@@ -133,7 +134,7 @@ pub struct TeachArgs {
     /// The reference sample as a scene (its surface, with every effect it
     /// lists), simulated as the device reads it; with `--tcp`, the scene fed
     /// to the simulated device's sensor.
-    #[arg(long, value_name = "PATH", required_unless_present_any = ["port", "tcp"])]
+    #[arg(long, value_name = "PATH")]
     pub scene: Option<PathBuf>,
     /// Teach on the instrument: its serial port (e.g. /dev/ttyACM0). It
     /// measures the reference sample under it, with the calibration `--blob`.
@@ -609,6 +610,26 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn teach_takes_its_reference_from_a_scene_or_a_device_and_says_so() {
+        use clap::Parser;
+        let parse = |args: &[&str]| {
+            crate::cli::Cli::try_parse_from(["host-tools", "inspect", "teach", "--blob", "cal.blob"].iter().chain(args))
+        };
+        for ok in
+            [&["--scene", "s.toml"][..], &["--port", "/dev/ttyACM0"], &["--tcp", "127.0.0.1:4555", "--scene", "s.toml"]]
+        {
+            assert!(parse(ok).is_ok(), "{ok:?}");
+        }
+        let e = parse(&[]).unwrap_err().to_string();
+        assert!(e.contains("--scene") && e.contains("--port") && e.contains("--tcp"), "{e}");
+        // A real instrument measures the sample under it; QEMU's sensor is fed a scene.
+        assert!(
+            parse(&["--port", "/dev/ttyACM0", "--scene", "s.toml"]).unwrap_err().to_string().contains("cannot be used")
+        );
+        assert!(parse(&["--tcp", "127.0.0.1:4555"]).unwrap_err().to_string().contains("--scene"));
+    }
 
     #[test]
     fn a_recipe_for_another_devices_shape_is_refused_before_sending_and_says_why() {
