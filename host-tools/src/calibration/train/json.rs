@@ -13,16 +13,9 @@ pub struct TrainJson {
     pub noise_rel: f64,
     /// Bin centres, degrees (n).
     pub bins_deg: Vec<f64>,
-    /// Zone 0's H: m rows of n.
-    #[serde(rename = "H")]
-    pub h: Vec<Vec<f64>>,
-    /// Zone 0's W: n rows of m.
-    #[serde(rename = "W")]
-    pub w: Vec<Vec<f64>>,
-    /// Zone 0's predicted standard uncertainty per bin (n).
-    pub uncertainty: Vec<f64>,
-    /// Zone 0's training summary.
-    pub summary: EstimatorSummary,
+    /// Zone 0's matrices, at the top level.
+    #[serde(flatten)]
+    pub zone0: ZoneMatrices,
     /// What the blob is.
     #[serde(flatten)]
     pub blob: BlobJson,
@@ -51,15 +44,23 @@ pub struct BlobJson {
 pub struct ZoneJson {
     /// First pixel.
     pub first_pixel: usize,
+    /// Its matrices.
+    #[serde(flatten)]
+    pub matrices: ZoneMatrices,
+}
+
+/// A linear zone's matrices and summary in `train --json`.
+#[derive(Debug, Serialize)]
+pub struct ZoneMatrices {
     /// H: m rows of n.
     #[serde(rename = "H")]
     pub h: Vec<Vec<f64>>,
     /// W: n rows of m.
     #[serde(rename = "W")]
     pub w: Vec<Vec<f64>>,
-    /// Predicted standard uncertainty per bin.
+    /// Predicted standard uncertainty per bin (n).
     pub uncertainty: Vec<f64>,
-    /// Summary.
+    /// Training summary.
     pub summary: EstimatorSummary,
 }
 
@@ -111,6 +112,16 @@ fn rows(a: &DMatrix<f64>) -> Vec<Vec<f64>> {
     a.row_iter().map(|r| r.iter().copied().collect()).collect()
 }
 
+/// Zone `z`'s matrices, `e` its linear estimator.
+fn zone_matrices(z: &TrainedZone, e: &LinearEstimator) -> ZoneMatrices {
+    ZoneMatrices {
+        h: rows(&z.h),
+        w: rows(&e.w),
+        uncertainty: e.uncertainty.iter().copied().collect(),
+        summary: e.summary.clone(),
+    }
+}
+
 impl Trained {
     /// The worst-conditioned linear zone and its summary: what limits the
     /// calibration (and what the blob's training summary records); `None`
@@ -143,23 +154,14 @@ impl Trained {
                 .zones
                 .iter()
                 .filter_map(|z| {
-                    z.linear().map(|e| ZoneJson {
-                        first_pixel: z.first_pixel,
-                        h: rows(&z.h),
-                        w: rows(&e.w),
-                        uncertainty: e.uncertainty.iter().copied().collect(),
-                        summary: e.summary.clone(),
-                    })
+                    z.linear().map(|e| ZoneJson { first_pixel: z.first_pixel, matrices: zone_matrices(z, e) })
                 })
                 .collect();
             serde_json::to_value(TrainJson {
                 estimator: kind,
                 noise_rel: z0.summary.noise_rel,
                 bins_deg: self.bins_deg.clone(),
-                h: rows(&self.zones[0].h),
-                w: rows(&z0.w),
-                uncertainty: z0.uncertainty.iter().copied().collect(),
-                summary: z0.summary.clone(),
+                zone0: zone_matrices(&self.zones[0], z0),
                 blob: self.blob_json(&view),
                 zones,
             })

@@ -30,7 +30,7 @@ mod json;
 mod tests;
 mod zones;
 
-pub use json::{BlobJson, ScaleFreeJson, ScaleFreeZoneJson, TrainJson, ZoneJson};
+pub use json::{BlobJson, ScaleFreeJson, ScaleFreeZoneJson, TrainJson, ZoneJson, ZoneMatrices};
 
 use gloss::gloss_section;
 use zones::{gate, linear_zones, rescaled_white, scale_free_zones, summary};

@@ -79,6 +79,11 @@ impl CrossValidation {
         Self { readings, fold: folds(pairs, seed) }
     }
 
+    /// Folds: one more than the largest fold index.
+    fn folds(&self) -> usize {
+        self.fold.iter().copied().max().map_or(0, |x| x + 1)
+    }
+
     /// Mean peak-normalised error over the prior's own weights of every
     /// pair read by a fit without its fold; `None` when a fit fails.
     pub(super) fn error(
@@ -91,7 +96,7 @@ impl CrossValidation {
     ) -> Option<f64> {
         let errors = self.held_out_errors(pairs, nz, opts, ridge, clusters).ok()?;
         // Summed fold by fold, in the order the folds are fitted.
-        let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
+        let nf = self.folds();
         let mut err = 0.0;
         for f in 0..nf {
             for k in (0..pairs.len()).filter(|k| self.fold[*k] == f) {
@@ -113,7 +118,7 @@ impl CrossValidation {
         ridge: f64,
         clusters: usize,
     ) -> anyhow::Result<Vec<Vec<f64>>> {
-        let nf = self.fold.iter().copied().max().map_or(0, |x| x + 1);
+        let nf = self.folds();
         let mut errors = vec![Vec::new(); pairs.len()];
         for f in 0..nf {
             let train_idx: Vec<usize> = (0..pairs.len()).filter(|k| self.fold[*k] != f).collect();
