@@ -14,9 +14,10 @@
 //! signal is made linear before it is scaled and white-calibrated
 //! ([`linearity`]).
 //!
-//! [`correct_point_into`] is the one definition of a corrected reading: the
-//! device runs it, and the host runs it to reproduce the device's numbers
-//! bit for bit.
+//! [`correct_reading`] is the one definition of a corrected reading: the
+//! device runs it frame by frame ([`correct_line`]), and the host point by
+//! point ([`correct_point_into`]) to reproduce the device's numbers bit for
+//! bit.
 pub mod linearity;
 
 pub use linearity::Linearity;
@@ -126,13 +127,14 @@ pub fn correct_point<const M: usize>(dark: u16, lit: &[u16; M], white: &[f32; M]
 }
 
 /// Corrects one point of `lit.len()` readings into `v`; returns its flags.
-/// The one definition of a corrected reading (the host uses it to reproduce
-/// the device's numbers). A reading whose long frame saturated is taken
-/// from the first of `shorter` (longest first) whose frame did not,
-/// `(lit - dark) ratio / white`; it is flagged saturated only when the
-/// shortest saturated too (or there is none). With `linearity`, each
-/// exposure's `lit - dark` is made linear first ([`Linearity::linear`]);
-/// the under-exposure test is on the counts as read.
+/// A reading whose long frame saturated is taken from the first of
+/// `shorter` (longest first) whose frame did not, `(lit - dark) ratio /
+/// white`; it is flagged saturated only when the shortest saturated too (or
+/// there is none). With `linearity`, each exposure's `lit - dark` is made
+/// linear first ([`Linearity::linear`]); the under-exposure test is on the
+/// counts as read. Each reading is [`correct_reading`]'s, as the device's
+/// [`correct_line`] makes it; the host uses this to reproduce the device's
+/// numbers.
 ///
 /// # Panics
 /// If `lit`, `white`, `v` and every shorter exposure's `lit` differ in length.
@@ -154,38 +156,76 @@ pub fn correct_point_into(
     // Without a correction the identity's, which changes no bit: one path,
     // not a copy of the loop per case.
     let lin = linearity.unwrap_or(&Linearity::IDENTITY);
-    let mut f = 0u8;
-    if dark >= full_scale {
-        f |= flags::SATURATED;
-    }
+    let mut f = dark_flags(dark, full_scale);
     for i in 0..v.len() {
-        let mut s = lit[i] as f32 - dark as f32;
-        let mut saturated = lit[i] >= full_scale;
-        if s < MIN_SIGNAL_COUNTS {
-            f |= flags::UNDER_EXPOSED;
-        }
-        s = lin.linear(s);
-        for e in shorter {
-            if !saturated || !e.taken[i] {
-                break;
-            }
-            s = lin.linear(e.lit[i] as f32 - e.dark as f32) * e.ratio;
-            saturated = e.lit[i] >= full_scale;
-        }
-        if saturated {
-            f |= flags::SATURATED;
-        }
-        v[i] = s / white[i];
-        if !v[i].is_finite() {
-            f |= flags::NON_FINITE;
-        }
+        let (x, fi) = correct_reading(dark, lit[i], white[i], full_scale, lin, shorter.len(), |l| {
+            let e = &shorter[l];
+            e.taken[i].then(|| (e.lit[i], e.dark, e.ratio))
+        });
+        v[i] = x;
+        f |= fi;
     }
     f
 }
 
+/// A point's flags from its dark value alone: saturated when the dark frame is.
+#[inline(always)]
+fn dark_flags(dark: u16, full_scale: u16) -> u8 {
+    if dark >= full_scale { flags::SATURATED } else { 0 }
+}
+
+/// The one definition of a corrected reading: `(lit - dark)` made linear
+/// and divided by `white`, or, when `lit` is at `full_scale`, the first of
+/// the `levels` shorter exposures (`short(l)`: its value, its dark value
+/// and the long exposure over it, `None` where its frame was not taken)
+/// that did not saturate, scaled by its ratio; and the reading's flags
+/// (under-exposed on the long exposure's counts; saturated when every
+/// exposure taken was; not finite). A reading replaced by a shorter one is
+/// never linearised: on a glossy line most are.
+#[inline(always)]
+pub fn correct_reading(
+    dark: u16,
+    lit: u16,
+    white: f32,
+    full_scale: u16,
+    lin: &Linearity,
+    levels: usize,
+    short: impl Fn(usize) -> Option<(u16, u16, f32)>,
+) -> (f32, u8) {
+    let mut f = 0u8;
+    let counts = lit as f32 - dark as f32;
+    if counts < MIN_SIGNAL_COUNTS {
+        f |= flags::UNDER_EXPOSED;
+    }
+    let mut saturated = lit >= full_scale;
+    let mut shorter = None;
+    for l in 0..levels {
+        if !saturated {
+            break;
+        }
+        let Some((s_lit, s_dark, ratio)) = short(l) else { break };
+        shorter = Some(lin.linear(s_lit as f32 - s_dark as f32) * ratio);
+        saturated = s_lit >= full_scale;
+    }
+    let s = match shorter {
+        Some(s) => s,
+        None => lin.linear(counts),
+    };
+    if saturated {
+        f |= flags::SATURATED;
+    }
+    let x = s / white;
+    if !x.is_finite() {
+        f |= flags::NON_FINITE;
+    }
+    (x, f)
+}
+
 /// Corrects a whole line into `v` and `fl` (one entry per pixel), its
 /// shorter exposures taken at `cfg.short_exposures_us`, made linear by
-/// `linearity` when the calibration has one.
+/// `linearity` when the calibration has one: every reading
+/// [`correct_reading`]'s, frame by frame (the order the frames are read
+/// in and are laid out).
 pub fn correct_line<const M: usize, const P: usize>(
     raw: &RawLine<M, P>,
     white: &[[f32; M]; P],
@@ -195,26 +235,22 @@ pub fn correct_line<const M: usize, const P: usize>(
     v: &mut [SVector<f32, M>; P],
     fl: &mut [u8; P],
 ) {
+    let lin = linearity.unwrap_or(&Linearity::IDENTITY);
     let levels = cfg.short_levels();
-    for p in 0..P {
-        let lit: [u16; M] = core::array::from_fn(|i| raw.lit[i][p]);
-        let short: [[u16; M]; MAX_SHORT_EXPOSURES] =
-            core::array::from_fn(|l| core::array::from_fn(|i| raw.short[l][i][p]));
-        let shorter: [Shorter<'_>; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| Shorter {
-            dark: raw.short_dark[l][p],
-            ratio: cfg.ratio(l),
-            lit: &short[l],
-            taken: &raw.short_taken[l],
-        });
-        fl[p] = correct_point_into(
-            raw.dark[p],
-            &lit,
-            &white[p],
-            full_scale,
-            &shorter[..levels],
-            linearity,
-            v[p].as_mut_slice(),
-        );
+    // Once a line, not once a reading: the same division, the same bits.
+    let ratios: [f32; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| if l < levels { cfg.ratio(l) } else { 0.0 });
+    for (f, d) in fl.iter_mut().zip(&raw.dark) {
+        *f = dark_flags(*d, full_scale);
+    }
+    for i in 0..M {
+        let taken: [bool; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| raw.short_taken[l][i]);
+        for p in 0..P {
+            let (x, f) = correct_reading(raw.dark[p], raw.lit[i][p], white[p][i], full_scale, lin, levels, |l| {
+                taken[l].then(|| (raw.short[l][i][p], raw.short_dark[l][p], ratios[l]))
+            });
+            v[p][i] = x;
+            fl[p] |= f;
+        }
     }
 }
 
@@ -411,6 +447,101 @@ mod tests {
         // Without it, the same frames read as before.
         correct_point_into(100, &[4095, 105], &white, 4095, &[s16], None, &mut v);
         assert_eq!(v, [100.0 * 16.0 / 1000.0, 5.0 / 500.0]);
+    }
+
+    /// The correction as it was first written, reading by reading: the long
+    /// exposure always made linear, then replaced while a shorter one was
+    /// taken and the last saturated.
+    fn correct_as_written(
+        dark: u16,
+        lit: u16,
+        white: f32,
+        fs: u16,
+        lin: &Linearity,
+        short: &[(u16, u16, f32, bool)],
+    ) -> (f32, u8) {
+        let mut f = if dark >= fs { flags::SATURATED } else { 0 };
+        let mut s = lit as f32 - dark as f32;
+        let mut saturated = lit >= fs;
+        if s < MIN_SIGNAL_COUNTS {
+            f |= flags::UNDER_EXPOSED;
+        }
+        s = lin.linear(s);
+        for &(s_lit, s_dark, ratio, taken) in short {
+            if !saturated || !taken {
+                break;
+            }
+            s = lin.linear(s_lit as f32 - s_dark as f32) * ratio;
+            saturated = s_lit >= fs;
+        }
+        if saturated {
+            f |= flags::SATURATED;
+        }
+        let x = s / white;
+        if !x.is_finite() {
+            f |= flags::NON_FINITE;
+        }
+        (x, f)
+    }
+
+    #[test]
+    fn line_correction_is_the_correction_as_first_written_bit_for_bit() {
+        // Every case a reading meets: under-exposed, saturated with its
+        // shorter frames taken or not, saturating at the first shorter
+        // exposure too, a saturated dark frame, a zero white value.
+        const M: usize = 4;
+        const P: usize = 64;
+        let fs = 4095u16;
+        let lin = Linearity::new(core::array::from_fn(|k| 1.0 + 0.004 * (16 - k) as f32)).unwrap();
+        let cfg = AcqConfig { exposure_us: 800, short_exposures_us: [50, 10], ..AcqConfig::default() };
+        let mut seed = 0x2545_f491u32;
+        let mut next = |n: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed % n
+        };
+        for line in 0..8 {
+            let mut raw = RawLine::<M, P>::new();
+            for p in 0..P {
+                raw.dark[p] = if next(50) == 0 { fs } else { 40 + next(30) as u16 };
+                for l in 0..MAX_SHORT_EXPOSURES {
+                    raw.short_dark[l][p] = 40 + next(30) as u16;
+                }
+                for i in 0..M {
+                    raw.lit[i][p] = match next(4) {
+                        0 => 30 + next(20) as u16,
+                        1 => fs,
+                        _ => 50 + next(4046) as u16,
+                    };
+                    for l in 0..MAX_SHORT_EXPOSURES {
+                        raw.short[l][i][p] = if next(3) == 0 { fs } else { 45 + next(4050) as u16 };
+                    }
+                }
+            }
+            for i in 0..M {
+                raw.short_taken[0][i] = line % 2 == 0 || i % 2 == 0;
+                raw.short_taken[1][i] = raw.short_taken[0][i] && i != 1;
+            }
+            let white: [[f32; M]; P] = core::array::from_fn(|p| {
+                core::array::from_fn(|i| if p == 7 && i == 2 { 0.0 } else { 900.0 + (p * M + i) as f32 })
+            });
+            let mut v = [SVector::<f32, M>::zeros(); P];
+            let mut fl = [0u8; P];
+            correct_line(&raw, &white, Some(&lin), fs, &cfg, &mut v, &mut fl);
+            for p in 0..P {
+                let mut want_f = 0;
+                for i in 0..M {
+                    let short: [(u16, u16, f32, bool); MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| {
+                        (raw.short[l][i][p], raw.short_dark[l][p], cfg.ratio(l), raw.short_taken[l][i])
+                    });
+                    let (x, f) = correct_as_written(raw.dark[p], raw.lit[i][p], white[p][i], fs, &lin, &short);
+                    assert_eq!(v[p][i].to_bits(), x.to_bits(), "line {line}, pixel {p}, reading {i}");
+                    want_f |= f;
+                }
+                assert_eq!(fl[p], want_f, "line {line}, pixel {p}");
+            }
+        }
     }
 
     #[test]
