@@ -15,11 +15,18 @@
 //! ([`linearity`]).
 //!
 //! [`correct_reading`] is the one definition of a corrected reading: the
-//! device runs it frame by frame ([`correct_line`]), and the host point by
-//! point ([`correct_point_into`]) to reproduce the device's numbers bit for
-//! bit.
+//! device runs it on each frame while the next one's LED settles
+//! ([`by_frame`]), the benchmarks and tools on a whole recorded line
+//! ([`correct_line`]), and the host point by point ([`correct_point_into`])
+//! to reproduce the device's numbers bit for bit.
+//!
+//! Where it lives: this file, the line's frames, the correction and
+//! `acquire_line`; [`by_frame`], the correction as the frames arrive;
+//! [`linearity`], the sensor's linearity correction.
+pub mod by_frame;
 pub mod linearity;
 
+pub use by_frame::{FrameRead, LineCorrection};
 pub use linearity::Linearity;
 
 use crate::protocol::flags;
@@ -298,6 +305,13 @@ impl Default for AcqConfig {
 /// `order[i]` lit; then, for each shorter exposure while a frame still
 /// saturates, a dark frame and that frame again. The LEDs are off when this
 /// returns, error or not.
+///
+/// `on_frame` is told of each frame read once the next LED is switched and
+/// its settling time started, and runs while it settles (the settle is a
+/// deadline set before it, so work shorter than the settle costs the line
+/// nothing): the acquisition task corrects the frame there
+/// ([`LineCorrection`]). The last frame's call comes after the LEDs are off,
+/// before this returns; a frame whose read failed is not told.
 #[cfg(feature = "app")]
 pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M: usize, const P: usize>(
     leds: &mut L,
@@ -305,21 +319,39 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
     order: &[u8; M],
     cfg: &AcqConfig,
     raw: &mut RawLine<M, P>,
+    mut on_frame: impl FnMut(FrameRead, &RawLine<M, P>),
 ) -> Result<(), crate::hw::SensorError> {
     use embassy_time::Timer;
-    let settle = || Timer::after_micros(cfg.settle_us as u64);
+    // The frame read last, not yet told.
+    let mut pending: Option<FrameRead> = None;
+    // Starts the settling time, tells the pending frame, then waits out the rest.
+    macro_rules! settle {
+        () => {{
+            let t = Timer::after_micros(cfg.settle_us as u64);
+            if let Some(f) = pending.take() {
+                on_frame(f, raw);
+            }
+            t.await;
+        }};
+    }
     let fs = sensor.full_scale();
     raw.short_taken = [[false; M]; MAX_SHORT_EXPOSURES];
     leds.set(None, 0).await;
-    settle().await;
+    settle!();
     let mut r = sensor.read_frame(cfg.exposure_us, &mut raw.dark).await;
-    for (&led, lit) in order.iter().zip(raw.lit.iter_mut()) {
+    if r.is_ok() {
+        pending = Some(FrameRead::Dark);
+    }
+    for (i, &led) in order.iter().enumerate() {
         if r.is_err() {
             break;
         }
         leds.set(Some(led), cfg.intensity).await;
-        settle().await;
-        r = sensor.read_frame(cfg.exposure_us, lit).await;
+        settle!();
+        r = sensor.read_frame(cfg.exposure_us, &mut raw.lit[i]).await;
+        if r.is_ok() {
+            pending = Some(FrameRead::Long(i));
+        }
     }
     'ladder: for level in 0..cfg.short_levels() {
         if r.is_err() {
@@ -338,7 +370,7 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
             }
             if !dark_taken {
                 leds.set(None, 0).await;
-                settle().await;
+                settle!();
                 r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
                 dark_taken = true;
                 if r == Err(crate::hw::SensorError::NoData) {
@@ -352,7 +384,7 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
                 }
             }
             leds.set(Some(led), cfg.intensity).await;
-            settle().await;
+            settle!();
             r = sensor.read_frame(exposure, &mut raw.short[level][i]).await;
             if r == Err(crate::hw::SensorError::NoData) {
                 r = Ok(());
@@ -362,9 +394,13 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
                 break;
             }
             raw.short_taken[level][i] = true;
+            pending = Some(FrameRead::Short { level, reading: i });
         }
     }
     leds.set(None, 0).await;
+    if let (Ok(()), Some(f)) = (r, pending) {
+        on_frame(f, raw);
+    }
     r
 }
 

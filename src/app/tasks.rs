@@ -2,7 +2,8 @@
 //! `#[embassy_executor::task]` functions with its concrete types.
 use super::self_test::Check;
 use super::{Job, LineBuf, LineState, OutFrame, Shared};
-use crate::acquire::{acquire_line, correct_line};
+use crate::acquire::by_frame::Target;
+use crate::acquire::{FrameRead, LineCorrection, RawLine, acquire_line};
 use crate::hw::{FrameInput, Leds, LineSensor, MappedFlash};
 use crate::protocol::{
     self, DeviceError, Encoding, FrameReader, MAX_FRAME, MAX_WIRE_BINS, PointIn, PointMetaWire, PointsBlock, PushError,
@@ -102,38 +103,62 @@ where
             shared.passed(Check::Sensor);
         }
     }
+    // Which readings of the line being acquired are corrected (kept here,
+    // not per call: M x P flags).
+    let mut by_frame = LineCorrection::<M, P>::new();
     loop {
         let job = shared.start.wait().await;
         let mut line = 0u32;
         let mut error = None;
         while !shared.stop.load(Ordering::SeqCst) && (job.lines == 0 || line < job.lines) {
-            let order = shared.core.lock(|c| c.borrow().cal.active().map(|a| a.led_order));
-            let Some(order) = order else {
+            let active = shared.core.lock(|c| c.borrow().cal.active().map(|a| (a.led_order, a.info)));
+            let Some((order, cal)) = active else {
                 error = Some(DeviceError::NoCalibration);
                 break;
             };
             // Waits while both buffers are in use: estimation is the pace.
             let buf = lines_out.send().await;
-            if let Err(e) = acquire_line(&mut leds, &mut sensor, &order, &shared.acq, &mut buf.raw).await {
+            let LineBuf { raw, v, flags, .. } = &mut *buf;
+            // Each frame is corrected while the next one's LED settles, by
+            // the calibration the line started with; whatever that leaves
+            // (or all of it, when the calibration changed meanwhile) after
+            // the last frame.
+            let correct =
+                |f: Option<FrameRead>, raw: &RawLine<M, P>, v: &mut _, fl: &mut _, by: &mut LineCorrection<M, P>| {
+                    shared.core.lock(|c| {
+                        let c = c.borrow();
+                        let a = c.cal.active()?;
+                        let mut t = Target {
+                            raw,
+                            white: &a.white,
+                            linearity: a.linearity.as_ref(),
+                            full_scale: shared.full_scale,
+                            cfg: &shared.acq,
+                            v,
+                            fl,
+                        };
+                        match f {
+                            Some(f) if a.info == cal => by.frame(f, &mut t),
+                            Some(_) => {}
+                            None if a.info == cal => by.finish(&mut t),
+                            None => {
+                                // The whole line again, by the calibration now active.
+                                by.frame(FrameRead::Dark, &mut t);
+                                by.finish(&mut t);
+                            }
+                        }
+                        Some(())
+                    })
+                };
+            let acquired = acquire_line(&mut leds, &mut sensor, &order, &shared.acq, raw, |f, raw| {
+                correct(Some(f), raw, &mut *v, &mut *flags, &mut by_frame);
+            })
+            .await;
+            if let Err(e) = acquired {
                 error = Some(DeviceError::Sensor(e));
                 break;
             }
-            let ok = shared.core.lock(|c| match c.borrow().cal.active() {
-                Some(a) => {
-                    correct_line(
-                        &buf.raw,
-                        &a.white,
-                        a.linearity.as_ref(),
-                        shared.full_scale,
-                        &shared.acq,
-                        &mut buf.v,
-                        &mut buf.flags,
-                    );
-                    true
-                }
-                None => false,
-            });
-            if !ok {
+            if correct(None, raw, v, flags, &mut by_frame).is_none() {
                 error = Some(DeviceError::NoCalibration);
                 break;
             }

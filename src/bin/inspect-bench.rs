@@ -10,8 +10,13 @@
 //! calibration, a recipe taught for it, and two lines of raw frames (a
 //! defect-free one, one with a defect). Per line, between calls of
 //! [`bench_mark`]:
-//! - `correct`: `acquire::correct_line` (in the acquisition task, after the
-//!   last LED frame);
+//! - `overlap`, once per frame but the last, in the order the acquisition
+//!   reads them (`RawLine::frames_read`): that frame's correction
+//!   (`acquire::LineCorrection::frame`), which the acquisition task runs
+//!   while the next frame's LED settles, so it is not in the latency; each
+//!   is counted, so the largest can be held against the settling time;
+//! - `correct`: what is left after the last frame: its correction and
+//!   `LineCorrection::finish`;
 //! - `decide`: `Inspector::line` (distance, windows, runs, drift; the
 //!   calibration's out-of-prior question at the points out);
 //! - `frame`: the verdict's frame (postcard, CRC, COBS: `protocol::encode`);
@@ -20,7 +25,8 @@
 #![no_std]
 #![no_main]
 
-use brdf_meter::acquire::{MAX_SHORT_EXPOSURES, RawLine, correct_line};
+use brdf_meter::acquire::by_frame::Target;
+use brdf_meter::acquire::{FrameRead, LineCorrection, MAX_SHORT_EXPOSURES, RawLine};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::{Calibration, ZoneMatrix};
 use brdf_meter::inspect::{Inspector, RecipeView};
@@ -104,8 +110,18 @@ fn main() -> ! {
             let raw = RawLine::<M, P>::from_le_frames(&frames[l * LINE_BYTES..], MAX_SHORT_EXPOSURES);
             let mut v = [SVector::<f32, M>::zeros(); P];
             let mut fl = [0u8; P];
+            let mut by_frame = LineCorrection::<M, P>::new();
+            let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =
+                raw.frames_read(full_scale, acq.short_levels()).collect();
+            let Some((last, before)) = read.split_last() else { fail(b"inspect-bench: a line without frames") };
+            let mut t = Target { raw: &raw, white, linearity, full_scale, cfg: &acq, v: &mut v, fl: &mut fl };
+            for f in before {
+                at(marking, l, b"overlap");
+                by_frame.frame(*f, &mut t);
+            }
             at(marking, l, b"correct");
-            correct_line(&raw, white, linearity, full_scale, &acq, &mut v, &mut fl);
+            by_frame.frame(*last, &mut t);
+            by_frame.finish(&mut t);
             at(marking, l, b"decide");
             let verdict = inspector.line(&recipe, l as u32, &v, &fl, |p| {
                 let mut rho = SVector::<f32, N>::zeros();

@@ -2,7 +2,9 @@
 //! bench firmware (`src/bin/inspect-bench.rs`, run by
 //! `scripts/inspect-bench.sh` with an execution trace) runs, on the board's
 //! shape (P = 128), what the device does between a line's last LED frame and
-//! its verdict (correction, decision, the verdict's frame) and, for the
+//! its verdict (the correction left after that frame, decision, the
+//! verdict's frame; each earlier frame's correction, which runs while the
+//! next frame's LED settles, is counted on its own) and, for the
 //! comparison, the estimation path of every point; the trace is counted
 //! with the kernel bench's counter (instructions exact, Cortex-M4 cycles
 //! from its timing table, zero wait states assumed).
@@ -29,7 +31,12 @@ pub struct LineCost {
     pub frame_bytes: usize,
     /// Per stage: (name, instructions, cycles).
     pub stages: Vec<(String, f64, f64)>,
-    /// Correction + decision + frame, cycles.
+    /// Frames corrected while the next one settles (all but the last).
+    pub overlapped_frames: usize,
+    /// The largest of those frames' corrections, cycles: what must fit in
+    /// the settling time for the overlap to cost the line nothing.
+    pub overlapped_max_cycles: f64,
+    /// Correction left after the last frame + decision + frame, cycles.
     pub latency_cycles: f64,
     /// The same in us at 80 MHz.
     pub latency_us: f64,
@@ -105,10 +112,13 @@ pub fn run(root: &Path, zones: usize, progress: &dyn Fn(&str)) -> anyhow::Result
             .collect();
         let cyc = |n: &str| stages.iter().filter(|s| s.0 == n).map(|s| s.2).sum::<f64>();
         let latency = cyc("correct") + cyc("decide") + cyc("frame");
+        let overlapped: Vec<f64> = stages.iter().filter(|s| s.0 == "overlap").map(|s| s.2).collect();
         out.push(LineCost {
             line: names[k].into(),
             rejected,
             frame_bytes: bytes,
+            overlapped_frames: overlapped.len(),
+            overlapped_max_cycles: overlapped.iter().copied().fold(0.0, f64::max),
             latency_cycles: latency,
             latency_us: latency / SYSCLK_HZ as f64 * 1e6,
             decision_share: cyc("decide") / cyc("estimate"),
