@@ -184,7 +184,7 @@ impl<const M: usize, const P: usize> RawLine<M, P> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::correct_line;
+    use super::super::{correct_line, test_lines};
     use super::*;
 
     #[test]
@@ -192,34 +192,11 @@ mod tests {
         const M: usize = 4;
         const P: usize = 48;
         let fs = 4095u16;
-        let lin = Linearity::new(core::array::from_fn(|k| 1.0 + 0.004 * (16 - k) as f32)).unwrap();
-        let cfg = AcqConfig { exposure_us: 800, short_exposures_us: [50, 10], ..AcqConfig::default() };
-        let mut seed = 0x9e37_79b9u32;
-        let mut next = |n: u32| {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed % n
-        };
+        let (lin, cfg) = (test_lines::linearity(), test_lines::config());
+        let mut rng = test_lines::Xorshift(0x9e37_79b9);
         for line in 0..12 {
-            let mut raw = RawLine::<M, P>::new();
-            for p in 0..P {
-                raw.dark[p] = if next(40) == 0 { fs } else { 40 + next(30) as u16 };
-                for l in 0..MAX_SHORT_EXPOSURES {
-                    raw.short_dark[l][p] = 40 + next(30) as u16;
-                }
-                for i in 0..M {
-                    // Reading 3 never saturates: its shorter frames are not taken.
-                    raw.lit[i][p] = match (i, next(3)) {
-                        (3, _) => 30 + next(3000) as u16,
-                        (_, 0) => fs,
-                        _ => 30 + next(4066) as u16,
-                    };
-                    for l in 0..MAX_SHORT_EXPOSURES {
-                        raw.short[l][i][p] = if next(3) == 0 { fs } else { 45 + next(4050) as u16 };
-                    }
-                }
-            }
+            // Reading 3 never saturates: its shorter frames are not taken.
+            let mut raw = test_lines::random_line::<M, P>(&mut rng, fs, Some(3));
             // What the acquisition takes: a shorter frame of a reading whose
             // longer one saturated, except where the sensor had none to give
             // (reading 1 at the shortest exposure on odd lines).

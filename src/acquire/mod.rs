@@ -404,6 +404,66 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
     r
 }
 
+/// Lines of random frames with every case a reading meets, for the
+/// correction's tests.
+#[cfg(test)]
+pub(crate) mod test_lines {
+    use super::*;
+
+    /// A small deterministic generator (xorshift32).
+    pub struct Xorshift(pub u32);
+
+    impl Xorshift {
+        /// A value in `0..n`.
+        pub fn below(&mut self, n: u32) -> u32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 17;
+            self.0 ^= self.0 << 5;
+            self.0 % n
+        }
+    }
+
+    /// A linearity correction that bends every octave.
+    pub fn linearity() -> Linearity {
+        Linearity::new(core::array::from_fn(|k| 1.0 + 0.004 * (16 - k) as f32)).unwrap()
+    }
+
+    /// Two shorter exposures, 16 and 80 times shorter.
+    pub fn config() -> AcqConfig {
+        AcqConfig { exposure_us: 800, short_exposures_us: [50, 10], ..AcqConfig::default() }
+    }
+
+    /// A line of random frames at full scale `fs`: some dark values
+    /// saturated, a quarter of the readings under-exposed and a quarter
+    /// saturated (none of reading `calm`), a third of the shorter frames'
+    /// values saturated; no shorter frame marked taken.
+    pub fn random_line<const M: usize, const P: usize>(
+        rng: &mut Xorshift,
+        fs: u16,
+        calm: Option<usize>,
+    ) -> RawLine<M, P> {
+        let mut raw = RawLine::<M, P>::new();
+        for p in 0..P {
+            raw.dark[p] = if rng.below(50) == 0 { fs } else { 40 + rng.below(30) as u16 };
+            for l in 0..MAX_SHORT_EXPOSURES {
+                raw.short_dark[l][p] = 40 + rng.below(30) as u16;
+            }
+            for i in 0..M {
+                raw.lit[i][p] = match rng.below(4) {
+                    _ if calm == Some(i) => 50 + rng.below(3000) as u16,
+                    0 => 30 + rng.below(20) as u16,
+                    1 => fs,
+                    _ => 50 + rng.below(4046) as u16,
+                };
+                for l in 0..MAX_SHORT_EXPOSURES {
+                    raw.short[l][i][p] = if rng.below(3) == 0 { fs } else { 45 + rng.below(4050) as u16 };
+                }
+            }
+        }
+        raw
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -528,33 +588,10 @@ mod tests {
         const M: usize = 4;
         const P: usize = 64;
         let fs = 4095u16;
-        let lin = Linearity::new(core::array::from_fn(|k| 1.0 + 0.004 * (16 - k) as f32)).unwrap();
-        let cfg = AcqConfig { exposure_us: 800, short_exposures_us: [50, 10], ..AcqConfig::default() };
-        let mut seed = 0x2545_f491u32;
-        let mut next = |n: u32| {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed % n
-        };
+        let (lin, cfg) = (test_lines::linearity(), test_lines::config());
+        let mut rng = test_lines::Xorshift(0x2545_f491);
         for line in 0..8 {
-            let mut raw = RawLine::<M, P>::new();
-            for p in 0..P {
-                raw.dark[p] = if next(50) == 0 { fs } else { 40 + next(30) as u16 };
-                for l in 0..MAX_SHORT_EXPOSURES {
-                    raw.short_dark[l][p] = 40 + next(30) as u16;
-                }
-                for i in 0..M {
-                    raw.lit[i][p] = match next(4) {
-                        0 => 30 + next(20) as u16,
-                        1 => fs,
-                        _ => 50 + next(4046) as u16,
-                    };
-                    for l in 0..MAX_SHORT_EXPOSURES {
-                        raw.short[l][i][p] = if next(3) == 0 { fs } else { 45 + next(4050) as u16 };
-                    }
-                }
-            }
+            let mut raw = test_lines::random_line::<M, P>(&mut rng, fs, None);
             for i in 0..M {
                 raw.short_taken[0][i] = line % 2 == 0 || i % 2 == 0;
                 raw.short_taken[1][i] = raw.short_taken[0][i] && i != 1;
