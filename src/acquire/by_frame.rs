@@ -16,9 +16,9 @@
 //! it on lines with every case). The acquisition (`acquire_line`) tells
 //! which frame it has just read ([`FrameRead`]) and runs the correction
 //! before it waits for the next frame's LED to settle.
+use super::{AcqConfig, Exposures, Linearity, MAX_SHORT_EXPOSURES, RawLine, dark_flags};
 #[cfg(doc)]
-use super::correct_line;
-use super::{AcqConfig, Linearity, MAX_SHORT_EXPOSURES, RawLine, correct_reading, dark_flags};
+use super::{correct_line, correct_reading};
 use nalgebra::SVector;
 
 /// A frame of a line just read.
@@ -81,7 +81,7 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
     /// starts a line: every reading pending, each pixel's flags its dark
     /// value's.
     pub fn frame(&mut self, f: FrameRead, t: &mut Target<'_, M, P>) {
-        let k = Exposures::of(t);
+        let k = Exposures::new(t.linearity, t.cfg);
         match f {
             FrameRead::Dark => {
                 self.done = [[false; P]; M];
@@ -98,7 +98,7 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
                 }
             }
             FrameRead::Short { level, reading: i } if i < M && level < MAX_SHORT_EXPOSURES => {
-                let last = level + 1 >= k.levels;
+                let last = level + 1 >= k.levels();
                 for p in 0..P {
                     if !self.done[i][p] && (last || t.raw.short[level][i][p] < t.full_scale) {
                         self.correct(i, p, t, &k);
@@ -115,7 +115,7 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
         if self.pending == 0 {
             return;
         }
-        let k = Exposures::of(t);
+        let k = Exposures::new(t.linearity, t.cfg);
         for i in 0..M {
             for p in 0..P {
                 if !self.done[i][p] {
@@ -127,34 +127,12 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
 
     #[inline(always)]
     fn correct(&mut self, i: usize, p: usize, t: &mut Target<'_, M, P>, k: &Exposures<'_>) {
-        let raw = t.raw;
-        let (x, f) = correct_reading(raw.dark[p], raw.lit[i][p], t.white[p][i], t.full_scale, k.lin, k.levels, |l| {
-            raw.short_taken[l][i].then(|| (raw.short[l][i][p], raw.short_dark[l][p], k.ratios[l]))
-        });
+        let (x, f) = k.reading(t.raw, i, p, t.white[p][i], t.full_scale);
         t.v[p][i] = x;
         t.fl[p] |= f;
         if !self.done[i][p] {
             self.done[i][p] = true;
             self.pending -= 1;
-        }
-    }
-}
-
-/// What every reading of a frame is corrected with, worked out once a frame
-/// ([`correct_line`]'s own, once a line: the same bits).
-struct Exposures<'a> {
-    lin: &'a Linearity,
-    levels: usize,
-    ratios: [f32; MAX_SHORT_EXPOSURES],
-}
-
-impl<'a> Exposures<'a> {
-    fn of<const M: usize, const P: usize>(t: &Target<'a, M, P>) -> Self {
-        let levels = t.cfg.short_levels();
-        Self {
-            lin: t.linearity.unwrap_or(&Linearity::IDENTITY),
-            levels,
-            ratios: core::array::from_fn(|l| if l < levels { t.cfg.ratio(l) } else { 0.0 }),
         }
     }
 }

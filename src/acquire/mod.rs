@@ -242,22 +242,56 @@ pub fn correct_line<const M: usize, const P: usize>(
     v: &mut [SVector<f32, M>; P],
     fl: &mut [u8; P],
 ) {
-    let lin = linearity.unwrap_or(&Linearity::IDENTITY);
-    let levels = cfg.short_levels();
-    // Once a line, not once a reading: the same division, the same bits.
-    let ratios: [f32; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| if l < levels { cfg.ratio(l) } else { 0.0 });
+    let k = Exposures::new(linearity, cfg);
     for (f, d) in fl.iter_mut().zip(&raw.dark) {
         *f = dark_flags(*d, full_scale);
     }
     for i in 0..M {
-        let taken: [bool; MAX_SHORT_EXPOSURES] = core::array::from_fn(|l| raw.short_taken[l][i]);
         for p in 0..P {
-            let (x, f) = correct_reading(raw.dark[p], raw.lit[i][p], white[p][i], full_scale, lin, levels, |l| {
-                taken[l].then(|| (raw.short[l][i][p], raw.short_dark[l][p], ratios[l]))
-            });
+            let (x, f) = k.reading(raw, i, p, white[p][i], full_scale);
             v[p][i] = x;
             fl[p] |= f;
         }
+    }
+}
+
+/// What a line's readings are corrected with, worked out once (a line, or
+/// a frame), not once a reading: the linearity (the identity's without
+/// one), the shorter exposures configured and their ratios.
+pub(crate) struct Exposures<'a> {
+    lin: &'a Linearity,
+    levels: usize,
+    ratios: [f32; MAX_SHORT_EXPOSURES],
+}
+
+impl<'a> Exposures<'a> {
+    pub(crate) fn new(linearity: Option<&'a Linearity>, cfg: &AcqConfig) -> Self {
+        let levels = cfg.short_levels();
+        Self {
+            lin: linearity.unwrap_or(&Linearity::IDENTITY),
+            levels,
+            ratios: core::array::from_fn(|l| if l < levels { cfg.ratio(l) } else { 0.0 }),
+        }
+    }
+
+    /// How many shorter exposures are configured.
+    pub(crate) fn levels(&self) -> usize {
+        self.levels
+    }
+
+    /// Reading `i` of pixel `p` of `raw`, [`correct_reading`]'s.
+    #[inline(always)]
+    pub(crate) fn reading<const M: usize, const P: usize>(
+        &self,
+        raw: &RawLine<M, P>,
+        i: usize,
+        p: usize,
+        white: f32,
+        full_scale: u16,
+    ) -> (f32, u8) {
+        correct_reading(raw.dark[p], raw.lit[i][p], white, full_scale, self.lin, self.levels, |l| {
+            raw.short_taken[l][i].then(|| (raw.short[l][i][p], raw.short_dark[l][p], self.ratios[l]))
+        })
     }
 }
 
