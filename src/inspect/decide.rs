@@ -50,7 +50,7 @@
 //! Any defect rejects the line. The drift statistic is the EWMA of each
 //! line's weighted mean gloss change over its pixels that are not out,
 //! with an alarm while `|EWMA|` exceeds the recipe's limit.
-use super::recipe::RecipeView;
+use super::recipe::{RecipeSettings, RecipeView, pixel_len};
 use crate::protocol::flags;
 use crate::shape::READINGS;
 use nalgebra::SVector;
@@ -359,14 +359,41 @@ pub fn load_group(r: &RecipeView<'_>, g: usize, out: &mut [f32; MAX_GROUP_VALUES
     }
 }
 
+/// Group `g`'s values: in place when the recipe is aligned (always on the
+/// device), else decoded into `room`.
+#[inline]
+fn group_values<'a>(r: &RecipeView<'a>, g: usize, room: &'a mut [f32; MAX_GROUP_VALUES]) -> &'a [f32] {
+    match r.group_words(g) {
+        Some(w) => w,
+        None => {
+            read_f32s(r.group_bytes(g), room);
+            &room[..super::recipe::group_len(r.leds())]
+        }
+    }
+}
+
+/// A pixel's values read in place: its reference mean, inverse standard
+/// deviations and drift weight (`None` if `w` is shorter than a pixel).
+#[inline(always)]
+fn split_pixel<const M: usize>(w: &[f32]) -> Option<(&[f32; M], &[f32; M], f32)> {
+    let (mean, rest) = w.split_first_chunk::<M>()?;
+    let (inv_sd, rest) = rest.split_first_chunk::<M>()?;
+    Some((mean, inv_sd, *rest.first()?))
+}
+
 /// The line's scale `k` (see the module docs): 1 over the median of the
 /// pixels' ratios of their readings' sum to their reference's (pixels
 /// whose ratio is not finite left out; NaN when none is). `ratios` is
 /// scratch room, at least one value per pixel.
 pub fn line_scale<const M: usize>(r: &RecipeView<'_>, v: &[SVector<f32, M>], ratios: &mut [f32]) -> f32 {
+    let table = r.pixel_table();
     let mut n = 0;
     for (p, vp) in v.iter().enumerate().take(ratios.len()) {
-        let x = vp.iter().sum::<f32>() * inverse_reference_sum::<M>(r, p);
+        let inverse_sum = match table {
+            Some(t) => t[p * pixel_len(M) + 2 * M - 1],
+            None => inverse_reference_sum::<M>(r, p),
+        };
+        let x = vp.iter().sum::<f32>() * inverse_sum;
         if x.is_finite() {
             ratios[n] = x;
             n += 1;
@@ -412,17 +439,25 @@ fn select(x: &mut [f32], k: usize) -> f32 {
 }
 
 /// The per-point statistics of a point with readings `v`, its pixel's
-/// reference `px` and its group's values `group`, at the line's `scale`
-/// (see the module docs). Not inlined: one symbol for the decision's
-/// per-point cost in QEMU.
+/// reference `mean` and inverse standard deviations `inv_sd` and its
+/// group's values `group`, at the line's `scale` (see the module docs).
+/// Not inlined: one symbol for the decision's per-point cost in QEMU.
 #[inline(never)]
-pub fn point_stat<const M: usize>(px: &PixelRef<M>, group: &[f32], v: &[f32; M], scale: f32) -> PointStat {
+pub fn point_stat<const M: usize>(
+    mean: &[f32; M],
+    inv_sd: &[f32; M],
+    group: &[f32],
+    v: &[f32; M],
+    scale: f32,
+) -> PointStat {
     const { assert!(M >= 2 && super::recipe::group_len(M) <= MAX_GROUP_VALUES) };
+    // One length check here, none per value below.
+    let group = &group[..super::recipe::group_len(M)];
     let mut dv = [0.0f32; M];
     let mut z = [0.0f32; M];
     for i in 0..M {
-        dv[i] = v[i] * scale - px.mean[i];
-        z[i] = dv[i] * px.inv_sd[i];
+        dv[i] = v[i] * scale - mean[i];
+        z[i] = dv[i] * inv_sd[i];
     }
     // A scale that is not a positive number leaves d2 NaN: unreadable.
     let mut d2 = if scale > 0.0 && scale.is_finite() { 0.0f32 } else { f32::NAN };
@@ -453,35 +488,76 @@ pub fn point_stat<const M: usize>(px: &PixelRef<M>, group: &[f32], v: &[f32; M],
 pub fn point_stat_at<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M], scale: f32) -> PointStat {
     let mut group = [0.0f32; MAX_GROUP_VALUES];
     load_group(r, g, &mut group);
-    point_stat(&PixelRef::of(r, p), &group, v, scale)
+    let px = PixelRef::of(r, p);
+    point_stat(&px.mean, &px.inv_sd, &group, v, scale)
 }
+
+/// The reading flags that make a point unreadable.
+const UNREADABLE: u8 = flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE;
 
 /// The kind of a point from its statistics, before the out-of-prior
 /// question; `was_out` selects the leaving thresholds (hysteresis).
 pub fn classify(r: &RecipeView<'_>, stat: &PointStat, reading_flags: u8, was_out: bool) -> Option<DefectKind> {
-    const UNREADABLE: u8 = flags::SATURATED | flags::UNDER_EXPOSED | flags::NON_FINITE;
-    let s = r.settings();
-    if reading_flags & UNREADABLE != 0 || !stat.d2.is_finite() {
-        return Some(DefectKind::Unreadable);
+    Limits::of(r.settings(), was_out).kind(stat, reading_flags)
+}
+
+/// The thresholds a point is judged by: the entering ones, or the leaving
+/// ones (the windows times `window_hysteresis`, the distance's
+/// `threshold_off`). Worked out once per line, not per point.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    windows: [[f32; 2]; READINGS],
+    d2: f32,
+}
+
+impl Limits {
+    /// The leaving thresholds if `leaving`, else the entering ones.
+    pub fn of(s: &RecipeSettings, leaving: bool) -> Self {
+        let f = if leaving { s.window_hysteresis } else { 1.0 };
+        Self {
+            windows: s.windows.map(|[lo, hi]| [lo * f, hi * f]),
+            d2: if leaving { s.threshold_off } else { s.threshold_on },
+        }
     }
-    let f = if was_out { s.window_hysteresis } else { 1.0 };
-    let [glo, ghi] = s.windows[crate::gloss::SPECULAR_GU];
-    let d = stat.delta;
-    if d[crate::gloss::SPECULAR_GU] < glo * f {
-        return Some(DefectKind::GlossLow);
+
+    /// Whether a point's statistics are within every threshold (NaN is
+    /// not). At the leaving thresholds, which are no wider than the
+    /// entering ones (`check_settings`), a readable point within them is
+    /// out at neither: the decision's one test for most points.
+    #[inline]
+    pub fn within(&self, stat: &PointStat) -> bool {
+        // `&`, not `&&`: every comparison, no branch per reading.
+        let mut within = stat.d2 <= self.d2;
+        for (d, [lo, hi]) in stat.delta.iter().zip(&self.windows) {
+            within &= (d >= lo) & (d <= hi);
+        }
+        within
     }
-    if d[crate::gloss::SPECULAR_GU] > ghi * f {
-        return Some(DefectKind::GlossHigh);
+
+    /// The kind of a point with these thresholds (the first that holds, in
+    /// the order of the module docs).
+    #[inline]
+    pub fn kind(&self, stat: &PointStat, reading_flags: u8) -> Option<DefectKind> {
+        use crate::gloss::{DISTINCTNESS, HAZE_HU, SPECULAR_GU};
+        if reading_flags & UNREADABLE != 0 || !stat.d2.is_finite() {
+            return Some(DefectKind::Unreadable);
+        }
+        let (d, w) = (&stat.delta, &self.windows);
+        if d[SPECULAR_GU] < w[SPECULAR_GU][0] {
+            return Some(DefectKind::GlossLow);
+        }
+        if d[SPECULAR_GU] > w[SPECULAR_GU][1] {
+            return Some(DefectKind::GlossHigh);
+        }
+        let outside = |i: usize| d[i] < w[i][0] || d[i] > w[i][1];
+        if outside(HAZE_HU) {
+            return Some(DefectKind::Haze);
+        }
+        if outside(DISTINCTNESS) {
+            return Some(DefectKind::Distinctness);
+        }
+        (stat.d2 > self.d2).then_some(DefectKind::OutOfDistribution)
     }
-    let outside = |i: usize| d[i] < s.windows[i][0] * f || d[i] > s.windows[i][1] * f;
-    if outside(crate::gloss::HAZE_HU) {
-        return Some(DefectKind::Haze);
-    }
-    if outside(crate::gloss::DISTINCTNESS) {
-        return Some(DefectKind::Distinctness);
-    }
-    let t = if was_out { s.threshold_off } else { s.threshold_on };
-    (stat.d2 > t).then_some(DefectKind::OutOfDistribution)
 }
 
 /// The decision's state across lines for a sensor of P pixels.
@@ -545,10 +621,14 @@ impl<const P: usize> Inspector<P> {
     ) -> Verdict {
         debug_assert!(r.pixels() == P && r.leds() == M && v.len() == P && reading_flags.len() == P);
         let s = *r.settings();
+        let (entering, leaving) = (Limits::of(&s, false), Limits::of(&s, true));
         let (mut g, mut next_group) = (0usize, if r.groups() > 1 { r.group_start(1) } else { P });
-        let mut group = [0.0f32; MAX_GROUP_VALUES];
-        load_group(r, 0, &mut group);
-        let mut px = PixelRef::<M>::new();
+        let mut room = [0.0f32; MAX_GROUP_VALUES];
+        let mut group = group_values(r, 0, &mut room);
+        // The pixels' references are read in place when the recipe is
+        // aligned (always on the device); else decoded pixel by pixel.
+        let table = r.pixel_table();
+        let mut decoded = PixelRef::<M>::new();
         let (mut wsum, mut wdelta) = (0.0f32, 0.0f32);
         let mut max_d2 = 0.0f32;
         let scale = line_scale(r, v, &mut [0.0f32; P]);
@@ -556,16 +636,28 @@ impl<const P: usize> Inspector<P> {
             if p == next_group {
                 g += 1;
                 next_group = if g + 1 < r.groups() { r.group_start(g + 1) } else { P };
-                load_group(r, g, &mut group);
+                group = group_values(r, g, &mut room);
             }
-            px.load(r, p);
-            let stat = point_stat(&px, &group, &v[p].data.0[0], scale);
+            let (mean, inv_sd, weight) = match table.and_then(|t| split_pixel::<M>(&t[p * pixel_len(M)..])) {
+                Some(x) => x,
+                None => {
+                    decoded.load(r, p);
+                    (&decoded.mean, &decoded.inv_sd, decoded.weight)
+                }
+            };
+            let stat = point_stat(mean, inv_sd, group, &v[p].data.0[0], scale);
             let was_out = self.out[p].is_some();
-            let kind = classify(r, &stat, reading_flags[p], was_out);
-            // The leaving thresholds are looser: out at the entering ones
-            // (or already judged at the leaving ones) is out at them too.
-            let held = kind.is_some()
-                || (s.along_line_hysteresis && !was_out && classify(r, &stat, reading_flags[p], true).is_some());
+            let (kind, held) = if reading_flags[p] & UNREADABLE == 0 && leaving.within(&stat) {
+                // Out at neither thresholds (see `Limits::within`).
+                (None, false)
+            } else {
+                let kind = if was_out { &leaving } else { &entering }.kind(&stat, reading_flags[p]);
+                // The leaving thresholds are looser: out at the entering ones
+                // (or already judged at the leaving ones) is out at them too.
+                let held = kind.is_some()
+                    || (s.along_line_hysteresis && !was_out && leaving.kind(&stat, reading_flags[p]).is_some());
+                (kind, held)
+            };
             self.out[p] = kind;
             self.held[p] = held;
             self.age[p] = if held { self.age[p].saturating_add(1) } else { 0 };
@@ -574,7 +666,7 @@ impl<const P: usize> Inspector<P> {
                 max_d2 = stat.d2;
             }
             if kind.is_none() {
-                let w = px.weight;
+                let w = weight;
                 wsum += w;
                 wdelta += w * stat.delta[crate::gloss::SPECULAR_GU];
             }
@@ -647,7 +739,7 @@ impl<const P: usize> Inspector<P> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::recipe::{RecipeData, RecipeSettings, group_len, write};
+    use super::super::recipe::{RecipeData, RecipeSettings, check_settings, group_len, write};
     use super::*;
 
     const M: usize = 3;
@@ -723,6 +815,71 @@ mod tests {
         let s = point_stat_at(&r, 0, 3, &[1.3, 0.9, 0.8], 1.0);
         assert!((s.d2 - (9.0 + 1.0)).abs() < 1e-4, "{}", s.d2);
         assert!((s.delta[0] - 3.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_point_within_the_leaving_thresholds_is_out_at_neither() {
+        // The decision's fast test (`Limits::within`) stands for both
+        // classifications; it holds for any settings the recipe allows.
+        let mut x = 0x9E37_79B9u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x as f32 / u32::MAX as f32
+        };
+        let edges = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        let mut within = 0;
+        for case in 0..20_000 {
+            let mut s = super::super::recipe::tests::settings();
+            s.threshold_on = 1.0 + 40.0 * next();
+            s.threshold_off = s.threshold_on * (0.05 + 0.95 * next());
+            s.window_hysteresis = 0.05 + 0.95 * next();
+            for w in s.windows.iter_mut() {
+                *w = if next() < 0.2 { [f32::NEG_INFINITY, f32::INFINITY] } else { [-3.0 * next(), 3.0 * next()] };
+                if w[0] == w[1] {
+                    w[1] = 1.0;
+                }
+            }
+            check_settings(&s).unwrap();
+            let (entering, leaving) = (Limits::of(&s, false), Limits::of(&s, true));
+            let mut value = |scale: f32| if next() < 0.05 { edges[case % edges.len()] } else { scale * (next() - 0.5) };
+            let stat = PointStat { d2: value(8.0).abs(), delta: [value(4.0), value(4.0), value(4.0)] };
+            // On a threshold exactly, now and then.
+            let stat = if case % 7 == 0 { PointStat { d2: s.threshold_off, ..stat } } else { stat };
+            // (Not within is no claim: a NaN change is neither, and the
+            // decision then asks `kind`, as it always did.)
+            if leaving.within(&stat) {
+                within += 1;
+                assert_eq!((entering.kind(&stat, 0), leaving.kind(&stat, 0)), (None, None), "{stat:?} {s:?}");
+            }
+        }
+        assert!(within > 2_000 && within < 18_000, "{within}");
+    }
+
+    #[test]
+    fn a_recipe_read_in_place_decides_as_one_decoded() {
+        // On the device the recipe is aligned and read in place; a host's
+        // byte slice may not be, and is decoded value by value.
+        let bytes = recipe(2, 1);
+        let mut shifted = vec![0u8; bytes.len() + 1];
+        shifted[1..].copy_from_slice(&bytes);
+        let (aligned, unaligned) = (RecipeView::parse(&bytes).unwrap(), RecipeView::parse(&shifted[1..]).unwrap());
+        assert!(aligned.pixel_table().is_some() != unaligned.pixel_table().is_some());
+        let (mut a, mut b) = (Inspector::<P>::new(), Inspector::<P>::new());
+        let lines = [
+            line(&[]),
+            line(&[(2, [1.6, 1.0, 1.0]), (3, [1.5, 1.0, 1.0]), (4, [1.3, 1.0, 1.0])]),
+            line(&[(3, [1.25, 1.0, 1.0]), (5, [0.7, 1.2, 1.0])]),
+            line(&[(0, [f32::NAN, 1.0, 1.0]), (6, [1.0, 1.9, 0.2]), (7, [1.0, 1.9, 0.2])]),
+        ];
+        for (k, v) in lines.iter().enumerate() {
+            let flags = [0u8; P];
+            let (va, vb) =
+                (a.line(&aligned, k as u32, v, &flags, |_| false), b.line(&unaligned, k as u32, v, &flags, |_| false));
+            assert_eq!(format!("{va:?}"), format!("{vb:?}"));
+        }
+        assert!(a.counters().defects > 0);
     }
 
     #[test]

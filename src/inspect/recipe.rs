@@ -283,6 +283,14 @@ impl<'a> RecipeView<'a> {
         let at = (self.pixel_data - self.group_data) / 4 + p * pixel_len(self.m);
         self.words.map(|w| &w[at..at + pixel_len(self.m)])
     }
+    /// Every pixel's values as f32, pixel after pixel ([`pixel_len`]
+    /// each), when the recipe is 4-byte aligned: what the decision's loop
+    /// walks, with no per-pixel lookup.
+    #[inline]
+    pub fn pixel_table(&self) -> Option<&'a [f32]> {
+        let at = (self.pixel_data - self.group_data) / 4;
+        self.words.map(|w| &w[at..at + self.pixels * pixel_len(self.m)])
+    }
     /// Group `g`'s values (whitening, then gradient), little-endian f32.
     pub fn group_bytes(&self, g: usize) -> &'a [u8] {
         let at = self.group_data + 4 * g * group_len(self.m);
