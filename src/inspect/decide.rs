@@ -441,9 +441,30 @@ fn select(x: &mut [f32], k: usize) -> f32 {
 /// The per-point statistics of a point with readings `v`, its pixel's
 /// reference `mean` and inverse standard deviations `inv_sd` and its
 /// group's values `group`, at the line's `scale` (see the module docs).
-/// Not inlined: one symbol for the decision's per-point cost in QEMU.
-#[inline(never)]
+/// Only the first `readings` changes are worked out, the rest left 0 (the
+/// decision skips those whose windows are off: [`Limits::readings`]).
 pub fn point_stat<const M: usize>(
+    mean: &[f32; M],
+    inv_sd: &[f32; M],
+    group: &[f32],
+    v: &[f32; M],
+    scale: f32,
+    readings: usize,
+) -> PointStat {
+    // One copy per count, each unrolled whole: with the count known only
+    // at run time the compiler keeps the differences in memory, which
+    // costs what skipping the rows saves.
+    match readings {
+        1 => point_stat_of::<M, 1>(mean, inv_sd, group, v, scale),
+        2 => point_stat_of::<M, 2>(mean, inv_sd, group, v, scale),
+        _ => point_stat_of::<M, READINGS>(mean, inv_sd, group, v, scale),
+    }
+}
+
+/// [`point_stat`] of the first `R` readings. Not inlined: one symbol for
+/// the decision's per-point cost in QEMU.
+#[inline(never)]
+fn point_stat_of<const M: usize, const R: usize>(
     mean: &[f32; M],
     inv_sd: &[f32; M],
     group: &[f32],
@@ -471,7 +492,7 @@ pub fn point_stat<const M: usize>(
         d2 += y * y;
     }
     let mut delta = [0.0f32; READINGS];
-    for d in delta.iter_mut() {
+    for d in delta.iter_mut().take(R) {
         let mut acc = 0.0f32;
         for dvi in &dv {
             acc += group[k] * *dvi;
@@ -489,7 +510,7 @@ pub fn point_stat_at<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: 
     let mut group = [0.0f32; MAX_GROUP_VALUES];
     load_group(r, g, &mut group);
     let px = PixelRef::of(r, p);
-    point_stat(&px.mean, &px.inv_sd, &group, v, scale)
+    point_stat(&px.mean, &px.inv_sd, &group, v, scale, READINGS)
 }
 
 /// The reading flags that make a point unreadable.
@@ -518,6 +539,15 @@ impl Limits {
             windows: s.windows.map(|[lo, hi]| [lo * f, hi * f]),
             d2: if leaving { s.threshold_off } else { s.threshold_on },
         }
+    }
+
+    /// How many of the gloss readings' changes these thresholds judge:
+    /// up to the last with a window (a window that is off, -inf to +inf,
+    /// never puts a point out, whatever the change, NaN included), and
+    /// at least the gloss, which the drift mean takes.
+    pub fn readings(&self) -> usize {
+        let on = |w: &[f32; 2]| w[0] != f32::NEG_INFINITY || w[1] != f32::INFINITY;
+        self.windows.iter().rposition(on).map_or(1, |i| i + 1).max(1)
     }
 
     /// Whether a point's statistics are within every threshold (NaN is
@@ -622,6 +652,7 @@ impl<const P: usize> Inspector<P> {
         debug_assert!(r.pixels() == P && r.leds() == M && v.len() == P && reading_flags.len() == P);
         let s = *r.settings();
         let (entering, leaving) = (Limits::of(&s, false), Limits::of(&s, true));
+        let readings = entering.readings();
         let (mut g, mut next_group) = (0usize, if r.groups() > 1 { r.group_start(1) } else { P });
         let mut room = [0.0f32; MAX_GROUP_VALUES];
         let mut group = group_values(r, 0, &mut room);
@@ -645,7 +676,7 @@ impl<const P: usize> Inspector<P> {
                     (&decoded.mean, &decoded.inv_sd, decoded.weight)
                 }
             };
-            let stat = point_stat(mean, inv_sd, group, &v[p].data.0[0], scale);
+            let stat = point_stat(mean, inv_sd, group, &v[p].data.0[0], scale, readings);
             let was_out = self.out[p].is_some();
             let (kind, held) = if reading_flags[p] & UNREADABLE == 0 && leaving.within(&stat) {
                 // Out at neither thresholds (see `Limits::within`).
@@ -855,6 +886,43 @@ mod tests {
             }
         }
         assert!(within > 2_000 && within < 18_000, "{within}");
+    }
+
+    #[test]
+    fn only_the_readings_with_a_window_are_worked_out() {
+        let off = [f32::NEG_INFINITY, f32::INFINITY];
+        let mut s = super::super::recipe::tests::settings();
+        for (windows, readings) in [
+            ([off, off, off], 1),
+            ([[-2.0, 2.0], off, off], 1),
+            ([off, [-1.0, f32::INFINITY], off], 2),
+            ([[-2.0, 2.0], off, [f32::NEG_INFINITY, 3.0]], 3),
+        ] {
+            s.windows = windows;
+            for leaving in [false, true] {
+                assert_eq!(Limits::of(&s, leaving).readings(), readings, "{windows:?}");
+            }
+        }
+        // The changes worked out are those of all three, bit for bit; the
+        // rest are 0.
+        let bytes = recipe(1, 1);
+        let r = RecipeView::parse(&bytes).unwrap();
+        let px = PixelRef::<M>::of(&r, 3);
+        let mut group = [0.0f32; MAX_GROUP_VALUES];
+        load_group(&r, 0, &mut group);
+        for (k, g) in group.iter_mut().take(group_len(M)).enumerate() {
+            *g += 0.37 * k as f32 - 1.1;
+        }
+        let v = [1.3, 0.9, 0.8];
+        let all = point_stat(&px.mean, &px.inv_sd, &group, &v, 1.07, READINGS);
+        assert!(all.delta.iter().all(|d| *d != 0.0), "{all:?}");
+        for readings in 1..=READINGS {
+            let some = point_stat(&px.mean, &px.inv_sd, &group, &v, 1.07, readings);
+            assert_eq!(some.d2.to_bits(), all.d2.to_bits());
+            for (i, (a, b)) in some.delta.iter().zip(&all.delta).enumerate() {
+                assert_eq!(a.to_bits(), if i < readings { b.to_bits() } else { 0 }, "{readings}: {i}");
+            }
+        }
     }
 
     #[test]
