@@ -18,11 +18,16 @@
 //!   by them and the scale), `y = L^-1 z`, the squared distance
 //!   `d2 = |y|^2` (Mahalanobis distance to the reference's distribution);
 //! - the change of each gloss reading, to first order, `delta = J (f - mu)`
-//!   (gloss GU, haze HU, distinctness %, at the reference's line scale).
+//!   (gloss GU, haze HU, distinctness %, at the reference's line scale),
+//!   of the readings up to the last with a window (a window that is off
+//!   puts no point out; the gloss always, for the drift).
 //!
-//! (m-1)m/2 + R m + m multiply-adds (the scale's sums: 2 m adds): 49 for
-//! m = 7, against the estimation's 567 plus its gloss readings; the BRDF
-//! is never needed.
+//! (m-1)m/2 + R m + m multiply-adds (the scale's sums: 2 m adds), R the
+//! readings worked out: 35 for m = 7 with a gloss window only, 49 with all
+//! three, against the estimation's 567 plus its gloss readings; the BRDF
+//! is never needed. A point within the leaving thresholds is out at
+//! neither (they are no wider than the entering ones): one test
+//! ([`Limits::within`]) decides most points.
 //!
 //! # A point's kind (first that holds)
 //! unreadable (a saturated, under-exposed or non-finite reading) > gloss
@@ -547,7 +552,7 @@ impl Limits {
     /// at least the gloss, which the drift mean takes.
     pub fn readings(&self) -> usize {
         let on = |w: &[f32; 2]| w[0] != f32::NEG_INFINITY || w[1] != f32::INFINITY;
-        self.windows.iter().rposition(on).map_or(1, |i| i + 1).max(1)
+        self.windows.iter().rposition(on).map_or(1, |i| i + 1)
     }
 
     /// Whether a point's statistics are within every threshold (NaN is
@@ -556,7 +561,7 @@ impl Limits {
     /// out at neither: the decision's one test for most points.
     #[inline]
     pub fn within(&self, stat: &PointStat) -> bool {
-        // `&`, not `&&`: every comparison, no branch per reading.
+        // `&`, not `&&`: no order to keep, the compiler picks one.
         let mut within = stat.d2 <= self.d2;
         for (d, [lo, hi]) in stat.delta.iter().zip(&self.windows) {
             within &= (d >= lo) & (d <= hi);
