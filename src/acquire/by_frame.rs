@@ -4,7 +4,8 @@
 //!
 //! Each reading is corrected once, by [`correct_reading`], as soon as no
 //! later frame can change it:
-//! - a long-exposure reading that did not saturate, when its frame is read;
+//! - a long-exposure reading that did not saturate, or any when no shorter
+//!   exposure is configured, when its frame is read;
 //! - a saturated one when a shorter exposure of its frame is read at which
 //!   it did not saturate, or which is the shortest configured;
 //! - any other (a shorter frame the sensor could not give, a line cut short)
@@ -91,9 +92,18 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
                 }
             }
             FrameRead::Long(i) if i < M => {
-                for p in 0..P {
-                    if t.raw.lit[i][p] < t.full_scale {
+                // Without shorter exposures the long one is the shortest:
+                // saturated or not, nothing later changes its readings.
+                // (Two loops: the test stays out of the device's.)
+                if k.levels() == 0 {
+                    for p in 0..P {
                         self.correct(i, p, t, &k);
+                    }
+                } else {
+                    for p in 0..P {
+                        if t.raw.lit[i][p] < t.full_scale {
+                            self.correct(i, p, t, &k);
+                        }
                     }
                 }
             }
@@ -249,5 +259,21 @@ mod tests {
         // The shortest exposure: saturated there too, it is final all the same.
         assert_eq!(c.done, [[true, true, true]]);
         assert_eq!((t.v[0][0], t.v[1][0], t.fl[2]), (50.0, 60.0, crate::protocol::flags::SATURATED));
+
+        // With no shorter exposure configured, the long one is the
+        // shortest: its saturated readings are final at once, and as the
+        // whole line's correction gives them.
+        let cfg = AcqConfig { exposure_us: 100, short_exposures_us: [0, 0], ..AcqConfig::default() };
+        raw.short_taken[0] = [false];
+        let (mut v, mut fl) = ([SVector::<f32, 1>::zeros(); 3], [0u8; 3]);
+        let (mut want_v, mut want_fl) = ([SVector::<f32, 1>::zeros(); 3], [0u8; 3]);
+        super::super::correct_line(&raw, &white, None, fs, &cfg, &mut want_v, &mut want_fl);
+        let mut t =
+            Target { raw: &raw, white: &white, linearity: None, full_scale: fs, cfg: &cfg, v: &mut v, fl: &mut fl };
+        let mut c = LineCorrection::<1, 3>::new();
+        c.frame(FrameRead::Dark, &mut t);
+        c.frame(FrameRead::Long(0), &mut t);
+        assert_eq!((c.done, c.pending), ([[true, true, true]], 0));
+        assert_eq!((v, fl), (want_v, want_fl));
     }
 }
