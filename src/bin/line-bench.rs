@@ -9,9 +9,13 @@
 //! calibration blob and one line of raw frames from the scene simulator.
 //! For each build it runs the library functions the firmware runs, between
 //! calls of [`bench_mark`]:
-//! - `correct`: `acquire::correct_line` (dark, the sensor's linearity when
-//!   the calibration has it, white, saturation and exposure flags) of the
-//!   whole line;
+//! - `overlap`, once per frame but the last, in the order the acquisition
+//!   reads them (`RawLine::frames_read`): that frame's correction (dark,
+//!   the sensor's linearity when the calibration has it, white, saturation
+//!   and exposure flags: `acquire::LineCorrection::frame`), which the
+//!   acquisition task runs while the next frame's LED settles;
+//! - `correct`: what is left after the last frame (its correction and
+//!   `LineCorrection::finish`), which the acquisition task runs in series;
 //! - `estimate`: `Calibration::estimate_point` for every point (zone,
 //!   cluster selection, the kernel, scale, out-of-prior, the derived gloss
 //!   readings when the device computes them, the guard);
@@ -31,7 +35,8 @@
 #![no_std]
 #![no_main]
 
-use brdf_meter::acquire::{RawLine, correct_line};
+use brdf_meter::acquire::by_frame::Target;
+use brdf_meter::acquire::{AcqConfig, FrameRead, LineCorrection, MAX_SHORT_EXPOSURES, RawLine};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::{Calibration, ZoneMatrix};
 use brdf_meter::nalgebra::SVector;
@@ -132,8 +137,19 @@ fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, 
     let (white, linearity, crc) = (&active.white, active.linearity.as_ref(), active.info.blob_crc);
     let mut v = [SVector::<f32, M>::zeros(); P];
     let mut fl = [0u8; P];
+    let cfg = AcqConfig::default();
+    let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =
+        raw.frames_read(full_scale, cfg.short_levels()).collect();
+    let Some((last, before)) = read.split_last() else { fail(b"line-bench: a line without frames") };
+    let mut by_frame = LineCorrection::<M, P>::new();
+    let mut t = Target { raw, white, linearity, full_scale, cfg: &cfg, v: &mut v, fl: &mut fl };
+    for f in before {
+        b.at("overlap", "-");
+        by_frame.frame(*f, &mut t);
+    }
     b.at("correct", "-");
-    correct_line(raw, white, linearity, full_scale, &brdf_meter::acquire::AcqConfig::default(), &mut v, &mut fl);
+    by_frame.frame(*last, &mut t);
+    by_frame.finish(&mut t);
     let mut block = PointsBlock::new();
     let mut rho = SVector::<f32, N>::zeros();
     let estimate = |p: usize, rho: &mut SVector<f32, N>| {

@@ -20,10 +20,13 @@
 //!
 //! The three run concurrently (two line buffers: line k+1 is acquired while
 //! line k is estimated and sent), except the correction, which the
-//! acquisition task runs after each line; so the line period is the largest
-//! of acquisition + correction, the CPU's work (compute and framing plus the
-//! acquisition's own busy time: flush and readout; one core), and the
-//! link's time.
+//! acquisition task runs frame by frame while the next frame's LED settles
+//! (the bench replays the line's frames in the order they are read and
+//! counts each): what it adds to the acquisition is what is left after the
+//! last frame plus each frame's correction beyond its settle. So the line
+//! period is the largest of acquisition + that, the CPU's work (compute and
+//! framing, every frame's correction, plus the acquisition's own busy time:
+//! flush and readout; one core), and the link's time.
 pub mod acquisition;
 pub mod frames;
 pub mod link;
@@ -191,18 +194,33 @@ impl std::ops::AddAssign for Cost {
 }
 
 /// Per (build pixels, encoding): per stage, its cost over the line and its
-/// number of segments (for the framing stages: frames).
+/// number of segments (for the framing stages: frames; for `overlap`, the
+/// line's frames corrected while the next settles).
 pub type StageCosts = BTreeMap<(usize, String), BTreeMap<String, (Cost, usize)>>;
 
-/// The stages of an encoding's line, in order.
-pub const STAGES: [&str; 7] = ["correct", "estimate", "push", "serialise", "seal", "stuff", "copy"];
+/// The bench's counts: per stage, and per build each overlapped frame's
+/// correction on its own (to hold against the settle).
+#[derive(Clone, Debug, Default)]
+pub struct BenchCosts {
+    /// Per build and encoding, per stage.
+    pub stages: StageCosts,
+    /// Per build pixels, each frame corrected while the next settles, in
+    /// the order read.
+    pub overlapped: BTreeMap<usize, Vec<Cost>>,
+}
+
+/// The stages of an encoding's line, in order: `overlap` (the frames
+/// corrected while the next settles), `correct` (what is left after the
+/// last frame), then the estimation and framing.
+pub const STAGES: [&str; 8] = ["overlap", "correct", "estimate", "push", "serialise", "seal", "stuff", "copy"];
 
 /// Sums the bench's segments by (build pixels, encoding, stage); the
 /// correction (run once per build) is filed under every encoding, and
 /// protocol 2's stages under "p2" without their prefix.
-pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<StageCosts> {
+pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<BenchCosts> {
     let mut out = StageCosts::new();
     let mut correct: BTreeMap<usize, Cost> = BTreeMap::new();
+    let mut overlapped: BTreeMap<usize, Vec<Cost>> = BTreeMap::new();
     for s in segments {
         ensure!(s.name.len() == 3, "segment name {:?}", s.name);
         let build: usize = s.name[0].parse().with_context(|| format!("segment build {:?}", s.name))?;
@@ -210,6 +228,7 @@ pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<StageCosts> {
         match s.name[1].as_str() {
             "end" => {}
             "correct" => *correct.entry(build).or_default() += cost,
+            "overlap" => overlapped.entry(build).or_default().push(cost),
             stage => {
                 let stage = stage.strip_prefix("p2-").unwrap_or(stage);
                 let e = out.entry((build, s.name[2].clone())).or_default().entry(stage.to_string()).or_default();
@@ -221,8 +240,14 @@ pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<StageCosts> {
     for ((build, _), stages) in out.iter_mut() {
         let c = *correct.get(build).with_context(|| format!("no correction segment for P = {build}"))?;
         stages.insert("correct".into(), (c, 1));
+        let frames = overlapped.get(build).map_or(&[][..], Vec::as_slice);
+        let mut sum = Cost::default();
+        for f in frames {
+            sum += *f;
+        }
+        stages.insert("overlap".into(), (sum, frames.len()));
     }
-    Ok(out)
+    Ok(BenchCosts { stages: out, overlapped })
 }
 
 /// The encodings the report covers: the three of protocol 3 and protocol
@@ -252,8 +277,14 @@ pub struct EncodingBudget {
     /// The stage that sets it: "acquisition", "CPU" (its work for the line
     /// plus the acquisition's busy time: one core) or "link".
     pub limit: String,
-    /// Compute (without the correction, which the acquisition task runs in
-    /// series) over acquisition time: the target is at most 1/4.
+    /// What the correction adds to the acquisition, us: what is left after
+    /// the last frame, plus each overlapped frame's correction beyond the
+    /// settle it runs in.
+    pub correction_in_series_us: f64,
+    /// The largest overlapped frame's correction, us (against the settle).
+    pub largest_frame_us: f64,
+    /// Compute (without the correction, which the acquisition task runs)
+    /// over acquisition time: the target is at most 1/4.
     pub compute_share: f64,
 }
 
@@ -281,7 +312,7 @@ pub struct BuildBudget {
 /// The budget of every build and encoding from the bench's counts.
 pub fn budget(
     builds: &[BuildInput],
-    costs: &StageCosts,
+    costs: &BenchCosts,
     practical_packets_per_ms: f64,
 ) -> anyhow::Result<Vec<BuildBudget>> {
     builds
@@ -292,6 +323,7 @@ pub fn budget(
                 .iter()
                 .map(|(name, enc)| {
                     let st = costs
+                        .stages
                         .get(&(b.pixels, name.to_string()))
                         .with_context(|| format!("no bench counts for P = {}, {name}", b.pixels))?;
                     let line = frames::line_frames(&view, &b.frames, b.full_scale, *enc);
@@ -308,7 +340,13 @@ pub fn budget(
                     for (_, c) in &stages {
                         compute += *c;
                     }
-                    let correct_us = stages[0].1.us();
+                    let correction = st.get("overlap").map_or(Cost::default(), |c| c.0);
+                    let correct = st.get("correct").map_or(Cost::default(), |c| c.0);
+                    let frames = costs.overlapped.get(&b.pixels).map_or(&[][..], Vec::as_slice);
+                    let settle = b.acquisition.settle_us;
+                    let overrun: f64 = frames.iter().map(|f| (f.us() - settle).max(0.0)).sum();
+                    let largest_frame_us = frames.iter().map(Cost::us).fold(0.0, f64::max);
+                    let correction_in_series_us = correct.us() + overrun;
                     let traffic = frames::traffic(&line);
                     let link_us =
                         (traffic.time_us(link::THEORETICAL_PACKETS_PER_MS), traffic.time_us(practical_packets_per_ms));
@@ -316,7 +354,7 @@ pub fn budget(
                     // and the acquisition's own busy time (flush, readout).
                     let acq_busy = b.acquisition.line_us - b.acquisition.cpu_free_us;
                     let candidates = [
-                        ("acquisition", b.acquisition.line_us + correct_us),
+                        ("acquisition", b.acquisition.line_us + correction_in_series_us),
                         ("CPU", compute.us() + acq_busy),
                         ("link", link_us.1),
                     ];
@@ -324,7 +362,9 @@ pub fn budget(
                         candidates.iter().copied().fold(("", 0.0f64), |a, c| if c.1 > a.1 { c } else { a });
                     Ok(EncodingBudget {
                         encoding: name.to_string(),
-                        compute_share: (compute.us() - correct_us) / b.acquisition.line_us,
+                        compute_share: (compute.us() - correct.us() - correction.us()) / b.acquisition.line_us,
+                        correction_in_series_us,
+                        largest_frame_us,
                         stages,
                         compute,
                         traffic,
@@ -359,6 +399,8 @@ mod tests {
     #[test]
     fn segments_are_summed_by_build_encoding_and_stage() {
         let segs = [
+            seg("128 overlap -", 40.0),
+            seg("128 overlap -", 60.0),
             seg("128 correct -", 100.0),
             seg("128 estimate f32", 10.0),
             seg("128 push f32", 5.0),
@@ -369,8 +411,12 @@ mod tests {
             seg("128 p2-seal p2", 3.0),
             seg("128 end -", 1e9),
         ];
-        let c = stage_costs(&segs).unwrap();
+        let costs = stage_costs(&segs).unwrap();
+        let c = &costs.stages;
         let f = &c[&(128, "f32".to_string())];
+        assert_eq!(f["overlap"], (Cost { instructions: 100.0, cycles: 200.0 }, 2));
+        assert_eq!(costs.overlapped[&128].len(), 2);
+        assert_eq!(costs.overlapped[&128][1].instructions, 60.0);
         assert_eq!(f["estimate"], (Cost { instructions: 20.0, cycles: 40.0 }, 2));
         assert_eq!(f["serialise"].1, 2);
         assert_eq!(f["correct"].0.instructions, 100.0);

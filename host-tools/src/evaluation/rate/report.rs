@@ -49,17 +49,19 @@ pub fn markdown(builds: &[BuildBudget], practical: f64) -> String {
     );
     let _ = writeln!(
         s,
-        "| build | encoding | acquisition ms | compute ms (share of acquisition, w/o correction) | bytes/line | packets/line | link ms @19 / @{practical} | limit | lines/s |\n|---|---|---|---|---|---|---|---|---|"
+        "| build | encoding | acquisition ms | correction in series ms (largest frame's, us) | compute ms (share of acquisition, w/o correction) | bytes/line | packets/line | link ms @19 / @{practical} | limit | lines/s |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for b in builds {
         for e in &b.encodings {
             let _ = writeln!(
                 s,
-                "| {} (P = {}) | {} | {} | {} ({:.0} %) | {} | {} | {} / {} | {} | {:.1} |",
+                "| {} (P = {}) | {} | {} | {} ({:.0}) | {} ({:.0} %) | {} | {} | {} / {} | {} | {:.1} |",
                 b.name,
                 b.pixels,
                 e.encoding,
                 ms(b.acquisition.line_us),
+                ms(e.correction_in_series_us),
+                e.largest_frame_us,
                 ms(e.compute.us()),
                 100.0 * e.compute_share,
                 e.traffic.bytes,
