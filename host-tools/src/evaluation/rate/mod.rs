@@ -250,6 +250,13 @@ pub fn stage_costs(segments: &[Segment]) -> anyhow::Result<BenchCosts> {
     Ok(BenchCosts { stages: out, overlapped })
 }
 
+/// What a line's correction adds to its acquisition, us: what is left
+/// after the last frame (`after_last`), plus each frame's correction, run
+/// while the next frame's LED settles, beyond that settle.
+pub fn correction_in_series(after_last: Cost, frames: &[Cost], settle_us: f64) -> f64 {
+    after_last.us() + frames.iter().map(|f| (f.us() - settle_us).max(0.0)).sum::<f64>()
+}
+
 /// The encodings the report covers: the three of protocol 3 and protocol
 /// 2's one frame per point.
 pub const ENCODINGS: [(&str, Option<Encoding>); 4] = [
@@ -340,13 +347,11 @@ pub fn budget(
                     for (_, c) in &stages {
                         compute += *c;
                     }
-                    let correction = st.get("overlap").map_or(Cost::default(), |c| c.0);
+                    let in_settles = st.get("overlap").map_or(Cost::default(), |c| c.0);
                     let correct = st.get("correct").map_or(Cost::default(), |c| c.0);
                     let frames = costs.overlapped.get(&b.pixels).map_or(&[][..], Vec::as_slice);
-                    let settle = b.acquisition.settle_us;
-                    let overrun: f64 = frames.iter().map(|f| (f.us() - settle).max(0.0)).sum();
+                    let correction_in_series_us = correction_in_series(correct, frames, b.acquisition.settle_us);
                     let largest_frame_us = frames.iter().map(Cost::us).fold(0.0, f64::max);
-                    let correction_in_series_us = correct.us() + overrun;
                     let traffic = frames::traffic(&line);
                     let link_us =
                         (traffic.time_us(link::THEORETICAL_PACKETS_PER_MS), traffic.time_us(practical_packets_per_ms));
@@ -362,7 +367,7 @@ pub fn budget(
                         candidates.iter().copied().fold(("", 0.0f64), |a, c| if c.1 > a.1 { c } else { a });
                     Ok(EncodingBudget {
                         encoding: name.to_string(),
-                        compute_share: (compute.us() - correct.us() - correction.us()) / b.acquisition.line_us,
+                        compute_share: (compute.us() - correct.us() - in_settles.us()) / b.acquisition.line_us,
                         correction_in_series_us,
                         largest_frame_us,
                         stages,
@@ -422,5 +427,15 @@ mod tests {
         assert_eq!(f["correct"].0.instructions, 100.0);
         assert_eq!(c[&(128, "p2".to_string())]["seal"].0.instructions, 3.0);
         assert!(stage_costs(&[seg("32 estimate f32", 1.0)]).is_err(), "no correction");
+    }
+
+    #[test]
+    fn only_what_overruns_a_settle_adds_to_the_acquisition() {
+        // 80 cycles a microsecond: frames of 150, 250 and 200 us against a
+        // settle of 200 us, and 30 us after the last frame.
+        let us = |t: f64| Cost { instructions: 0.0, cycles: 80.0 * t };
+        let frames = [us(150.0), us(250.0), us(200.0)];
+        assert!((correction_in_series(us(30.0), &frames, 200.0) - 80.0).abs() < 1e-9);
+        assert!((correction_in_series(us(30.0), &[], 200.0) - 30.0).abs() < 1e-9);
     }
 }
