@@ -36,7 +36,16 @@ fn the_quick_roc_finds_the_strong_defects_at_few_false_calls() {
     let m = model(&blob, &scene);
     let spec = RocSpec::quick(TeachSpec::default());
     let roc = run(&scene, &m, &spec, &|_| {}).unwrap();
-    eprintln!("{}", host_tools::inspection::roc::report::markdown(&roc));
+    let md = host_tools::inspection::roc::report::markdown(&roc);
+    eprintln!("{md}");
+    // The report names the recipe's windows, and only those it has (the
+    // default: gloss alone).
+    let header = md.lines().next().unwrap();
+    assert!(header.contains("gloss window -1.50..+1.50 GU") && !header.contains("haze window"), "{header}");
+    let mut with_haze = roc.clone();
+    with_haze.teach.windows[1] = [-1.0, f32::INFINITY];
+    let md = host_tools::inspection::roc::report::markdown(&with_haze);
+    assert!(md.lines().next().unwrap().contains("haze window -1.00..+inf HU"), "{md}");
     // The full run measures 5 per 10^4 at the operating point: 1 expected
     // here; 6 (30 per 10^4) would mean the threshold no longer holds the
     // reference's noise.

@@ -20,10 +20,17 @@ pub fn markdown(r: &Roc) -> String {
     let c1 = r.factor_for(1.0);
     let mut s = String::new();
     let t = &r.teach;
+    // Every window the recipe has (one that is off is -inf..+inf).
+    let mut windows = String::new();
+    for ([lo, hi], (name, unit)) in t.windows.iter().zip([("gloss", "GU"), ("haze", "HU"), ("distinctness", "%")]) {
+        if lo.is_finite() || hi.is_finite() {
+            let _ = write!(windows, ", {name} window {lo:+.2}..{hi:+.2} {unit}");
+        }
+    }
     let _ = writeln!(
         s,
-        "Recipe: taught on {} lines, {} groups, distance threshold {:.1}, gloss window {:+.2}..{:+.2} GU, reference gloss sd {:.3} GU (median pixel), teach quality {:.2}, min defect {} px.",
-        t.lines, t.groups, t.threshold, t.windows[0][0], t.windows[0][1], t.reading_sd[0], t.quality, r.min_pixels
+        "Recipe: taught on {} lines, {} groups, distance threshold {:.1}{windows}, reference gloss sd {:.3} GU (median pixel), teach quality {:.2}, min defect {} px.",
+        t.lines, t.groups, t.threshold, t.reading_sd[0], t.quality, r.min_pixels
     );
     let _ = writeln!(
         s,
