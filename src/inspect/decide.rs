@@ -355,15 +355,6 @@ pub fn inverse_reference_sum<const M: usize>(r: &RecipeView<'_>, p: usize) -> f3
     }
 }
 
-/// Group `g`'s values (whitening, then gradient), decoded into `out`.
-#[inline]
-pub fn load_group(r: &RecipeView<'_>, g: usize, out: &mut [f32; MAX_GROUP_VALUES]) {
-    match r.group_words(g) {
-        Some(w) => out[..w.len()].copy_from_slice(w),
-        None => read_f32s(r.group_bytes(g), out),
-    }
-}
-
 /// Group `g`'s values: in place when the recipe is aligned (always on the
 /// device), else decoded into `room`.
 #[inline]
@@ -510,12 +501,11 @@ fn point_stat_of<const M: usize, const R: usize>(
 
 /// [`point_stat`] of pixel `p` (in group `g`) of `r`, decoding its
 /// reference (for callers that look at single points; [`Inspector::line`]
-/// decodes each group once).
+/// reads each group once).
 pub fn point_stat_at<const M: usize>(r: &RecipeView<'_>, g: usize, p: usize, v: &[f32; M], scale: f32) -> PointStat {
-    let mut group = [0.0f32; MAX_GROUP_VALUES];
-    load_group(r, g, &mut group);
+    let mut room = [0.0f32; MAX_GROUP_VALUES];
     let px = PixelRef::of(r, p);
-    point_stat(&px.mean, &px.inv_sd, &group, v, scale, READINGS)
+    point_stat(&px.mean, &px.inv_sd, group_values(r, g, &mut room), v, scale, READINGS)
 }
 
 /// The reading flags that make a point unreadable.
@@ -914,7 +904,8 @@ mod tests {
         let r = RecipeView::parse(&bytes).unwrap();
         let px = PixelRef::<M>::of(&r, 3);
         let mut group = [0.0f32; MAX_GROUP_VALUES];
-        load_group(&r, 0, &mut group);
+        let mut room = [0.0f32; MAX_GROUP_VALUES];
+        group[..group_len(M)].copy_from_slice(group_values(&r, 0, &mut room));
         for (k, g) in group.iter_mut().take(group_len(M)).enumerate() {
             *g += 0.37 * k as f32 - 1.1;
         }
