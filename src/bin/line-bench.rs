@@ -6,11 +6,14 @@
 //!
 //! Input: `target/line-bench/data.bin` (written by `host-tools rate`), read
 //! over semihosting: per build (P = 128, the board; P = 32, QEMU) a trained
-//! calibration blob and one line of raw frames from the scene simulator.
+//! calibration blob and one line of raw frames from the scene simulator,
+//! with the shorter exposures the scene has, corrected with that build's
+//! firmware settings (`platform::timing`).
 //! For each build it runs the library functions the firmware runs, between
 //! calls of [`bench_mark`]:
 //! - `overlap`, once per frame but the last, in the order the acquisition
-//!   reads them (`RawLine::frames_read`): that frame's correction (dark,
+//!   reads them (`RawLine::frames_read`: a shorter exposure of a frame that
+//!   saturated, as the acquisition takes it): that frame's correction (dark,
 //!   the sensor's linearity when the calibration has it, white, saturation
 //!   and exposure flags: `acquire::LineCorrection::frame`), which the
 //!   acquisition task runs while the next frame's LED settles;
@@ -132,17 +135,16 @@ fn send_msg(b: &Bounds, msg: &Response<'_>, enc: &str, seq: u32, prefix: &'stati
 }
 
 /// One build's line, stage by stage.
-fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, P>, full_scale: u16) {
+fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, P>, full_scale: u16, cfg: &AcqConfig) {
     let active = cal.active().expect("loaded");
     let (white, linearity, crc) = (&active.white, active.linearity.as_ref(), active.info.blob_crc);
     let mut v = [SVector::<f32, M>::zeros(); P];
     let mut fl = [0u8; P];
-    let cfg = AcqConfig::default();
     let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =
         raw.frames_read(full_scale, cfg.short_levels()).collect();
     let Some((last, before)) = read.split_last() else { fail(b"line-bench: a line without frames") };
     let mut by_frame = LineCorrection::<M, P>::new();
-    let mut t = Target { raw, white, linearity, full_scale, cfg: &cfg, v: &mut v, fl: &mut fl };
+    let mut t = Target { raw, white, linearity, full_scale, cfg, v: &mut v, fl: &mut fl };
     for f in before {
         b.at("overlap", "-");
         by_frame.frame(*f, &mut t);
@@ -231,16 +233,37 @@ fn u32_at(d: &[u8], at: usize) -> usize {
     u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
 }
 
-/// One build's inputs in the data file, from `at`: (pixels, full scale,
-/// blob, raw frames in reading order, the offset after them).
-fn build_at(d: &'static [u8], at: usize) -> (usize, u16, &'static [u8], &'static [u8], usize) {
-    let pixels = u32_at(d, at);
-    let full_scale = u32_at(d, at + 4) as u16;
-    let blob_len = u32_at(d, at + 8);
-    let frames_len = u32_at(d, at + 12);
-    let blob_at = at + 16;
+/// One build's inputs in the data file.
+struct BuildData {
+    pixels: usize,
+    full_scale: u16,
+    /// The shorter exposures the frames hold.
+    shorter: usize,
+    blob: &'static [u8],
+    /// Per exposure level, the dark frame and the frames in reading order.
+    frames: &'static [u8],
+}
+
+/// The build whose inputs start at `at`, and the offset after them.
+fn build_at(d: &'static [u8], at: usize) -> (BuildData, usize) {
+    let blob_len = u32_at(d, at + 12);
+    let frames_len = u32_at(d, at + 16);
+    let blob_at = at + 20;
     let frames_at = blob_at + blob_len.div_ceil(4) * 4;
-    (pixels, full_scale, &d[blob_at..blob_at + blob_len], &d[frames_at..frames_at + frames_len], frames_at + frames_len)
+    if frames_at + frames_len > d.len() {
+        fail(b"line-bench: the data is cut short");
+    }
+    let build = BuildData {
+        pixels: u32_at(d, at),
+        full_scale: u32_at(d, at + 4) as u16,
+        shorter: u32_at(d, at + 8),
+        blob: &d[blob_at..blob_at + blob_len],
+        frames: &d[frames_at..frames_at + frames_len],
+    };
+    if build.shorter > MAX_SHORT_EXPOSURES || build.frames.len() < 2 * build.pixels * (M + 1) * (1 + build.shorter) {
+        fail(b"line-bench: the frames do not match their exposures");
+    }
+    (build, frames_at + frames_len)
 }
 
 fn load<const P: usize>(ram: &'static mut [ZoneMatrix<N, M>], blob: &'static [u8]) -> Calibration<N, M, P> {
@@ -265,21 +288,22 @@ fn main() -> ! {
     };
     let n = read_file(b"target/line-bench/data.bin\0", data);
     let data: &'static [u8] = &data[..n];
-    if n < 8 || &data[..4] != b"LBD1" {
+    if n < 8 || &data[..4] != b"LBD2" {
         fail(b"line-bench: no data (run `host-tools rate`)");
     }
-    let (pb, fsb, blob_b, frames_b, next) = build_at(data, 4);
-    let (pq, fsq, blob_q, frames_q, _) = build_at(data, next);
-    if pb != BOARD_P || pq != QEMU_P {
+    let (board, next) = build_at(data, 4);
+    let (qemu, _) = build_at(data, next);
+    if board.pixels != BOARD_P || qemu.pixels != QEMU_P {
         fail(b"line-bench: the data is for other pixel counts");
     }
-    let cal_b = load::<BOARD_P>(ram_board, blob_b);
-    let cal_q = load::<QEMU_P>(ram_qemu, blob_q);
-    let raw_b = RawLine::<M, BOARD_P>::from_le_frames(frames_b, 0);
-    let raw_q = RawLine::<M, QEMU_P>::from_le_frames(frames_q, 0);
+    let cal_b = load::<BOARD_P>(ram_board, board.blob);
+    let cal_q = load::<QEMU_P>(ram_qemu, qemu.blob);
+    let raw_b = RawLine::<M, BOARD_P>::from_le_frames(board.frames, board.shorter);
+    let raw_q = RawLine::<M, QEMU_P>::from_le_frames(qemu.frames, qemu.shorter);
+    let (acq_b, acq_q) = (brdf_meter::platform::timing::ACQUISITION, brdf_meter::platform::timing::QEMU_ACQUISITION);
     for marking in [false, true] {
-        run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, fsb);
-        run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, fsq);
+        run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, board.full_scale, &acq_b);
+        run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, qemu.full_scale, &acq_q);
     }
     done()
 }

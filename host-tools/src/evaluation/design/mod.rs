@@ -160,9 +160,10 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
         cov.iter().map(|c| sat(f(c))).fold([0, 0], |a, b| [a[0] + b[0], a[1] + b[1]])
     };
     let m = inst.m();
-    let acq = acquisition::board(&ACQUISITION, p, m + 1);
-    let per_frame = acq.line_us / (m + 1) as f64;
-    let shorter: f64 = ratios.iter().map(|r| (m + 1) as f64 * (per_frame - acq.exposure_us * (1.0 - 1.0 / r))).sum();
+    let acq = acquisition::board(&ACQUISITION, p, acquisition::Frames::long_only(&ACQUISITION, m + 1));
+    let long_us = ACQUISITION.exposure_us as f64;
+    let shorter_us: Vec<f64> = ratios.iter().map(|r| long_us / r).collect();
+    let worst = acquisition::board(&ACQUISITION, p, acquisition::Frames::every_exposure(long_us, &shorter_us, m + 1));
     let n = inst.grid()?.n();
     let die = inst.leds[0].extended.as_ref();
     let (die_mm, die_height_mm) = (die.map_or(0.0, |e| e.width_cm * 10.0), die.map_or(0.0, |e| e.height_cm * 10.0));
@@ -185,7 +186,7 @@ fn score(spec: &DesignSpec, c: &Candidate) -> anyhow::Result<CandidateScore> {
         metal_saturated: count(&|c| c.metal_counts),
         coverage: cov,
         acquisition_ms: acq.line_us / 1e3,
-        acquisition_worst_ms: (acq.line_us + shorter) / 1e3,
+        acquisition_worst_ms: worst.line_us / 1e3,
         estimation_ms: p as f64 * device_cycles_per_point(n, m) / SYSCLK_HZ as f64 * 1e3,
     })
 }

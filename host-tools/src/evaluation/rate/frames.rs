@@ -9,6 +9,7 @@
 use super::link::LineTraffic;
 use crate::device::link::{StreamDecoder, decode_points};
 use crate::device::reference::expected_line;
+use brdf_meter::acquire::AcqConfig;
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{
     self, BinRange, Encoding, LeBytes, MAX_FRAME, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError, Response,
@@ -24,12 +25,11 @@ struct DevicePoint {
     sigma: Vec<f32>,
 }
 
-/// The line's points; its frames are one exposure's (the line bench
-/// corrects the long exposure only: a saturated point's shorter exposures
-/// cost their frames' acquisition, and no estimation beyond the merge).
-fn device_points(view: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16) -> Vec<DevicePoint> {
+/// The line's points, its readings corrected with the shorter exposures
+/// `frames` holds, as the device and the line bench correct them.
+fn device_points(view: &BlobView<'_>, frames: &[Vec<u16>], full_scale: u16, acq: &AcqConfig) -> Vec<DevicePoint> {
     let n = view.dims().n;
-    expected_line(view, frames, full_scale, &brdf_meter::acquire::AcqConfig::default())
+    expected_line(view, frames, full_scale, acq)
         .into_iter()
         .map(|e| DevicePoint {
             meta: PointMetaWire {
@@ -59,9 +59,10 @@ pub fn line_frames(
     view: &BlobView<'_>,
     frames: &[Vec<u16>],
     full_scale: u16,
+    acq: &AcqConfig,
     encoding: Option<Encoding>,
 ) -> Vec<Vec<u8>> {
-    let pts = device_points(view, frames, full_scale);
+    let pts = device_points(view, frames, full_scale, acq);
     let m = view.dims().m;
     let bins = BinRange::all(view.dims().n);
     let crc = view.crc();
@@ -150,11 +151,12 @@ pub fn sigma16_error(
     blob: &[u8],
     frames: &[Vec<u16>],
     full_scale: u16,
+    acq: &AcqConfig,
 ) -> anyhow::Result<QuantisationError> {
-    let pts = device_points(view, frames, full_scale);
+    let pts = device_points(view, frames, full_scale, acq);
     let decoder = StreamDecoder::new(blob)?;
     let (mut max, mut sum, mut count, mut q_points, mut fallback) = (0.0f64, 0.0f64, 0usize, 0, 0);
-    for mut f in line_frames(view, frames, full_scale, Some(Encoding::Sigma16)) {
+    for mut f in line_frames(view, frames, full_scale, acq, Some(Encoding::Sigma16)) {
         f.pop();
         let (_, r): (u32, Response<'_>) = protocol::decode(&mut f).map_err(|e| anyhow::anyhow!("{e:?}"))?;
         let Response::Points(pf) = r else { anyhow::bail!("not a line frame") };

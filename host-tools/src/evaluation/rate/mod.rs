@@ -13,7 +13,9 @@
 //!   trained for the build's scene, and one line of that scene's raw
 //!   frames from the scene simulator.
 //! - Acquisition per line: derived from the firmware's settings and the
-//!   sensor's timing ([`acquisition`]).
+//!   sensor's timing, for the frames the device takes of that line: the
+//!   long exposure's, and the shorter exposures' of the frames that
+//!   saturate ([`acquisition`]). The bench corrects the same frames.
 //! - The link: bytes and USB packets per line of the frames the device
 //!   sends (rebuilt on the host with the same library, [`frames`], and
 //!   checked against the bench's frame count), at USB full speed ([`link`]).
@@ -37,6 +39,7 @@ use crate::evaluation::tradeoff::kernel_bench::Segment;
 use crate::forward::scene::Scene;
 use crate::forward::scene::frames::{patent_scene, scene_frames};
 use anyhow::{Context, ensure};
+use brdf_meter::acquire::AcqConfig;
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::Encoding;
 use serde::Serialize;
@@ -53,10 +56,16 @@ pub struct BuildInput {
     pub zones: usize,
     /// The calibration blob.
     pub blob: Vec<u8>,
-    /// One line of raw frames (frame 0 dark, 1 + k under LED k).
+    /// One line of raw frames as the scene simulator serves them: per
+    /// exposure level (the long one, then `shorter` of the shorter ones),
+    /// frame 0 dark, 1 + k under LED k.
     pub frames: Vec<Vec<u16>>,
+    /// Shorter exposures in `frames`.
+    pub shorter: usize,
     /// Sensor full scale.
     pub full_scale: u16,
+    /// The firmware's acquisition settings.
+    pub acq: AcqConfig,
     /// The line's acquisition time.
     pub acquisition: acquisition::LineAcquisition,
     /// Where the scene came from.
@@ -90,64 +99,113 @@ pub fn prepare(root: &Path, board_zones: usize) -> anyhow::Result<Vec<BuildInput
         "board zones {board_zones}: 1 to {} (the board's RAM budget)",
         brdf_meter::shape::board::RAM_ZONES
     );
-    let frames_per_line = brdf_meter::shape::FRAMES_PER_LINE;
     let path = root.join("scenes/handheld.toml");
     let handheld = Scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
-    let board_blob = train_scale_free_for_scene(&handheld, board_zones, 0.02, true)?.blob;
-    let board = BuildInput {
-        name: "board",
-        pixels: handheld.instrument.sensor.pixels,
-        zones: board_zones,
-        calibration: describe(&board_blob)?,
-        blob: board_blob,
-        frames: long_exposure(scene_frames(&handheld, 1)?.remove(0)),
-        full_scale: handheld.instrument.sensor.full_scale as u16,
-        acquisition: acquisition::board(
-            &brdf_meter::platform::timing::ACQUISITION,
-            brdf_meter::shape::board::PIXELS,
-            frames_per_line,
-        ),
-        scene: "scenes/handheld.toml".into(),
-    };
-    ensure!(board.pixels == brdf_meter::shape::board::PIXELS, "the handheld scene is not the board's P");
-    let qemu_scene = patent_scene(brdf_meter::shape::qemu::PIXELS);
-    let qemu_zones = 1;
-    let qemu_blob = train_scale_free_for_scene(&qemu_scene, qemu_zones, 0.02, true)?.blob;
-    let qemu = BuildInput {
-        name: "qemu",
-        pixels: brdf_meter::shape::qemu::PIXELS,
-        zones: qemu_zones,
-        calibration: describe(&qemu_blob)?,
-        blob: qemu_blob,
-        frames: long_exposure(scene_frames(&qemu_scene, 1)?.remove(0)),
-        full_scale: brdf_meter::shape::qemu::FULL_SCALE,
-        acquisition: acquisition::qemu(&brdf_meter::platform::timing::QEMU_ACQUISITION, frames_per_line),
-        scene: "patent profile".into(),
-    };
+    ensure!(handheld.instrument.sensor.pixels == BOARD_P, "the handheld scene is not the board's P");
+    let acq = brdf_meter::platform::timing::ACQUISITION;
+    let board = build::<BOARD_P>(
+        ("board", "scenes/handheld.toml", &handheld),
+        board_zones,
+        handheld.instrument.sensor.full_scale as u16,
+        acq,
+        |frames| acquisition::board(&acq, BOARD_P, frames),
+    )?;
+    let qacq = brdf_meter::platform::timing::QEMU_ACQUISITION;
+    let qemu = build::<QEMU_P>(
+        ("qemu", "patent profile", &patent_scene(QEMU_P)),
+        1,
+        brdf_meter::shape::qemu::FULL_SCALE,
+        qacq,
+        |frames| acquisition::qemu(&qacq, frames),
+    )?;
     Ok(vec![board, qemu])
 }
 
-/// A line's long-exposure frames (dark and one per LED), without the
-/// shorter exposures the scene may add.
-fn long_exposure(mut frames: Vec<Vec<u16>>) -> Vec<Vec<u16>> {
-    frames.truncate(brdf_meter::shape::FRAMES_PER_LINE);
-    frames
+/// One build's input: a calibration of `zones` zones trained for the
+/// scene, one line of its frames, and that line's acquisition (`timing`
+/// of the frames the device takes of it).
+fn build<const P: usize>(
+    (name, label, scene): (&'static str, &str, &Scene),
+    zones: usize,
+    full_scale: u16,
+    acq: AcqConfig,
+    timing: impl FnOnce(acquisition::Frames) -> acquisition::LineAcquisition,
+) -> anyhow::Result<BuildInput> {
+    let blob = train_scale_free_for_scene(scene, zones, 0.02, true)?.blob;
+    let frames = scene_frames(scene, 1)?.remove(0);
+    let shorter = shorter_in(&frames, brdf_meter::shape::FRAMES_PER_LINE, &acq)?;
+    Ok(BuildInput {
+        name,
+        pixels: P,
+        zones,
+        calibration: describe(&blob)?,
+        acquisition: timing(frames_taken::<P>(&blob, &frames, shorter, full_scale, &acq)?),
+        blob,
+        frames,
+        shorter,
+        full_scale,
+        acq,
+        scene: label.into(),
+    })
+}
+
+const BOARD_P: usize = brdf_meter::shape::board::PIXELS;
+const QEMU_P: usize = brdf_meter::shape::qemu::PIXELS;
+
+/// The shorter exposures a scene's line holds frames of (the patent
+/// profile: none; the handheld: the firmware's), at most the firmware's.
+fn shorter_in(frames: &[Vec<u16>], per_level: usize, acq: &AcqConfig) -> anyhow::Result<usize> {
+    ensure!(
+        !frames.is_empty() && frames.len().is_multiple_of(per_level),
+        "the scene's line has {} frames, not a whole number of exposures of {per_level}",
+        frames.len()
+    );
+    Ok((frames.len() / per_level - 1).min(acq.short_levels()))
+}
+
+/// The frames the device takes of the line, by the acquisition's own rule.
+fn frames_taken<const P: usize>(
+    blob: &[u8],
+    frames: &[Vec<u16>],
+    shorter: usize,
+    full_scale: u16,
+    acq: &AcqConfig,
+) -> anyhow::Result<acquisition::Frames> {
+    let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("the bench's blob: {e}"))?;
+    ensure!(view.dims().m == brdf_meter::shape::LEDS, "the bench's blob has m = {}", view.dims().m);
+    let bytes = reading_order(&view, frames, shorter);
+    let raw = brdf_meter::acquire::RawLine::<{ brdf_meter::shape::LEDS }, P>::from_le_frames(&bytes, shorter);
+    Ok(acquisition::Frames::taken(&raw, full_scale, acq))
+}
+
+/// A line's frames as `RawLine::from_le_frames` reads them: per exposure
+/// level (the long one, then `shorter` of the shorter ones) the dark frame
+/// and the LED frames in reading order, u16 LE.
+fn reading_order(view: &BlobView<'_>, frames: &[Vec<u16>], shorter: usize) -> Vec<u8> {
+    let per_level = view.dims().m + 1;
+    let mut out = Vec::new();
+    let mut put = |f: &Vec<u16>| out.extend(f.iter().flat_map(|x| x.to_le_bytes()));
+    for level in 0..=shorter {
+        let base = level * per_level;
+        put(&frames[base]);
+        for &led in view.led_order() {
+            put(&frames[base + 1 + led as usize]);
+        }
+    }
+    out
 }
 
 /// Writes the line bench's input file (layout: `src/bin/line-bench.rs`):
-/// `LBD1`, then per build pixels, full scale, blob length, frames length
-/// (u32 LE), the blob padded to 4 bytes, the frames in reading order (u16 LE).
+/// `LBD2`, then per build pixels, full scale, the shorter exposures in its
+/// frames, blob length, frames length (u32 LE), the blob padded to 4
+/// bytes, the frames (per exposure level the dark frame and the LED frames
+/// in reading order, u16 LE).
 pub fn write_bench_data(path: &Path, builds: &[BuildInput]) -> anyhow::Result<()> {
-    let mut out = b"LBD1".to_vec();
+    let mut out = b"LBD2".to_vec();
     for b in builds {
         let view = BlobView::parse(&b.blob).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        let mut frames = Vec::new();
-        let mut put = |f: &Vec<u16>| frames.extend(f.iter().flat_map(|x| x.to_le_bytes()));
-        put(&b.frames[0]);
-        for &led in view.led_order() {
-            put(&b.frames[led as usize + 1]);
-        }
-        for x in [b.pixels, b.full_scale as usize, b.blob.len(), frames.len()] {
+        let frames = reading_order(&view, &b.frames, b.shorter);
+        for x in [b.pixels, b.full_scale as usize, b.shorter, b.blob.len(), frames.len()] {
             out.extend((x as u32).to_le_bytes());
         }
         out.extend(&b.blob);
@@ -290,6 +348,8 @@ pub struct EncodingBudget {
     pub correction_in_series_us: f64,
     /// The largest overlapped frame's correction, us (against the settle).
     pub largest_frame_us: f64,
+    /// The overlapped frames, and how many of them overrun their settle.
+    pub overlapped_frames: (usize, usize),
     /// Compute (without the correction, which the acquisition task runs)
     /// over acquisition time: the target is at most 1/4.
     pub compute_share: f64,
@@ -310,6 +370,9 @@ pub struct BuildBudget {
     pub calibration: String,
     /// Acquisition time per line.
     pub acquisition: acquisition::LineAcquisition,
+    /// Each frame's correction while the next one settles, us, in the
+    /// order read.
+    pub overlapped_frame_us: Vec<f64>,
     /// Per encoding.
     pub encodings: Vec<EncodingBudget>,
     /// Sigma16's error against the uncertainty, on this line.
@@ -333,7 +396,7 @@ pub fn budget(
                         .stages
                         .get(&(b.pixels, name.to_string()))
                         .with_context(|| format!("no bench counts for P = {}, {name}", b.pixels))?;
-                    let line = frames::line_frames(&view, &b.frames, b.full_scale, *enc);
+                    let line = frames::line_frames(&view, &b.frames, b.full_scale, &b.acq, *enc);
                     let bench_frames = st.get("serialise").map_or(0, |s| s.1);
                     ensure!(
                         bench_frames == line.len(),
@@ -352,6 +415,7 @@ pub fn budget(
                     let frames = costs.overlapped.get(&b.pixels).map_or(&[][..], Vec::as_slice);
                     let correction_in_series_us = correction_in_series(correct, frames, b.acquisition.settle_us);
                     let largest_frame_us = frames.iter().map(Cost::us).fold(0.0, f64::max);
+                    let over = frames.iter().filter(|f| f.us() > b.acquisition.settle_us).count();
                     let traffic = frames::traffic(&line);
                     let link_us =
                         (traffic.time_us(link::THEORETICAL_PACKETS_PER_MS), traffic.time_us(practical_packets_per_ms));
@@ -370,6 +434,7 @@ pub fn budget(
                         compute_share: (compute.us() - correct.us() - in_settles.us()) / b.acquisition.line_us,
                         correction_in_series_us,
                         largest_frame_us,
+                        overlapped_frames: (frames.len(), over),
                         stages,
                         compute,
                         traffic,
@@ -386,8 +451,12 @@ pub fn budget(
                 scene: b.scene.clone(),
                 calibration: b.calibration.clone(),
                 acquisition: b.acquisition.clone(),
+                overlapped_frame_us: costs
+                    .overlapped
+                    .get(&b.pixels)
+                    .map_or(vec![], |f| f.iter().map(Cost::us).collect()),
                 encodings,
-                sigma16: frames::sigma16_error(&view, &b.blob, &b.frames, b.full_scale)?,
+                sigma16: frames::sigma16_error(&view, &b.blob, &b.frames, b.full_scale, &b.acq)?,
             })
         })
         .collect()

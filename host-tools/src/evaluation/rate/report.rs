@@ -49,19 +49,21 @@ pub fn markdown(builds: &[BuildBudget], practical: f64) -> String {
     );
     let _ = writeln!(
         s,
-        "| build | encoding | acquisition ms | correction in series ms (largest frame's, us) | compute ms (share of acquisition, w/o correction) | bytes/line | packets/line | link ms @19 / @{practical} | limit | lines/s |\n|---|---|---|---|---|---|---|---|---|---|"
+        "| build | encoding | acquisition ms | correction in series ms (largest frame's us; frames over their settle) | compute ms (share of acquisition, w/o correction) | bytes/line | packets/line | link ms @19 / @{practical} | limit | lines/s |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for b in builds {
         for e in &b.encodings {
             let _ = writeln!(
                 s,
-                "| {} (P = {}) | {} | {} | {} ({:.0}) | {} ({:.0} %) | {} | {} | {} / {} | {} | {:.1} |",
+                "| {} (P = {}) | {} | {} | {} ({:.0}; {} of {}) | {} ({:.0} %) | {} | {} | {} / {} | {} | {:.1} |",
                 b.name,
                 b.pixels,
                 e.encoding,
                 ms(b.acquisition.line_us),
                 ms(e.correction_in_series_us),
                 e.largest_frame_us,
+                e.overlapped_frames.1,
+                e.overlapped_frames.0,
                 ms(e.compute.us()),
                 100.0 * e.compute_share,
                 e.traffic.bytes,
@@ -73,25 +75,28 @@ pub fn markdown(builds: &[BuildBudget], practical: f64) -> String {
             );
         }
     }
-    let _ = writeln!(s, "\n## Acquisition per line (derived from the firmware's settings; overhead assumed)\n");
     let _ = writeln!(
         s,
-        "| build | frames | settle us | flush us | exposure us | readout us | assumed ADC/DMA overhead us/frame | line ms (derived only) | CPU free ms |\n|---|---|---|---|---|---|---|---|---|"
+        "\n## Acquisition per line (derived from the firmware's settings; overhead assumed; the frames the device takes of this line: a frame that saturates is taken again at each shorter exposure while it saturates, with a dark frame at each)\n"
+    );
+    let _ = writeln!(
+        s,
+        "| build | frames | settle us | flush us | readout us | assumed ADC/DMA overhead us/frame | line ms (derived only) | had nothing saturated, ms | CPU free ms |\n|---|---|---|---|---|---|---|---|---|"
     );
     for b in builds {
         let a = &b.acquisition;
         let _ = writeln!(
             s,
-            "| {} | {} | {:.0} | {:.1} | {:.0} | {:.1} | {:.0} | {} ({}) | {} |",
+            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.0} | {} ({}) | {} | {} |",
             b.name,
-            a.frames,
+            a.frames.describe(),
             a.settle_us,
             a.flush_us,
-            a.exposure_us,
             a.readout_us,
             a.assumed_overhead_us,
             ms(a.line_us),
             ms(a.line_derived_us),
+            ms(a.long_only_us),
             ms(a.cpu_free_us)
         );
     }
