@@ -91,9 +91,10 @@ impl Linearity {
     }
 
     /// The linear reading of a dark-corrected signal of `s` counts, `s f(s)`.
-    /// Not inlined: the device corrects a few readings per point, and one
-    /// copy keeps its flash for the kernels.
-    #[inline(never)]
+    /// Inlined: the device calls it once a reading, from the correction's
+    /// inner loop (`correct_reading`, its one call site there); the call
+    /// cost 7 % of a shorter exposure's frame (275 against 255 us).
+    #[inline(always)]
     pub fn linear(&self, s: f32) -> f32 {
         // Also NaN and negative signals (a reading below its dark frame):
         // the first knot's factor keeps their sign and their NaN.

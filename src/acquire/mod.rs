@@ -205,19 +205,20 @@ pub fn correct_reading(
         f |= flags::UNDER_EXPOSED;
     }
     let mut saturated = lit >= full_scale;
-    let mut shorter = None;
+    // The signal the reading is taken from, and its exposure's ratio: the
+    // long exposure's (ratio 1: `x * 1.0` is `x`, bit for bit), or the
+    // first shorter one that did not saturate (else the shortest taken).
+    // One linearisation, after the ladder.
+    let (mut signal, mut ratio) = (counts, 1.0f32);
     for l in 0..levels {
         if !saturated {
             break;
         }
-        let Some((s_lit, s_dark, ratio)) = short(l) else { break };
-        shorter = Some(lin.linear(s_lit as f32 - s_dark as f32) * ratio);
+        let Some((s_lit, s_dark, r)) = short(l) else { break };
+        (signal, ratio) = (s_lit as f32 - s_dark as f32, r);
         saturated = s_lit >= full_scale;
     }
-    let s = match shorter {
-        Some(s) => s,
-        None => lin.linear(counts),
-    };
+    let s = lin.linear(signal) * ratio;
     if saturated {
         f |= flags::SATURATED;
     }
