@@ -6,12 +6,14 @@ mod client;
 mod firmware;
 mod inspect;
 pub mod qemu;
+mod retrying;
 mod serial;
 mod stream;
 mod tcp;
 
-pub use client::{Client, Frame, LinkError, LinkStats, PointRecord, ProvisionOutcome, Reply, StreamReport};
+pub use client::{Client, Frame, LinkError, PointRecord, Reply};
 pub use inspect::{InspectRun, PulseEvent, frame_len};
+pub use retrying::{LinkStats, ProvisionOutcome, StreamReport};
 pub use serial::SerialTransport;
 pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
 pub use tcp::TcpTransport;
