@@ -3,8 +3,11 @@
 //! board firmware (its supervisor, src/bin/board-fw.rs, feeds the watchdog by it).
 
 /// A measurement whose lines stop completing for this long is stuck. The
-/// longest healthy line is 8 frames at the longest exposure (8 x 100 ms) plus
-/// readouts and sending 128 point frames: well below 2 s.
+/// longest healthy line is 8 frames, each taken again at up to 2 shorter
+/// exposures when it saturates (24 frames), each at most the sensor's
+/// longest exposure (100 ms) plus its settle and readout (about 1 ms), and
+/// sending 128 points: under 2.5 s. The board's own settings acquire such
+/// a line in about 45 ms (`host-tools rate` counts a line's frames).
 pub const STALL_LIMIT_MS: u64 = 3_000;
 
 /// Decides, from the application's status, whether it is healthy.
