@@ -185,10 +185,11 @@ fn dark_flags(dark: u16, full_scale: u16) -> u8 {
 /// and divided by `white`, or, when `lit` is at `full_scale`, the first of
 /// the `levels` shorter exposures (`short(l)`: its value, its dark value
 /// and the long exposure over it, `None` where its frame was not taken)
-/// that did not saturate, scaled by its ratio; and the reading's flags
-/// (under-exposed on the long exposure's counts; saturated when every
-/// exposure taken was; not finite). A reading replaced by a shorter one is
-/// never linearised: on a glossy line most are.
+/// that did not saturate, made linear and scaled by its ratio; and the
+/// reading's flags (under-exposed on the long exposure's counts; saturated
+/// when every exposure taken was; not finite). Only the signal a reading
+/// is taken from is made linear, once: the saturated long signal of a
+/// reading replaced by a shorter one never is (on a glossy line most are).
 #[inline(always)]
 pub fn correct_reading(
     dark: u16,
