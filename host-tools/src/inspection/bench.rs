@@ -140,17 +140,11 @@ fn bench_data(
     full_scale: u16,
 ) -> anyhow::Result<Vec<u8>> {
     let m = view.dims().m;
-    let levels = 1 + brdf_meter::acquire::MAX_SHORT_EXPOSURES;
+    let shorter = brdf_meter::acquire::MAX_SHORT_EXPOSURES;
     let mut frames = Vec::new();
     for f in lines {
-        ensure!(f.len() >= levels * (m + 1), "the scene lists fewer shorter exposures than the device takes");
-        for l in 0..levels {
-            let base = l * (m + 1);
-            frames.extend(f[base].iter().flat_map(|x| x.to_le_bytes()));
-            for &led in view.led_order() {
-                frames.extend(f[base + 1 + led as usize].iter().flat_map(|x| x.to_le_bytes()));
-            }
-        }
+        ensure!(f.len() >= (1 + shorter) * (m + 1), "the scene lists fewer shorter exposures than the device takes");
+        frames.extend(crate::forward::scene::frames::reading_order_le(view, f, shorter));
     }
     let mut out = b"IBD1".to_vec();
     for x in [view.dims().pixels, full_scale as usize, blob.len(), recipe.len(), frames.len()] {

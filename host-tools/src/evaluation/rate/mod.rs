@@ -37,7 +37,7 @@ pub mod report;
 use crate::calibration::demo::train_scale_free_for_scene;
 use crate::evaluation::tradeoff::kernel_bench::Segment;
 use crate::forward::scene::Scene;
-use crate::forward::scene::frames::{patent_scene, scene_frames};
+use crate::forward::scene::frames::{patent_scene, reading_order_le, scene_frames};
 use anyhow::{Context, ensure};
 use brdf_meter::acquire::AcqConfig;
 use brdf_meter::blob::BlobView;
@@ -134,12 +134,14 @@ fn build<const P: usize>(
     let blob = train_scale_free_for_scene(scene, zones, 0.02, true)?.blob;
     let frames = scene_frames(scene, 1)?.remove(0);
     let shorter = shorter_in(&frames, brdf_meter::shape::FRAMES_PER_LINE, &acq)?;
+    let view = BlobView::parse(&blob).map_err(|e| anyhow::anyhow!("the bench's blob: {e}"))?;
+    let taken = frames_taken::<P>(&view, &frames, shorter, full_scale, &acq)?;
     Ok(BuildInput {
         name,
         pixels: P,
         zones,
         calibration: describe(&blob)?,
-        acquisition: timing(frames_taken::<P>(&blob, &frames, shorter, full_scale, &acq)?),
+        acquisition: timing(taken),
         blob,
         frames,
         shorter,
@@ -165,34 +167,16 @@ fn shorter_in(frames: &[Vec<u16>], per_level: usize, acq: &AcqConfig) -> anyhow:
 
 /// The frames the device takes of the line, by the acquisition's own rule.
 fn frames_taken<const P: usize>(
-    blob: &[u8],
+    view: &BlobView<'_>,
     frames: &[Vec<u16>],
     shorter: usize,
     full_scale: u16,
     acq: &AcqConfig,
 ) -> anyhow::Result<acquisition::Frames> {
-    let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("the bench's blob: {e}"))?;
     ensure!(view.dims().m == brdf_meter::shape::LEDS, "the bench's blob has m = {}", view.dims().m);
-    let bytes = reading_order(&view, frames, shorter);
+    let bytes = reading_order_le(view, frames, shorter);
     let raw = brdf_meter::acquire::RawLine::<{ brdf_meter::shape::LEDS }, P>::from_le_frames(&bytes, shorter);
     Ok(acquisition::Frames::taken(&raw, full_scale, acq))
-}
-
-/// A line's frames as `RawLine::from_le_frames` reads them: per exposure
-/// level (the long one, then `shorter` of the shorter ones) the dark frame
-/// and the LED frames in reading order, u16 LE.
-fn reading_order(view: &BlobView<'_>, frames: &[Vec<u16>], shorter: usize) -> Vec<u8> {
-    let per_level = view.dims().m + 1;
-    let mut out = Vec::new();
-    let mut put = |f: &Vec<u16>| out.extend(f.iter().flat_map(|x| x.to_le_bytes()));
-    for level in 0..=shorter {
-        let base = level * per_level;
-        put(&frames[base]);
-        for &led in view.led_order() {
-            put(&frames[base + 1 + led as usize]);
-        }
-    }
-    out
 }
 
 /// Writes the line bench's input file (layout: `src/bin/line-bench.rs`):
@@ -204,7 +188,7 @@ pub fn write_bench_data(path: &Path, builds: &[BuildInput]) -> anyhow::Result<()
     let mut out = b"LBD2".to_vec();
     for b in builds {
         let view = BlobView::parse(&b.blob).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        let frames = reading_order(&view, &b.frames, b.shorter);
+        let frames = reading_order_le(&view, &b.frames, b.shorter);
         for x in [b.pixels, b.full_scale as usize, b.shorter, b.blob.len(), frames.len()] {
             out.extend((x as u32).to_le_bytes());
         }

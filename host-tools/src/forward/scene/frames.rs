@@ -11,6 +11,26 @@ use brdf_meter::blob::BlobView;
 /// Raw frames of a scene: `[line][frame][pixel]`, frame 0 dark, 1 + k under LED k.
 pub type SceneFrames = Vec<Vec<Vec<u16>>>;
 
+/// One line's frames (as a scene serves them: per exposure level, the
+/// dark frame then one per LED by index) in the order the acquisition
+/// reads them, as `brdf_meter::acquire::RawLine::from_le_frames` takes
+/// them: per level (the long one, then `shorter` shorter ones) the dark
+/// frame and the LED frames in the calibration's reading order, u16 LE.
+/// How the QEMU benches are fed a recorded line.
+pub fn reading_order_le(view: &BlobView<'_>, frames: &[Vec<u16>], shorter: usize) -> Vec<u8> {
+    let per_level = view.dims().m + 1;
+    let mut out = Vec::new();
+    let mut put = |f: &Vec<u16>| out.extend(f.iter().flat_map(|x| x.to_le_bytes()));
+    for level in 0..=shorter {
+        let base = level * per_level;
+        put(&frames[base]);
+        for &led in view.led_order() {
+            put(&frames[base + 1 + led as usize]);
+        }
+    }
+    out
+}
+
 /// A scene of `lines` lines for the instrument `blob` describes: raw counts
 /// are `dark + white * reflectance`, with the blob's white reference (so a
 /// perfect diffuser reads its white value), clamped to `full_scale`.
