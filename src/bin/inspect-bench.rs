@@ -38,7 +38,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -63,10 +63,6 @@ fn at(marking: bool, line: usize, stage: &[u8]) {
         l.push(stage);
         l.end();
     }
-}
-
-fn u32_at(d: &[u8], at: usize) -> usize {
-    u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
 }
 
 /// Bytes of one line in the data: every exposure level's dark and LED frames.

@@ -53,7 +53,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -227,10 +227,6 @@ fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, 
         send_msg(b, &Response::Point(pf), "p2", 1, "p2-");
     }
     b.at("end", "-");
-}
-
-fn u32_at(d: &[u8], at: usize) -> usize {
-    u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
 }
 
 /// One build's inputs in the data file.

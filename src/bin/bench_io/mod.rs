@@ -1,8 +1,13 @@
 //! What the QEMU bench firmwares (line bench, inspection bench) share: a
-//! host file read over semihosting, lines printed on the semihosting
+//! host file read over semihosting and its little-endian fields, lines printed on the semihosting
 //! console, failing with a message, halting. Included by each bench with
 //! `#[path]` (a folder without `main.rs` is no binary of its own).
 use cortex_m_semihosting::{debug, hio};
+
+/// The little-endian u32 at byte `at` of a bench's data file.
+pub fn u32_at(d: &[u8], at: usize) -> usize {
+    u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]) as usize
+}
 
 /// A segment boundary for the trace counter (`host-tools`' `count_segments`
 /// looks for this symbol). Never inlined: its address is what it looks for.
