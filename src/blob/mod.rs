@@ -230,6 +230,8 @@
 //! - `contents`: what a blob holds, borrowed, for the writer
 //!   ([`BlobContents`], [`BlobExtras`]);
 //! - `write`: [`write_blob`] and [`write_blob_with`];
+//! - `white`: [`rewrite_white`], the white reference rewritten in place
+//!   (the standardisation on a white tile);
 //! - `parse`: [`BlobView::parse`], every check a blob must pass;
 //! - `view`: [`BlobView`] and what the device and host read from it;
 //! - `bytes`: little-endian field access.
@@ -242,12 +244,14 @@ mod parse;
 #[cfg(test)]
 mod tests;
 mod view;
+mod white;
 mod write;
 
 pub use contents::{BlobContents, BlobExtras, GlossData, OutOfPriorData};
 pub use error::{BlobError, Section};
 pub use layout::{Dims, MAX_CLUSTERS, gloss_len, out_of_prior_len};
 pub use view::BlobView;
+pub use white::{WHITE_RATIO_RANGE, rewrite_white};
 pub use write::{write_blob, write_blob_with};
 
 use bytes::{get_f32, get_u16, get_u32, put_f32, put_u16, put_u32};

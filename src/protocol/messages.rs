@@ -475,6 +475,16 @@ pub mod flags {
     /// The readings are unlike the calibration's prior (out-of-prior
     /// statistic above the blob's threshold): the estimate is not to be trusted.
     pub const OUT_OF_PRIOR: u8 = 1 << 3;
+    /// The flags of the readings themselves, raised in acquisition (the
+    /// others judge the estimate).
+    pub const OF_READINGS: u8 = SATURATED | UNDER_EXPOSED | NON_FINITE;
+    /// Each flag and its name, in bit order: the names every output writes.
+    pub const NAMES: [(u8, &str); 4] = [
+        (SATURATED, "saturated"),
+        (UNDER_EXPOSED, "under-exposed"),
+        (NON_FINITE, "non-finite"),
+        (OUT_OF_PRIOR, "out-of-prior"),
+    ];
 }
 
 /// One point's estimate in a frame of its own, f32 (protocol 2's stream; a

@@ -54,16 +54,7 @@ pub struct PointEstimate {
 
 /// Names of the flag bits, in bit order: what every output writes.
 pub fn flag_names(bits: u8) -> Vec<&'static str> {
-    [
-        (flags::SATURATED, "saturated"),
-        (flags::UNDER_EXPOSED, "under-exposed"),
-        (flags::NON_FINITE, "non-finite"),
-        (flags::OUT_OF_PRIOR, "out-of-prior"),
-    ]
-    .into_iter()
-    .filter(|(b, _)| bits & b != 0)
-    .map(|(_, name)| name)
-    .collect()
+    flags::NAMES.into_iter().filter(|(b, _)| bits & b != 0).map(|(_, name)| name).collect()
 }
 
 /// One zone of a calibration, ready to apply to that zone's points.

@@ -1,0 +1,111 @@
+//! A blob's white reference rewritten in place: the standardisation on a
+//! white tile (host-tools' `standardise`).
+//!
+//! The white reference is what every reading is divided by, so when the
+//! LEDs age or the sensor's response drifts, rescaling it brings the
+//! readings back to the scale training saw; the matrices, uncertainties,
+//! gloss rows and every other section stay as trained, byte for byte. Only
+//! the white section and the CRC change, so the result is a new
+//! calibration (a new CRC, to be signed again) with the same layout.
+
+use super::*;
+
+/// How far a standardisation may rescale a white value (new over old):
+/// LEDs that lost half their light or doubled it have not drifted but
+/// failed, or the tile read was another one. Also what the host takes as a
+/// standardised calibration of the same optics.
+pub const WHITE_RATIO_RANGE: (f32, f32) = (0.5, 2.0);
+
+/// Replaces the white reference of the blob `bytes` (exactly one blob, no
+/// signature trailer) with `white` (pixel-major, `P x m`, as
+/// [`BlobView::white`] reads it) and seals it again with a new CRC.
+///
+/// Nothing is changed unless `bytes` parses, `white` has `P x m` values and
+/// each is finite and within [`WHITE_RATIO_RANGE`] of the value it
+/// replaces; the result is parsed once more before this returns.
+pub fn rewrite_white(bytes: &mut [u8], white: &[f32]) -> Result<(), BlobError> {
+    let (off, crc_at) = {
+        let view = BlobView::parse(bytes)?;
+        if bytes.len() != view.lay.total {
+            return Err(BlobError::ContentMismatch { section: Section::White });
+        }
+        if white.len() != view.dims.pixels * view.dims.m {
+            return Err(BlobError::ContentMismatch { section: Section::White });
+        }
+        if let Some(index) = white.iter().position(|x| !x.is_finite()) {
+            return Err(BlobError::NonFinite { section: Section::White, index });
+        }
+        let (lo, hi) = WHITE_RATIO_RANGE;
+        let m = view.dims.m;
+        if let Some(index) = white.iter().enumerate().position(|(k, x)| {
+            let was = view.white(k / m, k % m);
+            !(*x >= lo * was && *x <= hi * was)
+        }) {
+            return Err(BlobError::OutOfRange { section: Section::White, index });
+        }
+        (view.lay.white, view.lay.crc)
+    };
+    for (i, x) in white.iter().enumerate() {
+        put_f32(bytes, off + 4 * i, *x);
+    }
+    let crc = CRC32.checksum(&bytes[..crc_at]);
+    put_u32(bytes, crc_at, crc);
+    BlobView::parse(bytes)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_blobs::test_blob;
+
+    #[test]
+    fn only_the_white_section_and_the_crc_change() {
+        let before = test_blob(9, 7, 3, 16, 0.5);
+        let view = BlobView::parse(&before).unwrap();
+        let white: Vec<f32> = (0..16 * 7).map(|k| view.white(k / 7, k % 7) * (0.6 + k as f32 / 100.0)).collect();
+        let mut after = before.clone();
+        rewrite_white(&mut after, &white).unwrap();
+        let new = BlobView::parse(&after).unwrap();
+        for p in 0..16 {
+            for i in 0..7 {
+                assert_eq!(new.white(p, i), white[p * 7 + i]);
+            }
+        }
+        assert_ne!(new.crc(), view.crc());
+        let (lo, hi) = (view.lay.white, view.lay.white + 4 * 16 * 7);
+        let changed: Vec<usize> = (0..before.len()).filter(|&k| before[k] != after[k]).collect();
+        assert!(changed.iter().all(|&k| (lo..hi).contains(&k) || k >= view.lay.crc), "{changed:?}");
+        // Written back, the first white gives the first blob again, bit for bit.
+        let first: Vec<f32> = (0..16 * 7).map(|k| view.white(k / 7, k % 7)).collect();
+        rewrite_white(&mut after, &first).unwrap();
+        assert_eq!(after, before);
+    }
+
+    #[test]
+    fn a_bad_white_or_blob_changes_nothing() {
+        let before = test_blob(9, 7, 3, 16, 0.5);
+        let view = BlobView::parse(&before).unwrap();
+        let good: Vec<f32> = (0..16 * 7).map(|k| view.white(k / 7, k % 7) * 1.1).collect();
+        let mut b = before.clone();
+        let short = &good[..16 * 7 - 1];
+        assert_eq!(rewrite_white(&mut b, short), Err(BlobError::ContentMismatch { section: Section::White }));
+        let mut bad = good.clone();
+        bad[20] = f32::NAN;
+        assert_eq!(rewrite_white(&mut b, &bad), Err(BlobError::NonFinite { section: Section::White, index: 20 }));
+        for x in [0.0, view.white(2, 6) * 0.49, view.white(2, 6) * 2.01] {
+            bad[20] = x;
+            assert_eq!(rewrite_white(&mut b, &bad), Err(BlobError::OutOfRange { section: Section::White, index: 20 }));
+        }
+        assert_eq!(b, before);
+        // A blob followed by anything (a signature trailer) is refused whole.
+        let mut longer = before.clone();
+        longer.extend_from_slice(&[0; 8]);
+        assert!(rewrite_white(&mut longer, &good).is_err());
+        assert_eq!(&longer[..before.len()], &before[..]);
+        // Bytes that are not a blob are left as they are.
+        let mut junk = vec![7u8; 100];
+        assert!(rewrite_white(&mut junk, &good).is_err());
+        assert_eq!(junk, vec![7u8; 100]);
+    }
+}
