@@ -89,9 +89,14 @@ fn family_of(text: &str) -> anyhow::Result<Family> {
                 Family::Toml(p)
             } else if MEASURED_EXTS.contains(&ext_of(&p).as_str()) {
                 Family::Files(vec![p])
+            } else if !p.exists() {
+                bail!(
+                    "{text:?}: no such file or directory, and not `patent` or `merl` (a family is one of those, a \
+                     directory, a prior .toml or a measured .csv/.binary/.json/.astm file): check the path"
+                )
             } else {
                 bail!(
-                    "prior {text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json/.astm file"
+                    "{text:?}: not `patent`, `merl`, a directory, a prior .toml or a measured .csv/.binary/.json/.astm file"
                 )
             }
         }
@@ -282,7 +287,8 @@ mod tests {
             ("merl@0.7+patent@0.2", "sum to"),
             ("merl@x+patent@0.5", "not a number"),
             ("merl@0.5", "weight 1"),
-            ("nothing.xyz", "not `patent`"),
+            ("nothing.xyz", "no such file or directory, and not `patent`"),
+            ("src/lib.rs", "\"src/lib.rs\": not `patent`"),
             ("merl@0.5+", "empty family"),
         ] {
             let e = format!("{:#}", PriorMix::parse(bad).unwrap_err());

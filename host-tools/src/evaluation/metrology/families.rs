@@ -8,7 +8,7 @@ use crate::forward::brdf::merl_binary::MerlTable;
 use crate::forward::brdf::{Brdf, Ggx, NbrdfSet, Ward};
 use crate::forward::prior::{PATENT_TEST_ALPHA, PATENT_TEST_RHO_D};
 use crate::forward::prior_measured::{Family, PriorMix};
-use anyhow::{bail, ensure};
+use anyhow::{Context, bail, ensure};
 use std::sync::Arc;
 
 /// Diffuse albedos of the GGX family (between Table 4's extremes).
@@ -59,7 +59,7 @@ impl TestFamily {
     /// instrument's every ray and its gloss readings are defined in three
     /// dimensions, which take the whole BRDF.
     pub fn measured_files(arg: &str, spectral: [f64; 3]) -> anyhow::Result<Self> {
-        let mix = PriorMix::parse(arg)?;
+        let mix = PriorMix::parse(arg).with_context(|| format!("--set {arg:?}"))?;
         ensure!(mix.families.len() == 1, "--set {arg:?}: one set of surfaces, not a mixture");
         let files = match &mix.families[0].1 {
             Family::Merl => return Ok(Self::measured("the vendored MERL set", &NbrdfSet::merl(), spectral)),
