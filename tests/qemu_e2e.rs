@@ -329,8 +329,11 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
         lines: 2,
         csv: dir.path().join("m.csv"),
         json: dir.path().join("m.json"),
-        scene: Some("patent".into()),
-        scene_lines: Some(1),
+        scene: host_tools::cli::sim_scene::SimSceneArgs {
+            scene: Some("patent".into()),
+            scene_lines: Some(1),
+            ..Default::default()
+        },
         exports: host_tools::cli::exports::ExportArgs {
             plot: Some(dir.path().join("m.svg")),
             plot_points: vec![0, 15, 31],
@@ -379,5 +382,59 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["gloss_gu"].as_f64().unwrap());
     assert_eq!(a as f32, b as f32, "the device's f32 reading, unchanged");
     assert!(t.header.iter().any(|(k, _)| k == "GLOSS_GU"), "{:?}", t.header);
+    assert!(!q.log_text().contains("panic"), "{}", q.log_text());
+}
+
+/// `host-tools standardise` against the QEMU instrument, as a user runs it:
+/// the device reads a white tile (Lambertian 0.9 under the patent profile)
+/// that is certified at 0.8, so the calibration's white reference is
+/// rescaled by 0.9 / 0.8; provisioned, the device reads the same tile at
+/// 0.8, and the standardised calibration is still for this scene's optics.
+#[test]
+fn qemu_standardised_on_a_tile_reads_it_at_its_certified_value() {
+    use host_tools::cli::sim_scene::SimSceneArgs;
+    use host_tools::cli::standardise::{Args, Source};
+    use host_tools::forward::scene::frames::{NamedScene, named_scene_frames};
+    let q = start(Duration::from_secs(240));
+    let mut c = connect(&q);
+    let signed = signed_for_scene(&patent_scene(PIXELS), ZONES, 0.02);
+    c.provision(&signed, |_, _| {}).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    drop(c);
+    let dir = tempfile::tempdir().unwrap();
+    let (blob, out) = (dir.path().join("cal.signed"), dir.path().join("std.signed"));
+    std::fs::write(&blob, &signed).unwrap();
+    let tile = r#"{ model = "lambertian", rho = 0.9 }"#;
+    let args = Args {
+        blob: blob.clone(),
+        tile_rf: 0.8,
+        tile_u: 0.004,
+        source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        lines: 16,
+        scene: SimSceneArgs { scene: Some("patent".into()), scene_surface: Some(tile.into()), ..Default::default() },
+        out: out.clone(),
+        key: Some(host_tools::calibration::signing::dev_key_path()),
+        report: Some(dir.path().join("std.json")),
+    };
+    host_tools::cli::standardise::run(args).unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("std.json")).unwrap()).unwrap();
+    assert_eq!(report["lines"], 16, "every line a distinct draw: {report}");
+    let image = host_tools::device::provision::read_blob(&out).unwrap();
+    let mut c = connect(&q);
+    c.provision(&image, |_, _| {}).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    // The same tile, other draws of its noise.
+    let view = BlobView::parse(&image).unwrap();
+    let named = NamedScene { spec: "patent", first_line: 8, surface: Some(tile) };
+    let (frames, _) = named_scene_frames(named, &view, 4, c.info().unwrap().full_scale).unwrap();
+    c.load_scene(&frames).unwrap();
+    c.set_calibration(&image).unwrap();
+    c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
+    let points = c.measure(4).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    assert_eq!(points.len(), 4 * PIXELS);
+    let m = view.dims().m;
+    for i in 0..m {
+        let mean = points.iter().map(|p| f64::from(p.corrected[i])).sum::<f64>() / points.len() as f64;
+        assert!((mean - 0.8).abs() < 0.004, "reading {i}: the tile reads {mean}, certified 0.8");
+    }
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }

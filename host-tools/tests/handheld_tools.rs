@@ -99,6 +99,20 @@ fn a_calibration_for_other_optics_is_refused_with_the_reason() {
         train_scene(&cut, 1, 0.02, EstimatorKind::Wiener, &scene_prior(&cut, "patent").unwrap(), Criterion::Plain)
             .unwrap();
     host_tools::forward::scene::frames::check_optics(&cut, &BlobView::parse(&own.blob).unwrap()).unwrap();
+    // Standardised for LEDs that drifted (each by its own factor), it is
+    // still for these optics; a pixel's profile changed is not.
+    let view = BlobView::parse(&own.blob).unwrap();
+    let (p, m) = (view.dims().pixels, view.dims().m);
+    let drifted: Vec<f32> = (0..p * m).map(|k| view.white(k / m, k % m) * (1.1 + 0.05 * (k % m) as f32)).collect();
+    let mut standardised = own.blob.clone();
+    brdf_meter::blob::rewrite_white(&mut standardised, &drifted).unwrap();
+    host_tools::forward::scene::frames::check_optics(&cut, &BlobView::parse(&standardised).unwrap()).unwrap();
+    let mut bent = drifted.clone();
+    bent[5 * m + 2] *= 1.05;
+    brdf_meter::blob::rewrite_white(&mut standardised, &bent).unwrap();
+    let e =
+        host_tools::forward::scene::frames::check_optics(&cut, &BlobView::parse(&standardised).unwrap()).unwrap_err();
+    assert!(format!("{e:#}").contains("at pixel 5, LED 2"), "{e:#}");
 }
 
 #[test]

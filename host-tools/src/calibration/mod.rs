@@ -6,7 +6,8 @@
 //! glass) and the factors on its peaks' uncertainties; `families`: the rule
 //! those factors, the gloss readings', the per-bin band and the
 //! out-of-prior flag's threshold share (each family of held-out samples
-//! covered on its own). Consumes the forward model; knows nothing of the device link or
+//! covered on its own); `standardise`: the white reference made true again
+//! on a certified white tile (the LEDs' drift since calibration). Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;
@@ -16,4 +17,5 @@ pub mod gloss_rows;
 pub mod peak_factors;
 pub mod peak_resolution;
 pub mod signing;
+pub mod standardise;
 pub mod train;

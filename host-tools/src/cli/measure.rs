@@ -3,7 +3,6 @@
 //! readings, flags), and on request plot chosen points and write the
 //! standard files (BiRD JSON, ASTM E1392).
 use crate::device::link::{Endpoint, PointRecord};
-use crate::forward::scene::frames::named_scene_frames;
 use crate::output::profile::ExportInfo;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
@@ -33,17 +32,9 @@ pub struct Args {
     /// JSON output.
     #[arg(long, value_name = "PATH", default_value = "out/measure.json")]
     pub json: PathBuf,
-    /// Simulated devices only: load a scene first: `patent` (host-tools' scene
-    /// simulator, patent profile), `analytic` (a simple synthetic pattern) or
-    /// a scene TOML file.
-    #[arg(long, value_name = "patent|analytic|PATH")]
-    pub scene: Option<String>,
-    /// Scene lines to load, 1..=4; the device cycles through them, so line k
-    /// of the measurement sees scene line k mod this. Default: `--lines`, at
-    /// most 4, so the lines measured are distinct draws of the scene (its
-    /// noise, its position along the surface).
-    #[arg(long, value_name = "N")]
-    pub scene_lines: Option<usize>,
+    /// A scene for a simulated device.
+    #[command(flatten)]
+    pub scene: crate::cli::sim_scene::SimSceneArgs,
     /// Plot and standard files.
     #[command(flatten)]
     pub exports: crate::cli::exports::ExportArgs,
@@ -93,18 +84,6 @@ pub fn parse_bins(spec: &str, n: usize) -> anyhow::Result<BinRange> {
     Ok(r)
 }
 
-/// How many scene lines to load: `--scene-lines`, or by default one per line
-/// measured up to what the simulated sensor holds, so that a measurement of a
-/// few lines sees as many draws of the scene and not one line repeated.
-fn scene_lines(asked: Option<usize>, measured: u32) -> anyhow::Result<usize> {
-    let held = brdf_meter::shape::qemu::FRAME_LINES;
-    let n = asked.unwrap_or_else(|| (measured as usize).min(held));
-    if !(1..=held).contains(&n) {
-        bail!("--scene-lines {n}: the simulated sensor holds 1 to {held} lines");
-    }
-    Ok(n)
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.lines == 0 {
@@ -119,13 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(k) = a.exports.plot_points.iter().find(|&&k| k >= usize::from(info.pixels)) {
         bail!("--plot-points {k}: the device has points 0..={} on a line; choose among them", info.pixels - 1);
     }
-    if let Some(spec) = &a.scene {
-        if !info.simulated {
-            bail!("--scene is for simulated devices (QEMU); this device has a real sensor");
-        }
-        let frames = named_scene_frames(spec, &view, scene_lines(a.scene_lines, a.lines)?, info.full_scale)?;
-        c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
-    }
+    a.scene.load(&mut c, &info, &view, a.lines)?;
     c.timeout = std::time::Duration::from_secs(10);
     c.set_calibration(&bytes)?;
     c.format = StreamFormat {
@@ -185,18 +158,6 @@ mod tests {
         for bad in ["0:2:42", "0:0:3", "1:1:0", "a:1:1", "1:1", "-1:1:1"] {
             let e = parse_bins(bad, 81).unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
-        }
-    }
-
-    #[test]
-    fn scene_lines_default_to_the_lines_measured_up_to_what_the_sensor_holds() {
-        assert_eq!(scene_lines(None, 1).unwrap(), 1);
-        assert_eq!(scene_lines(None, 3).unwrap(), 3);
-        assert_eq!(scene_lines(None, 200).unwrap(), brdf_meter::shape::qemu::FRAME_LINES);
-        assert_eq!(scene_lines(Some(1), 4).unwrap(), 1);
-        for bad in [0, brdf_meter::shape::qemu::FRAME_LINES + 1] {
-            let e = scene_lines(Some(bad), 4).unwrap_err().to_string();
-            assert!(e.contains(&format!("--scene-lines {bad}")), "{e}");
         }
     }
 }

@@ -21,8 +21,10 @@ pub mod rate;
 pub mod reproduce;
 pub mod sign;
 pub mod sign_firmware;
+pub mod sim_scene;
 pub mod simulate;
 pub mod stability;
+pub mod standardise;
 pub mod tradeoff;
 pub mod train;
 pub mod update_firmware;
@@ -65,6 +67,8 @@ pub enum Command {
     UpdateFirmware(update_firmware::Args),
     /// On-device inspection: teach a recipe, provision it, run (verdicts, SPC, defect map), ROC.
     Inspect(inspect::Args),
+    /// Standardise a calibration on a certified white tile (the LEDs' drift since calibration).
+    Standardise(standardise::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
     /// Apply a calibration blob to logged readings offline, exactly as the device does.
@@ -99,6 +103,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Provision(a) => provision::run(a),
         Command::ProvisionSwd(a) => provision_swd::run(a),
         Command::Inspect(a) => inspect::run(a),
+        Command::Standardise(a) => standardise::run(a),
         Command::Measure(a) => measure::run(a),
         Command::Estimate(a) => estimate::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),

@@ -28,6 +28,11 @@ pub struct Args {
     /// Seed of the noise draw (overrides the scene's `noise.seed`).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Another surface under the same instrument and effects, written as a
+    /// scene's `surface.brdf`, e.g. '{ model = "lambertian", rho = 0.99 }'
+    /// (a white tile): the whole line, the scene's segments dropped.
+    #[arg(long, value_name = "BRDF")]
+    pub surface: Option<String>,
 }
 
 /// Runs the command.
@@ -41,6 +46,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if let Some(seed) = a.seed {
         set_noise_seed(&mut scene, seed)?;
+    }
+    if let Some(spec) = &a.surface {
+        scene = scene.with_surface(spec)?;
     }
     let origin = a.scene.as_ref().map_or("the built-in patent profile".to_string(), |p| p.display().to_string());
     let (out, rows) = simulate_lines(&scene, a.line, a.lines).with_context(|| format!("simulating {origin}"))?;
@@ -69,7 +77,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// For tests: simulate into `dir` as the command would.
 #[doc(hidden)]
 pub fn run_to(scene: Option<&Path>, dir: &Path) -> anyhow::Result<()> {
-    run(Args { scene: scene.map(Path::to_path_buf), out: dir.to_path_buf(), line: 0, lines: 1, seed: None })
+    run(Args {
+        scene: scene.map(Path::to_path_buf),
+        out: dir.to_path_buf(),
+        line: 0,
+        lines: 1,
+        seed: None,
+        surface: None,
+    })
 }
 
 #[cfg(test)]
@@ -147,6 +162,38 @@ mod tests {
     }
 
     #[test]
+    fn another_surface_under_the_same_instrument_and_effects() {
+        let dir = tempfile::tempdir().unwrap();
+        let args = |surface: &str| Args {
+            scene: Some(scenes().join("handheld.toml")),
+            out: dir.path().to_path_buf(),
+            line: 3,
+            lines: 1,
+            seed: None,
+            surface: Some(surface.into()),
+        };
+        run(args(r#"{ model = "lambertian", rho = 0.99 }"#)).unwrap();
+        let j = json(dir.path());
+        assert_eq!(j["stages"].as_array().unwrap().len(), 13);
+        // A white tile reads 0.99 at every pixel and LED, within the noise.
+        let truth = j["truth"]["rho"][64].as_array().unwrap();
+        assert!(truth.iter().all(|r| (r.as_f64().unwrap() - 0.99).abs() < 1e-9));
+        for px in [0, 64, 127] {
+            for x in j["lines"][0]["corrected"][px].as_array().unwrap() {
+                assert!((x.as_f64().unwrap() - 0.99).abs() < 0.03, "pixel {px}: {x}");
+            }
+        }
+        for (bad, why) in [
+            ("lambertian", "not a surface as a scene's `surface.brdf` writes it"),
+            (r#"{ model = "lambertian", rho = 2 }"#, "must be in [0, 1]"),
+            (r#"{ model = "chalk" }"#, "chalk"),
+        ] {
+            let e = run(args(bad)).unwrap_err().to_string();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
+
+    #[test]
     fn a_bad_scene_writes_nothing_and_names_file_line_and_field() {
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("bad.toml");
@@ -164,6 +211,7 @@ mod tests {
             line: 0,
             lines: 1,
             seed: Some(3),
+            surface: None,
         })
         .unwrap_err();
         assert!(e.to_string().contains("no `noise` effect"), "{e}");

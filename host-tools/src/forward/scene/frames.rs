@@ -76,52 +76,83 @@ pub const PATENT_SCENE_GAIN: f64 = 80.0;
 
 /// Raw frames of `lines` lines of `scene` from host-tools' scene simulator.
 pub fn scene_frames(scene: &super::Scene, lines: usize) -> anyhow::Result<SceneFrames> {
-    (0..lines as u64).map(|l| super::raw_frames(scene, l)).collect()
+    scene_frames_from(scene, 0, lines)
+}
+
+/// Raw frames of scene lines `first..first + lines` (the line is the time
+/// since calibration, for the LEDs' drift, and the noise draw's).
+pub fn scene_frames_from(scene: &super::Scene, first: u64, lines: usize) -> anyhow::Result<SceneFrames> {
+    (first..first + lines as u64).map(|l| super::raw_frames(scene, l)).collect()
+}
+
+/// A scene named on the command line for a simulated device, and which of
+/// its lines to load.
+#[derive(Clone, Copy, Debug)]
+pub struct NamedScene<'a> {
+    /// `analytic`, `patent` or a scene TOML file.
+    pub spec: &'a str,
+    /// The first scene line loaded (the time since calibration).
+    pub first_line: u64,
+    /// Another surface under the scene's instrument (a scene's
+    /// `surface.brdf`, [`super::Scene::with_surface`]).
+    pub surface: Option<&'a str>,
 }
 
 /// Frames for a simulated device from a scene named on the command line:
 /// `analytic` ([`analytic_scene`]), `patent` ([`patent_scene`]) or a scene
-/// TOML file, simulated for the calibration's pixel count.
+/// TOML file, simulated for the calibration's pixel count; with a note for
+/// the user when the device reads a cut of the scene's line.
 pub fn named_scene_frames(
-    spec: &str,
+    named: NamedScene<'_>,
     blob: &BlobView<'_>,
     lines: usize,
     full_scale: u16,
-) -> anyhow::Result<SceneFrames> {
+) -> anyhow::Result<(SceneFrames, Option<String>)> {
     use anyhow::Context;
     let pixels = blob.dims().pixels;
-    Ok(match spec {
-        "analytic" => analytic_scene(blob, lines, full_scale),
-        "patent" => {
-            let s = patent_scene(pixels);
-            check_optics(&s, blob)?;
-            scene_frames(&s, lines)?
+    let simulated = |s: super::Scene| -> anyhow::Result<SceneFrames> {
+        let s = match named.surface {
+            Some(spec) => s.with_surface(spec)?,
+            None => s,
+        };
+        check_optics(&s, blob)?;
+        scene_frames_from(&s, named.first_line, lines)
+    };
+    match named.spec {
+        "analytic" => {
+            anyhow::ensure!(
+                named.first_line == 0 && named.surface.is_none(),
+                "the analytic scene is a pattern of readings, with no lines in time or surface to choose: \
+                 name a scene TOML file (or `patent`)"
+            );
+            Ok((analytic_scene(blob, lines, full_scale), None))
         }
+        "patent" => Ok((simulated(patent_scene(pixels))?, None)),
         path => {
             let whole =
                 super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
             let s = whole.for_device(pixels)?;
-            if s.instrument.sensor.pixels != whole.instrument.sensor.pixels {
-                eprintln!(
-                    "note: scene {path} has {} pixels; the device reads {}",
-                    whole.instrument.sensor.pixels, s.name
-                );
-            }
-            check_optics(&s, blob)?;
-            scene_frames(&s, lines)?
+            let note = (s.instrument.sensor.pixels != whole.instrument.sensor.pixels).then(|| {
+                format!("scene {path} has {} pixels; the device reads {}", whole.instrument.sensor.pixels, s.name)
+            });
+            Ok((simulated(s)?, note))
         }
-    })
+    }
 }
 
 /// Largest relative difference between a calibration's white reference and
-/// a scene's that still counts as the same optics (the white reference is
-/// rounded to f32 and the scene's gain may be trimmed).
+/// a scene's that still counts as the same optics, once each LED's level is
+/// taken out (the white reference is rounded to f32).
 pub const SAME_OPTICS_TOLERANCE: f64 = 0.02;
 
 /// Refuses a scene whose optics are not the ones `blob` was trained for:
 /// the white reference (every pixel's reading of a perfect diffuser under
-/// every LED) is the optics' fingerprint, so a calibration for other LEDs,
-/// another gain or another cut of the line differs there. The error says
+/// every LED) is the optics' fingerprint, so a calibration for other LEDs
+/// or another cut of the line differs there. Each LED's level may differ
+/// by a common factor within [`brdf_meter::blob::WHITE_RATIO_RANGE`]: a
+/// calibration standardised on a white tile (host-tools `standardise`)
+/// rescaled it for LEDs that drifted, or a gain changed, and is still for
+/// these optics; its pixels' profile under the LED is not. The error says
 /// where and what to do.
 pub fn check_optics(scene: &super::Scene, blob: &BlobView<'_>) -> anyhow::Result<()> {
     let d = blob.dims();
@@ -135,16 +166,32 @@ pub fn check_optics(scene: &super::Scene, blob: &BlobView<'_>) -> anyhow::Result
         d.m
     );
     let white = super::white_reference(scene)?;
-    for px in 0..p {
-        for i in 0..m {
-            let (w, b) = (f64::from(white[px * m + i]), f64::from(blob.white(px, i)));
+    let other = |why: String| {
+        anyhow::anyhow!(
+            "the calibration was trained for other optics than scene `{}`: {why}; its estimates of this scene would \
+             mean nothing. Train a calibration for this scene (host-tools train --scene ...) and provision it",
+            scene.name
+        )
+    };
+    let (lo, hi) = brdf_meter::blob::WHITE_RATIO_RANGE;
+    for i in 0..m {
+        let ratio = |px: usize| f64::from(blob.white(px, i)) / f64::from(white[px * m + i]);
+        let mut level: Vec<f64> = (0..p).map(ratio).collect();
+        level.sort_by(f64::total_cmp);
+        let level = level[p / 2];
+        if !(level >= f64::from(lo) && level <= f64::from(hi)) {
+            return Err(other(format!(
+                "under LED {i} its white reference is {level:.3} times the scene's (a standardisation moves it by \
+                 {lo} to {hi} times)"
+            )));
+        }
+        for px in 0..p {
+            let (w, b) = (f64::from(white[px * m + i]) * level, f64::from(blob.white(px, i)));
             if (w - b).abs() > SAME_OPTICS_TOLERANCE * w.abs().max(b.abs()) {
-                anyhow::bail!(
-                    "the calibration was trained for other optics than scene `{}`: at pixel {px}, LED {i} its white \
-                     reference is {b:.1} counts, the scene's {w:.1}; its estimates of this scene would mean nothing. \
-                     Train a calibration for this scene (host-tools train --scene ...) and provision it",
-                    scene.name
-                );
+                return Err(other(format!(
+                    "at pixel {px}, LED {i} its white reference is {b:.1} counts, the scene's {w:.1} (at the \
+                     calibration's level for that LED, {level:.3} times the scene's)"
+                )));
             }
         }
     }

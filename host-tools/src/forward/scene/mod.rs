@@ -474,6 +474,30 @@ pub fn training_optics(scene: &Scene, zones: usize, noise_override: Option<f64>)
     })
 }
 
+impl Scene {
+    /// The scene with its surface replaced by `spec`, written as a scene's
+    /// `surface.brdf` (e.g. `{ model = "lambertian", rho = 0.99 }`, a white
+    /// tile): the whole line, its segments dropped; the instrument and the
+    /// effects unchanged. For `--surface` on the command line.
+    pub fn with_surface(mut self, spec: &str) -> anyhow::Result<Self> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Surface {
+            brdf: BrdfSpec,
+        }
+        let s: Surface = toml::from_str(&format!("brdf = {spec}")).map_err(|e| {
+            anyhow::anyhow!(
+                "surface {spec}: not a surface as a scene's `surface.brdf` writes it, e.g. '{{ model = \"lambertian\", \
+                 rho = 0.99 }}': {}",
+                e.message()
+            )
+        })?;
+        s.brdf.build().map_err(|e| anyhow::anyhow!("surface {spec}: {e}"))?;
+        self.surface = SurfaceSpec { brdf: s.brdf, segments: Vec::new() };
+        Ok(self)
+    }
+}
+
 /// The blob's white reference: for every pixel p and LED i (physical order),
 /// the dark-corrected, noise-free, drift-free reading of a perfect diffuser
 /// through the scene's whole pipeline, at index `p * m + i`.
