@@ -151,6 +151,10 @@ struct Report<'a> {
 /// read as it holds (more would repeat draws and understate the scatter).
 fn read_tile_on_device(a: &Args, blob: &[u8]) -> anyhow::Result<Vec<PointRecord>> {
     ensure!(a.lines >= 2, "--lines {}: a standardisation needs at least 2 lines of the tile", a.lines);
+    ensure!(
+        a.scene.scene_lines.is_none(),
+        "--scene-lines: standardise loads a scene line of its own for every line it reads (--lines)"
+    );
     let view = BlobView::parse(blob).expect("parsed by the caller");
     let endpoint = Endpoint { port: a.source.port.clone(), tcp: a.source.tcp.clone() };
     let mut c = crate::device::link::Client::new(endpoint.open()?)?;
