@@ -420,6 +420,10 @@ fn qemu_standardised_on_a_tile_reads_it_at_its_certified_value() {
         serde_json::from_slice(&std::fs::read(dir.path().join("std.json")).unwrap()).unwrap();
     assert_eq!(report["lines"], 16, "every line a distinct draw: {report}");
     let image = host_tools::device::provision::read_blob(&out).unwrap();
+    // The calibration states its white's uncertainty; the device takes it.
+    let stated = BlobView::parse(&image).unwrap().white_uncertainty();
+    assert_eq!(stated, report["u_rel"].as_f64().unwrap() as f32);
+    assert!(stated >= 0.004 / 0.8, "at least the certificate's: {stated}");
     let mut c = connect(&q);
     c.provision(&image, |_, _| {}).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
     // The same tile, other draws of its noise.

@@ -92,6 +92,9 @@ pub struct BlobExtras<'a> {
     /// The specular peak's uncertainty factors (header flag bit 12, with
     /// `peak_resolution_deg` only): the module docs.
     pub peak_factors: Option<PeakFactors>,
+    /// The white reference's relative standard uncertainty (header flag
+    /// bit 13; a standardised calibration's): the module docs.
+    pub white_uncertainty: Option<f32>,
 }
 
 impl BlobExtras<'_> {
@@ -107,6 +110,7 @@ impl BlobExtras<'_> {
         broad_uncertainty: &[],
         linearity: None,
         peak_factors: None,
+        white_uncertainty: None,
     };
 }
 

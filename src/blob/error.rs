@@ -36,6 +36,8 @@ pub enum Section {
     Linearity,
     /// The specular peak's uncertainty factors (header flag bit 12).
     PeakFactors,
+    /// The white reference's uncertainty (header flag bit 13).
+    WhiteUncertainty,
 }
 
 /// Why a blob was rejected.
@@ -162,6 +164,18 @@ pub(super) fn check_peak_resolution(r: f32) -> Result<(), BlobError> {
         Err(BlobError::NonFinite { section: Section::Header, index: 60 })
     } else if r <= 0.0 {
         Err(BlobError::OutOfRange { section: Section::Header, index: 60 })
+    } else {
+        Ok(())
+    }
+}
+
+/// The white reference's relative uncertainty: finite, 0 to
+/// [`super::MAX_WHITE_UNCERTAINTY`].
+pub(super) fn check_white_uncertainty(u: f32) -> Result<(), BlobError> {
+    if !u.is_finite() {
+        Err(BlobError::NonFinite { section: Section::WhiteUncertainty, index: 0 })
+    } else if !(0.0..=super::MAX_WHITE_UNCERTAINTY).contains(&u) {
+        Err(BlobError::OutOfRange { section: Section::WhiteUncertainty, index: 0 })
     } else {
         Ok(())
     }

@@ -39,6 +39,7 @@ pub(super) struct Layout {
     pub(super) linearity: usize,
     /// The peak's uncertainty factors (two, or empty).
     pub(super) peak_factors: usize,
+    pub(super) white_uncertainty: usize,
     pub(super) crc: usize,
     pub(super) total: usize,
     pub(super) clusters: usize,
@@ -81,7 +82,8 @@ impl Dims {
         let broad_uncertainty = pixel_resolution + if x.pixel_resolution { 4 * self.pixels } else { 0 };
         let linearity = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
         let peak_factors = linearity + if x.linearity { 4 * LINEARITY_KNOTS } else { 0 };
-        let crc = peak_factors + if x.peak_factors { 8 } else { 0 };
+        let white_uncertainty = peak_factors + if x.peak_factors { 8 } else { 0 };
+        let crc = white_uncertainty + if x.white_uncertainty { 4 } else { 0 };
         Layout {
             grid,
             led_order,
@@ -96,6 +98,7 @@ impl Dims {
             broad_uncertainty,
             linearity,
             peak_factors,
+            white_uncertainty,
             crc,
             total: crc + 4,
             clusters: k,
@@ -169,6 +172,8 @@ pub(super) struct Extras {
     pub(super) linearity: bool,
     /// The peak's uncertainty factors follow (flag bit 12).
     pub(super) peak_factors: bool,
+    /// The white reference's uncertainty follows (flag bit 13).
+    pub(super) white_uncertainty: bool,
 }
 
 impl Extras {
@@ -186,6 +191,7 @@ impl Extras {
         deficit_readings: false,
         linearity: false,
         peak_factors: false,
+        white_uncertainty: false,
     };
 
     pub(super) fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
@@ -203,6 +209,7 @@ impl Extras {
             deficit_readings: x.gloss.is_some_and(|g| g.root_readings == crate::gloss::RootReadings::Deficit),
             linearity: x.linearity.is_some(),
             peak_factors: x.peak_factors.is_some(),
+            white_uncertainty: x.white_uncertainty.is_some(),
         }
     }
 
@@ -215,6 +222,7 @@ impl Extras {
             || self.broad_band
             || self.linearity
             || self.peak_factors
+            || self.white_uncertainty
             || matches!(kind, EstimatorKind::ScaleFree | EstimatorKind::ScaleFreePiecewise)
     }
 

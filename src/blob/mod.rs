@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below), bit 12 the specular peak's uncertainty factors follow (with bit 6 only; below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below), bit 12 the specular peak's uncertainty factors follow (with bit 6 only; below), bit 13 the white reference's uncertainty follows (below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | K_g, the gloss rows' clusters per zone (2..=64, with bit 9 only; else 0) |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -61,6 +61,7 @@
 //! | 4ZKn (bit 8 only) | the second per-bin uncertainty table, for broad estimates (below) |
 //! | 68 (bit 11 only) | the sensor's linearity correction: 17 factors, one per octave of counts (below) |
 //! | 8 (bit 12 only) | the specular peak's uncertainty factors: height, width (below) |
+//! | 4 (bit 13 only) | the white reference's relative standard uncertainty (below) |
 //!
 //! before the CRC (these after the gloss section, when the blob has
 //! one). A scale-free matrix is `[W' | b]`: its last column
@@ -109,6 +110,17 @@
 //! point's scale; the sigma16 encoding's step is the first table's), so
 //! only the host's stated uncertainty depends on it
 //! ([`BlobView::point_uncertainty`]).
+//!
+//! ## The white reference's uncertainty (flag bit 13)
+//! A calibration standardised on a white tile (host-tools `standardise`,
+//! [`with_white_uncertainty`]) carries its white reference's relative
+//! standard uncertainty (k = 1): the tile certificate's and the scatter of
+//! the tile's readings, in quadrature (finite, 0 to
+//! [`MAX_WHITE_UNCERTAINTY`]). Every reading is divided by the white, so
+//! every value the host states carries it as a relative term; the device
+//! does not use it. A blob without the flag states none (its white is the
+//! training's, exact in the model); firmware from before it rejects such a
+//! blob as having a reserved flag set, and keeps its last good calibration.
 //!
 //! ## The sensor's linearity (flag bit 11)
 //! The factor at each of [`crate::acquire::linearity::LINEARITY_KNOTS`]
@@ -251,11 +263,11 @@ pub use contents::{BlobContents, BlobExtras, GlossData, OutOfPriorData};
 pub use error::{BlobError, Section};
 pub use layout::{Dims, MAX_CLUSTERS, gloss_len, out_of_prior_len};
 pub use view::BlobView;
-pub use white::{WHITE_RATIO_RANGE, rewrite_white};
+pub use white::{MAX_WHITE_UNCERTAINTY, WHITE_RATIO_RANGE, rewrite_white, with_white_uncertainty};
 pub use write::{write_blob, write_blob_with};
 
 use bytes::{get_f32, get_u16, get_u32, put_f32, put_u16, put_u32};
-use error::{check_peak_resolution, check_pixel_resolution};
+use error::{check_peak_resolution, check_pixel_resolution, check_white_uncertainty};
 use layout::{Extras, Layout};
 
 /// First four bytes of every blob.
@@ -325,6 +337,9 @@ const FLAG_LINEARITY: u16 = 2048;
 /// such a blob as having a reserved flag set, and keeps its last good
 /// calibration.
 const FLAG_PEAK_FACTORS: u16 = 4096;
+/// Header flag bit 13: the white reference's relative standard uncertainty
+/// follows (a standardisation's, host-tools `standardise`).
+const FLAG_WHITE_UNCERTAINTY: u16 = 8192;
 
 /// What the host multiplies a resolved specular peak's first-order
 /// standard uncertainties by (the module docs, flag bit 12): finite, > 0.

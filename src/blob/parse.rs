@@ -65,6 +65,7 @@ impl<'a> BlobView<'a> {
                 deficit_readings: flags & FLAG_DEFICIT_READINGS != 0,
                 linearity: flags & FLAG_LINEARITY != 0,
                 peak_factors: flags & FLAG_PEAK_FACTORS != 0,
+                white_uncertainty: flags & FLAG_WHITE_UNCERTAINTY != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -107,7 +108,8 @@ impl<'a> BlobView<'a> {
                 | FLAG_GLOSS_CLUSTERS
                 | FLAG_DEFICIT_READINGS
                 | FLAG_LINEARITY
-                | FLAG_PEAK_FACTORS;
+                | FLAG_PEAK_FACTORS
+                | FLAG_WHITE_UNCERTAINTY;
             (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
                 && (ex.peak_resolution || !(ex.pixel_resolution || ex.peak_factors))
                 && (band || get_u32(bytes, 56) == 0)
@@ -208,7 +210,15 @@ impl<'a> BlobView<'a> {
         if ex.linearity {
             view.check_linearity()?;
         }
-        view.check_finite(Section::PeakFactors, lay.peak_factors, (lay.crc - lay.peak_factors) / 4, true)?;
+        view.check_finite(
+            Section::PeakFactors,
+            lay.peak_factors,
+            (lay.white_uncertainty - lay.peak_factors) / 4,
+            true,
+        )?;
+        if ex.white_uncertainty {
+            check_white_uncertainty(get_f32(bytes, lay.white_uncertainty))?;
+        }
         Ok(view)
     }
 

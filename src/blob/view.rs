@@ -333,7 +333,13 @@ impl<'a> BlobView<'a> {
     /// has them.
     pub fn peak_factors(&self) -> Option<PeakFactors> {
         let at = |i: usize| get_f32(self.bytes, self.lay.peak_factors + 4 * i);
-        (self.lay.crc != self.lay.peak_factors).then(|| PeakFactors { height: at(0), width: at(1) })
+        (self.lay.white_uncertainty != self.lay.peak_factors).then(|| PeakFactors { height: at(0), width: at(1) })
+    }
+
+    /// The white reference's relative standard uncertainty (flag bit 13):
+    /// a standardised calibration's; 0 when the blob states none.
+    pub fn white_uncertainty(&self) -> f32 {
+        if self.lay.crc != self.lay.white_uncertainty { get_f32(self.bytes, self.lay.white_uncertainty) } else { 0.0 }
     }
 
     /// Pixel `p`'s peak resolution (deg): its own (flag bit 7) when it has

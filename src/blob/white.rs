@@ -16,6 +16,45 @@ use super::*;
 /// standardised calibration of the same optics.
 pub const WHITE_RATIO_RANGE: (f32, f32) = (0.5, 2.0);
 
+/// The largest relative standard uncertainty a blob may state for its
+/// white reference: a standardisation known no better than this is not one.
+pub const MAX_WHITE_UNCERTAINTY: f32 = 0.1;
+
+/// Writes `blob` (exactly one blob) into `out` stating `u_rel` as its white
+/// reference's relative standard uncertainty (flag bit 13, the section
+/// before the CRC: added, or replaced when the blob has it) and returns the
+/// length written: 4 bytes more than `blob` when the section is new. A
+/// format version 1 blob is written as version 2 (K = 1), the oldest that
+/// carries flags beyond the far-field one; every other byte is kept.
+///
+/// Nothing is written unless `blob` parses, `u_rel` is finite and within
+/// 0 to [`MAX_WHITE_UNCERTAINTY`], and `out` has room; the result is
+/// parsed before this returns.
+pub fn with_white_uncertainty(blob: &[u8], u_rel: f32, out: &mut [u8]) -> Result<usize, BlobError> {
+    check_white_uncertainty(u_rel)?;
+    let view = BlobView::parse(blob)?;
+    if blob.len() != view.lay.total {
+        return Err(BlobError::ContentMismatch { section: Section::WhiteUncertainty });
+    }
+    let at = view.lay.white_uncertainty;
+    let total = at + 4 + 4;
+    if out.len() < total {
+        return Err(BlobError::TooShort { need: total, got: out.len() });
+    }
+    out[..at].copy_from_slice(&blob[..at]);
+    if view.version() == FORMAT_VERSION_1 {
+        put_u16(out, 4, FORMAT_VERSION_2);
+        put_u16(out, 48, 1);
+    }
+    put_u16(out, 22, get_u16(blob, 22) | FLAG_WHITE_UNCERTAINTY);
+    put_u32(out, 44, total as u32);
+    put_f32(out, at, u_rel);
+    let crc = CRC32.checksum(&out[..at + 4]);
+    put_u32(out, at + 4, crc);
+    BlobView::parse(&out[..total])?;
+    Ok(total)
+}
+
 /// Replaces the white reference of the blob `bytes` (exactly one blob, no
 /// signature trailer) with `white` (pixel-major, `P x m`, as
 /// [`BlobView::white`] reads it) and seals it again with a new CRC.
@@ -58,6 +97,58 @@ pub fn rewrite_white(bytes: &mut [u8], white: &[f32]) -> Result<(), BlobError> {
 mod tests {
     use super::*;
     use crate::test_blobs::test_blob;
+
+    #[test]
+    fn the_white_uncertainty_is_added_or_replaced_and_nothing_else_changes() {
+        // Version 1 (a Wiener blob with nothing added) and a version 2 one.
+        let v1 = test_blob(9, 7, 3, 16, 0.5);
+        assert_eq!(BlobView::parse(&v1).unwrap().version(), FORMAT_VERSION_1);
+        let parts = crate::test_blobs::TestBlobParts::new(9, 7, 3, 16, 0.5);
+        let lin = crate::acquire::Linearity::new([1.0; crate::acquire::linearity::LINEARITY_KNOTS]).unwrap();
+        let ex = BlobExtras { linearity: Some(lin), ..BlobExtras::NONE };
+        let mut v2 = vec![0u8; parts.dims.blob_len_with(&ex)];
+        write_blob_with(&parts.contents(), &ex, &mut v2).unwrap();
+        for blob in [v1, v2] {
+            let before = BlobView::parse(&blob).unwrap();
+            assert_eq!(before.white_uncertainty(), 0.0);
+            let mut out = vec![0u8; blob.len() + 4];
+            let n = with_white_uncertainty(&blob, 0.004, &mut out).unwrap();
+            assert_eq!(n, blob.len() + 4);
+            let after = BlobView::parse(&out).unwrap();
+            assert_eq!(after.white_uncertainty(), 0.004);
+            assert_eq!(after.version(), before.version().max(FORMAT_VERSION_2));
+            for p in 0..16 {
+                for i in 0..7 {
+                    assert_eq!(after.white(p, i), before.white(p, i));
+                }
+            }
+            let (mut a, mut b) = (vec![0.0; 63], vec![0.0; 63]);
+            for z in 0..3 {
+                before.copy_matrix(z, &mut a);
+                after.copy_matrix(z, &mut b);
+                assert_eq!(a, b);
+                assert_eq!(before.uncertainty(z, 4), after.uncertainty(z, 4));
+            }
+            assert_eq!(after.linearity(), before.linearity());
+            // Stated again, it is replaced in place.
+            let mut again = vec![0u8; n + 4];
+            let m = with_white_uncertainty(&out[..n], 0.002, &mut again).unwrap();
+            assert_eq!(m, n);
+            assert_eq!(BlobView::parse(&again).unwrap().white_uncertainty(), 0.002);
+            // The white rewritten keeps it.
+            let white: Vec<f32> = (0..16 * 7).map(|k| after.white(k / 7, k % 7) * 1.2).collect();
+            rewrite_white(&mut again[..m], &white).unwrap();
+            assert_eq!(BlobView::parse(&again).unwrap().white_uncertainty(), 0.002);
+            // What cannot be stated, or a buffer without room, writes nothing.
+            let mut small = vec![0u8; n - 1];
+            assert!(matches!(with_white_uncertainty(&blob, 0.004, &mut small), Err(BlobError::TooShort { .. })));
+            for bad in [f32::NAN, -0.001, MAX_WHITE_UNCERTAINTY * 1.01] {
+                let mut o = vec![0u8; n];
+                assert!(with_white_uncertainty(&blob, bad, &mut o).is_err(), "{bad}");
+                assert!(o.iter().all(|b| *b == 0));
+            }
+        }
+    }
 
     #[test]
     fn only_the_white_section_and_the_crc_change() {

@@ -47,7 +47,7 @@ pub struct Tile {
 }
 
 impl Tile {
-    /// A tile, checked: `rf` in (0, 1.5], `u_rf` in [0, rf / 10].
+    /// A tile, checked: `rf` in (0, 1.5], `u_rf` in [0, rf / 20].
     pub fn new(rf: f64, u_rf: f64) -> anyhow::Result<Self> {
         ensure!(
             rf.is_finite() && rf > 0.0 && rf <= 1.5,
@@ -55,8 +55,8 @@ impl Tile {
              take the value from its certificate)"
         );
         ensure!(
-            u_rf.is_finite() && u_rf >= 0.0 && u_rf <= rf / 10.0,
-            "--tile-u {u_rf}: the certificate's standard uncertainty (k = 1) is at least 0 and at most a tenth of \
+            u_rf.is_finite() && u_rf >= 0.0 && u_rf <= rf / 20.0,
+            "--tile-u {u_rf}: the certificate's standard uncertainty (k = 1) is at least 0 and at most 5 % of \
              --tile-rf (a certificate at k = 2 states twice it)"
         );
         Ok(Self { rf, u_rf })
@@ -104,7 +104,9 @@ pub struct Standardisation {
     pub readings: Vec<ReadingSummary>,
     /// The relative standard uncertainty (k = 1) the new white reference
     /// gives every reading: the certificate's and the worst mean's
-    /// scatter, combined in quadrature.
+    /// scatter, combined in quadrature. The standardised blob states it
+    /// (`brdf_meter::blob::with_white_uncertainty`), and the host adds it
+    /// to every value it states from that calibration.
     pub u_rel: f64,
     /// The CRC of the calibration standardised.
     pub crc_before: u32,
@@ -225,7 +227,10 @@ impl Standardisation {
             view.crc(),
             self.crc_before
         );
-        let mut out = view.as_bytes().to_vec();
+        let mut out = vec![0u8; view.as_bytes().len() + 4];
+        let n = brdf_meter::blob::with_white_uncertainty(view.as_bytes(), self.u_rel as f32, &mut out)
+            .map_err(|e| anyhow::anyhow!("stating the white reference's uncertainty: {e}"))?;
+        out.truncate(n);
         brdf_meter::blob::rewrite_white(&mut out, &self.white)
             .map_err(|e| anyhow::anyhow!("writing the new white reference: {e}"))
             .context("standardising")?;
@@ -251,7 +256,8 @@ impl Standardisation {
             );
         }
         s += &format!(
-            "the new white reference's relative standard uncertainty: {:.3} % (certificate {:.3} %, scatter {:.3} %)\n",
+            "the new white reference's relative standard uncertainty: {:.3} % (certificate {:.3} %, scatter {:.3} %), \
+             stated in the calibration: every value measured with it carries it\n",
             100.0 * self.u_rel,
             100.0 * self.tile.u_rf / self.tile.rf,
             100.0 * self.readings.iter().map(|r| r.scatter_max).fold(0.0, f64::max)
@@ -297,6 +303,8 @@ mod tests {
         let new = s.blob(&blob).unwrap();
         let nv = BlobView::parse(&new).unwrap();
         assert_ne!(nv.crc(), view.crc());
+        // The blob states the new white's uncertainty.
+        assert_eq!(nv.white_uncertainty(), s.u_rel as f32);
         for p in 0..P {
             for i in 0..M {
                 let want = f64::from(view.white(p, i)) * gain(i);

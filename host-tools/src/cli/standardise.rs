@@ -252,6 +252,7 @@ mod tests {
             serde_json::from_slice(&std::fs::read(new.with_extension("json")).unwrap()).unwrap();
         assert_eq!(report["tile"]["rf"], 0.9);
         assert_eq!(report["crc_after"], v.crc());
+        assert_eq!(v.white_uncertainty(), report["u_rel"].as_f64().unwrap() as f32);
         assert!(report["u_rel"].as_f64().unwrap() > 0.002 / 0.9);
         // A tile certified at another value is refused, and nothing is written.
         let refused = dir.path().join("refused.blob");

@@ -46,6 +46,9 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
             })
             .collect(),
     }
+    // A standardised calibration's white reference is known to a relative
+    // uncertainty that every value carries.
+    .with_white_uncertainty(f64::from(view.white_uncertainty()))
 }
 
 /// The calibration's per-bin standard uncertainty for point `p` on the bins

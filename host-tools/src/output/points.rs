@@ -155,7 +155,34 @@ fn number_text(x: f32) -> String {
     if x.is_finite() { serde_json::to_string(&x).expect("a finite f32 serialises") } else { String::new() }
 }
 
+/// Which gloss readings scale with the readings (and so with the white
+/// reference they are divided by), in the readings' order: gloss and haze
+/// do; distinctness, a ratio of two of them, does not.
+const READINGS_SCALE: [bool; READINGS] = [true, true, false];
+
 impl Points {
+    /// Every stated uncertainty with the calibration's white reference's
+    /// relative standard uncertainty `u_rel` (a standardised calibration's,
+    /// `brdf_meter::blob::with_white_uncertainty`) added in quadrature, as a
+    /// relative term on each value that scales with the readings: every
+    /// bin's reflectance, gloss and haze (and so the specular peak's
+    /// height, which `crate::output::peak` takes from the bins); not
+    /// distinctness, a ratio. Nothing changes when `u_rel` is 0.
+    pub fn with_white_uncertainty(mut self, u_rel: f64) -> Self {
+        if u_rel > 0.0 {
+            let add = |u: f32, x: f32| f64::from(u).hypot(u_rel * f64::from(x)) as f32;
+            for p in &mut self.points {
+                for (u, x) in p.u_rho.iter_mut().zip(&p.rho) {
+                    *u = add(*u, *x);
+                }
+                for k in (0..READINGS).filter(|k| READINGS_SCALE[*k]) {
+                    p.u_readings[k] = add(p.u_readings[k], p.readings[k]);
+                }
+            }
+        }
+        self
+    }
+
     /// The points as profiles for the plot and the standard files, the
     /// same values and uncertainties as the schema's files: each on its
     /// line and pixel, or (offline, without them) on line 0 at its row.
@@ -590,5 +617,29 @@ mod tests {
         assert_eq!(pr[0].readings[1], ("haze_hu".to_string(), 2.25, 0.125));
         assert_eq!(pr[0].readings.len(), 3);
         assert!(pr[1].readings.is_empty());
+    }
+
+    #[test]
+    fn a_standardised_calibrations_white_uncertainty_is_added_to_what_scales_with_the_readings() {
+        let p = points();
+        // (By their text: the point without readings holds NaN.)
+        let same = format!("{:?}", p.clone().with_white_uncertainty(0.0));
+        assert_eq!(same, format!("{p:?}"), "nothing stated, nothing changes");
+        let w = p.clone().with_white_uncertainty(0.01);
+        for (a, b) in p.points.iter().zip(&w.points) {
+            for ((u, x), v) in a.u_rho.iter().zip(&a.rho).zip(&b.u_rho) {
+                let want = (f64::from(*u).powi(2) + (0.01 * f64::from(*x)).powi(2)).sqrt();
+                assert!((f64::from(*v) - want).abs() <= 1e-6 * want, "{v} vs {want}");
+                assert!(v >= u);
+            }
+            for (k, scales) in READINGS_SCALE.iter().enumerate() {
+                if *scales && a.readings[k].is_finite() {
+                    assert!(b.u_readings[k] > a.u_readings[k] || a.readings[k] == 0.0, "reading {k}");
+                } else if a.u_readings[k].is_finite() {
+                    assert_eq!(b.u_readings[k], a.u_readings[k], "reading {k}");
+                }
+            }
+        }
+        assert_eq!(brdf_meter::gloss::NAMES[2], "distinctness_pct", "the reading that does not scale");
     }
 }
