@@ -242,8 +242,8 @@
 //! - `contents`: what a blob holds, borrowed, for the writer
 //!   ([`BlobContents`], [`BlobExtras`]);
 //! - `write`: [`write_blob`] and [`write_blob_with`];
-//! - `white`: [`rewrite_white`], the white reference rewritten in place
-//!   (the standardisation on a white tile);
+//! - `white`: [`rewrite_white`] and [`with_white_uncertainty`], the white
+//!   reference rewritten and its uncertainty stated (a standardisation);
 //! - `parse`: [`BlobView::parse`], every check a blob must pass;
 //! - `view`: [`BlobView`] and what the device and host read from it;
 //! - `bytes`: little-endian field access.

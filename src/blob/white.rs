@@ -1,12 +1,14 @@
-//! A blob's white reference rewritten in place: the standardisation on a
-//! white tile (host-tools' `standardise`).
+//! A blob's white reference rewritten, and its uncertainty stated: the
+//! standardisation on a white tile (host-tools' `standardise`).
 //!
 //! The white reference is what every reading is divided by, so when the
 //! LEDs age or the sensor's response drifts, rescaling it brings the
 //! readings back to the scale training saw; the matrices, uncertainties,
-//! gloss rows and every other section stay as trained, byte for byte. Only
-//! the white section and the CRC change, so the result is a new
-//! calibration (a new CRC, to be signed again) with the same layout.
+//! gloss rows and every other section stay as trained, byte for byte.
+//! [`rewrite_white`] changes only the white section and the CRC;
+//! [`with_white_uncertainty`] adds (or replaces) the last section, the
+//! white's relative standard uncertainty (flag bit 13). The result is a new
+//! calibration: a new CRC, to be signed again.
 
 use super::*;
 
