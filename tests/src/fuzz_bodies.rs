@@ -260,6 +260,8 @@ fn check_view(v: &BlobView<'_>, bytes: &[u8]) {
     assert_eq!(v.crc(), u32::from_le_bytes(blob[blob.len() - 4..].try_into().unwrap()));
     assert_eq!(CRC32.checksum(&blob[..blob.len() - 4]), v.crc());
     assert!(v.noise_rel().is_finite() && v.noise_rel() >= 0.0);
+    let wu = v.white_uncertainty();
+    assert!((0.0..=brdf_meter::blob::MAX_WHITE_UNCERTAINTY).contains(&wu), "the white's uncertainty {wu}");
     let _ = (v.estimator(), v.far_field(), v.summary());
     let mut prev = f32::NEG_INFINITY;
     for i in 0..d.n {
