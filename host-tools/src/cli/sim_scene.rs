@@ -2,7 +2,7 @@
 //! (`measure`, `standardise`): which scene, how many of its lines, from
 //! which line on, and on which surface.
 use crate::device::link::{Client, Transport};
-use crate::forward::scene::frames::{NamedScene, named_scene_frames};
+use crate::forward::scene::frames::{NamedScene, PreparedScene};
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::DeviceInfo;
@@ -42,37 +42,22 @@ impl SimSceneArgs {
         view: &BlobView<'_>,
         read: u32,
     ) -> anyhow::Result<()> {
-        if self.scene.is_none() {
-            return Ok(());
-        }
-        if let Some(note) = self.load_lines(c, info, view, self.scene_line, self.lines(read)?)? {
+        let Some(scene) = self.prepare(info, view)? else { return Ok(()) };
+        if let Some(note) = &scene.note {
             eprintln!("note: {note}");
         }
-        Ok(())
+        load_lines(c, &scene, info, view, self.scene_line, self.lines(read)?)
     }
 
-    /// Loads scene lines `first..first + lines` (at most what the simulated
-    /// sensor holds) into the device, whatever `--scene-line` and
-    /// `--scene-lines` say: for a reading of more distinct lines than the
-    /// sensor holds, a batch at a time. Nothing when no scene is named.
-    /// Returns a note for the user when the device reads a cut of the
-    /// scene's line.
-    pub fn load_lines<T: Transport>(
-        &self,
-        c: &mut Client<T>,
-        info: &DeviceInfo,
-        view: &BlobView<'_>,
-        first: u64,
-        lines: usize,
-    ) -> anyhow::Result<Option<String>> {
+    /// The named scene, loaded, checked and simulated once (`None` when no
+    /// scene is named): give it to [`load_lines`] batch by batch.
+    pub fn prepare(&self, info: &DeviceInfo, view: &BlobView<'_>) -> anyhow::Result<Option<PreparedScene>> {
         let Some(spec) = &self.scene else { return Ok(None) };
         if !info.simulated {
             bail!("--scene is for simulated devices (QEMU); this device has a real sensor");
         }
-        let named = NamedScene { spec, first_line: first, surface: self.scene_surface.as_deref() };
-        let (frames, note) = named_scene_frames(named, view, lines, info.full_scale)?;
-        c.load_scene(&frames).context("loading the scene into the simulated sensor")?;
-        Ok(note)
+        let named = NamedScene { spec, first_line: self.scene_line, surface: self.scene_surface.as_deref() };
+        Ok(Some(PreparedScene::new(named, view)?))
     }
 
     /// How many scene lines to load: `--scene-lines`, or by default one per
@@ -86,6 +71,21 @@ impl SimSceneArgs {
         }
         Ok(n)
     }
+}
+
+/// Loads scene lines `first..first + lines` of `scene` (at most what the
+/// simulated sensor holds) into the device: for a reading of more distinct
+/// lines than the sensor holds, a batch at a time.
+pub fn load_lines<T: Transport>(
+    c: &mut Client<T>,
+    scene: &PreparedScene,
+    info: &DeviceInfo,
+    view: &BlobView<'_>,
+    first: u64,
+    lines: usize,
+) -> anyhow::Result<()> {
+    let frames = scene.frames(view, first, lines, info.full_scale)?;
+    c.load_scene(&frames).context("loading the scene into the simulated sensor")
 }
 
 #[cfg(test)]

@@ -176,12 +176,16 @@ fn read_tile_on_device(a: &Args, blob: &[u8]) -> anyhow::Result<Vec<PointRecord>
     c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
     let progress = crate::output::progress::bar(u64::from(lines) * u64::from(info.pixels), "points");
     let mut points = Vec::with_capacity(lines as usize * usize::from(info.pixels));
+    let scene = a.scene.prepare(&info, &view)?;
+    if let Some(note) = scene.as_ref().and_then(|s| s.note.as_ref()) {
+        eprintln!("note: {note}");
+    }
     let mut done = 0;
     while done < lines {
         let n = batch.min(lines - done);
-        let note = a.scene.load_lines(&mut c, &info, &view, a.scene.scene_line + u64::from(done), n as usize)?;
-        if let Some(note) = note.filter(|_| done == 0) {
-            eprintln!("note: {note}");
+        if let Some(scene) = &scene {
+            let first = a.scene.scene_line + u64::from(done);
+            crate::cli::sim_scene::load_lines(&mut c, scene, &info, &view, first, n as usize)?;
         }
         points.extend(c.measure_observed(n, &mut |_| progress.inc(1)).context("reading the tile")?);
         done += n;

@@ -80,9 +80,14 @@ pub fn scene_frames(scene: &super::Scene, lines: usize) -> anyhow::Result<SceneF
 }
 
 /// Raw frames of scene lines `first..first + lines` (the line is the time
-/// since calibration, for the LEDs' drift, and the noise draw's).
+/// since calibration, for the LEDs' drift, and the noise draw's). The
+/// scene's rays and white reference are prepared once, not per line.
 pub fn scene_frames_from(scene: &super::Scene, first: u64, lines: usize) -> anyhow::Result<SceneFrames> {
-    (first..first + lines as u64).map(|l| super::raw_frames(scene, l)).collect()
+    frames_of(&super::Simulator::new(scene)?, first, lines)
+}
+
+fn frames_of(sim: &super::Simulator, first: u64, lines: usize) -> anyhow::Result<SceneFrames> {
+    (first..first + lines as u64).map(|l| sim.raw_frames(l)).collect()
 }
 
 /// A scene named on the command line for a simulated device, and which of
@@ -98,9 +103,74 @@ pub struct NamedScene<'a> {
     pub surface: Option<&'a str>,
 }
 
-/// Frames for a simulated device from a scene named on the command line:
-/// `analytic` ([`analytic_scene`]), `patent` ([`patent_scene`]) or a scene
-/// TOML file, simulated for the calibration's pixel count; with a note for
+/// A scene named on the command line, loaded, checked against the
+/// calibration and simulated once, so a device can be given its lines
+/// batch by batch ([`PreparedScene::frames`]).
+pub struct PreparedScene {
+    /// `None`: the analytic pattern, made from the calibration.
+    sim: Option<super::Simulator>,
+    /// For the user, when the device reads a cut of the scene's line.
+    pub note: Option<String>,
+}
+
+impl PreparedScene {
+    /// `named`'s scene (`analytic` ([`analytic_scene`]), `patent`
+    /// ([`patent_scene`]) or a scene TOML file, its surface replaced when
+    /// `named` says so) for the calibration `blob`'s pixel count, refused
+    /// when it is not for the calibration's optics ([`check_optics`]).
+    pub fn new(named: NamedScene<'_>, blob: &BlobView<'_>) -> anyhow::Result<Self> {
+        use anyhow::Context;
+        let pixels = blob.dims().pixels;
+        let simulated = |s: super::Scene, note| -> anyhow::Result<Self> {
+            let s = match named.surface {
+                Some(spec) => s.with_surface(spec)?,
+                None => s,
+            };
+            let sim = super::Simulator::new(&s)?;
+            let white: Vec<f32> = sim.white().iter().map(|w| *w as f32).collect();
+            check_optics_with(&s, &white, blob)?;
+            Ok(Self { sim: Some(sim), note })
+        };
+        match named.spec {
+            "analytic" => {
+                anyhow::ensure!(
+                    named.first_line == 0 && named.surface.is_none(),
+                    "the analytic scene is a pattern of readings, with no lines in time or surface to choose: \
+                     name a scene TOML file (or `patent`)"
+                );
+                Ok(Self { sim: None, note: None })
+            }
+            "patent" => simulated(patent_scene(pixels), None),
+            path => {
+                let whole =
+                    super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
+                let s = whole.for_device(pixels)?;
+                let note = (s.instrument.sensor.pixels != whole.instrument.sensor.pixels).then(|| {
+                    format!("scene {path} has {} pixels; the device reads {}", whole.instrument.sensor.pixels, s.name)
+                });
+                simulated(s, note)
+            }
+        }
+    }
+
+    /// Raw frames of scene lines `first..first + lines` (the analytic
+    /// pattern: `lines` lines of it, from `blob`).
+    pub fn frames(
+        &self,
+        blob: &BlobView<'_>,
+        first: u64,
+        lines: usize,
+        full_scale: u16,
+    ) -> anyhow::Result<SceneFrames> {
+        match &self.sim {
+            Some(sim) => frames_of(sim, first, lines),
+            None => Ok(analytic_scene(blob, lines, full_scale)),
+        }
+    }
+}
+
+/// Frames for a simulated device from a scene named on the command line
+/// ([`PreparedScene`]), lines from `named.first_line` on; with a note for
 /// the user when the device reads a cut of the scene's line.
 pub fn named_scene_frames(
     named: NamedScene<'_>,
@@ -108,36 +178,9 @@ pub fn named_scene_frames(
     lines: usize,
     full_scale: u16,
 ) -> anyhow::Result<(SceneFrames, Option<String>)> {
-    use anyhow::Context;
-    let pixels = blob.dims().pixels;
-    let simulated = |s: super::Scene| -> anyhow::Result<SceneFrames> {
-        let s = match named.surface {
-            Some(spec) => s.with_surface(spec)?,
-            None => s,
-        };
-        check_optics(&s, blob)?;
-        scene_frames_from(&s, named.first_line, lines)
-    };
-    match named.spec {
-        "analytic" => {
-            anyhow::ensure!(
-                named.first_line == 0 && named.surface.is_none(),
-                "the analytic scene is a pattern of readings, with no lines in time or surface to choose: \
-                 name a scene TOML file (or `patent`)"
-            );
-            Ok((analytic_scene(blob, lines, full_scale), None))
-        }
-        "patent" => Ok((simulated(patent_scene(pixels))?, None)),
-        path => {
-            let whole =
-                super::Scene::load(std::path::Path::new(path)).with_context(|| format!("loading scene {path}"))?;
-            let s = whole.for_device(pixels)?;
-            let note = (s.instrument.sensor.pixels != whole.instrument.sensor.pixels).then(|| {
-                format!("scene {path} has {} pixels; the device reads {}", whole.instrument.sensor.pixels, s.name)
-            });
-            Ok((simulated(s)?, note))
-        }
-    }
+    let scene = PreparedScene::new(named, blob)?;
+    let frames = scene.frames(blob, named.first_line, lines, full_scale)?;
+    Ok((frames, scene.note))
 }
 
 /// Largest relative difference between a calibration's white reference and
@@ -155,6 +198,11 @@ pub const SAME_OPTICS_TOLERANCE: f64 = 0.02;
 /// these optics; its pixels' profile under the LED is not. The error says
 /// where and what to do.
 pub fn check_optics(scene: &super::Scene, blob: &BlobView<'_>) -> anyhow::Result<()> {
+    check_optics_with(scene, &super::white_reference(scene)?, blob)
+}
+
+/// [`check_optics`] with the scene's white reference already simulated.
+fn check_optics_with(scene: &super::Scene, white: &[f32], blob: &BlobView<'_>) -> anyhow::Result<()> {
     let d = blob.dims();
     let (p, m) = (scene.instrument.pixels(), scene.instrument.m());
     anyhow::ensure!(
@@ -165,7 +213,6 @@ pub fn check_optics(scene: &super::Scene, blob: &BlobView<'_>) -> anyhow::Result
         d.pixels,
         d.m
     );
-    let white = super::white_reference(scene)?;
     let other = |why: String| {
         anyhow::anyhow!(
             "the calibration was trained for other optics than scene `{}`: {why}; its estimates of this scene would \
