@@ -143,6 +143,42 @@ pub fn test_blob(n: usize, m: usize, zones: usize, pixels: usize, seed: f32) -> 
     TestBlobParts::new(n, m, zones, pixels, seed).encode()
 }
 
+/// [`test_blob`] with a gloss section (format version 4, one reference per
+/// pixel, linear rows with positive weights, so positive readings read a
+/// positive gloss): zone `dark_zone`, when given, reads no gloss (its
+/// references and blocks NaN).
+pub fn test_blob_with_gloss(
+    n: usize,
+    m: usize,
+    zones: usize,
+    pixels: usize,
+    seed: f32,
+    dark_zone: Option<usize>,
+) -> Vec<u8> {
+    let parts = TestBlobParts::new(n, m, zones, pixels, seed);
+    let bl = crate::gloss::block_len(m);
+    let mut blocks: Vec<f32> = (0..zones * bl).map(|i| 0.01 * (i % 7) as f32 + 0.01).collect();
+    let mut reference: Vec<f32> = (0..pixels).map(|p| 0.04 + 0.001 * p as f32).collect();
+    if let Some(z) = dark_zone {
+        blocks[z * bl..(z + 1) * bl].fill(f32::NAN);
+        let (first, end) = (parts.zones[z] as usize, parts.zones.get(z + 1).map_or(pixels, |x| *x as usize));
+        reference[first..end].fill(f32::NAN);
+    }
+    let g = crate::blob::GlossData {
+        assigned_gu: 100.0,
+        refractive_index: 1.567,
+        reference: &reference,
+        blocks: &blocks,
+        centroids: &[],
+        root_readings: crate::gloss::RootReadings::Shoulders,
+    };
+    let ex = BlobExtras { gloss: Some(g), ..BlobExtras::NONE };
+    let mut out = vec![0u8; parts.dims.blob_len_with(&ex)];
+    let len = write_blob_with(&parts.contents(), &ex, &mut out).expect("test blob is valid");
+    out.truncate(len);
+    out
+}
+
 /// A valid blob for tests with the given LED order (m), white references
 /// (P x m) and matrices (Z x n x m); grid, zones and uncertainty as in
 /// [`test_blob`]. Panics if the contents do not make a valid blob.

@@ -95,6 +95,10 @@ pub struct BlobExtras<'a> {
     /// The white reference's relative standard uncertainty (header flag
     /// bit 13; a standardised calibration's): the module docs.
     pub white_uncertainty: Option<f32>,
+    /// The gloss scale's relative standard uncertainty (header flag bit 14,
+    /// with `gloss` only; a calibration standardised on the black glass):
+    /// the module docs.
+    pub gloss_uncertainty: Option<f32>,
 }
 
 impl BlobExtras<'_> {
@@ -111,6 +115,7 @@ impl BlobExtras<'_> {
         linearity: None,
         peak_factors: None,
         white_uncertainty: None,
+        gloss_uncertainty: None,
     };
 }
 

@@ -38,6 +38,8 @@ pub enum Section {
     PeakFactors,
     /// The white reference's uncertainty (header flag bit 13).
     WhiteUncertainty,
+    /// The gloss scale's uncertainty (header flag bit 14).
+    GlossUncertainty,
 }
 
 /// Why a blob was rejected.
@@ -176,6 +178,18 @@ pub(super) fn check_white_uncertainty(u: f32) -> Result<(), BlobError> {
         Err(BlobError::NonFinite { section: Section::WhiteUncertainty, index: 0 })
     } else if !(0.0..=super::MAX_WHITE_UNCERTAINTY).contains(&u) {
         Err(BlobError::OutOfRange { section: Section::WhiteUncertainty, index: 0 })
+    } else {
+        Ok(())
+    }
+}
+
+/// The gloss scale's relative uncertainty: finite, 0 to
+/// [`super::MAX_GLOSS_UNCERTAINTY`].
+pub(super) fn check_gloss_uncertainty(u: f32) -> Result<(), BlobError> {
+    if !u.is_finite() {
+        Err(BlobError::NonFinite { section: Section::GlossUncertainty, index: 0 })
+    } else if !(0.0..=super::MAX_GLOSS_UNCERTAINTY).contains(&u) {
+        Err(BlobError::OutOfRange { section: Section::GlossUncertainty, index: 0 })
     } else {
         Ok(())
     }

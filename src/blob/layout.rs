@@ -40,6 +40,8 @@ pub(super) struct Layout {
     /// The peak's uncertainty factors (two, or empty).
     pub(super) peak_factors: usize,
     pub(super) white_uncertainty: usize,
+    /// The gloss scale's uncertainty (one value, or empty).
+    pub(super) gloss_uncertainty: usize,
     pub(super) crc: usize,
     pub(super) total: usize,
     pub(super) clusters: usize,
@@ -83,7 +85,8 @@ impl Dims {
         let linearity = broad_uncertainty + if x.broad_band { 4 * self.zones * k * self.n } else { 0 };
         let peak_factors = linearity + if x.linearity { 4 * LINEARITY_KNOTS } else { 0 };
         let white_uncertainty = peak_factors + if x.peak_factors { 8 } else { 0 };
-        let crc = white_uncertainty + if x.white_uncertainty { 4 } else { 0 };
+        let gloss_uncertainty = white_uncertainty + if x.white_uncertainty { 4 } else { 0 };
+        let crc = gloss_uncertainty + if x.gloss_uncertainty { 4 } else { 0 };
         Layout {
             grid,
             led_order,
@@ -99,6 +102,7 @@ impl Dims {
             linearity,
             peak_factors,
             white_uncertainty,
+            gloss_uncertainty,
             crc,
             total: crc + 4,
             clusters: k,
@@ -174,6 +178,9 @@ pub(super) struct Extras {
     pub(super) peak_factors: bool,
     /// The white reference's uncertainty follows (flag bit 13).
     pub(super) white_uncertainty: bool,
+    /// The gloss scale's uncertainty follows (flag bit 14, with the gloss
+    /// section only).
+    pub(super) gloss_uncertainty: bool,
 }
 
 impl Extras {
@@ -192,6 +199,7 @@ impl Extras {
         linearity: false,
         peak_factors: false,
         white_uncertainty: false,
+        gloss_uncertainty: false,
     };
 
     pub(super) fn of(x: &BlobExtras<'_>, kind: EstimatorKind, d: &Dims) -> Self {
@@ -210,6 +218,7 @@ impl Extras {
             linearity: x.linearity.is_some(),
             peak_factors: x.peak_factors.is_some(),
             white_uncertainty: x.white_uncertainty.is_some(),
+            gloss_uncertainty: x.gloss_uncertainty.is_some(),
         }
     }
 

@@ -41,7 +41,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 20 | 2 | estimator kind: also 6 (scale-free) and 7 (scale-free piecewise) |
-//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below), bit 12 the specular peak's uncertainty factors follow (with bit 6 only; below), bit 13 the white reference's uncertainty follows (below) |
+//! | 22 | 2 | flags: bit 0 far-field, bit 1 out-of-prior section present, bit 3 the root form (below), bit 4 the out-of-prior section is for the log-ratio statistic (with bit 1 only), bit 5 the header holds the out-of-prior band factor (with bit 1 only; below), bit 6 the header holds the peak resolution (below), bit 7 the per-pixel peak resolutions follow (with bit 6 only; below), bit 8 the second per-bin uncertainty table follows (below), bit 9 the gloss rows have clusters of their own (format version 3 and up, the piecewise kind only; below), bit 11 the sensor's linearity correction follows (below), bit 12 the specular peak's uncertainty factors follow (with bit 6 only; below), bit 13 the white reference's uncertainty follows (below), bit 14 the gloss scale's uncertainty follows (with the gloss section only; below) |
 //! | 48 | 2 | K, matrices per zone (1 unless piecewise; piecewise needs K >= 2) |
 //! | 50 | 2 | K_g, the gloss rows' clusters per zone (2..=64, with bit 9 only; else 0) |
 //! | 52 | 4 | out-of-prior threshold on the statistic (f32, > 0 with bit 1, else 0) |
@@ -62,6 +62,7 @@
 //! | 68 (bit 11 only) | the sensor's linearity correction: 17 factors, one per octave of counts (below) |
 //! | 8 (bit 12 only) | the specular peak's uncertainty factors: height, width (below) |
 //! | 4 (bit 13 only) | the white reference's relative standard uncertainty (below) |
+//! | 4 (bit 14 only) | the gloss scale's relative standard uncertainty (below) |
 //!
 //! before the CRC (these after the gloss section, when the blob has
 //! one). A scale-free matrix is `[W' | b]`: its last column
@@ -121,6 +122,18 @@
 //! does not use it. A blob without the flag states none (its white is the
 //! training's, exact in the model); firmware from before it rejects such a
 //! blob as having a reserved flag set, and keeps its last good calibration.
+//!
+//! ## The gloss scale's uncertainty (flag bit 14)
+//! A calibration standardised on a certified black-glass standard
+//! (host-tools `standardise --black-glass-gu`: its gloss references
+//! rescaled, [`rewrite_gloss_references`], within [`GLOSS_RATIO_RANGE`])
+//! carries the gloss scale's relative standard uncertainty (k = 1): the
+//! standard's certificate and the scatter of its readings, in quadrature
+//! (finite, 0 to [`MAX_GLOSS_UNCERTAINTY`]; [`with_gloss_uncertainty`]).
+//! The host adds it to the gloss and haze readings' uncertainties; the
+//! device does not use it. Only a blob with the gloss section may carry
+//! it; firmware from before it rejects such a blob as having a reserved
+//! flag set, and keeps its last good calibration.
 //!
 //! ## The sensor's linearity (flag bit 11)
 //! The factor at each of [`crate::acquire::linearity::LINEARITY_KNOTS`]
@@ -244,6 +257,11 @@
 //! - `write`: [`write_blob`] and [`write_blob_with`];
 //! - `white`: [`rewrite_white`] and [`with_white_uncertainty`], the white
 //!   reference rewritten and its uncertainty stated (a standardisation);
+//! - `gloss_scale`: [`rewrite_gloss_references`] and
+//!   [`with_gloss_uncertainty`], the same for the gloss scale on the black
+//!   glass;
+//! - `stated`: the trailing one-value sections both state, added or
+//!   replaced;
 //! - `parse`: [`BlobView::parse`], every check a blob must pass;
 //! - `view`: [`BlobView`] and what the device and host read from it;
 //! - `bytes`: little-endian field access.
@@ -251,8 +269,10 @@
 mod bytes;
 mod contents;
 mod error;
+mod gloss_scale;
 mod layout;
 mod parse;
+mod stated;
 #[cfg(test)]
 mod tests;
 mod view;
@@ -261,13 +281,14 @@ mod write;
 
 pub use contents::{BlobContents, BlobExtras, GlossData, OutOfPriorData};
 pub use error::{BlobError, Section};
+pub use gloss_scale::{GLOSS_RATIO_RANGE, MAX_GLOSS_UNCERTAINTY, rewrite_gloss_references, with_gloss_uncertainty};
 pub use layout::{Dims, MAX_CLUSTERS, gloss_len, out_of_prior_len};
 pub use view::BlobView;
 pub use white::{MAX_WHITE_UNCERTAINTY, WHITE_RATIO_RANGE, rewrite_white, with_white_uncertainty};
 pub use write::{write_blob, write_blob_with};
 
 use bytes::{get_f32, get_u16, get_u32, put_f32, put_u16, put_u32};
-use error::{check_peak_resolution, check_pixel_resolution, check_white_uncertainty};
+use error::{check_gloss_uncertainty, check_peak_resolution, check_pixel_resolution, check_white_uncertainty};
 use layout::{Extras, Layout};
 
 /// First four bytes of every blob.
@@ -340,6 +361,9 @@ const FLAG_PEAK_FACTORS: u16 = 4096;
 /// Header flag bit 13: the white reference's relative standard uncertainty
 /// follows (a standardisation's, host-tools `standardise`).
 const FLAG_WHITE_UNCERTAINTY: u16 = 8192;
+/// Header flag bit 14: the gloss scale's relative standard uncertainty
+/// follows (a standardisation on the black glass; with `FLAG_GLOSS` only).
+const FLAG_GLOSS_UNCERTAINTY: u16 = 16384;
 
 /// What the host multiplies a resolved specular peak's first-order
 /// standard uncertainties by (the module docs, flag bit 12): finite, > 0.

@@ -66,6 +66,7 @@ impl<'a> BlobView<'a> {
                 linearity: flags & FLAG_LINEARITY != 0,
                 peak_factors: flags & FLAG_PEAK_FACTORS != 0,
                 white_uncertainty: flags & FLAG_WHITE_UNCERTAINTY != 0,
+                gloss_uncertainty: flags & FLAG_GLOSS_UNCERTAINTY != 0,
             }
         };
         // Versions 3 and 4 exist for the gloss section: they carry it, 2 never does.
@@ -109,9 +110,11 @@ impl<'a> BlobView<'a> {
                 | FLAG_DEFICIT_READINGS
                 | FLAG_LINEARITY
                 | FLAG_PEAK_FACTORS
-                | FLAG_WHITE_UNCERTAINTY;
+                | FLAG_WHITE_UNCERTAINTY
+                | FLAG_GLOSS_UNCERTAINTY;
             (ex.gloss_clusters > 0 || bytes[50..52].iter().all(|b| *b == 0))
                 && (ex.peak_resolution || !(ex.pixel_resolution || ex.peak_factors))
+                && (ex.gloss || !ex.gloss_uncertainty)
                 && (band || get_u32(bytes, 56) == 0)
                 && (ex.peak_resolution || get_u32(bytes, 60) == 0)
                 && flags & !known == 0
@@ -218,6 +221,9 @@ impl<'a> BlobView<'a> {
         )?;
         if ex.white_uncertainty {
             check_white_uncertainty(get_f32(bytes, lay.white_uncertainty))?;
+        }
+        if ex.gloss_uncertainty {
+            check_gloss_uncertainty(get_f32(bytes, lay.gloss_uncertainty))?;
         }
         Ok(view)
     }

@@ -339,7 +339,30 @@ impl<'a> BlobView<'a> {
     /// The white reference's relative standard uncertainty (flag bit 13):
     /// a standardised calibration's; 0 when the blob states none.
     pub fn white_uncertainty(&self) -> f32 {
-        if self.lay.crc != self.lay.white_uncertainty { get_f32(self.bytes, self.lay.white_uncertainty) } else { 0.0 }
+        if self.lay.gloss_uncertainty != self.lay.white_uncertainty {
+            get_f32(self.bytes, self.lay.white_uncertainty)
+        } else {
+            0.0
+        }
+    }
+
+    /// The gloss scale's relative standard uncertainty (flag bit 14): a
+    /// calibration standardised on the black glass; 0 when the blob states
+    /// none.
+    pub fn gloss_uncertainty(&self) -> f32 {
+        if self.lay.crc != self.lay.gloss_uncertainty { get_f32(self.bytes, self.lay.gloss_uncertainty) } else { 0.0 }
+    }
+
+    /// How many gloss references the blob holds: one per pixel (format
+    /// version 4) or per zone (version 3); 0 without a gloss section.
+    pub fn gloss_reference_count(&self) -> usize {
+        self.lay.gloss_refs
+    }
+
+    /// Which gloss reference pixel `p` is read with (its own, or its
+    /// zone's; `None` without a gloss section).
+    pub fn gloss_reference_index(&self, p: usize) -> Option<usize> {
+        self.has_gloss().then(|| if self.lay.gloss_refs == self.dims.pixels { p } else { self.zone_of_pixel(p) })
     }
 
     /// Pixel `p`'s peak resolution (deg): its own (flag bit 7) when it has

@@ -34,27 +34,8 @@ pub const MAX_WHITE_UNCERTAINTY: f32 = 0.1;
 /// parsed before this returns.
 pub fn with_white_uncertainty(blob: &[u8], u_rel: f32, out: &mut [u8]) -> Result<usize, BlobError> {
     check_white_uncertainty(u_rel)?;
-    let view = BlobView::parse(blob)?;
-    if blob.len() != view.lay.total {
-        return Err(BlobError::ContentMismatch { section: Section::WhiteUncertainty });
-    }
-    let at = view.lay.white_uncertainty;
-    let total = at + 4 + 4;
-    if out.len() < total {
-        return Err(BlobError::TooShort { need: total, got: out.len() });
-    }
-    out[..at].copy_from_slice(&blob[..at]);
-    if view.version() == FORMAT_VERSION_1 {
-        put_u16(out, 4, FORMAT_VERSION_2);
-        put_u16(out, 48, 1);
-    }
-    put_u16(out, 22, get_u16(blob, 22) | FLAG_WHITE_UNCERTAINTY);
-    put_u32(out, 44, total as u32);
-    put_f32(out, at, u_rel);
-    let crc = CRC32.checksum(&out[..at + 4]);
-    put_u32(out, at + 4, crc);
-    BlobView::parse(&out[..total])?;
-    Ok(total)
+    let t = super::stated::Trailing { flag: FLAG_WHITE_UNCERTAINTY, section: Section::WhiteUncertainty };
+    super::stated::with_trailing(blob, t, u_rel, out)
 }
 
 /// Replaces the white reference of the blob `bytes` (exactly one blob, no

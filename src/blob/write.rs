@@ -58,6 +58,12 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
     if let Some(u) = extras.white_uncertainty {
         check_white_uncertainty(u)?;
     }
+    if let Some(u) = extras.gloss_uncertainty {
+        check_gloss_uncertainty(u)?;
+        if !ex.gloss {
+            return Err(BlobError::ContentMismatch { section: Section::GlossUncertainty });
+        }
+    }
     if ex.peak_factors && !ex.peak_resolution {
         return Err(BlobError::ContentMismatch { section: Section::PeakFactors });
     }
@@ -102,7 +108,8 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         | if ex.deficit_readings { FLAG_DEFICIT_READINGS } else { 0 }
         | if ex.linearity { FLAG_LINEARITY } else { 0 }
         | if ex.peak_factors { FLAG_PEAK_FACTORS } else { 0 }
-        | if ex.white_uncertainty { FLAG_WHITE_UNCERTAINTY } else { 0 };
+        | if ex.white_uncertainty { FLAG_WHITE_UNCERTAINTY } else { 0 }
+        | if ex.gloss_uncertainty { FLAG_GLOSS_UNCERTAINTY } else { 0 };
     put_u16(
         out,
         22,
@@ -154,6 +161,7 @@ pub fn write_blob_with(c: &BlobContents<'_>, extras: &BlobExtras<'_>, out: &mut 
         (lay.linearity, extras.linearity.as_ref().map_or(&[][..], |l| &l.factors()[..])),
         (lay.peak_factors, &peak_factors[..if ex.peak_factors { 2 } else { 0 }]),
         (lay.white_uncertainty, extras.white_uncertainty.as_slice()),
+        (lay.gloss_uncertainty, extras.gloss_uncertainty.as_slice()),
     ] {
         for (i, x) in xs.iter().enumerate() {
             put_f32(out, off + 4 * i, *x);

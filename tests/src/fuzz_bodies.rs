@@ -262,6 +262,9 @@ fn check_view(v: &BlobView<'_>, bytes: &[u8]) {
     assert!(v.noise_rel().is_finite() && v.noise_rel() >= 0.0);
     let wu = v.white_uncertainty();
     assert!((0.0..=brdf_meter::blob::MAX_WHITE_UNCERTAINTY).contains(&wu), "the white's uncertainty {wu}");
+    let gu = v.gloss_uncertainty();
+    assert!((0.0..=brdf_meter::blob::MAX_GLOSS_UNCERTAINTY).contains(&gu), "the gloss scale's uncertainty {gu}");
+    assert!(gu == 0.0 || v.has_gloss(), "only a blob with gloss readings states a gloss scale's uncertainty");
     let _ = (v.estimator(), v.far_field(), v.summary());
     let mut prev = f32::NEG_INFINITY;
     for i in 0..d.n {

@@ -439,6 +439,7 @@ fn train_counts(spec: &TrainSpec<'_>, zone_pairs: &ZonePairs, most: usize) -> an
         peak_factors: None,
         // Training's white is the model's, exact; a standardisation states its own.
         white_uncertainty: None,
+        gloss_uncertainty: None,
     };
     let chosen = gloss_section(spec, &zones, zone_pairs, &plans, most)?;
     let mut blob = with_gloss(&contents, base, chosen.as_ref(), spec, &plans, &zones)?;
