@@ -390,8 +390,11 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
 /// that is certified at 0.8, so the calibration's white reference is
 /// rescaled by 0.9 / 0.8; provisioned, the device reads the same tile at
 /// 0.8, and the standardised calibration is still for this scene's optics.
+/// Then the gloss scale, on a black glass (the ideal one) certified at
+/// 96 GU, which the white just standardised puts at 0.8 / 0.9 of 100 GU:
+/// provisioned, the device reads it at 96.
 #[test]
-fn qemu_standardised_on_a_tile_reads_it_at_its_certified_value() {
+fn qemu_standardised_on_a_tile_and_a_black_glass_reads_them_at_their_certified_values() {
     use host_tools::cli::sim_scene::SimSceneArgs;
     use host_tools::cli::standardise::{Args, Source};
     use host_tools::forward::scene::frames::{NamedScene, named_scene_frames};
@@ -406,8 +409,10 @@ fn qemu_standardised_on_a_tile_reads_it_at_its_certified_value() {
     let tile = r#"{ model = "lambertian", rho = 0.9 }"#;
     let args = Args {
         blob: blob.clone(),
-        tile_rf: 0.8,
+        tile_rf: Some(0.8),
         tile_u: 0.004,
+        black_glass_gu: None,
+        black_glass_u: 0.0,
         source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
         lines: 16,
         scene: SimSceneArgs { scene: Some("patent".into()), scene_surface: Some(tile.into()), ..Default::default() },
@@ -440,5 +445,49 @@ fn qemu_standardised_on_a_tile_reads_it_at_its_certified_value() {
         let mean = points.iter().map(|p| f64::from(p.corrected[i])).sum::<f64>() / points.len() as f64;
         assert!((mean - 0.8).abs() < 0.004, "reading {i}: the tile reads {mean}, certified 0.8");
     }
+    drop(c);
+
+    // The gloss scale, on the white just standardised.
+    let glass = r#"{ model = "smooth-dielectric", n = 1.567 }"#;
+    let gloss_out = dir.path().join("std-gloss.signed");
+    let args = Args {
+        blob: out.clone(),
+        tile_rf: None,
+        tile_u: 0.0,
+        black_glass_gu: Some(96.0),
+        black_glass_u: 0.4,
+        source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        lines: 16,
+        scene: SimSceneArgs {
+            scene: Some("patent".into()),
+            scene_surface: Some(glass.into()),
+            scene_line: 16,
+            ..Default::default()
+        },
+        out: gloss_out.clone(),
+        key: Some(host_tools::calibration::signing::dev_key_path()),
+        report: Some(dir.path().join("gloss.json")),
+    };
+    host_tools::cli::standardise::run(args).unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("gloss.json")).unwrap()).unwrap();
+    let ratio = report["ratio_median"].as_f64().unwrap();
+    // The white certified at 0.8 for a tile of 0.9 put every reading
+    // 0.8 / 0.9 of its value: the ideal glass reads about 89 GU.
+    assert!((ratio - 100.0 * 0.8 / 0.9 / 96.0).abs() < 0.02, "{report}");
+    let image = host_tools::device::provision::read_blob(&gloss_out).unwrap();
+    let view = BlobView::parse(&image).unwrap();
+    assert_eq!(view.gloss_uncertainty(), report["u_rel"].as_f64().unwrap() as f32);
+    assert_eq!(view.white_uncertainty(), stated, "the white's is kept");
+    let mut c = connect(&q);
+    c.provision(&image, |_, _| {}).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    let named = NamedScene { spec: "patent", first_line: 40, surface: Some(glass) };
+    let (frames, _) = named_scene_frames(named, &view, 4, c.info().unwrap().full_scale).unwrap();
+    c.load_scene(&frames).unwrap();
+    c.set_calibration(&image).unwrap();
+    let points = c.measure(4).unwrap_or_else(|e| panic!("{e}: {}", q.log_text()));
+    let g = brdf_meter::gloss::SPECULAR_GU;
+    let mean = points.iter().map(|p| f64::from(p.readings[g])).sum::<f64>() / points.len() as f64;
+    assert!((mean - 96.0).abs() < 1.5, "the black glass reads {mean} GU, certified 96");
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }

@@ -7,7 +7,9 @@
 //! those factors, the gloss readings', the per-bin band and the
 //! out-of-prior flag's threshold share (each family of held-out samples
 //! covered on its own); `standardise`: the white reference made true again
-//! on a certified white tile (the LEDs' drift since calibration). Consumes the forward model; knows nothing of the device link or
+//! on a certified white tile (the LEDs' drift since calibration);
+//! `standardise_gloss`: the gloss scale made true on a certified black-glass
+//! standard (the instrument's own error of its gloss scale). Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;
@@ -18,4 +20,5 @@ pub mod peak_factors;
 pub mod peak_resolution;
 pub mod signing;
 pub mod standardise;
+pub mod standardise_gloss;
 pub mod train;

@@ -167,7 +167,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bins_deg: (0..d.n).map(|j| view.grid_deg(j)).collect(),
         points: schema_points,
     }
-    .with_white_uncertainty(f64::from(view.white_uncertainty()));
+    .with_reference_uncertainties(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()));
     let profiles = files.profiles();
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written

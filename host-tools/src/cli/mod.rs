@@ -67,7 +67,7 @@ pub enum Command {
     UpdateFirmware(update_firmware::Args),
     /// On-device inspection: teach a recipe, provision it, run (verdicts, SPC, defect map), ROC.
     Inspect(inspect::Args),
-    /// Standardise a calibration on a certified white tile (the LEDs' drift since calibration).
+    /// Standardise a calibration on a certified white tile (the LEDs' drift since calibration), or its gloss scale on a certified black glass.
     Standardise(standardise::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),

@@ -1,40 +1,53 @@
 //! `host-tools standardise`: standardise a calibration on a certified
-//! white tile (`calibration::standardise`): read the tile, on the device
-//! (its corrected readings, several lines) or from logged readings, and
-//! write the calibration with its white reference rescaled so the tile
-//! reads its certified value again. Everything is checked before anything
-//! is written; the device is not touched (provision the result with
-//! `host-tools provision`, which keeps the last good calibration if it
-//! fails).
+//! white tile (`calibration::standardise`) or its gloss scale on a
+//! certified black glass (`calibration::standardise_gloss`): read the
+//! standard, on the device (several lines) or from logged readings, and
+//! write the calibration with its white reference (or gloss references)
+//! rescaled so the standard reads its certified value again. Everything is
+//! checked before anything is written; the device is not touched
+//! (provision the result with `host-tools provision`, which keeps the last
+//! good calibration if it fails).
 use crate::calibration::standardise::{Standardisation, Tile, TileReading, standardise};
+use crate::calibration::standardise_gloss::{BlackGlass, GlossReading, GlossStandardisation, standardise_gloss};
 use crate::device::link::{Endpoint, PointRecord};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{Encoding, StreamFormat};
 use std::path::PathBuf;
 
-/// Standardise a calibration on a certified white tile: the white reference
-/// rescaled by the tile's readings, for LEDs that drifted since calibration.
+/// Standardise a calibration on a certified white tile (the white reference
+/// rescaled by the tile's readings, for LEDs that drifted since
+/// calibration), or its gloss scale on a certified black glass (right after
+/// the white).
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("standard").required(true).args(["tile_rf", "black_glass_gu"])))]
 pub struct Args {
     /// The calibration to standardise: the signed file the device runs, or
     /// the unsigned blob it was signed from.
     #[arg(long, value_name = "CAL")]
     pub blob: PathBuf,
-    /// The tile's certified reflectance factor at the instrument's geometry
-    /// (a perfect diffuser is 1).
+    /// The white tile's certified reflectance factor at the instrument's
+    /// geometry (a perfect diffuser is 1).
     #[arg(long, value_name = "RF")]
-    pub tile_rf: f64,
+    pub tile_rf: Option<f64>,
     /// Its standard uncertainty (k = 1) from the certificate.
     #[arg(long, value_name = "U", default_value_t = 0.0)]
     pub tile_u: f64,
-    /// Where the tile's readings come from.
+    /// Or the black-glass gloss standard's certified gloss at the
+    /// instrument's geometry, GU: the gloss scale is standardised on it.
+    /// Standardise on the white tile first.
+    #[arg(long, value_name = "GU")]
+    pub black_glass_gu: Option<f64>,
+    /// Its standard uncertainty (k = 1) from the certificate, GU.
+    #[arg(long, value_name = "U", default_value_t = 0.0)]
+    pub black_glass_u: f64,
+    /// Where the standard's readings come from.
     #[command(flatten)]
     pub source: Source,
-    /// Lines of the tile to read on the device.
+    /// Lines of the standard to read on the device.
     #[arg(long, default_value_t = 32)]
     pub lines: u32,
-    /// A scene for a simulated device: the white tile under the
+    /// A scene for a simulated device: the standard under the
     /// calibration's instrument (e.g. scenes/matte-white.toml, or
     /// `--scene-surface` on the instrument's own scene).
     #[command(flatten)]
@@ -47,110 +60,208 @@ pub struct Args {
     #[arg(long, value_name = "KEY")]
     pub key: Option<PathBuf>,
     /// Also write what was found (per LED: drift, scatter; the new white's
-    /// uncertainty) as JSON here.
+    /// uncertainty; or the gloss scale's) as JSON here.
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
 }
 
-/// The device with the tile under it, or logged readings of the tile.
+/// The device with the standard under it, or logged readings of it.
 #[derive(Clone, Debug, clap::Args)]
 #[group(required = true, multiple = false)]
 pub struct Source {
-    /// Serial port of the instrument, the tile under it (e.g. /dev/ttyACM0).
+    /// Serial port of the instrument, the standard under it (e.g. /dev/ttyACM0).
     #[arg(long, value_name = "PATH")]
     pub port: Option<String>,
     /// TCP serial of the QEMU instrument (e.g. 127.0.0.1:4555, printed by `host-tools qemu`).
     #[arg(long, value_name = "HOST:PORT")]
     pub tcp: Option<String>,
-    /// Logged corrected readings of the tile, one row per point with `line`
-    /// and `pixel` columns (`simulate`'s `points.csv`), corrected with this
-    /// calibration's white reference.
+    /// Logged corrected readings of the standard, one row per point with
+    /// `line` and `pixel` columns (`simulate`'s `points.csv`), corrected
+    /// with this calibration's white reference.
     #[arg(long, value_name = "R.csv")]
     pub readings: Option<PathBuf>,
 }
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let tile = Tile::new(a.tile_rf, a.tile_u)?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
     let blob = view.as_bytes().to_vec();
     let secret = a.key.as_deref().map(crate::calibration::signing::read_secret).transpose()?;
-    let (s, source) = match &a.source.readings {
-        Some(path) => {
-            ensure!(
-                a.scene.scene.is_none(),
-                "--scene loads a simulated device; logged readings (--readings) need none"
-            );
-            let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
-            let mut points = Vec::with_capacity(rows.len());
-            for (k, r) in rows.iter().enumerate() {
-                let pixel = r.pixel.with_context(|| {
-                    format!(
-                        "{}: row {}: no `pixel` column; a standardisation reads every pixel's own readings \
-                         (simulate's points.csv has one)",
-                        path.display(),
-                        k + 1
-                    )
-                })?;
-                points.push(TileReading { pixel, v: &r.v, flags: 0 });
-            }
-            let s = standardise(&view, points, tile).with_context(|| format!("{}", path.display()))?;
-            (s, path.display().to_string())
+    let found = match (a.tile_rf, a.black_glass_gu) {
+        (Some(rf), None) => {
+            ensure!(a.black_glass_u == 0.0, "--black-glass-u goes with --black-glass-gu, not --tile-rf");
+            Found::White(white(&a, &view, &blob, Tile::new(rf, a.tile_u)?)?)
         }
-        None => {
-            let points = read_tile_on_device(&a, &blob)?;
-            let s = standardise(
-                &view,
-                points.iter().map(|p| TileReading { pixel: usize::from(p.point), v: &p.corrected, flags: p.flags }),
-                tile,
-            )
-            .context("the device's readings of the tile")?;
-            (s, "the device".to_string())
+        (None, Some(gu)) => {
+            ensure!(a.tile_u == 0.0, "--tile-u goes with --tile-rf, not --black-glass-gu");
+            Found::Gloss(gloss(&a, &view, &blob, BlackGlass::new(gu, a.black_glass_u)?)?)
         }
+        _ => unreachable!("clap requires exactly one of --tile-rf and --black-glass-gu"),
     };
-    let new = s.blob(&blob)?;
-    let crc = BlobView::parse(&new).expect("rewrite_white parsed it").crc();
+    let (new, crc_before, table) = match &found {
+        Found::White((s, _)) => (s.blob(&blob)?, s.crc_before, s.table()),
+        Found::Gloss((s, _)) => (s.blob(&blob)?, s.crc_before, s.table()),
+    };
+    let crc = BlobView::parse(&new).expect("the rewrite parsed it").crc();
     let (bytes, signed) = match &secret {
         Some(seed) => (crate::calibration::signing::sign_blob(&new, seed), true),
         None => (new, false),
     };
     crate::output::io::write_atomic(&a.out, &bytes).with_context(|| format!("writing {}", a.out.display()))?;
     if let Some(r) = &a.report {
-        crate::output::io::write_json(r, &Report { source: &source, crc_after: crc, standardisation: &s })?;
+        match &found {
+            Found::White((s, source)) => {
+                crate::output::io::write_json(r, &Report { source, crc_after: crc, standardisation: s })?
+            }
+            Found::Gloss((s, source)) => {
+                crate::output::io::write_json(r, &Report { source, crc_after: crc, standardisation: s })?
+            }
+        }
     }
-    print!("{}", s.table());
+    print!("{table}");
     println!(
-        "wrote {} ({} bytes, calibration {:#010x} -> {crc:#010x}, {}){}",
+        "wrote {} ({} bytes, calibration {crc_before:#010x} -> {crc:#010x}, {}){}",
         a.out.display(),
         bytes.len(),
-        s.crc_before,
         if signed { "signed" } else { "unsigned: `host-tools sign` it before provisioning" },
         a.report.as_ref().map_or(String::new(), |r| format!(" and {}", r.display()))
     );
+    if matches!(found, Found::White(_)) && view.gloss_uncertainty() > 0.0 {
+        println!(
+            "its gloss scale was standardised on the black glass, and is kept: standardise on the black glass again \
+             now, so the gloss scale rests on this white"
+        );
+    }
     println!(
-        "provision it with `host-tools provision`; an inspection recipe taught with {:#010x} must be taught again",
-        s.crc_before
+        "provision it with `host-tools provision`; an inspection recipe taught with {crc_before:#010x} must be taught \
+         again"
     );
     Ok(())
 }
 
+/// What was standardised, and where its readings came from.
+enum Found {
+    White((Standardisation, String)),
+    Gloss((GlossStandardisation, String)),
+}
+
+/// The white tile's standardisation, from logged readings or the device.
+fn white(a: &Args, view: &BlobView<'_>, blob: &[u8], tile: Tile) -> anyhow::Result<(Standardisation, String)> {
+    match &a.source.readings {
+        Some(path) => {
+            let rows = logged_readings(a, path, view)?;
+            let points = rows.iter().map(|(_, pixel, v)| TileReading { pixel: *pixel, v, flags: 0 });
+            let s = standardise(view, points, tile).with_context(|| format!("{}", path.display()))?;
+            Ok((s, path.display().to_string()))
+        }
+        None => {
+            let points = read_standard_on_device(a, blob, "tile")?;
+            let s = standardise(
+                view,
+                points.iter().map(|p| TileReading { pixel: usize::from(p.point), v: &p.corrected, flags: p.flags }),
+                tile,
+            )
+            .context("the device's readings of the tile")?;
+            Ok((s, "the device".to_string()))
+        }
+    }
+}
+
+/// The black glass's standardisation: the gloss the device read, or (from
+/// logged readings) what the device would read, with this calibration.
+fn gloss(
+    a: &Args,
+    view: &BlobView<'_>,
+    blob: &[u8],
+    standard: BlackGlass,
+) -> anyhow::Result<(GlossStandardisation, String)> {
+    ensure!(
+        view.has_gloss(),
+        "{}: this calibration reads no gloss (its blob has no gloss section): there is no gloss scale to standardise",
+        a.blob.display()
+    );
+    match &a.source.readings {
+        Some(path) => {
+            let rows = logged_readings(a, path, view)?;
+            let zones = (0..view.dims().zones)
+                .map(|z| crate::device::reference::PointEstimator::new(*view, z))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let points = rows.iter().map(|(line, pixel, v)| {
+                let e = zones[view.zone_of_pixel(*pixel)].apply_pixel(*pixel, v);
+                let gu = e.readings[brdf_meter::gloss::SPECULAR_GU];
+                GlossReading { line: *line, pixel: *pixel, gu, flags: e.flag_bits }
+            });
+            let s = standardise_gloss(view, points, standard).with_context(|| format!("{}", path.display()))?;
+            Ok((s, path.display().to_string()))
+        }
+        None => {
+            let points = read_standard_on_device(a, blob, "black glass")?;
+            let s = standardise_gloss(
+                view,
+                points.iter().map(|p| GlossReading {
+                    line: u64::from(p.line),
+                    pixel: usize::from(p.point),
+                    gu: p.readings[brdf_meter::gloss::SPECULAR_GU],
+                    flags: p.flags,
+                }),
+                standard,
+            )
+            .context("the device's readings of the black glass")?;
+            Ok((s, "the device".to_string()))
+        }
+    }
+}
+
+/// Logged corrected readings, each with its line and pixel.
+fn logged_readings(
+    a: &Args,
+    path: &std::path::Path,
+    view: &BlobView<'_>,
+) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
+    ensure!(a.scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
+    let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
+    let pixels = view.dims().pixels;
+    rows.into_iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let (line, pixel) = r.line.zip(r.pixel).with_context(|| {
+                format!(
+                    "{}: row {}: no `line` and `pixel` columns; a standardisation reads every pixel's own readings, \
+                     line by line (simulate's points.csv has both)",
+                    path.display(),
+                    k + 1
+                )
+            })?;
+            ensure!(
+                pixel < pixels,
+                "{}: row {}: pixel {pixel}: the calibration has pixels 0..={}",
+                path.display(),
+                k + 1,
+                pixels - 1
+            );
+            Ok((line, pixel, r.v))
+        })
+        .collect()
+}
+
 /// The JSON report.
 #[derive(serde::Serialize)]
-struct Report<'a> {
+struct Report<'a, S> {
     source: &'a str,
     crc_after: u32,
     #[serde(flatten)]
-    standardisation: &'a Standardisation,
+    standardisation: &'a S,
 }
 
-/// The tile's corrected readings, `a.lines` lines from the device. A
-/// simulated device holds a few scene lines and cycles through them: with
-/// `--scene` it is loaded with the next lines of the scene batch by batch,
-/// so every line read is a distinct draw; without, only as many lines are
-/// read as it holds (more would repeat draws and understate the scatter).
-fn read_tile_on_device(a: &Args, blob: &[u8]) -> anyhow::Result<Vec<PointRecord>> {
-    ensure!(a.lines >= 2, "--lines {}: a standardisation needs at least 2 lines of the tile", a.lines);
+/// The standard's points, `a.lines` lines from the device (`what`: the
+/// standard, as messages name it). A simulated device holds a few scene
+/// lines and cycles through them: with `--scene` it is loaded with the next
+/// lines of the scene batch by batch, so every line read is a distinct
+/// draw; without, only as many lines are read as it holds (more would
+/// repeat draws and understate the scatter).
+fn read_standard_on_device(a: &Args, blob: &[u8], what: &str) -> anyhow::Result<Vec<PointRecord>> {
+    ensure!(a.lines >= 2, "--lines {}: a standardisation needs at least 2 lines of the {what}", a.lines);
     ensure!(
         a.scene.scene_lines.is_none(),
         "--scene-lines: standardise loads a scene line of its own for every line it reads (--lines)"
@@ -187,7 +298,7 @@ fn read_tile_on_device(a: &Args, blob: &[u8]) -> anyhow::Result<Vec<PointRecord>
             let first = a.scene.scene_line + u64::from(done);
             crate::cli::sim_scene::load_lines(&mut c, scene, &info, &view, first, n as usize)?;
         }
-        points.extend(c.measure_observed(n, &mut |_| progress.inc(1)).context("reading the tile")?);
+        points.extend(c.measure_observed(n, &mut |_| progress.inc(1)).with_context(|| format!("reading the {what}"))?);
         done += n;
     }
     progress.finish_and_clear();
@@ -202,8 +313,10 @@ mod tests {
     fn args(blob: &Path, readings: &Path, out: &Path) -> Args {
         Args {
             blob: blob.into(),
-            tile_rf: 0.9,
+            tile_rf: Some(0.9),
             tile_u: 0.002,
+            black_glass_gu: None,
+            black_glass_u: 0.0,
             source: Source { port: None, tcp: None, readings: Some(readings.into()) },
             lines: 32,
             scene: Default::default(),
@@ -261,9 +374,84 @@ mod tests {
         // A tile certified at another value is refused, and nothing is written.
         let refused = dir.path().join("refused.blob");
         let mut bad = args(&cal, &readings, &refused);
-        bad.tile_rf = 0.3;
+        bad.tile_rf = Some(0.3);
         let e = format!("{:#}", run(bad).unwrap_err());
         assert!(e.contains("times its certified 0.3"), "{e}");
         assert!(!refused.exists() && !refused.with_extension("json").exists());
+    }
+
+    /// The gloss scale from logged readings: the host computes each point's
+    /// gloss as the device would, and the standardised calibration reads
+    /// the standard's certified value from the same readings, zone by zone.
+    #[test]
+    fn a_black_glass_reads_its_certified_value_after_standardisation() {
+        use crate::device::reference::PointEstimator;
+        let dir = tempfile::tempdir().unwrap();
+        let (p, m) = (8, 5);
+        let blob = brdf_meter::test_blobs::test_blob_with_gloss(9, m, 2, p, 0.5, None);
+        let cal = dir.path().join("cal.blob");
+        std::fs::write(&cal, &blob).unwrap();
+        // 6 lines of readings, the same shape on every pixel, scaled a
+        // little line by line.
+        let row = |l: usize, px: usize| -> Vec<f32> {
+            (0..m).map(|i| (0.15 + 0.03 * i as f32 + 0.003 * px as f32) * (1.0 + 0.001 * (l % 2) as f32)).collect()
+        };
+        let mut csv = String::from("line,pixel,L1,L2,L3,L4,L5\n");
+        for l in 0..6 {
+            for px in 0..p {
+                let v: Vec<String> = row(l, px).iter().map(|x| x.to_string()).collect();
+                csv += &format!("{l},{px},{}\n", v.join(","));
+            }
+        }
+        let readings = dir.path().join("glass.csv");
+        std::fs::write(&readings, csv).unwrap();
+        let view = BlobView::parse(&blob).unwrap();
+        let zone_mean = |v: &BlobView<'_>, z: usize| {
+            let e = PointEstimator::new(*v, z).unwrap();
+            let pixels = (v.zone_start(z) as usize)..(v.zone_start(z) as usize + p / 2);
+            let gs: Vec<f64> = (0..6)
+                .flat_map(|l| pixels.clone().map(move |px| (l, px)))
+                .map(|(l, px)| f64::from(e.apply_pixel(px, &row(l, px)).readings[0]))
+                .collect();
+            gs.iter().sum::<f64>() / gs.len() as f64
+        };
+        // Certified between what the calibration reads in its two zones
+        // (7 % apart): each is within the range of it.
+        let certified = (zone_mean(&view, 0) + zone_mean(&view, 1)) / 2.0;
+        let out = dir.path().join("cal-gloss.blob");
+        let args = Args {
+            tile_rf: None,
+            tile_u: 0.0,
+            black_glass_gu: Some(certified),
+            black_glass_u: 0.0,
+            key: None,
+            report: None,
+            ..args(&cal, &readings, &out)
+        };
+        run(args).unwrap();
+        let new = std::fs::read(&out).unwrap();
+        let nv = BlobView::parse(&new).unwrap();
+        for z in 0..2 {
+            // Each zone by its own factor (zone 1 read it otherwise).
+            assert!((zone_mean(&nv, z) / certified - 1.0).abs() < 1e-5, "zone {z} reads the certified value");
+        }
+        assert!(nv.gloss_uncertainty() > 0.0, "the scatter of the lines' means");
+        // A calibration whose scale is off by more than the range: the white first.
+        let refused = dir.path().join("refused.blob");
+        let args = Args { black_glass_gu: Some(certified / 1.2), ..args_gloss(&cal, &readings, &refused) };
+        let e = format!("{:#}", run(args).unwrap_err());
+        assert!(e.contains("Standardise on the white tile first"), "{e}");
+        assert!(!refused.exists());
+    }
+
+    fn args_gloss(blob: &Path, readings: &Path, out: &Path) -> Args {
+        Args {
+            tile_rf: None,
+            tile_u: 0.0,
+            black_glass_gu: Some(100.0),
+            key: None,
+            report: None,
+            ..args(blob, readings, out)
+        }
     }
 }

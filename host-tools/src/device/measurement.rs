@@ -46,9 +46,10 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
             })
             .collect(),
     }
-    // A standardised calibration's white reference is known to a relative
-    // uncertainty that every value carries.
-    .with_white_uncertainty(f64::from(view.white_uncertainty()))
+    // A standardised calibration's white reference (and gloss scale) is
+    // known to a relative uncertainty that every value (gloss and haze)
+    // carries.
+    .with_reference_uncertainties(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()))
 }
 
 /// The calibration's per-bin standard uncertainty for point `p` on the bins

@@ -156,27 +156,39 @@ fn number_text(x: f32) -> String {
 }
 
 /// Which gloss readings scale with the readings (and so with the white
-/// reference they are divided by), in the readings' order: gloss and haze
-/// do; distinctness, a ratio of two of them, does not.
+/// reference they are divided by, and the gloss scale), in the readings'
+/// order: gloss and haze do; distinctness, a ratio of two of them, does
+/// not.
 const READINGS_SCALE: [bool; READINGS] = [true, true, false];
 
 impl Points {
-    /// Every stated uncertainty with the calibration's white reference's
-    /// relative standard uncertainty `u_rel` (a standardised calibration's,
-    /// `brdf_meter::blob::with_white_uncertainty`) added in quadrature, as a
-    /// relative term on each value that scales with the readings: every
-    /// bin's reflectance, gloss and haze (and so the specular peak's
-    /// height, which `crate::output::peak` takes from the bins); not
-    /// distinctness, a ratio. Nothing changes when `u_rel` is 0.
-    pub fn with_white_uncertainty(mut self, u_rel: f64) -> Self {
-        if u_rel > 0.0 {
-            let add = |u: f32, x: f32| f64::from(u).hypot(u_rel * f64::from(x)) as f32;
-            for p in &mut self.points {
+    /// Every stated uncertainty with the calibration's standards' relative
+    /// standard uncertainties added in quadrature, as relative terms (a
+    /// standardised calibration's, `brdf_meter::blob::with_white_uncertainty`
+    /// and `with_gloss_uncertainty`):
+    /// - the white reference's `white` on each value that scales with the
+    ///   readings: every bin's reflectance, gloss and haze (and so the
+    ///   specular peak's height, which `crate::output::peak` takes from the
+    ///   bins); not distinctness, a ratio;
+    /// - the gloss scale's `gloss_scale` (the black glass's) on gloss and
+    ///   haze, which are read on its scale.
+    ///
+    /// Both are taken whole on gloss and haze: the white's cancels in a
+    /// gloss standardised right after it only as far as the LEDs drifted
+    /// alike, so stating it is the safe side. Nothing changes when both
+    /// are 0.
+    pub fn with_reference_uncertainties(mut self, white: f64, gloss_scale: f64) -> Self {
+        let add = |u: f32, x: f32, rel: f64| f64::from(u).hypot(rel * f64::from(x)) as f32;
+        let on_readings = white.hypot(gloss_scale);
+        for p in &mut self.points {
+            if white > 0.0 {
                 for (u, x) in p.u_rho.iter_mut().zip(&p.rho) {
-                    *u = add(*u, *x);
+                    *u = add(*u, *x, white);
                 }
+            }
+            if on_readings > 0.0 {
                 for k in (0..READINGS).filter(|k| READINGS_SCALE[*k]) {
-                    p.u_readings[k] = add(p.u_readings[k], p.readings[k]);
+                    p.u_readings[k] = add(p.u_readings[k], p.readings[k], on_readings);
                 }
             }
         }
@@ -620,23 +632,26 @@ mod tests {
     }
 
     #[test]
-    fn a_standardised_calibrations_white_uncertainty_is_added_to_what_scales_with_the_readings() {
+    fn a_standardised_calibrations_uncertainties_are_added_to_what_scales_with_them() {
         let p = points();
         // (By their text: the point without readings holds NaN.)
-        let same = format!("{:?}", p.clone().with_white_uncertainty(0.0));
+        let same = format!("{:?}", p.clone().with_reference_uncertainties(0.0, 0.0));
         assert_eq!(same, format!("{p:?}"), "nothing stated, nothing changes");
-        let w = p.clone().with_white_uncertainty(0.01);
-        for (a, b) in p.points.iter().zip(&w.points) {
-            for ((u, x), v) in a.u_rho.iter().zip(&a.rho).zip(&b.u_rho) {
-                let want = (f64::from(*u).powi(2) + (0.01 * f64::from(*x)).powi(2)).sqrt();
-                assert!((f64::from(*v) - want).abs() <= 1e-6 * want, "{v} vs {want}");
-                assert!(v >= u);
-            }
-            for (k, scales) in READINGS_SCALE.iter().enumerate() {
-                if *scales && a.readings[k].is_finite() {
-                    assert!(b.u_readings[k] > a.u_readings[k] || a.readings[k] == 0.0, "reading {k}");
-                } else if a.u_readings[k].is_finite() {
-                    assert_eq!(b.u_readings[k], a.u_readings[k], "reading {k}");
+        let quad = |u: f32, x: f32, rel: f64| (f64::from(u).powi(2) + (rel * f64::from(x)).powi(2)).sqrt();
+        for (white, gloss) in [(0.01, 0.0), (0.0, 0.02), (0.01, 0.02)] {
+            let w = p.clone().with_reference_uncertainties(white, gloss);
+            for (a, b) in p.points.iter().zip(&w.points) {
+                for ((u, x), v) in a.u_rho.iter().zip(&a.rho).zip(&b.u_rho) {
+                    let want = quad(*u, *x, white);
+                    assert!((f64::from(*v) - want).abs() <= 1e-6 * want, "{v} vs {want}");
+                }
+                for (k, scales) in READINGS_SCALE.iter().enumerate() {
+                    if *scales && a.readings[k].is_finite() {
+                        let want = quad(a.u_readings[k], a.readings[k], f64::hypot(white, gloss));
+                        assert!((f64::from(b.u_readings[k]) - want).abs() <= 1e-6 * want, "reading {k}");
+                    } else if a.u_readings[k].is_finite() {
+                        assert_eq!(b.u_readings[k], a.u_readings[k], "reading {k}");
+                    }
                 }
             }
         }
