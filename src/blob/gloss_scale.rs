@@ -70,13 +70,7 @@ pub fn rewrite_gloss_references(bytes: &mut [u8], refs: &[f32]) -> Result<(), Bl
         }
         (off, view.lay.crc)
     };
-    for (r, x) in refs.iter().enumerate() {
-        put_f32(bytes, off + 4 * r, *x);
-    }
-    let crc = CRC32.checksum(&bytes[..crc_at]);
-    put_u32(bytes, crc_at, crc);
-    BlobView::parse(bytes)?;
-    Ok(())
+    super::stated::reseal(bytes, off, refs, crc_at)
 }
 
 #[cfg(test)]

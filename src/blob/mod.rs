@@ -260,7 +260,8 @@
 //! - `gloss_scale`: [`rewrite_gloss_references`] and
 //!   [`with_gloss_uncertainty`], the same for the gloss scale on the black
 //!   glass;
-//! - `stated`: the trailing one-value sections both state, added or
+//! - `stated`: what both write: values rewritten in place and the blob
+//!   sealed again, and the trailing one-value sections, added or
 //!   replaced;
 //! - `parse`: [`BlobView::parse`], every check a blob must pass;
 //! - `view`: [`BlobView`] and what the device and host read from it;

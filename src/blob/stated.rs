@@ -1,6 +1,7 @@
-//! The trailing one-value sections a standardisation states (the white
-//! reference's uncertainty, flag bit 13; the gloss scale's, flag bit 14),
-//! added to a blob or replaced in it, every other byte kept.
+//! What a standardisation changes in a blob: values rewritten in place and
+//! the blob sealed again ([`reseal`]), and the trailing one-value sections
+//! it states (the white reference's uncertainty, flag bit 13; the gloss
+//! scale's, flag bit 14), added or replaced, every other byte kept.
 
 use super::*;
 
@@ -53,4 +54,16 @@ pub(super) fn with_trailing(blob: &[u8], t: Trailing, value: f32, out: &mut [u8]
     put_u32(out, total - 4, crc);
     BlobView::parse(&out[..total])?;
     Ok(total)
+}
+
+/// Writes `values` into the blob `bytes` from byte `off` on (checked by the
+/// caller), seals it with a new CRC at `crc_at` and parses it again.
+pub(super) fn reseal(bytes: &mut [u8], off: usize, values: &[f32], crc_at: usize) -> Result<(), BlobError> {
+    for (i, x) in values.iter().enumerate() {
+        put_f32(bytes, off + 4 * i, *x);
+    }
+    let crc = CRC32.checksum(&bytes[..crc_at]);
+    put_u32(bytes, crc_at, crc);
+    BlobView::parse(bytes)?;
+    Ok(())
 }

@@ -67,13 +67,7 @@ pub fn rewrite_white(bytes: &mut [u8], white: &[f32]) -> Result<(), BlobError> {
         }
         (view.lay.white, view.lay.crc)
     };
-    for (i, x) in white.iter().enumerate() {
-        put_f32(bytes, off + 4 * i, *x);
-    }
-    let crc = CRC32.checksum(&bytes[..crc_at]);
-    put_u32(bytes, crc_at, crc);
-    BlobView::parse(bytes)?;
-    Ok(())
+    super::stated::reseal(bytes, off, white, crc_at)
 }
 
 #[cfg(test)]

@@ -220,21 +220,12 @@ impl Standardisation {
     /// The calibration `blob` (the one standardised, unsigned) with the new
     /// white reference: a new calibration with a new CRC.
     pub fn blob(&self, blob: &[u8]) -> anyhow::Result<Vec<u8>> {
-        let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("not a valid calibration blob: {e}"))?;
-        ensure!(
-            view.crc() == self.crc_before,
-            "the blob's CRC is {:#010x}, but the standardisation was made for {:#010x}",
-            view.crc(),
-            self.crc_before
-        );
-        let mut out = vec![0u8; view.as_bytes().len() + 4];
-        let n = brdf_meter::blob::with_white_uncertainty(view.as_bytes(), self.u_rel as f32, &mut out)
-            .map_err(|e| anyhow::anyhow!("stating the white reference's uncertainty: {e}"))?;
-        out.truncate(n);
-        brdf_meter::blob::rewrite_white(&mut out, &self.white)
-            .map_err(|e| anyhow::anyhow!("writing the new white reference: {e}"))
-            .context("standardising")?;
-        Ok(out)
+        standardised_blob(
+            blob,
+            self.crc_before,
+            (brdf_meter::blob::with_white_uncertainty, self.u_rel, "the white reference's uncertainty"),
+            (|b: &mut [u8]| brdf_meter::blob::rewrite_white(b, &self.white), "the new white reference"),
+        )
     }
 
     /// The report's lines: per reading, the drift and scatter found.
@@ -264,6 +255,33 @@ impl Standardisation {
         );
         s
     }
+}
+
+/// States an uncertainty in a blob: `brdf_meter::blob::with_white_uncertainty`
+/// or `with_gloss_uncertainty`.
+pub(crate) type State = fn(&[u8], f32, &mut [u8]) -> Result<usize, brdf_meter::blob::BlobError>;
+
+/// The calibration `blob` (the one standardised, unsigned, whose CRC was
+/// `crc_before`) with an uncertainty stated (`state`, the relative
+/// uncertainty, what it is) and then values rewritten (`rewrite`, what
+/// they are): the standardised calibration, with a new CRC.
+pub(crate) fn standardised_blob(
+    blob: &[u8],
+    crc_before: u32,
+    (state, u_rel, stated): (State, f64, &str),
+    (rewrite, written): (impl FnOnce(&mut [u8]) -> Result<(), brdf_meter::blob::BlobError>, &str),
+) -> anyhow::Result<Vec<u8>> {
+    let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("not a valid calibration blob: {e}"))?;
+    ensure!(
+        view.crc() == crc_before,
+        "the blob's CRC is {:#010x}, but the standardisation was made for {crc_before:#010x}",
+        view.crc()
+    );
+    let mut out = vec![0u8; view.as_bytes().len() + 4];
+    let n = state(view.as_bytes(), u_rel as f32, &mut out).map_err(|e| anyhow::anyhow!("stating {stated}: {e}"))?;
+    out.truncate(n);
+    rewrite(&mut out).map_err(|e| anyhow::anyhow!("writing {written}: {e}")).context("standardising")?;
+    Ok(out)
 }
 
 #[cfg(test)]

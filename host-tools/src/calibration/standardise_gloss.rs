@@ -226,20 +226,15 @@ impl GlossStandardisation {
     /// The calibration `blob` (the one standardised, unsigned) with the new
     /// gloss references and the scale's uncertainty: a new calibration.
     pub fn blob(&self, blob: &[u8]) -> anyhow::Result<Vec<u8>> {
-        let view = BlobView::parse(blob).map_err(|e| anyhow::anyhow!("not a valid calibration blob: {e}"))?;
-        ensure!(
-            view.crc() == self.crc_before,
-            "the blob's CRC is {:#010x}, but the standardisation was made for {:#010x}",
-            view.crc(),
-            self.crc_before
-        );
-        let mut out = vec![0u8; view.as_bytes().len() + 4];
-        let n = brdf_meter::blob::with_gloss_uncertainty(view.as_bytes(), self.u_rel as f32, &mut out)
-            .map_err(|e| anyhow::anyhow!("stating the gloss scale's uncertainty: {e}"))?;
-        out.truncate(n);
-        brdf_meter::blob::rewrite_gloss_references(&mut out, &self.references)
-            .map_err(|e| anyhow::anyhow!("standardising: writing the new gloss references: {e}"))?;
-        Ok(out)
+        crate::calibration::standardise::standardised_blob(
+            blob,
+            self.crc_before,
+            (brdf_meter::blob::with_gloss_uncertainty, self.u_rel, "the gloss scale's uncertainty"),
+            (
+                |b: &mut [u8]| brdf_meter::blob::rewrite_gloss_references(b, &self.references),
+                "the new gloss references",
+            ),
+        )
     }
 
     /// The report's lines.
