@@ -489,5 +489,26 @@ fn qemu_standardised_on_a_tile_and_a_black_glass_reads_them_at_their_certified_v
     let g = brdf_meter::gloss::SPECULAR_GU;
     let mean = points.iter().map(|p| f64::from(p.readings[g])).sum::<f64>() / points.len() as f64;
     assert!((mean - 96.0).abs() < 1.5, "the black glass reads {mean} GU, certified 96");
+    drop(c);
+    // `verify` on the device agrees with the same standard, on every zone.
+    let report = dir.path().join("verify.json");
+    let args = host_tools::cli::verify::Args {
+        blob: gloss_out.clone(),
+        gloss_gu: 96.0,
+        gloss_u: 0.4,
+        source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        lines: 8,
+        scene: SimSceneArgs {
+            scene: Some("patent".into()),
+            scene_surface: Some(glass.into()),
+            scene_line: 48,
+            ..Default::default()
+        },
+        zones: (0..ZONES).collect(),
+        report: Some(report.clone()),
+    };
+    host_tools::cli::verify::run(args).unwrap_or_else(|e| panic!("{e:#}: {}", q.log_text()));
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!((r["agrees"].as_bool(), r["zones"].as_array().map(Vec::len)), (Some(true), Some(ZONES)), "{r}");
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }

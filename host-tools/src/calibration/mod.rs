@@ -9,7 +9,9 @@
 //! covered on its own); `standardise`: the white reference made true again
 //! on a certified white tile (the LEDs' drift since calibration);
 //! `standardise_gloss`: the gloss scale made true on a certified black-glass
-//! standard (the instrument's own error of its gloss scale). Consumes the forward model; knows nothing of the device link or
+//! standard (the instrument's own error of its gloss scale); `verify_gloss`:
+//! whether it reads another certified gloss standard within what both
+//! state (the normalised error E_n). Consumes the forward model; knows nothing of the device link or
 //! of evaluation.
 pub mod demo;
 pub mod estimators;
@@ -22,3 +24,4 @@ pub mod signing;
 pub mod standardise;
 pub mod standardise_gloss;
 pub mod train;
+pub mod verify_gloss;

@@ -24,10 +24,12 @@ pub mod sign_firmware;
 pub mod sim_scene;
 pub mod simulate;
 pub mod stability;
+pub mod standard_source;
 pub mod standardise;
 pub mod tradeoff;
 pub mod train;
 pub mod update_firmware;
+pub mod verify;
 
 /// Host tools for the handheld gloss/BRDF meter.
 #[derive(Debug, Parser)]
@@ -69,6 +71,8 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Standardise a calibration on a certified white tile (the LEDs' drift since calibration), or its gloss scale on a certified black glass.
     Standardise(standardise::Args),
+    /// Verify a calibration on a certified gloss standard: per zone, whether it reads it within what both state (E_n).
+    Verify(verify::Args),
     /// Measure lines on a device; write every point as CSV and JSON.
     Measure(measure::Args),
     /// Apply a calibration blob to logged readings offline, exactly as the device does.
@@ -104,6 +108,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::ProvisionSwd(a) => provision_swd::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Standardise(a) => standardise::run(a),
+        Command::Verify(a) => verify::run(a),
         Command::Measure(a) => measure::run(a),
         Command::Estimate(a) => estimate::run(a),
         Command::Tradeoff(a) => tradeoff::run(a),

@@ -9,10 +9,10 @@
 //! good calibration if it fails).
 use crate::calibration::standardise::{Standardisation, Tile, TileReading, standardise};
 use crate::calibration::standardise_gloss::{BlackGlass, GlossReading, GlossStandardisation, standardise_gloss};
-use crate::device::link::{Endpoint, PointRecord};
+pub use crate::cli::standard_source::Source;
+use crate::cli::standard_source::{OnDevice, logged_readings, read_standard_on_device};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
-use brdf_meter::protocol::{Encoding, StreamFormat};
 use std::path::PathBuf;
 
 /// Standardise a calibration on a certified white tile (the white reference
@@ -63,23 +63,6 @@ pub struct Args {
     /// uncertainty; or the gloss scale's) as JSON here.
     #[arg(long, value_name = "PATH")]
     pub report: Option<PathBuf>,
-}
-
-/// The device with the standard under it, or logged readings of it.
-#[derive(Clone, Debug, clap::Args)]
-#[group(required = true, multiple = false)]
-pub struct Source {
-    /// Serial port of the instrument, the standard under it (e.g. /dev/ttyACM0).
-    #[arg(long, value_name = "PATH")]
-    pub port: Option<String>,
-    /// TCP serial of the QEMU instrument (e.g. 127.0.0.1:4555, printed by `host-tools qemu`).
-    #[arg(long, value_name = "HOST:PORT")]
-    pub tcp: Option<String>,
-    /// Logged corrected readings of the standard, one row per point with
-    /// `line` and `pixel` columns (`simulate`'s `points.csv`), corrected
-    /// with this calibration's white reference.
-    #[arg(long, value_name = "R.csv")]
-    pub readings: Option<PathBuf>,
 }
 
 /// Runs the command.
@@ -140,6 +123,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+impl Args {
+    /// What reading the standard on the device needs.
+    fn on_device(&self) -> OnDevice<'_> {
+        OnDevice { source: &self.source, scene: &self.scene, lines: self.lines, blob_path: &self.blob }
+    }
+}
+
 /// What was standardised, and where its readings came from.
 enum Found {
     White((Standardisation, String)),
@@ -150,13 +140,17 @@ enum Found {
 fn white(a: &Args, view: &BlobView<'_>, blob: &[u8], tile: Tile) -> anyhow::Result<(Standardisation, String)> {
     match &a.source.readings {
         Some(path) => {
-            let rows = logged_readings(a, path, view)?;
+            ensure!(
+                a.scene.scene.is_none(),
+                "--scene loads a simulated device; logged readings (--readings) need none"
+            );
+            let rows = logged_readings(path, view)?;
             let points = rows.iter().map(|(_, pixel, v)| TileReading { pixel: *pixel, v, flags: 0 });
             let s = standardise(view, points, tile).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))
         }
         None => {
-            let points = read_standard_on_device(a, blob, "tile")?;
+            let points = read_standard_on_device(&a.on_device(), blob, "tile")?;
             let s = standardise(
                 view,
                 points.iter().map(|p| TileReading { pixel: usize::from(p.point), v: &p.corrected, flags: p.flags }),
@@ -183,7 +177,11 @@ fn gloss(
     );
     match &a.source.readings {
         Some(path) => {
-            let rows = logged_readings(a, path, view)?;
+            ensure!(
+                a.scene.scene.is_none(),
+                "--scene loads a simulated device; logged readings (--readings) need none"
+            );
+            let rows = logged_readings(path, view)?;
             let zones = (0..view.dims().zones)
                 .map(|z| crate::device::reference::PointEstimator::new(*view, z))
                 .collect::<anyhow::Result<Vec<_>>>()?;
@@ -196,7 +194,7 @@ fn gloss(
             Ok((s, path.display().to_string()))
         }
         None => {
-            let points = read_standard_on_device(a, blob, "black glass")?;
+            let points = read_standard_on_device(&a.on_device(), blob, "black glass")?;
             let s = standardise_gloss(
                 view,
                 points.iter().map(|p| GlossReading {
@@ -213,38 +211,6 @@ fn gloss(
     }
 }
 
-/// Logged corrected readings, each with its line and pixel.
-fn logged_readings(
-    a: &Args,
-    path: &std::path::Path,
-    view: &BlobView<'_>,
-) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
-    ensure!(a.scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
-    let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
-    let pixels = view.dims().pixels;
-    rows.into_iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let (line, pixel) = r.line.zip(r.pixel).with_context(|| {
-                format!(
-                    "{}: row {}: no `line` and `pixel` columns; a standardisation reads every pixel's own readings, \
-                     line by line (simulate's points.csv has both)",
-                    path.display(),
-                    k + 1
-                )
-            })?;
-            ensure!(
-                pixel < pixels,
-                "{}: row {}: pixel {pixel}: the calibration has pixels 0..={}",
-                path.display(),
-                k + 1,
-                pixels - 1
-            );
-            Ok((line, pixel, r.v))
-        })
-        .collect()
-}
-
 /// The JSON report.
 #[derive(serde::Serialize)]
 struct Report<'a, S> {
@@ -252,57 +218,6 @@ struct Report<'a, S> {
     crc_after: u32,
     #[serde(flatten)]
     standardisation: &'a S,
-}
-
-/// The standard's points, `a.lines` lines from the device (`what`: the
-/// standard, as messages name it). A simulated device holds a few scene
-/// lines and cycles through them: with `--scene` it is loaded with the next
-/// lines of the scene batch by batch, so every line read is a distinct
-/// draw; without, only as many lines are read as it holds (more would
-/// repeat draws and understate the scatter).
-fn read_standard_on_device(a: &Args, blob: &[u8], what: &str) -> anyhow::Result<Vec<PointRecord>> {
-    ensure!(a.lines >= 2, "--lines {}: a standardisation needs at least 2 lines of the {what}", a.lines);
-    ensure!(
-        a.scene.scene_lines.is_none(),
-        "--scene-lines: standardise loads a scene line of its own for every line it reads (--lines)"
-    );
-    let view = BlobView::parse(blob).expect("parsed by the caller");
-    let endpoint = Endpoint { port: a.source.port.clone(), tcp: a.source.tcp.clone() };
-    let mut c = crate::device::link::Client::new(endpoint.open()?)?;
-    let info = c.info().context("asking the device for its information")?;
-    crate::device::provision::check_device_runs(info.calibration, view.crc(), &a.blob)?;
-    let held = brdf_meter::shape::qemu::FRAME_LINES as u32;
-    let (lines, batch) = match (info.simulated, &a.scene.scene) {
-        (false, _) => (a.lines, a.lines),
-        (true, Some(_)) => (a.lines, held),
-        (true, None) => {
-            if a.lines > held {
-                println!("a simulated sensor holds {held} distinct lines: reading {held}, not {}", a.lines);
-            }
-            (a.lines.min(held), held)
-        }
-    };
-    c.timeout = std::time::Duration::from_secs(10);
-    c.set_calibration(blob)?;
-    c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
-    let progress = crate::output::progress::bar(u64::from(lines) * u64::from(info.pixels), "points");
-    let mut points = Vec::with_capacity(lines as usize * usize::from(info.pixels));
-    let scene = a.scene.prepare(&info, &view)?;
-    if let Some(note) = scene.as_ref().and_then(|s| s.note.as_ref()) {
-        eprintln!("note: {note}");
-    }
-    let mut done = 0;
-    while done < lines {
-        let n = batch.min(lines - done);
-        if let Some(scene) = &scene {
-            let first = a.scene.scene_line + u64::from(done);
-            crate::cli::sim_scene::load_lines(&mut c, scene, &info, &view, first, n as usize)?;
-        }
-        points.extend(c.measure_observed(n, &mut |_| progress.inc(1)).with_context(|| format!("reading the {what}"))?);
-        done += n;
-    }
-    progress.finish_and_clear();
-    Ok(points)
 }
 
 #[cfg(test)]

@@ -161,6 +161,19 @@ fn number_text(x: f32) -> String {
 /// not.
 const READINGS_SCALE: [bool; READINGS] = [true, true, false];
 
+/// `u`, the standard uncertainty of the value `x`, with a reference's
+/// relative standard uncertainty `rel` added in quadrature.
+pub fn add_relative(u: f32, x: f32, rel: f64) -> f32 {
+    f64::from(u).hypot(rel * f64::from(x)) as f32
+}
+
+/// The relative standard uncertainty a calibration's references give its
+/// gloss and haze readings: the white reference's and the gloss scale's, in
+/// quadrature ([`Points::with_reference_uncertainties`]).
+pub fn on_gloss_readings(white: f64, gloss_scale: f64) -> f64 {
+    white.hypot(gloss_scale)
+}
+
 impl Points {
     /// Every stated uncertainty with the calibration's standards' relative
     /// standard uncertainties added in quadrature, as relative terms (a
@@ -178,8 +191,8 @@ impl Points {
     /// alike, so stating it is the safe side. Nothing changes when both
     /// are 0.
     pub fn with_reference_uncertainties(mut self, white: f64, gloss_scale: f64) -> Self {
-        let add = |u: f32, x: f32, rel: f64| f64::from(u).hypot(rel * f64::from(x)) as f32;
-        let on_readings = white.hypot(gloss_scale);
+        let add = add_relative;
+        let on_readings = on_gloss_readings(white, gloss_scale);
         for p in &mut self.points {
             if white > 0.0 {
                 for (u, x) in p.u_rho.iter_mut().zip(&p.rho) {

@@ -1,0 +1,254 @@
+//! Verification on a certified gloss standard: does the instrument read a
+//! standard it was not standardised on within what both state?
+//!
+//! ISO 2813 has a gloss meter, once standardised on the high-gloss
+//! standard, checked on a working standard of another gloss level. The
+//! comparison a calibration laboratory signs is the normalised error
+//! `E_n = |x - X| / sqrt(U_x^2 + U_X^2)`, both expanded uncertainties at
+//! k = 2: `x` what the instrument read, `X` the certified value. `E_n <= 1`
+//! is agreement. Here `x` is a zone's mean reading over the lines read and
+//! `U_x` twice the RMS of the uncertainty the instrument stated for each
+//! reading (its calibration's, the white reference's and the gloss
+//! scale's): a point's stated uncertainty is mostly the estimator's error
+//! for this kind of surface, which averaging points does not reduce, so
+//! the mean keeps a reading's. A zone that fails says the stated
+//! uncertainty does not hold there: standardise again, and if it still
+//! fails, calibrate the unit again.
+use anyhow::{bail, ensure};
+use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::flags;
+use serde::Serialize;
+
+/// A certified gloss standard: its value at the instrument's geometry and
+/// that value's standard uncertainty (k = 1), GU.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct GlossStandard {
+    /// Certified gloss, GU.
+    pub gu: f64,
+    /// Its standard uncertainty (k = 1), GU.
+    pub u_gu: f64,
+}
+
+impl GlossStandard {
+    /// A standard, checked: `gu` above 0 and at most 2,000 GU (a mirror),
+    /// `u_gu` at least 0 and at most `gu`.
+    pub fn new(gu: f64, u_gu: f64) -> anyhow::Result<Self> {
+        ensure!(
+            gu.is_finite() && gu > 0.0 && gu <= 2000.0,
+            "--gloss-gu {gu}: a gloss standard's certified value is above 0 and at most 2000 GU (take the value for \
+             this geometry from its certificate)"
+        );
+        ensure!(
+            u_gu.is_finite() && u_gu >= 0.0 && u_gu <= gu,
+            "--gloss-u {u_gu}: the certificate's standard uncertainty (k = 1) in GU is at least 0 and at most \
+             --gloss-gu (a certificate at k = 2 states twice it)"
+        );
+        Ok(Self { gu, u_gu })
+    }
+}
+
+/// One point's gloss reading of the standard and the uncertainty the
+/// instrument stated for it (k = 1, its references' included).
+#[derive(Clone, Copy, Debug)]
+pub struct StatedGloss {
+    /// The pixel.
+    pub pixel: usize,
+    /// Its specular gloss, GU.
+    pub gu: f32,
+    /// Its stated standard uncertainty, GU.
+    pub u_gu: f32,
+    /// The point's flags (`brdf_meter::protocol::flags`).
+    pub flags: u8,
+}
+
+/// One zone's verdict.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ZoneVerdict {
+    /// The zone.
+    pub zone: usize,
+    /// Its first pixel.
+    pub first_pixel: usize,
+    /// Its last pixel.
+    pub last_pixel: usize,
+    /// Points read.
+    pub points: usize,
+    /// Their mean gloss, GU.
+    pub mean_gu: f64,
+    /// The RMS of their stated standard uncertainties, GU.
+    pub u_gu: f64,
+    /// Mean minus the certified value, GU.
+    pub deviation_gu: f64,
+    /// The normalised error (k = 2 on both sides).
+    pub e_n: f64,
+    /// `e_n <= 1`.
+    pub agrees: bool,
+}
+
+/// A verification: the standard and every zone's verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct Verification {
+    /// The standard.
+    pub standard: GlossStandard,
+    /// The zones that read gloss.
+    pub zones: Vec<ZoneVerdict>,
+    /// Every zone agrees.
+    pub agrees: bool,
+    /// The calibration verified.
+    pub crc: u32,
+}
+
+/// The flags that refuse a reading of a standard (as for the black glass:
+/// under-exposed is not one, a glossy standard is dark under most LEDs).
+const REFUSED: u8 = flags::SATURATED | flags::NON_FINITE;
+
+/// Verifies the calibration `view` on `standard` from its stated gloss
+/// readings, zone by zone.
+pub fn verify_gloss(
+    view: &BlobView<'_>,
+    readings: impl IntoIterator<Item = StatedGloss>,
+    standard: GlossStandard,
+) -> anyhow::Result<Verification> {
+    ensure!(view.has_gloss(), "this calibration reads no gloss (its blob has no gloss section): nothing to verify");
+    let (pixels, zones) = (view.dims().pixels, view.dims().zones);
+    // Per zone: count, sum, sum of stated variances.
+    let mut acc = vec![(0usize, 0.0f64, 0.0f64); zones];
+    for r in readings {
+        ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
+        if r.flags & REFUSED != 0 {
+            let names: Vec<&str> =
+                flags::NAMES.iter().filter(|(b, _)| r.flags & REFUSED & b != 0).map(|(_, n)| *n).collect();
+            bail!(
+                "pixel {}: the device flagged the standard's reading ({}): it is not read as a gloss standard is; \
+                 nothing was verified",
+                r.pixel,
+                names.join(", ")
+            );
+        }
+        if r.gu.is_nan() {
+            // A zone that reads no gloss.
+            continue;
+        }
+        ensure!(
+            r.gu.is_finite() && r.u_gu.is_finite() && r.u_gu >= 0.0,
+            "pixel {}: gloss {} GU, stated uncertainty {} GU: not a reading to verify",
+            r.pixel,
+            r.gu,
+            r.u_gu
+        );
+        let a = &mut acc[view.zone_of_pixel(r.pixel)];
+        *a = (a.0 + 1, a.1 + f64::from(r.gu), a.2 + f64::from(r.u_gu).powi(2));
+    }
+    let zones: Vec<ZoneVerdict> = acc
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| a.0 > 0)
+        .map(|(zone, &(n, sum, var))| {
+            let (mean, u) = (sum / n as f64, (var / n as f64).sqrt());
+            let deviation = mean - standard.gu;
+            let e_n = deviation.abs() / (2.0 * u.hypot(standard.u_gu));
+            ZoneVerdict {
+                zone,
+                first_pixel: view.zone_start(zone) as usize,
+                last_pixel: if zone + 1 < view.dims().zones {
+                    view.zone_start(zone + 1) as usize - 1
+                } else {
+                    pixels - 1
+                },
+                points: n,
+                mean_gu: mean,
+                u_gu: u,
+                deviation_gu: deviation,
+                e_n,
+                agrees: e_n <= 1.0,
+            }
+        })
+        .collect();
+    ensure!(!zones.is_empty(), "no point read gloss: nothing to verify");
+    let agrees = zones.iter().all(|z| z.agrees);
+    Ok(Verification { standard, zones, agrees, crc: view.crc() })
+}
+
+impl Verification {
+    /// The report's lines.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "standard: certified {} GU (u = {} GU); E_n = |reading - certified| / sqrt(U_reading^2 + U_certified^2), \
+             U = 2u\nzone  pixels  points  reads GU  stated u GU  deviation GU   E_n  verdict\n",
+            self.standard.gu, self.standard.u_gu
+        );
+        for z in &self.zones {
+            s += &format!(
+                "{:>4}  {:>6}  {:>6}  {:>8.2}  {:>11.2}  {:>+12.2}  {:>4.2}  {}\n",
+                z.zone,
+                format!("{}-{}", z.first_pixel, z.last_pixel),
+                z.points,
+                z.mean_gu,
+                z.u_gu,
+                z.deviation_gu,
+                z.e_n,
+                if z.agrees { "agrees" } else { "DOES NOT AGREE" }
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blob() -> Vec<u8> {
+        brdf_meter::test_blobs::test_blob_with_gloss(9, 5, 2, 8, 0.5, Some(1))
+    }
+
+    fn points(gu: impl Fn(usize) -> f32, u: f32) -> Vec<StatedGloss> {
+        (0..4)
+            .flat_map(|_| {
+                (0..8).map(|p| StatedGloss { pixel: p, gu: if p < 4 { gu(p) } else { f32::NAN }, u_gu: u, flags: 0 })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_zone_agrees_within_what_both_state_and_not_beyond() {
+        let b = blob();
+        let view = BlobView::parse(&b).unwrap();
+        let standard = GlossStandard::new(48.0, 0.4).unwrap();
+        // Reading 49 with u 0.8: E_n = 1 / (2 sqrt(0.8^2 + 0.4^2)) = 0.56.
+        let v = verify_gloss(&view, points(|_| 49.0, 0.8), standard).unwrap();
+        assert_eq!(v.zones.len(), 1, "the zone without gloss is not verified");
+        let z = &v.zones[0];
+        assert_eq!((z.points, z.first_pixel), (16, 0));
+        assert!((z.e_n - 1.0 / (2.0 * 0.8f64.hypot(0.4))).abs() < 1e-6, "{z:?}");
+        assert!(v.agrees && z.agrees);
+        assert!(v.table().contains("agrees"), "{}", v.table());
+        // Reading 50.5: E_n 1.40.
+        let v = verify_gloss(&view, points(|_| 50.5, 0.8), standard).unwrap();
+        assert!(!v.agrees && (v.zones[0].e_n - 1.398).abs() < 1e-3, "{:?}", v.zones[0]);
+        assert!(v.table().contains("DOES NOT AGREE"));
+        // The zone's u is the RMS of the points' (not shrunk by their count).
+        let v = verify_gloss(&view, points(|p| 48.0 + p as f32 * 0.1, 0.5), standard).unwrap();
+        assert!((v.zones[0].u_gu - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn what_cannot_be_verified_is_refused() {
+        let b = blob();
+        let view = BlobView::parse(&b).unwrap();
+        let standard = GlossStandard::new(48.0, 0.4).unwrap();
+        let mut ps = points(|_| 48.0, 0.8);
+        ps[2].flags = flags::SATURATED;
+        let e = verify_gloss(&view, ps, standard).unwrap_err().to_string();
+        assert!(e.contains("pixel 2: the device flagged the standard's reading (saturated)"), "{e}");
+        let mut ps = points(|_| 48.0, 0.8);
+        ps[1].u_gu = f32::NAN;
+        assert!(verify_gloss(&view, ps, standard).unwrap_err().to_string().contains("pixel 1"));
+        assert!(verify_gloss(&view, points(|_| f32::NAN, 0.8), standard).is_err());
+        let plain = brdf_meter::test_blobs::test_blob(9, 5, 2, 8, 0.5);
+        let e = verify_gloss(&BlobView::parse(&plain).unwrap(), points(|_| 48.0, 0.8), standard).unwrap_err();
+        assert!(e.to_string().contains("reads no gloss"));
+        for (gu, u) in [(0.0, 0.0), (2500.0, 1.0), (50.0, 60.0), (f64::NAN, 0.0)] {
+            assert!(GlossStandard::new(gu, u).is_err(), "{gu} {u}");
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! Where a certified standard's readings come from, for `standardise` and
+//! `verify`: the device with the standard under it (several lines, a
+//! simulated device loaded with a scene line of its own for each), or
+//! logged readings of it.
+use crate::cli::sim_scene::SimSceneArgs;
+use crate::device::link::{Endpoint, PointRecord};
+use anyhow::{Context, ensure};
+use brdf_meter::blob::BlobView;
+use brdf_meter::protocol::{Encoding, StreamFormat};
+use std::path::{Path, PathBuf};
+
+/// The device with the standard under it, or logged readings of it.
+#[derive(Clone, Debug, clap::Args)]
+#[group(required = true, multiple = false)]
+pub struct Source {
+    /// Serial port of the instrument, the standard under it (e.g. /dev/ttyACM0).
+    #[arg(long, value_name = "PATH")]
+    pub port: Option<String>,
+    /// TCP serial of the QEMU instrument (e.g. 127.0.0.1:4555, printed by `host-tools qemu`).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub tcp: Option<String>,
+    /// Logged corrected readings of the standard, one row per point with
+    /// `line` and `pixel` columns (`simulate`'s `points.csv`), corrected
+    /// with this calibration's white reference.
+    #[arg(long, value_name = "R.csv")]
+    pub readings: Option<PathBuf>,
+}
+
+/// What reading a standard on the device needs.
+pub struct OnDevice<'a> {
+    /// The device.
+    pub source: &'a Source,
+    /// A scene to load a simulated device with.
+    pub scene: &'a SimSceneArgs,
+    /// Lines to read.
+    pub lines: u32,
+    /// The calibration's file, as messages name it.
+    pub blob_path: &'a Path,
+}
+
+/// The standard's points, `a.lines` lines from the device (`what`: the
+/// standard, as messages name it). A simulated device holds a few scene
+/// lines and cycles through them: with `--scene` it is loaded with the next
+/// lines of the scene batch by batch, so every line read is a distinct
+/// draw; without, only as many lines are read as it holds (more would
+/// repeat draws and understate the scatter).
+pub fn read_standard_on_device(a: &OnDevice<'_>, blob: &[u8], what: &str) -> anyhow::Result<Vec<PointRecord>> {
+    ensure!(a.lines >= 2, "--lines {}: at least 2 lines of the {what} are needed", a.lines);
+    ensure!(
+        a.scene.scene_lines.is_none(),
+        "--scene-lines: a scene line of its own is loaded for every line read (--lines)"
+    );
+    let view = BlobView::parse(blob).expect("parsed by the caller");
+    let endpoint = Endpoint { port: a.source.port.clone(), tcp: a.source.tcp.clone() };
+    let mut c = crate::device::link::Client::new(endpoint.open()?)?;
+    let info = c.info().context("asking the device for its information")?;
+    crate::device::provision::check_device_runs(info.calibration, view.crc(), a.blob_path)?;
+    let held = brdf_meter::shape::qemu::FRAME_LINES as u32;
+    let (lines, batch) = match (info.simulated, &a.scene.scene) {
+        (false, _) => (a.lines, a.lines),
+        (true, Some(_)) => (a.lines, held),
+        (true, None) => {
+            if a.lines > held {
+                println!("a simulated sensor holds {held} distinct lines: reading {held}, not {}", a.lines);
+            }
+            (a.lines.min(held), held)
+        }
+    };
+    c.timeout = std::time::Duration::from_secs(10);
+    c.set_calibration(blob)?;
+    c.format = StreamFormat { encoding: Encoding::Corrected, bins: None };
+    let progress = crate::output::progress::bar(u64::from(lines) * u64::from(info.pixels), "points");
+    let mut points = Vec::with_capacity(lines as usize * usize::from(info.pixels));
+    let scene = a.scene.prepare(&info, &view)?;
+    if let Some(note) = scene.as_ref().and_then(|s| s.note.as_ref()) {
+        eprintln!("note: {note}");
+    }
+    let mut done = 0;
+    while done < lines {
+        let n = batch.min(lines - done);
+        if let Some(scene) = &scene {
+            let first = a.scene.scene_line + u64::from(done);
+            crate::cli::sim_scene::load_lines(&mut c, scene, &info, &view, first, n as usize)?;
+        }
+        points.extend(c.measure_observed(n, &mut |_| progress.inc(1)).with_context(|| format!("reading the {what}"))?);
+        done += n;
+    }
+    progress.finish_and_clear();
+    Ok(points)
+}
+
+/// Logged corrected readings, each with its line and pixel.
+pub fn logged_readings(path: &Path, view: &BlobView<'_>) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
+    let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
+    let pixels = view.dims().pixels;
+    rows.into_iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let (line, pixel) = r.line.zip(r.pixel).with_context(|| {
+                format!(
+                    "{}: row {}: no `line` and `pixel` columns; a reading of a standard takes every pixel's own readings, \
+                     line by line (simulate's points.csv has both)",
+                    path.display(),
+                    k + 1
+                )
+            })?;
+            ensure!(
+                pixel < pixels,
+                "{}: row {}: pixel {pixel}: the calibration has pixels 0..={}",
+                path.display(),
+                k + 1,
+                pixels - 1
+            );
+            Ok((line, pixel, r.v))
+        })
+        .collect()
+}
