@@ -132,16 +132,12 @@ pub fn standardise<'a>(
         ensure!(r.v.len() == m, "pixel {}: {} readings, but the calibration has m = {m}", r.pixel, r.v.len());
         // The out-of-prior flag judges an estimate, not the readings: a
         // diffuser may lie outside a glossy prior and still be read true.
-        if r.flags & flags::OF_READINGS != 0 {
-            let names: Vec<&str> =
-                flags::NAMES.iter().filter(|(b, _)| r.flags & flags::OF_READINGS & b != 0).map(|(_, n)| *n).collect();
-            bail!(
-                "pixel {}: the device flagged the tile's reading ({}): the tile is not under the instrument, or not \
-                 lit as a white tile is; nothing was standardised",
-                r.pixel,
-                names.join(", ")
-            );
-        }
+        refuse_flagged(
+            r.pixel,
+            r.flags & flags::OF_READINGS,
+            "the tile's reading",
+            "the tile is not under the instrument, or not lit as a white tile is; nothing was standardised",
+        )?;
         for (i, x) in r.v.iter().enumerate() {
             ensure!(
                 x.is_finite() && *x > 0.0,
@@ -255,6 +251,17 @@ impl Standardisation {
         );
         s
     }
+}
+
+/// Refuses a reading of a standard at `pixel` that the device flagged with
+/// any of `bits` (the flags the caller refuses), naming the flags: "the
+/// device flagged `what` (saturated): `then`".
+pub(crate) fn refuse_flagged(pixel: usize, bits: u8, what: &str, then: &str) -> anyhow::Result<()> {
+    if bits == 0 {
+        return Ok(());
+    }
+    let names: Vec<&str> = flags::NAMES.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect();
+    bail!("pixel {pixel}: the device flagged {what} ({}): {then}", names.join(", "))
 }
 
 /// States an uncertainty in a blob: `brdf_meter::blob::with_white_uncertainty`

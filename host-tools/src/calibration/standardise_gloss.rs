@@ -18,7 +18,7 @@
 //! that reason. The white's uncertainty stays in the gloss readings' (the
 //! host adds both); this adds the gloss scale's: the certificate's and
 //! the scatter of the standard's mean reading.
-use crate::calibration::standardise::MAX_SCATTER;
+use crate::calibration::standardise::{MAX_SCATTER, refuse_flagged};
 use anyhow::{bail, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::flags;
@@ -30,11 +30,12 @@ use serde::Serialize;
 pub const GLOSS_RATIO_RANGE: (f64, f64) =
     (brdf_meter::blob::GLOSS_RATIO_RANGE.0 as f64, brdf_meter::blob::GLOSS_RATIO_RANGE.1 as f64);
 
-/// The flags that refuse a reading of the black glass: saturated or not a
-/// number. Under-exposed is not one: the glass is dark under every LED but
-/// those near its mirror direction, and the gloss rows read it as such
-/// (the out-of-prior flag judges the estimate, as for the white tile).
-const REFUSED: u8 = flags::SATURATED | flags::NON_FINITE;
+/// The flags that refuse a reading of a gloss standard (here and in
+/// `verify_gloss`): saturated or not a number. Under-exposed is not one: a
+/// glossy standard is dark under every LED but those near its mirror
+/// direction, and the gloss rows read it as such (the out-of-prior flag
+/// judges the estimate, as for the white tile).
+pub(crate) const REFUSED: u8 = flags::SATURATED | flags::NON_FINITE;
 
 /// The black-glass standard: its certified gloss at the instrument's
 /// geometry and that value's standard uncertainty (k = 1).
@@ -127,16 +128,12 @@ pub fn standardise_gloss(
     let mut acc = vec![std::collections::BTreeMap::<u64, (usize, f64)>::new(); zones];
     for r in readings {
         ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
-        if r.flags & REFUSED != 0 {
-            let names: Vec<&str> =
-                flags::NAMES.iter().filter(|(b, _)| r.flags & REFUSED & b != 0).map(|(_, n)| *n).collect();
-            bail!(
-                "pixel {}: the device flagged the standard's reading ({}): the black glass is not under the \
-                 instrument, or not lit as it should be; nothing was standardised",
-                r.pixel,
-                names.join(", ")
-            );
-        }
+        refuse_flagged(
+            r.pixel,
+            r.flags & REFUSED,
+            "the standard's reading",
+            "the black glass is not under the instrument, or not lit as it should be; nothing was standardised",
+        )?;
         let z = view.zone_of_pixel(r.pixel);
         if !reads_gloss(z) {
             continue;

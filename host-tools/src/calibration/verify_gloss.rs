@@ -14,9 +14,10 @@
 //! the mean keeps a reading's. A zone that fails says the stated
 //! uncertainty does not hold there: standardise again, and if it still
 //! fails, calibrate the unit again.
-use anyhow::{bail, ensure};
+use crate::calibration::standardise::refuse_flagged;
+use crate::calibration::standardise_gloss::REFUSED;
+use anyhow::ensure;
 use brdf_meter::blob::BlobView;
-use brdf_meter::protocol::flags;
 use serde::Serialize;
 
 /// A certified gloss standard: its value at the instrument's geometry and
@@ -97,10 +98,6 @@ pub struct Verification {
     pub crc: u32,
 }
 
-/// The flags that refuse a reading of a standard (as for the black glass:
-/// under-exposed is not one, a glossy standard is dark under most LEDs).
-const REFUSED: u8 = flags::SATURATED | flags::NON_FINITE;
-
 /// Verifies the calibration `view` on `standard` from its stated gloss
 /// readings, zone by zone.
 pub fn verify_gloss(
@@ -114,16 +111,12 @@ pub fn verify_gloss(
     let mut acc = vec![(0usize, 0.0f64, 0.0f64); zones];
     for r in readings {
         ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
-        if r.flags & REFUSED != 0 {
-            let names: Vec<&str> =
-                flags::NAMES.iter().filter(|(b, _)| r.flags & REFUSED & b != 0).map(|(_, n)| *n).collect();
-            bail!(
-                "pixel {}: the device flagged the standard's reading ({}): it is not read as a gloss standard is; \
-                 nothing was verified",
-                r.pixel,
-                names.join(", ")
-            );
-        }
+        refuse_flagged(
+            r.pixel,
+            r.flags & REFUSED,
+            "the standard's reading",
+            "it is not read as a gloss standard is; nothing was verified",
+        )?;
         if r.gu.is_nan() {
             // A zone that reads no gloss.
             continue;
@@ -237,7 +230,7 @@ mod tests {
         let view = BlobView::parse(&b).unwrap();
         let standard = GlossStandard::new(48.0, 0.4).unwrap();
         let mut ps = points(|_| 48.0, 0.8);
-        ps[2].flags = flags::SATURATED;
+        ps[2].flags = brdf_meter::protocol::flags::SATURATED;
         let e = verify_gloss(&view, ps, standard).unwrap_err().to_string();
         assert!(e.contains("pixel 2: the device flagged the standard's reading (saturated)"), "{e}");
         let mut ps = points(|_| 48.0, 0.8);

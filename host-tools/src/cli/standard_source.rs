@@ -4,6 +4,7 @@
 //! logged readings of it.
 use crate::cli::sim_scene::SimSceneArgs;
 use crate::device::link::{Endpoint, PointRecord};
+use crate::device::reference::{PointEstimate, PointEstimator};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{Encoding, StreamFormat};
@@ -90,7 +91,13 @@ pub fn read_standard_on_device(a: &OnDevice<'_>, blob: &[u8], what: &str) -> any
 }
 
 /// Logged corrected readings, each with its line and pixel.
-pub fn logged_readings(path: &Path, view: &BlobView<'_>) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
+/// `scene` must name none: logged readings need no simulated device.
+pub fn logged_readings(
+    path: &Path,
+    view: &BlobView<'_>,
+    scene: &SimSceneArgs,
+) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
+    ensure!(scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
     let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
     let pixels = view.dims().pixels;
     rows.into_iter()
@@ -114,4 +121,20 @@ pub fn logged_readings(path: &Path, view: &BlobView<'_>) -> anyhow::Result<Vec<(
             Ok((line, pixel, r.v))
         })
         .collect()
+}
+
+/// Logged corrected readings ([`logged_readings`]) estimated as the device
+/// estimates them with the calibration `view`: each with its line and
+/// pixel.
+pub fn logged_estimates(
+    path: &Path,
+    view: &BlobView<'_>,
+    scene: &SimSceneArgs,
+) -> anyhow::Result<Vec<(u64, usize, PointEstimate)>> {
+    let rows = logged_readings(path, view, scene)?;
+    let zones = (0..view.dims().zones).map(|z| PointEstimator::new(*view, z)).collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(rows
+        .iter()
+        .map(|(line, pixel, v)| (*line, *pixel, zones[view.zone_of_pixel(*pixel)].apply_pixel(*pixel, v)))
+        .collect())
 }

@@ -10,7 +10,7 @@
 use crate::calibration::standardise::{Standardisation, Tile, TileReading, standardise};
 use crate::calibration::standardise_gloss::{BlackGlass, GlossReading, GlossStandardisation, standardise_gloss};
 pub use crate::cli::standard_source::Source;
-use crate::cli::standard_source::{OnDevice, logged_readings, read_standard_on_device};
+use crate::cli::standard_source::{OnDevice, logged_estimates, logged_readings, read_standard_on_device};
 use anyhow::{Context, ensure};
 use brdf_meter::blob::BlobView;
 use std::path::PathBuf;
@@ -140,11 +140,7 @@ enum Found {
 fn white(a: &Args, view: &BlobView<'_>, blob: &[u8], tile: Tile) -> anyhow::Result<(Standardisation, String)> {
     match &a.source.readings {
         Some(path) => {
-            ensure!(
-                a.scene.scene.is_none(),
-                "--scene loads a simulated device; logged readings (--readings) need none"
-            );
-            let rows = logged_readings(path, view)?;
+            let rows = logged_readings(path, view, &a.scene)?;
             let points = rows.iter().map(|(_, pixel, v)| TileReading { pixel: *pixel, v, flags: 0 });
             let s = standardise(view, points, tile).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))
@@ -177,18 +173,11 @@ fn gloss(
     );
     match &a.source.readings {
         Some(path) => {
-            ensure!(
-                a.scene.scene.is_none(),
-                "--scene loads a simulated device; logged readings (--readings) need none"
-            );
-            let rows = logged_readings(path, view)?;
-            let zones = (0..view.dims().zones)
-                .map(|z| crate::device::reference::PointEstimator::new(*view, z))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            let points = rows.iter().map(|(line, pixel, v)| {
-                let e = zones[view.zone_of_pixel(*pixel)].apply_pixel(*pixel, v);
-                let gu = e.readings[brdf_meter::gloss::SPECULAR_GU];
-                GlossReading { line: *line, pixel: *pixel, gu, flags: e.flag_bits }
+            let points = logged_estimates(path, view, &a.scene)?.into_iter().map(|(line, pixel, e)| GlossReading {
+                line,
+                pixel,
+                gu: e.readings[brdf_meter::gloss::SPECULAR_GU],
+                flags: e.flag_bits,
             });
             let s = standardise_gloss(view, points, standard).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))

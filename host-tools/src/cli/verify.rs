@@ -5,9 +5,9 @@
 //! written but the report; a zone that does not agree makes the command
 //! fail, so a script that checks an instrument stops on it.
 use crate::calibration::verify_gloss::{GlossStandard, StatedGloss, verify_gloss};
-use crate::cli::standard_source::{OnDevice, Source, logged_readings, read_standard_on_device};
+use crate::cli::standard_source::{OnDevice, Source, logged_estimates, read_standard_on_device};
 use crate::output::points::{add_relative, on_gloss_readings};
-use anyhow::{Context, bail, ensure};
+use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss::SPECULAR_GU;
 use std::path::PathBuf;
@@ -71,18 +71,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         |pixel: usize, g: f32, u: f32, flags: u8| StatedGloss { pixel, gu: g, u_gu: add_relative(u, g, rel), flags };
     let v = match &a.source.readings {
         Some(path) => {
-            ensure!(
-                a.scene.scene.is_none(),
-                "--scene loads a simulated device; logged readings (--readings) need none"
-            );
-            let rows = logged_readings(path, &view)?;
-            let zones = (0..view.dims().zones)
-                .map(|z| crate::device::reference::PointEstimator::new(view, z))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            let points = rows.iter().filter(|(_, pixel, _)| chosen(*pixel)).map(|(_, pixel, v)| {
-                let e = zones[view.zone_of_pixel(*pixel)].apply_pixel(*pixel, v);
-                stated(*pixel, e.readings[SPECULAR_GU], e.reading_sigma[SPECULAR_GU], e.flag_bits)
-            });
+            let points = logged_estimates(path, &view, &a.scene)?
+                .into_iter()
+                .filter(|(_, p, _)| chosen(*p))
+                .map(|(_, pixel, e)| stated(pixel, e.readings[SPECULAR_GU], e.reading_sigma[SPECULAR_GU], e.flag_bits));
             verify_gloss(&view, points, standard).with_context(|| format!("{}", path.display()))?
         }
         None => {
