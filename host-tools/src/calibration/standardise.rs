@@ -128,12 +128,12 @@ pub fn standardise<'a>(
     // Per pixel and reading: count, sum, sum of squares (f64).
     let mut acc = vec![(0usize, 0.0f64, 0.0f64); pixels * m];
     for r in readings {
-        ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
         ensure!(r.v.len() == m, "pixel {}: {} readings, but the calibration has m = {m}", r.pixel, r.v.len());
         // The out-of-prior flag judges an estimate, not the readings: a
         // diffuser may lie outside a glossy prior and still be read true.
-        refuse_flagged(
+        check_standard_reading(
             r.pixel,
+            pixels,
             r.flags & flags::OF_READINGS,
             "the tile's reading",
             "the tile is not under the instrument, or not lit as a white tile is; nothing was standardised",
@@ -253,10 +253,18 @@ impl Standardisation {
     }
 }
 
-/// Refuses a reading of a standard at `pixel` that the device flagged with
-/// any of `bits` (the flags the caller refuses), naming the flags: "the
-/// device flagged `what` (saturated): `then`".
-pub(crate) fn refuse_flagged(pixel: usize, bits: u8, what: &str, then: &str) -> anyhow::Result<()> {
+/// Refuses a reading of a standard at `pixel` that is not one of the
+/// calibration's `pixels`, or that the device flagged with any of `bits`
+/// (the flags the caller refuses), naming the flags: "the device flagged
+/// `what` (saturated): `then`".
+pub(crate) fn check_standard_reading(
+    pixel: usize,
+    pixels: usize,
+    bits: u8,
+    what: &str,
+    then: &str,
+) -> anyhow::Result<()> {
+    ensure!(pixel < pixels, "pixel {pixel}: the calibration has pixels 0..={}", pixels - 1);
     if bits == 0 {
         return Ok(());
     }

@@ -18,7 +18,7 @@
 //! that reason. The white's uncertainty stays in the gloss readings' (the
 //! host adds both); this adds the gloss scale's: the certificate's and
 //! the scatter of the standard's mean reading.
-use crate::calibration::standardise::{MAX_SCATTER, refuse_flagged};
+use crate::calibration::standardise::{MAX_SCATTER, check_standard_reading};
 use anyhow::{bail, ensure};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::flags;
@@ -127,9 +127,9 @@ pub fn standardise_gloss(
     let mut per_pixel = vec![0usize; pixels];
     let mut acc = vec![std::collections::BTreeMap::<u64, (usize, f64)>::new(); zones];
     for r in readings {
-        ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
-        refuse_flagged(
+        check_standard_reading(
             r.pixel,
+            pixels,
             r.flags & REFUSED,
             "the standard's reading",
             "the black glass is not under the instrument, or not lit as it should be; nothing was standardised",

@@ -14,7 +14,7 @@
 //! the mean keeps a reading's. A zone that fails says the stated
 //! uncertainty does not hold there: standardise again, and if it still
 //! fails, calibrate the unit again.
-use crate::calibration::standardise::refuse_flagged;
+use crate::calibration::standardise::check_standard_reading;
 use crate::calibration::standardise_gloss::REFUSED;
 use anyhow::ensure;
 use brdf_meter::blob::BlobView;
@@ -110,9 +110,9 @@ pub fn verify_gloss(
     // Per zone: count, sum, sum of stated variances.
     let mut acc = vec![(0usize, 0.0f64, 0.0f64); zones];
     for r in readings {
-        ensure!(r.pixel < pixels, "pixel {}: the calibration has pixels 0..={}", r.pixel, pixels - 1);
-        refuse_flagged(
+        check_standard_reading(
             r.pixel,
+            pixels,
             r.flags & REFUSED,
             "the standard's reading",
             "it is not read as a gloss standard is; nothing was verified",
