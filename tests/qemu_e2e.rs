@@ -329,6 +329,8 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
         lines: 2,
         csv: dir.path().join("m.csv"),
         json: dir.path().join("m.json"),
+        result: dir.path().join("m-result.json"),
+        result_zones: vec![],
         scene: host_tools::cli::sim_scene::SimSceneArgs {
             scene: Some("patent".into()),
             scene_lines: Some(1),
@@ -382,6 +384,27 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     let (a, b) = (readings[5]["gloss_gu"].as_f64().unwrap(), j["points"][5]["gloss_gu"].as_f64().unwrap());
     assert_eq!(a as f32, b as f32, "the device's f32 reading, unchanged");
     assert!(t.header.iter().any(|(k, _)| k == "GLOSS_GU"), "{:?}", t.header);
+    // The result: the centre zones' gloss, its mean and the calibration's
+    // part of its budget as the points' file gives them.
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("m-result.json")).unwrap()).unwrap();
+    assert_eq!(r["schema"], "brdf-meter/result");
+    let zones: Vec<u64> = r["zones"].as_array().unwrap().iter().map(|z| z.as_u64().unwrap()).collect();
+    let centre: Vec<&serde_json::Value> = j["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| zones.contains(&p["zone"].as_u64().unwrap()) && p["gloss_gu"].is_number())
+        .collect();
+    assert!(!centre.is_empty() && centre.len() < 2 * PIXELS, "{zones:?}");
+    let g = &r["readings"][0];
+    assert_eq!((g["reading"].as_str(), g["points"].as_u64()), (Some("gloss_gu"), Some(centre.len() as u64)));
+    let n = centre.len() as f64;
+    let mean = centre.iter().map(|p| p["gloss_gu"].as_f64().unwrap()).sum::<f64>() / n;
+    let rms = (centre.iter().map(|p| p["u_gloss_gu"].as_f64().unwrap().powi(2)).sum::<f64>() / n).sqrt();
+    assert!((g["value"].as_f64().unwrap() - mean).abs() <= 1e-5 * mean, "{g} vs {mean}");
+    assert!((g["budget"][0]["u"].as_f64().unwrap() - rms).abs() <= 1e-5 * rms, "{g} vs {rms}");
+    assert_eq!(g["expanded_u"].as_f64().unwrap(), 2.0 * g["u"].as_f64().unwrap());
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
 

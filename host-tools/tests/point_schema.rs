@@ -4,6 +4,9 @@
 //! `host-tools/tests/golden/points/` and compared byte for byte, so a change
 //! to a name, an order, a unit or a number's text cannot pass unnoticed.
 //! The two files' headers are the same: one schema whatever the source.
+//! Each command's result document (`device::measurement_result`: the
+//! readings' means with their uncertainty budgets) is pinned beside them;
+//! its version is `host_tools::device::measurement_result::SCHEMA_VERSION`.
 //!
 //! A difference means the files changed. If a field was renamed, removed,
 //! added, moved or changed its meaning, unit or rule for when it is
@@ -105,17 +108,26 @@ fn written() -> Vec<(&'static str, Vec<u8>)> {
     let view = BlobView::parse(&bytes).unwrap();
     let grid: Vec<f32> = (0..21).map(|j| view.grid_deg(j)).collect();
     let m = host_tools::device::measurement::measurement_points(&view, &records(&grid), 45.0);
+    let zones = host_tools::device::measurement_result::centre_zones(&view);
+    let m_result = host_tools::device::measurement_result::measurement_result(
+        "measure",
+        &view,
+        &zones,
+        host_tools::device::measurement::result_points(&records(&grid)),
+    );
     let dir = tempfile::tempdir().unwrap();
     let (cal, readings) = (dir.path().join("cal.blob"), dir.path().join("r.csv"));
     std::fs::write(&cal, &bytes).unwrap();
     std::fs::write(&readings, READINGS).unwrap();
-    let (csv, json) = (dir.path().join("e.csv"), dir.path().join("e.json"));
+    let (csv, json, result) = (dir.path().join("e.csv"), dir.path().join("e.json"), dir.path().join("r.json"));
     host_tools::cli::estimate::run(host_tools::cli::estimate::Args {
         blob: cal,
         readings,
         out: csv.clone(),
         json: Some(json.clone()),
         zone: 0,
+        result: Some(result.clone()),
+        result_zones: vec![],
         exports: host_tools::cli::exports::ExportArgs { view_deg: 45.0, ..Default::default() },
     })
     .unwrap();
@@ -124,6 +136,8 @@ fn written() -> Vec<(&'static str, Vec<u8>)> {
         ("measure.json", m.json().unwrap()),
         ("estimate.csv", std::fs::read(&csv).unwrap()),
         ("estimate.json", std::fs::read(&json).unwrap()),
+        ("measure-result.json", m_result.json().unwrap()),
+        ("estimate-result.json", std::fs::read(&result).unwrap()),
     ]
 }
 

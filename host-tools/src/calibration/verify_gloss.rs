@@ -7,17 +7,20 @@
 //! `E_n = |x - X| / sqrt(U_x^2 + U_X^2)`, both expanded uncertainties at
 //! k = 2: `x` what the instrument read, `X` the certified value. `E_n <= 1`
 //! is agreement. Here `x` is a zone's mean reading over the lines read and
-//! `U_x` twice the RMS of the uncertainty the instrument stated for each
-//! reading (its calibration's, the white reference's and the gloss
-//! scale's): a point's stated uncertainty is mostly the estimator's error
-//! for this kind of surface, which averaging points does not reduce, so
-//! the mean keeps a reading's. A zone that fails says the stated
-//! uncertainty does not hold there: standardise again, and if it still
-//! fails, calibrate the unit again.
+//! `U_x` the expanded uncertainty `measure` states for such a mean
+//! (`crate::device::measurement_result`): its calibration's (the RMS of
+//! what it states for each reading, mostly the estimator's error for this
+//! kind of surface, which averaging points does not reduce), the
+//! repeatability of the mean, the white reference's and the gloss
+//! scale's. A zone that fails says the stated uncertainty does not hold
+//! there: standardise again, and if it still fails, calibrate the unit
+//! again.
 use crate::calibration::standardise::check_standard_reading;
 use crate::calibration::standardise_gloss::REFUSED;
+use crate::device::measurement_result::{COVERAGE_FACTOR, Contribution, References, reading_result, zone_pixels};
 use anyhow::ensure;
 use brdf_meter::blob::BlobView;
+use brdf_meter::gloss::SPECULAR_GU;
 use serde::Serialize;
 
 /// A certified gloss standard: its value at the instrument's geometry and
@@ -48,15 +51,15 @@ impl GlossStandard {
     }
 }
 
-/// One point's gloss reading of the standard and the uncertainty the
-/// instrument stated for it (k = 1, its references' included).
+/// One point's gloss reading of the standard and the uncertainty its
+/// calibration stated for it (k = 1, before the references' are added).
 #[derive(Clone, Copy, Debug)]
 pub struct StatedGloss {
     /// The pixel.
     pub pixel: usize,
     /// Its specular gloss, GU.
     pub gu: f32,
-    /// Its stated standard uncertainty, GU.
+    /// The calibration's standard uncertainty of it, GU.
     pub u_gu: f32,
     /// The point's flags (`brdf_meter::protocol::flags`).
     pub flags: u8,
@@ -75,8 +78,10 @@ pub struct ZoneVerdict {
     pub points: usize,
     /// Their mean gloss, GU.
     pub mean_gu: f64,
-    /// The RMS of their stated standard uncertainties, GU.
+    /// Its combined standard uncertainty, GU: the budget's.
     pub u_gu: f64,
+    /// The budget (`crate::device::measurement_result`).
+    pub budget: Vec<Contribution>,
     /// Mean minus the certified value, GU.
     pub deviation_gu: f64,
     /// The normalised error (k = 2 on both sides).
@@ -107,8 +112,8 @@ pub fn verify_gloss(
 ) -> anyhow::Result<Verification> {
     ensure!(view.has_gloss(), "this calibration reads no gloss (its blob has no gloss section): nothing to verify");
     let (pixels, zones) = (view.dims().pixels, view.dims().zones);
-    // Per zone: count, sum, sum of stated variances.
-    let mut acc = vec![(0usize, 0.0f64, 0.0f64); zones];
+    // Per zone: each reading and its calibration's uncertainty.
+    let mut acc: Vec<Vec<(f64, f64)>> = vec![Vec::new(); zones];
     for r in readings {
         check_standard_reading(
             r.pixel,
@@ -128,32 +133,29 @@ pub fn verify_gloss(
             r.gu,
             r.u_gu
         );
-        let a = &mut acc[view.zone_of_pixel(r.pixel)];
-        *a = (a.0 + 1, a.1 + f64::from(r.gu), a.2 + f64::from(r.u_gu).powi(2));
+        acc[view.zone_of_pixel(r.pixel)].push((f64::from(r.gu), f64::from(r.u_gu)));
     }
+    let references = References::of(view);
     let zones: Vec<ZoneVerdict> = acc
         .iter()
         .enumerate()
-        .filter(|(_, a)| a.0 > 0)
-        .map(|(zone, &(n, sum, var))| {
-            let (mean, u) = (sum / n as f64, (var / n as f64).sqrt());
-            let deviation = mean - standard.gu;
-            let e_n = deviation.abs() / (2.0 * u.hypot(standard.u_gu));
-            ZoneVerdict {
+        .filter_map(|(zone, points)| {
+            let r = reading_result(SPECULAR_GU, points, (references.white, references.gloss_scale))?;
+            let deviation = r.value - standard.gu;
+            let e_n = deviation.abs() / (COVERAGE_FACTOR * r.u.hypot(standard.u_gu));
+            let (first_pixel, last_pixel) = zone_pixels(view, zone);
+            Some(ZoneVerdict {
                 zone,
-                first_pixel: view.zone_start(zone) as usize,
-                last_pixel: if zone + 1 < view.dims().zones {
-                    view.zone_start(zone + 1) as usize - 1
-                } else {
-                    pixels - 1
-                },
-                points: n,
-                mean_gu: mean,
-                u_gu: u,
+                first_pixel,
+                last_pixel,
+                points: r.points,
+                mean_gu: r.value,
+                u_gu: r.u,
+                budget: r.budget,
                 deviation_gu: deviation,
                 e_n,
                 agrees: e_n <= 1.0,
-            }
+            })
         })
         .collect();
     ensure!(!zones.is_empty(), "no point read gloss: nothing to verify");
@@ -219,9 +221,17 @@ mod tests {
         let v = verify_gloss(&view, points(|_| 50.5, 0.8), standard).unwrap();
         assert!(!v.agrees && (v.zones[0].e_n - 1.398).abs() < 1e-3, "{:?}", v.zones[0]);
         assert!(v.table().contains("DOES NOT AGREE"));
-        // The zone's u is the RMS of the points' (not shrunk by their count).
+        // The zone's u is the budget of its mean as `measure` states it:
+        // the RMS of the points' (not shrunk by their count) and the
+        // mean's repeatability.
         let v = verify_gloss(&view, points(|p| 48.0 + p as f32 * 0.1, 0.5), standard).unwrap();
-        assert!((v.zones[0].u_gu - 0.5).abs() < 1e-6);
+        let z = &v.zones[0];
+        let gu: Vec<f64> = (0..16).map(|i| f64::from(48.0 + (i % 4) as f32 * 0.1)).collect();
+        let mean = gu.iter().sum::<f64>() / 16.0;
+        let sd = (gu.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 15.0).sqrt();
+        assert_eq!(z.budget[0].source, "calibration");
+        assert!((z.budget[0].u - 0.5).abs() < 1e-6, "{z:?}");
+        assert!((z.u_gu - 0.5f64.hypot(sd / 4.0)).abs() < 1e-6, "{z:?}");
     }
 
     #[test]

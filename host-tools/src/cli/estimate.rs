@@ -14,6 +14,7 @@
 //! standard uncertainties, the gloss readings (`brdf_meter::gloss`) and the
 //! specular peak with theirs.
 //! Everything is checked and computed before anything is written.
+use crate::device::measurement_result::{ResultPoint, measurement_result};
 use crate::device::reference::PointEstimator;
 use crate::output::points::{Point, Points};
 use anyhow::{Context, bail, ensure};
@@ -42,6 +43,17 @@ pub struct Args {
     /// readings' pixels are in it).
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
+    /// Also write the result as JSON here: each gloss reading's mean over
+    /// the points of `--result-zones` with its uncertainty budget and U at
+    /// k = 2 (printed either way).
+    #[arg(long, value_name = "PATH")]
+    pub result: Option<PathBuf>,
+    /// The zones the result is over (comma separated). Default: the zones
+    /// at the centre of the line when the rows name their pixels (where
+    /// the pixels view at the instrument's nominal geometry), else
+    /// `--zone`.
+    #[arg(long, value_name = "Z,...", value_delimiter = ',')]
+    pub result_zones: Vec<usize>,
     /// Plot and standard files (points are the readings' pixels on their
     /// lines, as `measure`'s; rows on line 0 without `line` and `pixel` columns).
     #[command(flatten)]
@@ -124,11 +136,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let d = view.dims();
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
     let rows = read_readings(&a.readings, app.m())?;
+    let result_zones = match (a.result_zones.is_empty(), rows.iter().any(|r| r.pixel.is_some())) {
+        (true, false) => vec![app.zone()],
+        _ => crate::device::measurement_result::chosen_zones(&view, &a.result_zones, "--result-zones")?,
+    };
     // A row with a pixel is estimated with that pixel's zone, as the device does.
     let zones: Vec<PointEstimator<'_>> =
         (0..d.zones).map(|z| PointEstimator::new(view, z)).collect::<anyhow::Result<_>>()?;
     let mut points = Vec::with_capacity(rows.len());
     let mut schema_points = Vec::with_capacity(rows.len());
+    let mut result_points = Vec::with_capacity(rows.len());
     for r in &rows {
         let (zone, e) = match r.pixel {
             Some(p) => {
@@ -143,6 +160,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             None => (app.zone(), app.apply(&r.v)),
         };
+        result_points.push(ResultPoint {
+            line: r.line,
+            zone,
+            flags: e.flag_bits,
+            readings: e.readings,
+            u_readings: e.reading_sigma,
+        });
         schema_points.push(Point {
             line: r.line,
             pixel: r.pixel.map(|p| p as u64),
@@ -172,12 +196,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
     }
+    let result = measurement_result("estimate", &view, &result_zones, result_points);
     files.write(&a.out, a.json.as_deref())?;
+    if let Some(path) = &a.result {
+        result.write(path)?;
+    }
     let unresolved = files.unresolved_peaks();
-    let summary = crate::device::measurement_summary::summarise(points.iter().map(|p| {
-        crate::device::measurement_summary::SummaryPoint { line: None, flags: p.flag_bits, readings: p.readings }
+    // Line by line when the rows name their lines, as `measure` prints it.
+    let summary = crate::device::measurement_summary::summarise(points.iter().zip(&rows).map(|(p, r)| {
+        crate::device::measurement_summary::SummaryPoint {
+            line: r.line.and_then(|l| u32::try_from(l).ok()),
+            flags: p.flag_bits,
+            readings: p.readings,
+        }
     }));
     print!("{}", crate::device::measurement_summary::table(&summary));
+    print!("{}", result.table());
     let flagged = points.iter().filter(|p| p.flag_bits & flags::OUT_OF_PRIOR != 0).count();
     // Rows with a pixel took its zone; the others took --zone.
     let zones_used = match (rows.iter().any(|r| r.pixel.is_some()), rows.iter().all(|r| r.pixel.is_some())) {
@@ -191,7 +225,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::calibration::estimators::kind_name(view.estimator()),
         crate::output::points::unresolved_note(unresolved),
         a.out.display(),
-        a.json.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
+        [&a.json, &a.result].into_iter().flatten().map(|p| format!(", {}", p.display())).collect::<String>()
     );
     let export = crate::output::profile::ExportInfo {
         view_deg: a.exports.view_deg,
@@ -233,6 +267,8 @@ mod tests {
             out: dir.join("e.csv"),
             json: Some(dir.join("e.json")),
             zone: 0,
+            result: Some(dir.join("e-result.json")),
+            result_zones: vec![],
             exports: Default::default(),
         }
     }

@@ -32,6 +32,17 @@ pub struct Args {
     /// JSON output.
     #[arg(long, value_name = "PATH", default_value = "out/measure.json")]
     pub json: PathBuf,
+    /// The result as JSON: each gloss reading's mean over the points of
+    /// `--result-zones` with its uncertainty budget and U at k = 2.
+    #[arg(long, value_name = "PATH", default_value = "out/measure-result.json")]
+    pub result: PathBuf,
+    /// The zones the result is over (comma separated). Default: the zones
+    /// at the centre of the line, where the pixels view the surface at the
+    /// instrument's nominal geometry (the handheld's view at 41.5 to 48 deg
+    /// along its line, and a surface other than a mirror reads differently
+    /// at each).
+    #[arg(long, value_name = "Z,...", value_delimiter = ',')]
+    pub result_zones: Vec<usize>,
     /// A scene for a simulated device.
     #[command(flatten)]
     pub scene: crate::cli::sim_scene::SimSceneArgs,
@@ -92,6 +103,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     a.exports.check()?;
     let bytes = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&bytes).expect("read_blob_to_decode checked it");
+    let result_zones = crate::device::measurement_result::chosen_zones(&view, &a.result_zones, "--result-zones")?;
     let mut c = crate::device::link::Client::new(a.device.open()?)?;
     let info = c.info().context("asking the device for its information")?;
     crate::device::provision::check_device_runs(info.calibration, view.crc(), &a.blob)?;
@@ -110,7 +122,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     progress.finish_and_clear();
     let points: Vec<PointRecord> = points.context("measuring")?;
     let files = crate::device::measurement::measurement_points(&view, &points, a.exports.view_deg);
+    let result = crate::device::measurement_result::measurement_result(
+        "measure",
+        &view,
+        &result_zones,
+        crate::device::measurement::result_points(&points),
+    );
     files.write(&a.csv, Some(&a.json))?;
+    result.write(&a.result)?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();
     print!(
         "{}",
@@ -118,14 +137,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             crate::device::measurement::summary_points(&points)
         ))
     );
+    print!("{}", result.table());
     println!(
-        "measured {} lines, {} points ({} flagged{}): {} and {}",
+        "measured {} lines, {} points ({} flagged{}): {}, {} and {}",
         a.lines,
         points.len(),
         flagged,
         crate::output::points::unresolved_note(files.unresolved_peaks()),
         a.csv.display(),
-        a.json.display()
+        a.json.display(),
+        a.result.display()
     );
     let export = ExportInfo {
         view_deg: a.exports.view_deg,

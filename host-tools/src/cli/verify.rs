@@ -6,7 +6,7 @@
 //! fail, so a script that checks an instrument stops on it.
 use crate::calibration::verify_gloss::{GlossStandard, StatedGloss, verify_gloss};
 use crate::cli::standard_source::{OnDevice, Source, logged_estimates, read_standard_on_device};
-use crate::output::points::{add_relative, on_gloss_readings};
+use crate::device::measurement_result::chosen_zones;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss::SPECULAR_GU;
@@ -56,19 +56,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let standard = GlossStandard::new(a.gloss_gu, a.gloss_u)?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
-    let zones = view.dims().zones;
-    if let Some(z) = a.zones.iter().find(|z| **z >= zones) {
-        bail!("--zones {z}: the calibration has zones 0..={}", zones - 1);
-    }
-    let pixels = view.dims().pixels;
-    let centre = [view.zone_of_pixel(pixels.saturating_sub(1) / 2), view.zone_of_pixel(pixels / 2)];
-    let verified: &[usize] = if a.zones.is_empty() { &centre } else { &a.zones };
+    let verified = chosen_zones(&view, &a.zones, "--zones")?;
     let chosen = |pixel: usize| verified.contains(&view.zone_of_pixel(pixel));
-    // Every stated gloss uncertainty with the references' (as `measure`
-    // and `estimate` state it).
-    let rel = on_gloss_readings(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()));
-    let stated =
-        |pixel: usize, g: f32, u: f32, flags: u8| StatedGloss { pixel, gu: g, u_gu: add_relative(u, g, rel), flags };
+    // The calibration's uncertainties: `verify_gloss` adds the references'
+    // as `measure` states a mean's.
+    let stated = |pixel: usize, g: f32, u: f32, flags: u8| StatedGloss { pixel, gu: g, u_gu: u, flags };
     let v = match &a.source.readings {
         Some(path) => {
             let points = logged_estimates(path, &view, &a.scene)?

@@ -7,6 +7,7 @@
 //! which also make the profiles for the plot and the standard files
 //! (`Points::profiles`).
 use crate::device::link::PointRecord;
+use crate::device::measurement_result::ResultPoint;
 use crate::output::points::{Point, Points};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss;
@@ -84,6 +85,19 @@ pub fn summary_points(points: &[PointRecord]) -> Vec<crate::device::measurement_
             readings: p.readings,
         })
         .collect()
+}
+
+/// What the result needs of each point: its readings with the
+/// calibration's uncertainties as the device streamed them (before the
+/// references' are added).
+pub fn result_points(points: &[PointRecord]) -> impl Iterator<Item = ResultPoint> + '_ {
+    points.iter().map(|p| ResultPoint {
+        line: Some(u64::from(p.line)),
+        zone: usize::from(p.zone),
+        flags: p.flags,
+        readings: p.readings,
+        u_readings: p.reading_sigma,
+    })
 }
 
 #[cfg(test)]

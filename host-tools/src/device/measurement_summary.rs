@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 /// What the summary needs of one point.
 #[derive(Clone, Copy, Debug)]
 pub struct SummaryPoint {
-    /// Its line (`None`: offline estimates, which have no lines).
+    /// Its line (`None`: offline readings without a `line` column).
     pub line: Option<u32>,
     /// Flag bits (`brdf_meter::protocol::flags`).
     pub flags: u8,
@@ -33,7 +33,7 @@ pub struct Spread {
 /// One line of the summary.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LineSummary {
-    /// The line (`None`: every point of an offline estimate).
+    /// The line (`None`: the offline readings without a `line` column).
     pub line: Option<u32>,
     /// Points.
     pub points: usize,

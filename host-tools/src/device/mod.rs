@@ -1,9 +1,12 @@
 //! The device as the host sees it: the link (transports, client, QEMU
 //! launcher), provisioning over USB and SWD, the board's memory map, the
-//! host's reference computation of the device and the firmware budget.
+//! host's reference computation of the device, a measurement as files,
+//! its summary and its result with the uncertainty budget, and the firmware
+//! budget.
 pub mod budget;
 pub mod link;
 pub mod measurement;
+pub mod measurement_result;
 pub mod measurement_summary;
 pub mod memory_map;
 pub mod provision;

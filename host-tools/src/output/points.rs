@@ -159,18 +159,18 @@ fn number_text(x: f32) -> String {
 /// reference they are divided by, and the gloss scale), in the readings'
 /// order: gloss and haze do; distinctness, a ratio of two of them, does
 /// not.
-const READINGS_SCALE: [bool; READINGS] = [true, true, false];
+pub const READINGS_SCALE: [bool; READINGS] = [true, true, false];
 
 /// `u`, the standard uncertainty of the value `x`, with a reference's
 /// relative standard uncertainty `rel` added in quadrature.
-pub fn add_relative(u: f32, x: f32, rel: f64) -> f32 {
+fn add_relative(u: f32, x: f32, rel: f64) -> f32 {
     f64::from(u).hypot(rel * f64::from(x)) as f32
 }
 
 /// The relative standard uncertainty a calibration's references give its
 /// gloss and haze readings: the white reference's and the gloss scale's, in
 /// quadrature ([`Points::with_reference_uncertainties`]).
-pub fn on_gloss_readings(white: f64, gloss_scale: f64) -> f64 {
+fn on_gloss_readings(white: f64, gloss_scale: f64) -> f64 {
     white.hypot(gloss_scale)
 }
 

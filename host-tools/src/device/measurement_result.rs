@@ -1,0 +1,413 @@
+//! A measurement's result as a calibration laboratory states one: each
+//! gloss reading's mean over the points of the zones asked for, with its
+//! uncertainty budget (GUM: each contribution's standard uncertainty in
+//! the reading's unit, their root sum of squares `u_c`, and `U = k u_c`
+//! at k = 2). `measure` and `estimate` print it and write it as JSON;
+//! `verify` compares a standard's zone means by the same budget.
+//!
+//! The contributions:
+//! - **calibration**: the RMS of the uncertainty the calibration states
+//!   for each point's reading (the estimator's error for such a surface,
+//!   the sensor's noise included). Most of it is systematic for a surface,
+//!   the same material read with the same error point after point, so
+//!   averaging points does not reduce it: the mean keeps a reading's.
+//! - **repeatability**: the points' sample standard deviation over the
+//!   square root of their number (type A), how well the points pin the
+//!   mean over the area read: the noise on a uniform sample, the sample's
+//!   own variation on one that is not. The noise is then counted in both,
+//!   which is the safe side.
+//! - **white reference** and **gloss scale**: a standardised calibration's
+//!   relative uncertainties (`BlobView::white_uncertainty`,
+//!   `gloss_uncertainty`) times the mean, on the readings that scale with
+//!   them (gloss and haze; distinctness, a ratio of two readings, carries
+//!   neither), as `crate::output::points` adds them to each point.
+//!
+//! By default the points are those of the zones at the centre of the line
+//! ([`centre_zones`]): a surface other than a mirror reads differently
+//! where the pixels view it at other angles (the handheld's view at 41.5
+//! to 48 deg along its line), and a result is stated for the instrument's
+//! nominal geometry. Saturated points are left out (their values are not
+//! to be used) and counted, as are readings without a stated uncertainty;
+//! under-exposed ones are kept, as the gloss standardisation keeps them:
+//! a glossy surface is dark under every LED but those near its mirror
+//! direction, which the gloss readings take.
+use anyhow::Context;
+use brdf_meter::blob::BlobView;
+use brdf_meter::gloss;
+use brdf_meter::protocol::flags;
+use brdf_meter::shape::READINGS;
+use serde::Serialize;
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The document's schema name.
+pub const SCHEMA: &str = "brdf-meter/result";
+/// Its version: bumped when a field is renamed, removed, added, moved or
+/// changes its meaning or unit (`docs/point-schema.md`).
+pub const SCHEMA_VERSION: u32 = 1;
+/// The coverage factor of the expanded uncertainty.
+pub const COVERAGE_FACTOR: f64 = 2.0;
+
+/// Each reading's unit, in `gloss::NAMES` order.
+const UNITS: [&str; READINGS] = ["GU", "HU", "%"];
+
+/// A calibration's standards' relative standard uncertainties (0 when it
+/// was not standardised on them).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct References {
+    /// The white reference's (the white tile).
+    pub white: f64,
+    /// The gloss scale's (the black glass).
+    pub gloss_scale: f64,
+}
+
+impl References {
+    /// Those the calibration `view` states.
+    pub fn of(view: &BlobView<'_>) -> Self {
+        Self { white: f64::from(view.white_uncertainty()), gloss_scale: f64::from(view.gloss_uncertainty()) }
+    }
+}
+
+/// What the result needs of one point.
+#[derive(Clone, Copy, Debug)]
+pub struct ResultPoint {
+    /// Its line (`None`: offline readings without a `line` column).
+    pub line: Option<u64>,
+    /// The zone that estimated it.
+    pub zone: usize,
+    /// Its flag bits (`brdf_meter::protocol::flags`).
+    pub flags: u8,
+    /// Its gloss readings (NaN: none).
+    pub readings: [f32; READINGS],
+    /// The calibration's standard uncertainties of them (k = 1), before
+    /// the references' are added.
+    pub u_readings: [f32; READINGS],
+}
+
+/// One contribution to a reading's uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Contribution {
+    /// Where it comes from: `calibration`, `repeatability`,
+    /// `white_reference` or `gloss_scale`.
+    pub source: &'static str,
+    /// Its standard uncertainty, in the reading's unit.
+    pub u: f64,
+}
+
+/// One reading's result.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReadingResult {
+    /// The reading (`gloss_gu`, `haze_hu`, `distinctness_pct`).
+    pub reading: &'static str,
+    /// Its unit.
+    pub unit: &'static str,
+    /// Points that read it.
+    pub points: usize,
+    /// Their mean.
+    pub value: f64,
+    /// Their sample standard deviation (0 for one point).
+    pub sd: f64,
+    /// The contributions to its standard uncertainty.
+    pub budget: Vec<Contribution>,
+    /// The combined standard uncertainty (k = 1).
+    pub u: f64,
+    /// The expanded uncertainty (k = [`COVERAGE_FACTOR`]).
+    pub expanded_u: f64,
+}
+
+impl ReadingResult {
+    /// One contribution's standard uncertainty (0 when it has none).
+    pub fn contribution(&self, source: &str) -> f64 {
+        self.budget.iter().find(|c| c.source == source).map_or(0.0, |c| c.u)
+    }
+}
+
+/// The result of one reading over `points` (value and calibration
+/// uncertainty each), its references' relative uncertainty `references`
+/// (0 for a reading that does not scale with them); `None` without a point.
+pub fn reading_result(
+    reading: usize,
+    points: &[(f64, f64)],
+    (white, gloss_scale): (f64, f64),
+) -> Option<ReadingResult> {
+    let n = points.len();
+    if n == 0 {
+        return None;
+    }
+    let value = points.iter().map(|p| p.0).sum::<f64>() / n as f64;
+    let sd =
+        if n < 2 { 0.0 } else { (points.iter().map(|p| (p.0 - value).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt() };
+    let calibration = (points.iter().map(|p| p.1 * p.1).sum::<f64>() / n as f64).sqrt();
+    let mut budget = vec![
+        Contribution { source: "calibration", u: calibration },
+        Contribution { source: "repeatability", u: sd / (n as f64).sqrt() },
+    ];
+    if crate::output::points::READINGS_SCALE[reading] {
+        budget.push(Contribution { source: "white_reference", u: white * value.abs() });
+        budget.push(Contribution { source: "gloss_scale", u: gloss_scale * value.abs() });
+    }
+    let u = budget.iter().map(|c| c.u * c.u).sum::<f64>().sqrt();
+    Some(ReadingResult {
+        reading: gloss::NAMES[reading],
+        unit: UNITS[reading],
+        points: n,
+        value,
+        sd,
+        budget,
+        u,
+        expanded_u: COVERAGE_FACTOR * u,
+    })
+}
+
+/// The zones at the centre of the line (one or two), where the pixels view
+/// a surface at the instrument's nominal geometry.
+pub fn centre_zones(view: &BlobView<'_>) -> Vec<usize> {
+    let pixels = view.dims().pixels;
+    let set: BTreeSet<usize> =
+        [view.zone_of_pixel(pixels.saturating_sub(1) / 2), view.zone_of_pixel(pixels / 2)].into();
+    set.into_iter().collect()
+}
+
+/// The zones asked for (`asked`; empty: [`centre_zones`]), checked against
+/// the calibration's; `option` names the flag in the error.
+pub fn chosen_zones(view: &BlobView<'_>, asked: &[usize], option: &str) -> anyhow::Result<Vec<usize>> {
+    let zones = view.dims().zones;
+    if let Some(z) = asked.iter().find(|z| **z >= zones) {
+        anyhow::bail!("{option} {z}: the calibration has zones 0..={}", zones - 1);
+    }
+    let set: BTreeSet<usize> = asked.iter().copied().collect();
+    Ok(if set.is_empty() { centre_zones(view) } else { set.into_iter().collect() })
+}
+
+/// A zone's first and last pixel.
+pub fn zone_pixels(view: &BlobView<'_>, zone: usize) -> (usize, usize) {
+    let d = view.dims();
+    let last = if zone + 1 < d.zones { usize::from(view.zone_start(zone + 1)) - 1 } else { d.pixels - 1 };
+    (usize::from(view.zone_start(zone)), last)
+}
+
+/// A measurement's result.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MeasurementResult {
+    /// [`SCHEMA`].
+    pub schema: &'static str,
+    /// [`SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// The command that made it: `measure` or `estimate`.
+    pub source: &'static str,
+    /// The calibration that estimated the points.
+    pub calibration_crc: String,
+    /// The zones whose points it is over.
+    pub zones: Vec<usize>,
+    /// Their pixels, first and last, zone by zone.
+    pub pixels: Vec<(usize, usize)>,
+    /// Distinct lines among the points (`None`: offline, without lines).
+    pub lines: Option<usize>,
+    /// The zones' points.
+    pub points: usize,
+    /// Of them, left out: flagged saturated.
+    pub saturated: usize,
+    /// The coverage factor of `expanded_u`.
+    pub coverage_factor: f64,
+    /// The references' relative standard uncertainties.
+    pub references: References,
+    /// Each reading the points have, in `gloss::NAMES` order.
+    pub readings: Vec<ReadingResult>,
+}
+
+/// The result of the points of `zones` among `points` of calibration
+/// `view`, made by `source`.
+pub fn measurement_result(
+    source: &'static str,
+    view: &BlobView<'_>,
+    zones: &[usize],
+    points: impl IntoIterator<Item = ResultPoint>,
+) -> MeasurementResult {
+    let references = References::of(view);
+    let mut lines = BTreeSet::new();
+    let (mut count, mut saturated, mut without_lines) = (0usize, 0usize, false);
+    let mut kept: [Vec<(f64, f64)>; READINGS] = Default::default();
+    for p in points.into_iter().filter(|p| zones.contains(&p.zone)) {
+        count += 1;
+        match p.line {
+            Some(l) => drop(lines.insert(l)),
+            None => without_lines = true,
+        }
+        if p.flags & flags::SATURATED != 0 {
+            saturated += 1;
+            continue;
+        }
+        for (k, kept) in kept.iter_mut().enumerate() {
+            let (x, u) = (f64::from(p.readings[k]), f64::from(p.u_readings[k]));
+            // A reading without a stated uncertainty is not one to state a
+            // result from (the device states one for every reading).
+            if x.is_finite() && u.is_finite() && u >= 0.0 {
+                kept.push((x, u));
+            }
+        }
+    }
+    let on_references = (references.white, references.gloss_scale);
+    MeasurementResult {
+        schema: SCHEMA,
+        schema_version: SCHEMA_VERSION,
+        source,
+        calibration_crc: format!("{:#010x}", view.crc()),
+        zones: zones.to_vec(),
+        pixels: zones.iter().map(|&z| zone_pixels(view, z)).collect(),
+        lines: (!without_lines).then_some(lines.len()),
+        points: count,
+        saturated,
+        coverage_factor: COVERAGE_FACTOR,
+        references,
+        readings: (0..READINGS).filter_map(|k| reading_result(k, &kept[k], on_references)).collect(),
+    }
+}
+
+impl MeasurementResult {
+    /// The result as a plain-text table.
+    pub fn table(&self) -> String {
+        let mut t = String::new();
+        let zones: Vec<String> =
+            self.zones.iter().zip(&self.pixels).map(|(z, (a, b))| format!("{z} (pixels {a}-{b})")).collect();
+        let lines = self.lines.map_or(String::new(), |l| format!("{l} line(s), "));
+        let _ = writeln!(
+            t,
+            "result over zone(s) {}: {lines}{} point(s){}; U = {} u_c:",
+            zones.join(", "),
+            self.points,
+            if self.saturated > 0 { format!(", {} saturated left out", self.saturated) } else { String::new() },
+            self.coverage_factor
+        );
+        if self.readings.is_empty() {
+            let _ = writeln!(t, "  no gloss reading to state (no point of these zones read one)");
+            return t;
+        }
+        let _ = writeln!(
+            t,
+            "  {:<20} {:>9} {:>8} {:>8}  {:>11} {:>13} {:>7} {:>11}  points",
+            "reading", "value", "U", "u_c", "calibration", "repeatability", "white", "gloss scale"
+        );
+        for r in &self.readings {
+            let part = |s: &str| {
+                if r.budget.iter().any(|c| c.source == s) { format!("{:.2}", r.contribution(s)) } else { "-".into() }
+            };
+            let _ = writeln!(
+                t,
+                "  {:<20} {:>9.2} {:>8.2} {:>8.2}  {:>11} {:>13} {:>7} {:>11}  {}",
+                format!("{} ({})", r.reading, r.unit),
+                r.value,
+                r.expanded_u,
+                r.u,
+                part("calibration"),
+                part("repeatability"),
+                part("white_reference"),
+                part("gloss_scale"),
+                r.points
+            );
+        }
+        t
+    }
+
+    /// The JSON document (pretty, ending in a newline).
+    pub fn json(&self) -> anyhow::Result<Vec<u8>> {
+        let mut out = serde_json::to_vec_pretty(self).context("serialising the result")?;
+        out.push(b'\n');
+        Ok(out)
+    }
+
+    /// Writes the JSON document atomically.
+    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
+        crate::output::io::write_atomic(path, &self.json()?).with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blob(white: f32, gloss_u: f32) -> Vec<u8> {
+        let b = brdf_meter::test_blobs::test_blob_with_gloss(9, 5, 2, 8, 0.5, None);
+        let mut w = vec![0; b.len() + 8];
+        let n = brdf_meter::blob::with_white_uncertainty(&b, white, &mut w).unwrap();
+        let mut g = vec![0; n + 8];
+        let n = brdf_meter::blob::with_gloss_uncertainty(&w[..n], gloss_u, &mut g).unwrap();
+        g.truncate(n);
+        g
+    }
+
+    fn point(line: u64, zone: usize, g: f32, u: f32) -> ResultPoint {
+        ResultPoint { line: Some(line), zone, flags: 0, readings: [g, 2.0, 80.0], u_readings: [u, 0.1, 1.5] }
+    }
+
+    #[test]
+    fn the_budget_is_the_calibrations_the_repeatability_and_the_references_in_quadrature() {
+        let b = blob(0.004, 0.003);
+        let view = BlobView::parse(&b).unwrap();
+        let points: Vec<ResultPoint> = (0..4).map(|l| point(l, 0, 99.0 + l as f32 * 2.0 / 3.0, 0.6)).collect();
+        let r = measurement_result("measure", &view, &[0], points);
+        assert_eq!((r.points, r.lines, r.saturated, r.pixels.clone()), (4, Some(4), 0, vec![(0, 3)]));
+        let g = &r.readings[0];
+        assert_eq!((g.reading, g.unit, g.points), ("gloss_gu", "GU", 4));
+        assert!((g.value - 100.0).abs() < 1e-5, "{g:?}");
+        // The calibration's is the RMS of the points' (not shrunk by their count).
+        assert!((g.contribution("calibration") - 0.6).abs() < 1e-6);
+        // sd of 99, 99.67, 100.33, 101 over sqrt(4).
+        let sd = (2.0f64 * (1.0 + 1.0 / 9.0) / 3.0).sqrt();
+        assert!((g.sd - sd).abs() < 1e-5 && (g.contribution("repeatability") - sd / 2.0).abs() < 1e-5, "{g:?}");
+        assert!((g.contribution("white_reference") - 0.4).abs() < 1e-4, "{g:?}");
+        assert!((g.contribution("gloss_scale") - 0.3).abs() < 1e-4, "{g:?}");
+        let u = (0.36f64 + (sd / 2.0).powi(2) + 0.16 + 0.09).sqrt();
+        assert!((g.u - u).abs() < 1e-4 && (g.expanded_u - 2.0 * g.u).abs() < 1e-12, "{g:?}");
+        // Distinctness, a ratio, carries neither reference.
+        let d = &r.readings[2];
+        assert_eq!(d.reading, "distinctness_pct");
+        assert_eq!(d.budget.iter().map(|c| c.source).collect::<Vec<_>>(), ["calibration", "repeatability"]);
+        assert!((d.u - 1.5).abs() < 1e-6, "{d:?}");
+        let t = r.table();
+        assert!(t.contains("result over zone(s) 0 (pixels 0-3): 4 line(s), 4 point(s); U = 2 u_c"), "{t}");
+        assert!(t.contains("gloss_gu (GU)") && t.contains("100.00"), "{t}");
+        let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
+        assert_eq!(j["schema"], SCHEMA);
+        assert_eq!(j["readings"][0]["budget"][3]["source"], "gloss_scale");
+    }
+
+    #[test]
+    fn only_the_zones_asked_for_count_and_saturated_points_are_left_out() {
+        let b = blob(0.0, 0.0);
+        let view = BlobView::parse(&b).unwrap();
+        let mut points = vec![point(0, 0, 50.0, 1.0), point(0, 1, 70.0, 1.0), point(1, 1, 72.0, 1.0)];
+        points.push(ResultPoint { flags: flags::SATURATED, ..point(2, 1, 500.0, 1.0) });
+        points.push(ResultPoint { flags: flags::UNDER_EXPOSED, ..point(3, 1, 74.0, 1.0) });
+        let mut no_u = point(3, 1, 900.0, f32::NAN);
+        no_u.readings[1] = f32::NAN;
+        points.push(no_u);
+        let r = measurement_result("estimate", &view, &[1], points);
+        assert_eq!((r.points, r.saturated, r.lines), (5, 1, Some(4)));
+        let g = &r.readings[0];
+        assert_eq!(g.points, 3, "the saturated point and the one without an uncertainty are left out");
+        assert!((g.value - 72.0).abs() < 1e-9);
+        assert_eq!((g.contribution("white_reference"), g.contribution("gloss_scale")), (0.0, 0.0));
+        assert_eq!(r.readings[1].points, 3);
+        assert!(r.table().contains("1 saturated left out"), "{}", r.table());
+        // Without lines, and without readings.
+        let r = measurement_result("estimate", &view, &[0], [ResultPoint { line: None, ..point(0, 0, 1.0, 1.0) }]);
+        assert_eq!(r.lines, None);
+        let nothing = ResultPoint { readings: gloss::NO_READINGS, ..point(0, 0, 1.0, 1.0) };
+        let r = measurement_result("estimate", &view, &[0], [nothing]);
+        assert!(r.readings.is_empty() && r.table().contains("no gloss reading"), "{}", r.table());
+    }
+
+    #[test]
+    fn the_default_zones_are_the_centre_and_others_are_checked() {
+        let b = blob(0.0, 0.0);
+        let view = BlobView::parse(&b).unwrap();
+        // 8 pixels in 2 zones of 4: the centre pixels 3 and 4 are in both.
+        assert_eq!(centre_zones(&view), vec![0, 1]);
+        assert_eq!(chosen_zones(&view, &[], "--zones").unwrap(), vec![0, 1]);
+        assert_eq!(chosen_zones(&view, &[1, 1], "--zones").unwrap(), vec![1]);
+        let e = chosen_zones(&view, &[2], "--result-zones").unwrap_err().to_string();
+        assert!(e.contains("--result-zones 2: the calibration has zones 0..=1"), "{e}");
+        assert_eq!(zone_pixels(&view, 1), (4, 7));
+    }
+}
