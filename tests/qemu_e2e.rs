@@ -405,6 +405,14 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     assert!((g["value"].as_f64().unwrap() - mean).abs() <= 1e-5 * mean, "{g} vs {mean}");
     assert!((g["budget"][0]["u"].as_f64().unwrap() - rms).abs() <= 1e-5 * rms, "{g} vs {rms}");
     assert_eq!(g["expanded_u"].as_f64().unwrap(), 2.0 * g["u"].as_f64().unwrap());
+    // And the mean BRDF, bin by bin, over the same points.
+    let b = &r["brdf"];
+    assert_eq!(b["points"].as_u64(), Some(centre.len() as u64));
+    for k in [0, 40, 80] {
+        let mean = centre.iter().map(|p| p["rho"][k].as_f64().unwrap()).sum::<f64>() / n;
+        let got = b["value"][k].as_f64().unwrap();
+        assert!((got - mean).abs() <= 1e-5 * mean.abs().max(1e-3), "bin {k}: {got} vs {mean}");
+    }
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
 

@@ -110,10 +110,9 @@ fn written() -> Vec<(&'static str, Vec<u8>)> {
     let m = host_tools::device::measurement::measurement_points(&view, &records(&grid), 45.0);
     let zones = host_tools::device::measurement_result::centre_zones(&view);
     let m_result = host_tools::device::measurement_result::measurement_result(
-        "measure",
         &view,
         &zones,
-        host_tools::device::measurement::result_points(&records(&grid)),
+        &host_tools::device::measurement::calibration_points(&view, &records(&grid), 45.0),
     );
     let dir = tempfile::tempdir().unwrap();
     let (cal, readings) = (dir.path().join("cal.blob"), dir.path().join("r.csv"));

@@ -14,7 +14,7 @@
 //! standard uncertainties, the gloss readings (`brdf_meter::gloss`) and the
 //! specular peak with theirs.
 //! Everything is checked and computed before anything is written.
-use crate::device::measurement_result::{ResultPoint, measurement_result};
+use crate::device::measurement_result::measurement_result;
 use crate::device::reference::PointEstimator;
 use crate::output::points::{Point, Points};
 use anyhow::{Context, bail, ensure};
@@ -145,7 +145,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (0..d.zones).map(|z| PointEstimator::new(view, z)).collect::<anyhow::Result<_>>()?;
     let mut points = Vec::with_capacity(rows.len());
     let mut schema_points = Vec::with_capacity(rows.len());
-    let mut result_points = Vec::with_capacity(rows.len());
     for r in &rows {
         let (zone, e) = match r.pixel {
             Some(p) => {
@@ -160,13 +159,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             None => (app.zone(), app.apply(&r.v)),
         };
-        result_points.push(ResultPoint {
-            line: r.line,
-            zone,
-            flags: e.flag_bits,
-            readings: e.readings,
-            u_readings: e.reading_sigma,
-        });
         schema_points.push(Point {
             line: r.line,
             pixel: r.pixel.map(|p| p as u64),
@@ -181,7 +173,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         points.push(e);
     }
     let (peak_resolution_deg, pixel_peak_resolution_deg) = crate::output::points::peak_resolutions(&view);
-    let files = Points {
+    let stated = Points {
         source: "estimate",
         calibration_crc: view.crc(),
         view_deg: a.exports.view_deg,
@@ -190,13 +182,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         peak_factors: view.peak_factors(),
         bins_deg: (0..d.n).map(|j| view.grid_deg(j)).collect(),
         points: schema_points,
-    }
-    .with_reference_uncertainties(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()));
+    };
+    // The result takes the calibration's uncertainties apart from its
+    // standards'; the files state them together.
+    let result = measurement_result(&view, &result_zones, &stated);
+    let files = stated.with_standards_of(&view);
     let profiles = files.profiles();
     if a.exports.plot.is_some() {
         a.exports.chosen(&profiles)?; // a point the readings lack is refused before anything is written
     }
-    let result = measurement_result("estimate", &view, &result_zones, result_points);
     files.write(&a.out, a.json.as_deref())?;
     if let Some(path) = &a.result {
         result.write(path)?;

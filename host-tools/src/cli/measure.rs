@@ -121,13 +121,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let points = c.measure_observed(a.lines, &mut |_| progress.inc(1));
     progress.finish_and_clear();
     let points: Vec<PointRecord> = points.context("measuring")?;
-    let files = crate::device::measurement::measurement_points(&view, &points, a.exports.view_deg);
-    let result = crate::device::measurement_result::measurement_result(
-        "measure",
-        &view,
-        &result_zones,
-        crate::device::measurement::result_points(&points),
-    );
+    let stated = crate::device::measurement::calibration_points(&view, &points, a.exports.view_deg);
+    let result = crate::device::measurement_result::measurement_result(&view, &result_zones, &stated);
+    let files = stated.with_standards_of(&view);
     files.write(&a.csv, Some(&a.json))?;
     result.write(&a.result)?;
     let flagged = points.iter().filter(|p| p.flags != 0).count();

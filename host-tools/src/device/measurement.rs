@@ -7,7 +7,6 @@
 //! which also make the profiles for the plot and the standard files
 //! (`Points::profiles`).
 use crate::device::link::PointRecord;
-use crate::device::measurement_result::ResultPoint;
 use crate::output::points::{Point, Points};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss;
@@ -15,8 +14,19 @@ use brdf_meter::shape::READINGS;
 
 /// The points of a measurement with the calibration `view`, on the bins it
 /// streamed (every bin unless it asked for a subset; one subset per
-/// measurement), the specular peak sought about `view_deg`'s mirror incidence.
+/// measurement), the specular peak sought about `view_deg`'s mirror
+/// incidence: [`calibration_points`] with the standards' uncertainties.
 pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg: f64) -> Points {
+    // A standardised calibration's white reference (and gloss scale) is
+    // known to a relative uncertainty that every value (gloss and haze)
+    // carries.
+    calibration_points(view, points, view_deg).with_standards_of(view)
+}
+
+/// The same with the uncertainties the calibration states, before its
+/// standards' are added (what a result's budget takes apart,
+/// `crate::device::measurement_result`).
+pub fn calibration_points(view: &BlobView<'_>, points: &[PointRecord], view_deg: f64) -> Points {
     let d = view.dims();
     let bins = points.first().map_or(brdf_meter::protocol::BinRange::all(d.n), |p| p.bins);
     let (peak_resolution_deg, pixel_peak_resolution_deg) = crate::output::points::peak_resolutions(view);
@@ -47,10 +57,6 @@ pub fn measurement_points(view: &BlobView<'_>, points: &[PointRecord], view_deg:
             })
             .collect(),
     }
-    // A standardised calibration's white reference (and gloss scale) is
-    // known to a relative uncertainty that every value (gloss and haze)
-    // carries.
-    .with_reference_uncertainties(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()))
 }
 
 /// The calibration's per-bin standard uncertainty for point `p` on the bins
@@ -85,19 +91,6 @@ pub fn summary_points(points: &[PointRecord]) -> Vec<crate::device::measurement_
             readings: p.readings,
         })
         .collect()
-}
-
-/// What the result needs of each point: its readings with the
-/// calibration's uncertainties as the device streamed them (before the
-/// references' are added).
-pub fn result_points(points: &[PointRecord]) -> impl Iterator<Item = ResultPoint> + '_ {
-    points.iter().map(|p| ResultPoint {
-        line: Some(u64::from(p.line)),
-        zone: usize::from(p.zone),
-        flags: p.flags,
-        readings: p.readings,
-        u_readings: p.reading_sigma,
-    })
 }
 
 #[cfg(test)]

@@ -31,6 +31,7 @@
 //! under-exposed ones are kept, as the gloss standardisation keeps them:
 //! a glossy surface is dark under every LED but those near its mirror
 //! direction, which the gloss readings take.
+use crate::output::points::{Point, Points};
 use anyhow::Context;
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss;
@@ -67,22 +68,6 @@ impl References {
     pub fn of(view: &BlobView<'_>) -> Self {
         Self { white: f64::from(view.white_uncertainty()), gloss_scale: f64::from(view.gloss_uncertainty()) }
     }
-}
-
-/// What the result needs of one point.
-#[derive(Clone, Copy, Debug)]
-pub struct ResultPoint {
-    /// Its line (`None`: offline readings without a `line` column).
-    pub line: Option<u64>,
-    /// The zone that estimated it.
-    pub zone: usize,
-    /// Its flag bits (`brdf_meter::protocol::flags`).
-    pub flags: u8,
-    /// Its gloss readings (NaN: none).
-    pub readings: [f32; READINGS],
-    /// The calibration's standard uncertainties of them (k = 1), before
-    /// the references' are added.
-    pub u_readings: [f32; READINGS],
 }
 
 /// One contribution to a reading's uncertainty.
@@ -123,14 +108,26 @@ impl ReadingResult {
     }
 }
 
-/// The result of one reading over `points` (value and calibration
-/// uncertainty each), its references' relative uncertainty `references`
-/// (0 for a reading that does not scale with them); `None` without a point.
-pub fn reading_result(
-    reading: usize,
-    points: &[(f64, f64)],
-    (white, gloss_scale): (f64, f64),
-) -> Option<ReadingResult> {
+/// A mean over points and its budget.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mean {
+    /// Points.
+    pub points: usize,
+    /// Their mean.
+    pub value: f64,
+    /// Their sample standard deviation (0 for one point).
+    pub sd: f64,
+    /// The contributions to its standard uncertainty.
+    pub budget: Vec<Contribution>,
+    /// The combined standard uncertainty (k = 1).
+    pub u: f64,
+}
+
+/// The mean of `points` (each a value and the calibration's standard
+/// uncertainty of it) with its budget: the calibration's, the
+/// repeatability, and each of `relative` (a source and its relative
+/// standard uncertainty) times the mean; `None` without a point.
+pub fn mean_with_budget(points: &[(f64, f64)], relative: &[(&'static str, f64)]) -> Option<Mean> {
     let n = points.len();
     if n == 0 {
         return None;
@@ -143,20 +140,33 @@ pub fn reading_result(
         Contribution { source: "calibration", u: calibration },
         Contribution { source: "repeatability", u: sd / (n as f64).sqrt() },
     ];
-    if crate::output::points::READINGS_SCALE[reading] {
-        budget.push(Contribution { source: "white_reference", u: white * value.abs() });
-        budget.push(Contribution { source: "gloss_scale", u: gloss_scale * value.abs() });
-    }
+    budget.extend(relative.iter().map(|&(source, rel)| Contribution { source, u: rel * value.abs() }));
     let u = budget.iter().map(|c| c.u * c.u).sum::<f64>().sqrt();
+    Some(Mean { points: n, value, sd, budget, u })
+}
+
+/// The result of reading `reading` (`gloss::NAMES`' index) over `points`
+/// (value and calibration uncertainty each), with the references'
+/// relative uncertainties `(white, gloss_scale)` on a reading that scales
+/// with them; `None` without a point.
+pub fn reading_result(
+    reading: usize,
+    points: &[(f64, f64)],
+    (white, gloss_scale): (f64, f64),
+) -> Option<ReadingResult> {
+    let references = [("white_reference", white), ("gloss_scale", gloss_scale)];
+    let relative: &[(&'static str, f64)] =
+        if crate::output::points::READINGS_SCALE[reading] { &references } else { &[] };
+    let m = mean_with_budget(points, relative)?;
     Some(ReadingResult {
         reading: gloss::NAMES[reading],
         unit: UNITS[reading],
-        points: n,
-        value,
-        sd,
-        budget,
-        u,
-        expanded_u: COVERAGE_FACTOR * u,
+        points: m.points,
+        value: m.value,
+        sd: m.sd,
+        expanded_u: COVERAGE_FACTOR * m.u,
+        u: m.u,
+        budget: m.budget,
     })
 }
 
@@ -187,6 +197,33 @@ pub fn zone_pixels(view: &BlobView<'_>, zone: usize) -> (usize, usize) {
     (usize::from(view.zone_start(zone)), last)
 }
 
+/// The mean BRDF over the points and its uncertainty, bin by bin.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BrdfResult {
+    /// Points with a finite estimate (not saturated).
+    pub points: usize,
+    /// Each bin's incidence (deg), as the points' files give them.
+    pub bins_deg: Vec<f32>,
+    /// The mean reflectance factor per bin.
+    pub value: Vec<f64>,
+    /// Its combined standard uncertainty per bin (k = 1).
+    pub u: Vec<f64>,
+    /// Its expanded uncertainty per bin (k = [`COVERAGE_FACTOR`]).
+    pub expanded_u: Vec<f64>,
+    /// The contributions per bin: `calibration`, `repeatability`,
+    /// `white_reference` (the gloss scale is not the BRDF's).
+    pub budget: Vec<BinContribution>,
+}
+
+/// One contribution to every bin's uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BinContribution {
+    /// Where it comes from.
+    pub source: &'static str,
+    /// Its standard uncertainty per bin.
+    pub u: Vec<f64>,
+}
+
 /// A measurement's result.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MeasurementResult {
@@ -208,32 +245,35 @@ pub struct MeasurementResult {
     pub points: usize,
     /// Of them, left out: flagged saturated.
     pub saturated: usize,
+    /// Of them, flagged out-of-prior (kept: their stated uncertainty is
+    /// already the wider one the calibration states for such points).
+    pub out_of_prior: usize,
     /// The coverage factor of `expanded_u`.
     pub coverage_factor: f64,
     /// The references' relative standard uncertainties.
     pub references: References,
     /// Each reading the points have, in `gloss::NAMES` order.
     pub readings: Vec<ReadingResult>,
+    /// The mean BRDF (`None`: no point with a finite estimate).
+    pub brdf: Option<BrdfResult>,
 }
 
-/// The result of the points of `zones` among `points` of calibration
-/// `view`, made by `source`.
-pub fn measurement_result(
-    source: &'static str,
-    view: &BlobView<'_>,
-    zones: &[usize],
-    points: impl IntoIterator<Item = ResultPoint>,
-) -> MeasurementResult {
+/// The result of the points of `zones` among `points`, whose uncertainties
+/// are those calibration `view` states before its standards' (the
+/// standards' are added here, as contributions of their own).
+pub fn measurement_result(view: &BlobView<'_>, zones: &[usize], points: &Points) -> MeasurementResult {
     let references = References::of(view);
     let mut lines = BTreeSet::new();
-    let (mut count, mut saturated, mut without_lines) = (0usize, 0usize, false);
+    let (mut count, mut saturated, mut out_of_prior, mut without_lines) = (0usize, 0usize, 0usize, false);
     let mut kept: [Vec<(f64, f64)>; READINGS] = Default::default();
-    for p in points.into_iter().filter(|p| zones.contains(&p.zone)) {
+    let mut estimates: Vec<&Point> = Vec::new();
+    for p in points.points.iter().filter(|p| zones.contains(&usize::from(p.zone))) {
         count += 1;
         match p.line {
             Some(l) => drop(lines.insert(l)),
             None => without_lines = true,
         }
+        out_of_prior += usize::from(p.flags & flags::OUT_OF_PRIOR != 0);
         if p.flags & flags::SATURATED != 0 {
             saturated += 1;
             continue;
@@ -246,22 +286,54 @@ pub fn measurement_result(
                 kept.push((x, u));
             }
         }
+        let finite = |xs: &[f32]| xs.len() == points.bins_deg.len() && xs.iter().all(|x| x.is_finite());
+        if p.flags & flags::NON_FINITE == 0 && finite(&p.rho) && finite(&p.u_rho) {
+            estimates.push(p);
+        }
     }
     let on_references = (references.white, references.gloss_scale);
     MeasurementResult {
         schema: SCHEMA,
         schema_version: SCHEMA_VERSION,
-        source,
-        calibration_crc: format!("{:#010x}", view.crc()),
+        source: points.source,
+        calibration_crc: format!("{:#010x}", points.calibration_crc),
         zones: zones.to_vec(),
         pixels: zones.iter().map(|&z| zone_pixels(view, z)).collect(),
         lines: (!without_lines).then_some(lines.len()),
         points: count,
         saturated,
+        out_of_prior,
         coverage_factor: COVERAGE_FACTOR,
         references,
         readings: (0..READINGS).filter_map(|k| reading_result(k, &kept[k], on_references)).collect(),
+        brdf: brdf_result(&points.bins_deg, &estimates, references.white),
     }
+}
+
+/// The mean of the estimates bin by bin, with the same budget as a
+/// reading's (the white reference's on every bin).
+fn brdf_result(bins_deg: &[f32], estimates: &[&Point], white: f64) -> Option<BrdfResult> {
+    if bins_deg.is_empty() {
+        return None;
+    }
+    let per_bin: Vec<Mean> = (0..bins_deg.len())
+        .map(|j| {
+            let xs: Vec<(f64, f64)> = estimates.iter().map(|p| (f64::from(p.rho[j]), f64::from(p.u_rho[j]))).collect();
+            mean_with_budget(&xs, &[("white_reference", white)])
+        })
+        .collect::<Option<_>>()?;
+    let part = |k: usize| BinContribution {
+        source: per_bin[0].budget[k].source,
+        u: per_bin.iter().map(|m| m.budget[k].u).collect(),
+    };
+    Some(BrdfResult {
+        points: estimates.len(),
+        bins_deg: bins_deg.to_vec(),
+        value: per_bin.iter().map(|r| r.value).collect(),
+        u: per_bin.iter().map(|r| r.u).collect(),
+        expanded_u: per_bin.iter().map(|m| COVERAGE_FACTOR * m.u).collect(),
+        budget: (0..per_bin[0].budget.len()).map(part).collect(),
+    })
 }
 
 impl MeasurementResult {
@@ -271,14 +343,28 @@ impl MeasurementResult {
         let zones: Vec<String> =
             self.zones.iter().zip(&self.pixels).map(|(z, (a, b))| format!("{z} (pixels {a}-{b})")).collect();
         let lines = self.lines.map_or(String::new(), |l| format!("{l} line(s), "));
+        let mut notes = String::new();
+        if self.saturated > 0 {
+            notes += &format!(", {} saturated left out", self.saturated);
+        }
+        if self.out_of_prior > 0 {
+            notes += &format!(", {} out-of-prior", self.out_of_prior);
+        }
         let _ = writeln!(
             t,
-            "result over zone(s) {}: {lines}{} point(s){}; U = {} u_c:",
+            "result over zone(s) {}: {lines}{} point(s){notes}; U = {} u_c:",
             zones.join(", "),
             self.points,
-            if self.saturated > 0 { format!(", {} saturated left out", self.saturated) } else { String::new() },
             self.coverage_factor
         );
+        if let Some(b) = &self.brdf {
+            let _ = writeln!(
+                t,
+                "  BRDF: the mean of {} point(s), {} bin(s) with their budgets in the JSON",
+                b.points,
+                b.value.len()
+            );
+        }
         if self.readings.is_empty() {
             let _ = writeln!(t, "  no gloss reading to state (no point of these zones read one)");
             return t;
@@ -336,17 +422,42 @@ mod tests {
         g
     }
 
-    fn point(line: u64, zone: usize, g: f32, u: f32) -> ResultPoint {
-        ResultPoint { line: Some(line), zone, flags: 0, readings: [g, 2.0, 80.0], u_readings: [u, 0.1, 1.5] }
+    /// A point of 3 bins on `line` in `zone`, gloss `g` stated to `u`.
+    fn point(line: u64, zone: u16, g: f32, u: f32) -> Point {
+        Point {
+            line: Some(line),
+            pixel: None,
+            zone,
+            cluster: 0,
+            flags: 0,
+            rho: vec![0.5, g / 100.0, 0.5],
+            u_rho: vec![0.02, 0.1, 0.02],
+            readings: [g, 2.0, 80.0],
+            u_readings: [u, 0.1, 1.5],
+        }
+    }
+
+    fn points(ps: Vec<Point>) -> Points {
+        Points {
+            source: "measure",
+            calibration_crc: 0x1234_5678,
+            view_deg: 45.0,
+            peak_resolution_deg: None,
+            pixel_peak_resolution_deg: Vec::new(),
+            peak_factors: None,
+            bins_deg: vec![44.5, 45.0, 45.5],
+            points: ps,
+        }
     }
 
     #[test]
     fn the_budget_is_the_calibrations_the_repeatability_and_the_references_in_quadrature() {
         let b = blob(0.004, 0.003);
         let view = BlobView::parse(&b).unwrap();
-        let points: Vec<ResultPoint> = (0..4).map(|l| point(l, 0, 99.0 + l as f32 * 2.0 / 3.0, 0.6)).collect();
-        let r = measurement_result("measure", &view, &[0], points);
+        let ps = points((0..4).map(|l| point(l, 0, 99.0 + l as f32 * 2.0 / 3.0, 0.6)).collect());
+        let r = measurement_result(&view, &[0], &ps);
         assert_eq!((r.points, r.lines, r.saturated, r.pixels.clone()), (4, Some(4), 0, vec![(0, 3)]));
+        assert_eq!((r.source, r.calibration_crc.as_str()), ("measure", "0x12345678"));
         let g = &r.readings[0];
         assert_eq!((g.reading, g.unit, g.points), ("gloss_gu", "GU", 4));
         assert!((g.value - 100.0).abs() < 1e-5, "{g:?}");
@@ -364,38 +475,51 @@ mod tests {
         assert_eq!(d.reading, "distinctness_pct");
         assert_eq!(d.budget.iter().map(|c| c.source).collect::<Vec<_>>(), ["calibration", "repeatability"]);
         assert!((d.u - 1.5).abs() < 1e-6, "{d:?}");
+        // The BRDF bin by bin: the white's on every bin, not the gloss scale's.
+        let brdf = r.brdf.as_ref().unwrap();
+        assert_eq!((brdf.points, brdf.bins_deg.clone()), (4, vec![44.5, 45.0, 45.5]));
+        let sources: Vec<&str> = brdf.budget.iter().map(|c| c.source).collect();
+        assert_eq!(sources, ["calibration", "repeatability", "white_reference"]);
+        assert!((brdf.value[1] - 1.0).abs() < 1e-6 && (brdf.value[0] - 0.5).abs() < 1e-9, "{brdf:?}");
+        let want = (0.01f64 + (sd / 200.0).powi(2) + 0.004f64.powi(2)).sqrt();
+        assert!((brdf.u[1] - want).abs() < 1e-6, "{} vs {want}", brdf.u[1]);
+        assert!((brdf.u[0] - 0.02f64.hypot(0.002)).abs() < 1e-6 && brdf.expanded_u[0] == 2.0 * brdf.u[0]);
         let t = r.table();
         assert!(t.contains("result over zone(s) 0 (pixels 0-3): 4 line(s), 4 point(s); U = 2 u_c"), "{t}");
         assert!(t.contains("gloss_gu (GU)") && t.contains("100.00"), "{t}");
+        assert!(t.contains("BRDF: the mean of 4 point(s), 3 bin(s) with their budgets in the JSON"), "{t}");
         let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
         assert_eq!(j["schema"], SCHEMA);
         assert_eq!(j["readings"][0]["budget"][3]["source"], "gloss_scale");
+        assert_eq!(j["brdf"]["value"].as_array().unwrap().len(), 3);
     }
 
     #[test]
     fn only_the_zones_asked_for_count_and_saturated_points_are_left_out() {
         let b = blob(0.0, 0.0);
         let view = BlobView::parse(&b).unwrap();
-        let mut points = vec![point(0, 0, 50.0, 1.0), point(0, 1, 70.0, 1.0), point(1, 1, 72.0, 1.0)];
-        points.push(ResultPoint { flags: flags::SATURATED, ..point(2, 1, 500.0, 1.0) });
-        points.push(ResultPoint { flags: flags::UNDER_EXPOSED, ..point(3, 1, 74.0, 1.0) });
+        let mut ps = vec![point(0, 0, 50.0, 1.0), point(0, 1, 70.0, 1.0), point(1, 1, 72.0, 1.0)];
+        ps.push(Point { flags: flags::SATURATED, ..point(2, 1, 500.0, 1.0) });
+        ps.push(Point { flags: flags::UNDER_EXPOSED | flags::OUT_OF_PRIOR, ..point(3, 1, 74.0, 1.0) });
         let mut no_u = point(3, 1, 900.0, f32::NAN);
         no_u.readings[1] = f32::NAN;
-        points.push(no_u);
-        let r = measurement_result("estimate", &view, &[1], points);
-        assert_eq!((r.points, r.saturated, r.lines), (5, 1, Some(4)));
+        no_u.rho[0] = f32::NAN;
+        ps.push(no_u);
+        let r = measurement_result(&view, &[1], &points(ps));
+        assert_eq!((r.points, r.saturated, r.out_of_prior, r.lines), (5, 1, 1, Some(4)));
         let g = &r.readings[0];
         assert_eq!(g.points, 3, "the saturated point and the one without an uncertainty are left out");
         assert!((g.value - 72.0).abs() < 1e-9);
         assert_eq!((g.contribution("white_reference"), g.contribution("gloss_scale")), (0.0, 0.0));
         assert_eq!(r.readings[1].points, 3);
-        assert!(r.table().contains("1 saturated left out"), "{}", r.table());
-        // Without lines, and without readings.
-        let r = measurement_result("estimate", &view, &[0], [ResultPoint { line: None, ..point(0, 0, 1.0, 1.0) }]);
+        assert_eq!(r.brdf.as_ref().unwrap().points, 3, "nor a point whose estimate is not finite");
+        assert!(r.table().contains("1 saturated left out, 1 out-of-prior"), "{}", r.table());
+        // Without lines, and without readings or estimates.
+        let r = measurement_result(&view, &[0], &points(vec![Point { line: None, ..point(0, 0, 1.0, 1.0) }]));
         assert_eq!(r.lines, None);
-        let nothing = ResultPoint { readings: gloss::NO_READINGS, ..point(0, 0, 1.0, 1.0) };
-        let r = measurement_result("estimate", &view, &[0], [nothing]);
-        assert!(r.readings.is_empty() && r.table().contains("no gloss reading"), "{}", r.table());
+        let nothing = Point { readings: gloss::NO_READINGS, flags: flags::NON_FINITE, ..point(0, 0, 1.0, 1.0) };
+        let r = measurement_result(&view, &[0], &points(vec![nothing]));
+        assert!(r.readings.is_empty() && r.brdf.is_none() && r.table().contains("no gloss reading"), "{}", r.table());
     }
 
     #[test]

@@ -208,6 +208,12 @@ impl Points {
         self
     }
 
+    /// [`Self::with_reference_uncertainties`] with those the calibration
+    /// `view` states (`BlobView::white_uncertainty`, `gloss_uncertainty`).
+    pub fn with_standards_of(self, view: &brdf_meter::blob::BlobView<'_>) -> Self {
+        self.with_reference_uncertainties(f64::from(view.white_uncertainty()), f64::from(view.gloss_uncertainty()))
+    }
+
     /// The points as profiles for the plot and the standard files, the
     /// same values and uncertainties as the schema's files: each on its
     /// line and pixel, or (offline, without them) on line 0 at its row.
