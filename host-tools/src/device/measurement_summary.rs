@@ -4,6 +4,7 @@
 //! and how many points carry each flag. `measure` and `estimate` print it.
 use crate::device::reference::flag_names;
 use brdf_meter::gloss;
+use brdf_meter::protocol::flags;
 use brdf_meter::shape::READINGS;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -62,8 +63,15 @@ pub fn summarise(points: impl IntoIterator<Item = SummaryPoint>) -> Vec<LineSumm
     by_line
         .into_iter()
         .map(|(line, pts)| {
+            // A saturated point's values are not to be used: its flag is
+            // counted, its readings are not (as the result leaves it out).
             let readings = std::array::from_fn(|r| {
-                let xs: Vec<f64> = pts.iter().map(|p| f64::from(p.readings[r])).filter(|x| x.is_finite()).collect();
+                let xs: Vec<f64> = pts
+                    .iter()
+                    .filter(|p| p.flags & flags::SATURATED == 0)
+                    .map(|p| f64::from(p.readings[r]))
+                    .filter(|x| x.is_finite())
+                    .collect();
                 spread(&xs)
             });
             let mut flags = BTreeMap::new();
@@ -130,16 +138,19 @@ mod tests {
         ]);
         assert_eq!(s.len(), 2);
         assert_eq!((s[0].line, s[0].points, s[1].line, s[1].points), (Some(0), 3, Some(1), 1));
-        assert_eq!(s[0].readings[0], Spread { count: 3, mean: 20.0, sd: 10.0 });
-        assert_eq!(s[0].readings[1], Spread { count: 3, mean: 3.0, sd: 2.0 });
-        assert_eq!(s[0].readings[2], Spread { count: 1, mean: 70.0, sd: 0.0 });
+        // The saturated points' readings are left out; their flags count.
+        assert_eq!(s[0].readings[0], Spread { count: 1, mean: 20.0, sd: 0.0 });
+        assert_eq!(s[0].readings[1], Spread { count: 1, mean: 3.0, sd: 0.0 });
+        assert_eq!(s[0].readings[2], Spread { count: 0, mean: 0.0, sd: 0.0 });
         assert_eq!(s[0].flags.get("saturated"), Some(&2));
         assert_eq!(s[0].flags.get("out-of-prior"), Some(&1));
         let t = table(&s);
         let rows: Vec<&str> = t.lines().collect();
         assert!(rows[0].starts_with("line") && rows[0].contains("gloss GU (mean ± sd)") && rows[0].contains("flags"));
         assert!(
-            rows[1].starts_with("0") && rows[1].contains("20.00 ± 10.00") && rows[1].contains("70.00 ± 0.00 (1 pts)")
+            rows[1].starts_with("0") && rows[1].contains("20.00 ± 0.00 (1 pts)") && rows[1].contains("  -  "),
+            "{}",
+            rows[1]
         );
         assert!(rows[1].ends_with("out-of-prior 1, saturated 2"), "{}", rows[1]);
         assert!(rows[2].contains("80.00 ± 0.00") && rows[2].ends_with("none"));
