@@ -1,6 +1,6 @@
 //! A measurement's result as a calibration laboratory states one: each
-//! gloss reading's mean over the points of the zones asked for, with its
-//! uncertainty budget (GUM: each contribution's standard uncertainty in
+//! gloss reading's mean over the points of the zones asked for, and the
+//! mean BRDF bin by bin, with its uncertainty budget (GUM: each contribution's standard uncertainty in
 //! the reading's unit, their root sum of squares `u_c`, and `U = k u_c`
 //! at k = 2). `measure` and `estimate` print it and write it as JSON;
 //! `verify` compares a standard's zone means by the same budget.
@@ -19,16 +19,20 @@
 //! - **white reference** and **gloss scale**: a standardised calibration's
 //!   relative uncertainties (`BlobView::white_uncertainty`,
 //!   `gloss_uncertainty`) times the mean, on the readings that scale with
-//!   them (gloss and haze; distinctness, a ratio of two readings, carries
-//!   neither), as `crate::output::points` adds them to each point.
+//!   them (gloss and haze; the BRDF the white's; distinctness, a ratio of
+//!   two readings, neither), as `crate::output::points` adds them to each
+//!   point.
 //!
 //! By default the points are those of the zones at the centre of the line
 //! ([`centre_zones`]): a surface other than a mirror reads differently
 //! where the pixels view it at other angles (the handheld's view at 41.5
 //! to 48 deg along its line), and a result is stated for the instrument's
 //! nominal geometry. Saturated points are left out (their values are not
-//! to be used) and counted, as are readings without a stated uncertainty;
-//! under-exposed ones are kept, as the gloss standardisation keeps them:
+//! to be used) and counted, and so are readings without a stated
+//! uncertainty and estimates that are not finite, uncounted; out-of-prior
+//! points are kept and counted (their stated uncertainty is already the
+//! wider one the calibration states for such points); under-exposed ones
+//! are kept, as the gloss standardisation keeps them:
 //! a glossy surface is dark under every LED but those near its mirror
 //! direction, which the gloss readings take.
 use crate::output::points::{Point, Points};
