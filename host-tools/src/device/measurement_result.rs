@@ -28,9 +28,9 @@
 //! where the pixels view it at other angles (the handheld's view at 41.5
 //! to 48 deg along its line), and a result is stated for the instrument's
 //! nominal geometry. Saturated points are left out (their values are not
-//! to be used) and counted, and so are readings without a stated
-//! uncertainty and estimates that are not finite, uncounted; out-of-prior
-//! points are kept and counted (their stated uncertainty is already the
+//! to be used) and counted; readings without a stated uncertainty and
+//! estimates that are not finite are left out too; out-of-prior points
+//! are kept and counted (their stated uncertainty is already the
 //! wider one the calibration states for such points); under-exposed ones
 //! are kept, as the gloss standardisation keeps them:
 //! a glossy surface is dark under every LED but those near its mirror
