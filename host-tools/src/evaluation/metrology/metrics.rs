@@ -22,6 +22,7 @@
 //! and flag figures are absent (`None`), never zero.
 use super::reading::Reading;
 use super::truth::Truth;
+use crate::device::measurement_result::mean_with_budget;
 use crate::evaluation::pixel_error::quantiles;
 use serde::Serialize;
 
@@ -102,6 +103,12 @@ pub struct Row {
     pub band: Option<Spread>,
     /// The same for gloss, haze and distinctness.
     pub reading_coverage: Option<[f64; 3]>,
+    /// The same for the result a user states of a surface
+    /// (`crate::device::measurement_result`): the mean of its draws with
+    /// `U` = k times the root sum of squares of the RMS of their stated
+    /// uncertainties and the mean's repeatability; the share of the
+    /// surfaces whose truth it covers.
+    pub result_coverage: Option<[f64; 3]>,
     /// Estimates worse than [`BAD_ERROR`].
     pub bad: usize,
     /// Of those, the share flagged.
@@ -143,6 +150,8 @@ pub struct Tally {
     bins_per_surface: Vec<(f64, f64)>,
     band: Vec<f64>,
     readings: Option<[(usize, usize); 3]>,
+    /// Per reading, surfaces whose result covers the truth and surfaces.
+    results: Option<[(usize, usize); 3]>,
     flag: FlagScore,
     flags: bool,
     height: Vec<f64>,
@@ -258,10 +267,32 @@ impl Tally {
                 }
             }
         }
+        self.add_result(truth, estimates);
         let rms = (ss / estimates.len().max(1) as f64).sqrt();
         self.materials.push((name.to_string(), rms));
         if surface_bins.1 > 0 {
             self.bins_per_surface.push((surface_bins.0 as f64, surface_bins.1 as f64));
+        }
+    }
+
+    /// Whether the result of one surface's estimates (the mean of its
+    /// draws, as `measure` states one) covers the truth, reading by reading.
+    fn add_result(&mut self, truth: &Truth, estimates: &[Reading]) {
+        if estimates.iter().any(|r| r.gloss_u.is_none()) {
+            return;
+        }
+        let acc = self.results.get_or_insert([(0, 0); 3]);
+        for (i, a) in acc.iter_mut().enumerate() {
+            let t = truth.readings[i];
+            let points: Vec<(f64, f64)> = estimates
+                .iter()
+                .filter_map(|r| Some((r.gloss[i], r.gloss_u?[i])))
+                .filter(|(x, u)| x.is_finite() && u.is_finite())
+                .collect();
+            if let (true, Some(m)) = (t.is_finite(), mean_with_budget(&points, &[])) {
+                a.0 += usize::from((m.value - t).abs() <= K * m.u);
+                a.1 += 1;
+            }
         }
     }
 
@@ -297,6 +328,7 @@ impl Tally {
             ),
             band: (!self.band.is_empty()).then(|| Spread::of(&self.band)),
             reading_coverage: self.readings.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
+            result_coverage: self.results.map(|r| r.map(|x| share(x).unwrap_or(f64::NAN))),
             bad: self.flag.bad,
             flag_caught: if self.flags { share((self.flag.bad_flagged, self.flag.bad)) } else { None },
             flag_false: if self.flags { share((self.flag.good_flagged, self.flag.good)) } else { None },
@@ -328,6 +360,59 @@ mod tests {
         assert!(
             FlagScore::<usize>::default().caught().is_nan() && FlagScore::<usize>::default().false_alarms().is_nan()
         );
+    }
+
+    /// A surface's draws reading gloss `g` (each stated to `u`) against a
+    /// truth of 100 GU.
+    fn surface(g: &[f64], u: f64) -> (Truth, Vec<Reading>) {
+        let zero = nalgebra::DVector::zeros(3);
+        let truth = Truth {
+            rho: zero.clone(),
+            peak: 1.0,
+            readings: [100.0, 10.0, f64::NAN],
+            specular: crate::output::peak::Peak::NONE,
+            clean: zero.clone(),
+            as_prior: zero,
+        };
+        let draws = g
+            .iter()
+            .map(|&g| Reading {
+                rho: vec![0.0; 3],
+                sigma: None,
+                gloss: [g, 10.0, f64::NAN],
+                gloss_u: Some([u, 0.5, f64::NAN]),
+                flagged: None,
+                specular: crate::output::peak::Peak::NONE,
+                stat: f64::NAN,
+                brightest_share: f64::NAN,
+            })
+            .collect();
+        (truth, draws)
+    }
+
+    #[test]
+    fn a_surfaces_result_is_its_draws_mean_with_the_budget_measure_states() {
+        let mut t = Tally::default();
+        // Off by 1.9 with u 1: within U = 2 sqrt(1 + 0) = 2.
+        let (truth, draws) = surface(&[101.9, 101.9, 101.9, 101.9], 1.0);
+        t.add("a", &truth, &draws);
+        // Off by 2.3 on average, beyond 2 u, but the draws scatter (sd
+        // 2.66): the mean's repeatability (1.33) widens U to 3.33.
+        let (truth, draws) = surface(&[100.0, 104.6, 100.0, 104.6], 1.0);
+        t.add("b", &truth, &draws);
+        // Off by 2.1: not covered; a reading of a surface each draw of which
+        // is not covered is not covered as a mean either.
+        let (truth, draws) = surface(&[102.1, 102.1], 1.0);
+        t.add("c", &truth, &draws);
+        let r = t.row("f", "estimator").result_coverage.unwrap();
+        assert_eq!((r[0], r[1]), (2.0 / 3.0, 1.0), "{r:?}");
+        assert!(r[2].is_nan(), "no truth, no result to judge");
+        // A method without stated uncertainties states no result.
+        let mut none = Tally::default();
+        let (truth, mut draws) = surface(&[100.0], 1.0);
+        draws[0].gloss_u = None;
+        none.add("a", &truth, &draws);
+        assert_eq!(none.row("f", "interpolation").result_coverage, None);
     }
 
     #[test]

@@ -327,15 +327,16 @@ impl Report {
             );
         }
         s += &format!(
-            "\nGloss readings (|G_est - G_true| / G_true per estimate, split at {GLOSS_SPLIT_GU} GU of the truth; haze HU and distinctness % absolute; coverage k=2 of the stated u)\n\n"
+            "\nGloss readings (|G_est - G_true| / G_true per estimate, split at {GLOSS_SPLIT_GU} GU of the truth; haze HU and distinctness % absolute; coverage k=2 of the stated u; result: per surface, the mean of its draws with U = 2 sqrt(RMS of their u^2 + the mean's repeatability^2), as `measure` states it)\n\n"
         );
-        s += "| family | method | G <= 300: p50 / p90 (n) | G <= 300: GU p50 / p90 | G > 300: p50 / p90 (n) | haze HU p50 / p90 | distinctness % p50 / p90 | no reading | coverage G / H / D |\n";
-        s += "|---|---|---|---|---|---|---|---|---|\n";
+        s += "| family | method | G <= 300: p50 / p90 (n) | G <= 300: GU p50 / p90 | G > 300: p50 / p90 (n) | haze HU p50 / p90 | distinctness % p50 / p90 | no reading | coverage G / H / D | result coverage G / H / D |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|\n";
+        let three =
+            |c: Option<[f64; 3]>| c.map_or("-".into(), |c| format!("{} / {} / {}", pct(c[0]), pct(c[1]), pct(c[2])));
         for r in &self.rows {
-            let cov =
-                r.reading_coverage.map_or("-".into(), |c| format!("{} / {} / {}", pct(c[0]), pct(c[1]), pct(c[2])));
+            let (cov, result) = (three(r.reading_coverage), three(r.result_coverage));
             s += &format!(
-                "| {} | {} | {} ({}) | {} | {} ({}) | {} | {} | {} | {} |\n",
+                "| {} | {} | {} ({}) | {} | {} ({}) | {} | {} | {} | {} | {} |\n",
                 r.family,
                 r.method,
                 pair_pct(&r.gloss_rel_low),
@@ -346,7 +347,8 @@ impl Report {
                 pair(&r.haze_abs, 2),
                 pair(&r.distinctness_abs, 1),
                 r.no_reading,
-                cov
+                cov,
+                result
             );
         }
         s += &self.read_worst();
