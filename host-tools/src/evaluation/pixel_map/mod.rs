@@ -324,6 +324,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         bin_coverage: held_out.bin_coverage,
         bin_coverage_interval: held_out.bin_coverage_interval,
         reading_coverage: held_out.reading_coverage,
+        result_coverage: held_out.result_coverage,
         flag: held_out_flag,
         held_out_nearness: nearness_of(&rows),
         peaks: held_out_peaks.summary(),

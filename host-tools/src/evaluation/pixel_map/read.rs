@@ -2,6 +2,7 @@
 //! scored against its truth at each pixel's own view.
 
 use super::*;
+use crate::device::measurement_result::mean_with_budget;
 
 /// One surface simulated with the scene's every effect for `lines` lines,
 /// read as the device reads it; per line and pixel the estimate and the
@@ -216,8 +217,20 @@ pub(super) fn read_material(
     // Per pixel and reading: lines with the reading, and of them within k = 2.
     let mut readings_in = vec![[(0usize, 0usize); 3]; p];
     let mut flag = FlagScore::default();
+    // The result a user states of the material (`measure`'s): each
+    // reading's mean over the centre zones' points, and the truth's mean
+    // over their pixels.
+    let centre = crate::device::measurement_result::centre_zones(blob);
+    let mut result_points: [Vec<(f64, f64)>; 3] = Default::default();
+    let mut result_truth: [Vec<f64>; 3] = Default::default();
     for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
+        let in_result = centre.contains(&blob.zone_of_pixel(px));
         let true_readings = model_readings(b.as_ref(), &geo.views[px]);
+        if in_result {
+            for (t, x) in result_truth.iter_mut().zip(true_readings) {
+                t.push(x);
+            }
+        }
         g_true[px] = true_readings[brdf_meter::gloss::SPECULAR_GU];
         hd_true[px] = [true_readings[brdf_meter::gloss::HAZE_HU], true_readings[brdf_meter::gloss::DISTINCTNESS]];
         let view_deg = geo.views[px].z.clamp(-1.0, 1.0).acos().to_degrees();
@@ -248,6 +261,9 @@ pub(super) fn read_material(
             }
             for (k, (n, inside)) in readings_in[px].iter_mut().enumerate() {
                 let (r, u) = (f64::from(pt.readings[k]), f64::from(pt.reading_sigma[k]));
+                if in_result && r.is_finite() && u.is_finite() && pt.flags & flags::SATURATED == 0 {
+                    result_points[k].push((r, u));
+                }
                 if r.is_finite() && true_readings[k].is_finite() {
                     *n += 1;
                     // An uncertainty that is not stated (NaN) covers nothing.
@@ -275,6 +291,13 @@ pub(super) fn read_material(
             .iter()
             .map(|px| px.map(|(n, inside)| if n == 0 { f64::NAN } else { inside as f64 / n as f64 }))
             .collect(),
+        result_covered: std::array::from_fn(|k| {
+            let truth = result_truth[k].iter().sum::<f64>() / result_truth[k].len().max(1) as f64;
+            match mean_with_budget(&result_points[k], &[]) {
+                Some(m) if truth.is_finite() => f64::from(u8::from((m.value - truth).abs() <= 2.0 * m.u)),
+                _ => f64::NAN,
+            }
+        }),
         flag,
         nearest_training: None,
     };

@@ -89,6 +89,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let _ = writeln!(
         s,
+        "| held-out results within their U (k = 2): gloss / haze / distinctness (per material, the centre zones' mean over pixels and lines, U as `measure` states it) | {} |",
+        reading_coverage_cell(map.result_coverage)
+    );
+    let _ = writeln!(
+        s,
         "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
         flag_cell(&map.flag)
     );
@@ -197,6 +202,11 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
             s,
             "| unseen set's readings within k = 2 of their stated uncertainty: gloss / haze / distinctness | {} |",
             reading_coverage_cell(u.summary.reading_coverage)
+        );
+        let _ = writeln!(
+            s,
+            "| unseen set's results within their U (k = 2): gloss / haze / distinctness (per surface, the centre zones' mean) | {} |",
+            reading_coverage_cell(u.summary.result_coverage)
         );
         let _ = writeln!(
             s,
@@ -501,12 +511,24 @@ mod tests {
             bin_coverage: vec![1.0; 2],
             haze_distinctness_error: [vec![[0.0; 2]; 2], vec![[0.0; 2]; 2]],
             reading_coverage: vec![[1.0; 3]; 2],
+            result_covered: [1.0, 1.0, f64::NAN],
             flag: FlagScore { bad, bad_flagged: caught, good: points - bad, good_flagged: 1 },
             nearest_training: Some(crate::evaluation::metrology::NearestSample {
                 name: format!("near-{name}"),
                 distance: 0.05,
             }),
         }
+    }
+
+    #[test]
+    fn the_result_coverage_is_the_share_of_materials_whose_result_covers_their_truth() {
+        let mut rows = vec![material("a", 10, 0, 0, [0.05; 2]), material("b", 10, 0, 0, [0.05; 2])];
+        rows[1].result_covered = [1.0, 0.0, f64::NAN];
+        rows.push(MaterialRow { result_covered: [0.0, f64::NAN, f64::NAN], ..material("c", 10, 0, 0, [0.05; 2]) });
+        let c = super::super::rows::result_coverage(&rows);
+        assert_eq!((c[0], c[1]), (2.0 / 3.0, 0.5), "{c:?}");
+        assert!(c[2].is_nan(), "no material has the reading's result");
+        assert_eq!(reading_coverage_cell(c), "66.7 / 50.0 / - %");
     }
 
     #[test]

@@ -64,6 +64,12 @@ pub struct MaterialRow {
     /// lines whose reading is within k = 2 of the uncertainty the frame
     /// states for it (NaN: no line has the reading).
     pub reading_coverage: Vec<[f64; 3]>,
+    /// Per reading, whether the result a user states of it covers the
+    /// truth (1 or 0; NaN: no result): the mean over the centre zones'
+    /// points with `U` as `measure` states it
+    /// (`crate::device::measurement_result`), against the truth's mean
+    /// over their pixels.
+    pub result_covered: [f64; 3],
     /// Its points (every line of every pixel) worse than `BAD_ERROR` and
     /// not, and of each how many the out-of-prior flag raised: whether a
     /// material the calibration reads badly is read badly everywhere, and
@@ -94,6 +100,15 @@ pub(super) fn reading_coverage(rows: &[MaterialRow]) -> [f64; 3] {
     std::array::from_fn(|r| {
         let v: Vec<f64> =
             rows.iter().flat_map(|m| m.reading_coverage.iter().map(move |c| c[r])).filter(|c| c.is_finite()).collect();
+        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
+    })
+}
+
+/// Per reading, the share of the materials whose result covers the truth
+/// (NaN: none has the result).
+pub(super) fn result_coverage(rows: &[MaterialRow]) -> [f64; 3] {
+    std::array::from_fn(|r| {
+        let v: Vec<f64> = rows.iter().map(|m| m.result_covered[r]).filter(|c| c.is_finite()).collect();
         if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
     })
 }
@@ -179,6 +194,8 @@ pub struct LineSummary {
     /// Per reading (gloss, haze, distinctness), the share within k = 2 of
     /// its stated uncertainty.
     pub reading_coverage: [f64; 3],
+    /// Per reading, the share of the materials whose result covers the truth.
+    pub result_coverage: [f64; 3],
 }
 
 impl LineSummary {
@@ -205,6 +222,7 @@ impl LineSummary {
                 COVERAGE_INTERVAL_SEED,
             ),
             reading_coverage: reading_coverage(rows),
+            result_coverage: result_coverage(rows),
         }
     }
 }
@@ -244,6 +262,9 @@ pub struct PixelMap {
     /// Per reading (gloss, haze, distinctness), the share of the held-out
     /// readings within k = 2 of their stated uncertainty.
     pub reading_coverage: [f64; 3],
+    /// Per reading, the share of the held-out materials whose result (the
+    /// centre zones' mean, `U` as `measure` states it) covers the truth.
+    pub result_coverage: [f64; 3],
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
     /// How near the held-out materials are to the prior samples their
