@@ -341,6 +341,7 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
             plot_points: vec![0, 15, 31],
             bird: Some(dir.path().join("m.bird.json")),
             astm: Some(dir.path().join("m.astm")),
+            result_astm: Some(dir.path().join("m-result.astm")),
             view_deg: 45.0,
             solid_angle_sr: Some(1e-3),
         },
@@ -405,8 +406,10 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
     assert!((g["value"].as_f64().unwrap() - mean).abs() <= 1e-5 * mean, "{g} vs {mean}");
     assert!((g["budget"][0]["u"].as_f64().unwrap() - rms).abs() <= 1e-5 * rms, "{g} vs {rms}");
     assert_eq!(g["expanded_u"].as_f64().unwrap(), 2.0 * g["u"].as_f64().unwrap());
-    // And the mean BRDF, bin by bin, over the same points.
+    // And the mean BRDF, bin by bin, over the same points, also as a table.
     let b = &r["brdf"];
+    let table = host_tools::output::astm_e1392::read(&dir.path().join("m-result.astm")).unwrap();
+    assert_eq!(table.rows.len(), brdf_meter::shape::BINS);
     assert_eq!(b["points"].as_u64(), Some(centre.len() as u64));
     for k in [0, 40, 80] {
         let mean = centre.iter().map(|p| p["rho"][k].as_f64().unwrap()).sum::<f64>() / n;

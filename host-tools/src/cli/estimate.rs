@@ -237,6 +237,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for line in a.exports.write(&profiles, &export, &title)? {
         println!("{line}");
     }
+    if let Some(line) = a.exports.write_result(&result, &export)? {
+        println!("{line}");
+    }
     Ok(())
 }
 
@@ -328,10 +331,23 @@ mod tests {
             plot_points: vec![0, 2],
             bird: Some(dir.path().join("e.bird.json")),
             astm: Some(dir.path().join("e.astm")),
+            result_astm: Some(dir.path().join("result.astm")),
             view_deg: 45.0,
             solid_angle_sr: Some(1e-3),
         };
         run(a.clone()).unwrap();
+        // The result's mean BRDF as one table: the result document's values.
+        let t = crate::output::astm_e1392::read(&dir.path().join("result.astm")).unwrap();
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("e-result.json")).unwrap()).unwrap();
+        let brdf = t.vars.iter().position(|v| v == "brdf").unwrap();
+        for (row, want) in t.rows.iter().zip(r["brdf"]["value"].as_array().unwrap()) {
+            let want = want.as_f64().unwrap() / std::f64::consts::PI;
+            assert!((row[brdf] - want).abs() <= 1e-6 * want.abs().max(1e-9), "{} vs {want}", row[brdf]);
+        }
+        assert_eq!(t.rows.len(), 81);
+        let sample = t.header.iter().find(|(k, _)| k == "SAMPLE").map(|(_, v)| v.as_str());
+        assert_eq!(sample, Some("mean of 3 point(s): zone(s) 0, pixels 0-7; u is the combined standard uncertainty"));
         let svg = std::fs::read_to_string(dir.path().join("p.svg")).unwrap();
         assert_eq!(svg.matches("<polygon").count(), 2);
         assert!(svg.contains("line 0 point 2"));

@@ -2,7 +2,7 @@
 //! besides their CSV/JSON: a plot of chosen points' BRDF profiles and the
 //! standard files (BiRD universal BRDF JSON, ASTM E1392 tables).
 use crate::output::profile::{ExportInfo, Profile};
-use anyhow::{bail, ensure};
+use anyhow::{Context, bail, ensure};
 use std::path::PathBuf;
 
 /// The instrument's view angle the files assume unless told (deg).
@@ -27,6 +27,11 @@ pub struct ExportArgs {
     /// one point: one file each, named `STEM-l<line>-p<point>.EXT`.
     #[arg(long, value_name = "FILE")]
     pub astm: Option<PathBuf>,
+    /// Write the result's mean BRDF, with its combined standard
+    /// uncertainty per bin and the gloss readings' results, as one ASTM
+    /// E1392 table.
+    #[arg(long, value_name = "FILE")]
+    pub result_astm: Option<PathBuf>,
     /// The instrument's view angle (deg): the scatter direction in the files,
     /// and the mirror incidence the points' specular peak is sought about.
     #[arg(long, default_value_t = DEFAULT_VIEW_DEG, value_name = "DEG")]
@@ -119,5 +124,31 @@ impl ExportArgs {
             });
         }
         Ok(said)
+    }
+
+    /// Writes the result's mean BRDF when `--result-astm` asks; what was
+    /// written (or why nothing was), for the user.
+    pub fn write_result(
+        &self,
+        result: &crate::device::measurement_result::MeasurementResult,
+        info: &ExportInfo,
+    ) -> anyhow::Result<Option<String>> {
+        let Some(path) = &self.result_astm else { return Ok(None) };
+        let Some(b) = &result.brdf else {
+            return Ok(Some(format!("{}: not written, no point of the result has a finite estimate", path.display())));
+        };
+        let profile = Profile {
+            line: 0,
+            point: 0,
+            flags: Vec::new(),
+            theta_i_deg: b.bins_deg.iter().map(|x| f64::from(*x)).collect(),
+            reflectance: b.value.clone(),
+            uncertainty: b.u.clone(),
+            readings: result.readings.iter().map(|r| (r.reading.to_string(), r.value, r.u)).collect(),
+        };
+        let text = crate::output::astm_e1392::sample_text(&result.sample(), &profile, info);
+        crate::output::io::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("writing the ASTM E1392 file {}", path.display()))?;
+        Ok(Some(format!("ASTM E1392 table of the result: {}", path.display())))
     }
 }

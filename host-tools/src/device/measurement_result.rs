@@ -341,6 +341,20 @@ fn brdf_result(bins_deg: &[f32], estimates: &[&Point], white: f64) -> Option<Brd
 }
 
 impl MeasurementResult {
+    /// What the result is of, as a standard file's sample names it: the
+    /// mean of its points, their zones and pixels and lines.
+    pub fn sample(&self) -> String {
+        let zones: Vec<String> = self.zones.iter().map(|z| z.to_string()).collect();
+        let (first, last) = (self.pixels.iter().map(|p| p.0).min(), self.pixels.iter().map(|p| p.1).max());
+        let pixels = first.zip(last).map_or(String::new(), |(a, b)| format!(", pixels {a}-{b}"));
+        let lines = self.lines.map_or(String::new(), |l| format!(", {l} line(s)"));
+        let n = self.brdf.as_ref().map_or(0, |b| b.points);
+        format!(
+            "mean of {n} point(s): zone(s) {}{pixels}{lines}; u is the combined standard uncertainty",
+            zones.join(", ")
+        )
+    }
+
     /// The result as a plain-text table.
     pub fn table(&self) -> String {
         let mut t = String::new();

@@ -26,8 +26,14 @@ pub const NOMINAL_WAVELENGTH_NM: f64 = 555.0;
 /// The columns written, in order.
 pub const VARS: [&str; 8] = ["theta_i", "phi_i", "theta_s", "phi_s", "wavelength", "polarization", "BRDF", "u_BRDF"];
 
-/// One profile as ASTM E1392 text.
+/// One profile as ASTM E1392 text, named by its line and point.
 pub fn to_text(p: &Profile, info: &ExportInfo) -> String {
+    sample_text(&format!("line {} point {}", p.line, p.point), p, info)
+}
+
+/// One profile as ASTM E1392 text, its `SAMPLE` named `sample` (a
+/// measurement's result is no one point: `crate::device::measurement_result`).
+pub fn sample_text(sample: &str, p: &Profile, info: &ExportInfo) -> String {
     let mut t = String::new();
     let q = |s: &str| s.replace('"', "'");
     let _ =
@@ -43,7 +49,7 @@ pub fn to_text(p: &Profile, info: &ExportInfo) -> String {
     let _ = writeln!(t, "SOURCE \"{}\"", q(&info.source));
     let _ = writeln!(t, "INSTRUMENT \"{}\"", q(&info.instrument));
     let _ = writeln!(t, "CALIBRATION \"{}\"", q(&info.calibration));
-    let _ = writeln!(t, "SAMPLE \"line {} point {}\"", p.line, p.point);
+    let _ = writeln!(t, "SAMPLE \"{}\"", q(sample));
     let _ = writeln!(t, "DATE \"{}\"", info.timestamp);
     for (name, v, u) in &p.readings {
         let _ = writeln!(t, "{} \"{v} (standard uncertainty {u})\"", name.to_ascii_uppercase());
