@@ -35,6 +35,7 @@
 //! are kept, as the gloss standardisation keeps them:
 //! a glossy surface is dark under every LED but those near its mirror
 //! direction, which the gloss readings take.
+use crate::device::measurement_summary::{Spread, spread};
 use crate::output::points::{Point, Points};
 use anyhow::Context;
 use brdf_meter::blob::BlobView;
@@ -106,6 +107,11 @@ pub struct ReadingResult {
 }
 
 impl ReadingResult {
+    /// Whether the result covers `truth`: within its expanded uncertainty.
+    pub fn covers(&self, truth: f64) -> bool {
+        (self.value - truth).abs() <= self.expanded_u
+    }
+
     /// One contribution's standard uncertainty (0 when it has none).
     pub fn contribution(&self, source: &str) -> f64 {
         self.budget.iter().find(|c| c.source == source).map_or(0.0, |c| c.u)
@@ -114,39 +120,34 @@ impl ReadingResult {
 
 /// A mean over points and its budget.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Mean {
-    /// Points.
-    pub points: usize,
-    /// Their mean.
-    pub value: f64,
-    /// Their sample standard deviation (0 for one point).
-    pub sd: f64,
+struct Mean {
+    /// Points, their mean and sample standard deviation.
+    spread: Spread,
     /// The contributions to its standard uncertainty.
-    pub budget: Vec<Contribution>,
+    budget: Vec<Contribution>,
     /// The combined standard uncertainty (k = 1).
-    pub u: f64,
+    u: f64,
 }
 
 /// The mean of `points` (each a value and the calibration's standard
 /// uncertainty of it) with its budget: the calibration's, the
 /// repeatability, and each of `relative` (a source and its relative
 /// standard uncertainty) times the mean; `None` without a point.
-pub fn mean_with_budget(points: &[(f64, f64)], relative: &[(&'static str, f64)]) -> Option<Mean> {
-    let n = points.len();
-    if n == 0 {
+fn mean_with_budget(points: &[(f64, f64)], relative: &[(&'static str, f64)]) -> Option<Mean> {
+    let values: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let spread = spread(&values);
+    if spread.count == 0 {
         return None;
     }
-    let value = points.iter().map(|p| p.0).sum::<f64>() / n as f64;
-    let sd =
-        if n < 2 { 0.0 } else { (points.iter().map(|p| (p.0 - value).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt() };
-    let calibration = (points.iter().map(|p| p.1 * p.1).sum::<f64>() / n as f64).sqrt();
+    let n = spread.count as f64;
+    let calibration = (points.iter().map(|p| p.1 * p.1).sum::<f64>() / n).sqrt();
     let mut budget = vec![
         Contribution { source: "calibration", u: calibration },
-        Contribution { source: "repeatability", u: sd / (n as f64).sqrt() },
+        Contribution { source: "repeatability", u: spread.sd / n.sqrt() },
     ];
-    budget.extend(relative.iter().map(|&(source, rel)| Contribution { source, u: rel * value.abs() }));
+    budget.extend(relative.iter().map(|&(source, rel)| Contribution { source, u: rel * spread.mean.abs() }));
     let u = budget.iter().map(|c| c.u * c.u).sum::<f64>().sqrt();
-    Some(Mean { points: n, value, sd, budget, u })
+    Some(Mean { spread, budget, u })
 }
 
 /// The result of reading `reading` (`gloss::NAMES`' index) over `points`
@@ -165,9 +166,9 @@ pub fn reading_result(
     Some(ReadingResult {
         reading: gloss::NAMES[reading],
         unit: UNITS[reading],
-        points: m.points,
-        value: m.value,
-        sd: m.sd,
+        points: m.spread.count,
+        value: m.spread.mean,
+        sd: m.spread.sd,
         expanded_u: COVERAGE_FACTOR * m.u,
         u: m.u,
         budget: m.budget,
@@ -333,7 +334,7 @@ fn brdf_result(bins_deg: &[f32], estimates: &[&Point], white: f64) -> Option<Brd
     Some(BrdfResult {
         points: estimates.len(),
         bins_deg: bins_deg.to_vec(),
-        value: per_bin.iter().map(|r| r.value).collect(),
+        value: per_bin.iter().map(|m| m.spread.mean).collect(),
         u: per_bin.iter().map(|r| r.u).collect(),
         expanded_u: per_bin.iter().map(|m| COVERAGE_FACTOR * m.u).collect(),
         budget: (0..per_bin[0].budget.len()).map(part).collect(),

@@ -44,7 +44,8 @@ pub struct LineSummary {
     pub flags: BTreeMap<&'static str, usize>,
 }
 
-fn spread(xs: &[f64]) -> Spread {
+/// The count, mean and sample standard deviation of `xs`.
+pub fn spread(xs: &[f64]) -> Spread {
     let n = xs.len();
     if n == 0 {
         return Spread::default();

@@ -22,7 +22,7 @@
 //! and flag figures are absent (`None`), never zero.
 use super::reading::Reading;
 use super::truth::Truth;
-use crate::device::measurement_result::mean_with_budget;
+use crate::device::measurement_result::reading_result;
 use crate::evaluation::pixel_error::quantiles;
 use serde::Serialize;
 
@@ -289,8 +289,9 @@ impl Tally {
                 .filter_map(|r| Some((r.gloss[i], r.gloss_u?[i])))
                 .filter(|(x, u)| x.is_finite() && u.is_finite())
                 .collect();
-            if let (true, Some(m)) = (t.is_finite(), mean_with_budget(&points, &[])) {
-                a.0 += usize::from((m.value - t).abs() <= K * m.u);
+            // The evaluation's readings carry no standards' uncertainties.
+            if let (true, Some(r)) = (t.is_finite(), reading_result(i, &points, (0.0, 0.0))) {
+                a.0 += usize::from(r.covers(t));
                 a.1 += 1;
             }
         }

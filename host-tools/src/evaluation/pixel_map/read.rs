@@ -2,7 +2,6 @@
 //! scored against its truth at each pixel's own view.
 
 use super::*;
-use crate::device::measurement_result::mean_with_budget;
 
 /// One surface simulated with the scene's every effect for `lines` lines,
 /// read as the device reads it; per line and pixel the estimate and the
@@ -192,6 +191,36 @@ pub(super) struct LineGeometry {
     pub(super) bins32: Vec<f32>,
 }
 
+/// Per reading, whether the result of `points` (the centre zones', as
+/// `measure` states it) covers the mean of `truth` over their pixels: 1
+/// or 0, NaN without a result or a truth.
+fn result_covered(
+    blob: &BlobView<'_>,
+    centre: &[usize],
+    geo: &LineGeometry,
+    points: Vec<crate::output::points::Point>,
+    truth: &[Vec<f64>; 3],
+) -> [f64; 3] {
+    let points = crate::output::points::Points {
+        source: "estimate",
+        calibration_crc: blob.crc(),
+        view_deg: 0.0,
+        peak_resolution_deg: None,
+        pixel_peak_resolution_deg: Vec::new(),
+        peak_factors: None,
+        bins_deg: geo.bins32.clone(),
+        points,
+    };
+    let result = crate::device::measurement_result::measurement_result(blob, centre, &points);
+    std::array::from_fn(|k| {
+        let t = truth[k].iter().sum::<f64>() / truth[k].len().max(1) as f64;
+        match result.readings.iter().find(|r| r.reading == brdf_meter::gloss::NAMES[k]) {
+            Some(r) if t.is_finite() => f64::from(u8::from(r.covers(t))),
+            _ => f64::NAN,
+        }
+    })
+}
+
 /// Material `b` (named `name`) read on the whole line by `blob` for the
 /// spec's lines (noise seed `seed`): its row (with the flag's score over
 /// its points), per pixel its flag counts, and its peaks.
@@ -217,11 +246,11 @@ pub(super) fn read_material(
     // Per pixel and reading: lines with the reading, and of them within k = 2.
     let mut readings_in = vec![[(0usize, 0usize); 3]; p];
     let mut flag = FlagScore::default();
-    // The result a user states of the material (`measure`'s): each
-    // reading's mean over the centre zones' points, and the truth's mean
-    // over their pixels.
+    // The result a user states of the material, as `measure` states it
+    // (`device::measurement_result`) of the centre zones' points, against
+    // the truth's mean over their pixels.
     let centre = crate::device::measurement_result::centre_zones(blob);
-    let mut result_points: [Vec<(f64, f64)>; 3] = Default::default();
+    let mut result_points = Vec::new();
     let mut result_truth: [Vec<f64>; 3] = Default::default();
     for (px, ((e, ie), c)) in err.iter_mut().zip(&mut ierr).zip(&mut fl).enumerate() {
         let in_result = centre.contains(&blob.zone_of_pixel(px));
@@ -259,11 +288,21 @@ pub(super) fn read_material(
                 hd_est[px][r] += f64::from(pt.readings[k]) / spec.lines as f64;
                 hd_int[px][r] += li.map_or(f64::NAN, |l| l[k]) / spec.lines as f64;
             }
+            if in_result {
+                result_points.push(crate::output::points::Point {
+                    line: None,
+                    pixel: Some(px as u64),
+                    zone: pt.zone,
+                    cluster: pt.cluster,
+                    flags: pt.flags,
+                    rho: pt.values.clone(),
+                    u_rho: score.u.clone(),
+                    readings: pt.readings,
+                    u_readings: pt.reading_sigma,
+                });
+            }
             for (k, (n, inside)) in readings_in[px].iter_mut().enumerate() {
                 let (r, u) = (f64::from(pt.readings[k]), f64::from(pt.reading_sigma[k]));
-                if in_result && r.is_finite() && u.is_finite() && pt.flags & flags::SATURATED == 0 {
-                    result_points[k].push((r, u));
-                }
                 if r.is_finite() && true_readings[k].is_finite() {
                     *n += 1;
                     // An uncertainty that is not stated (NaN) covers nothing.
@@ -291,13 +330,7 @@ pub(super) fn read_material(
             .iter()
             .map(|px| px.map(|(n, inside)| if n == 0 { f64::NAN } else { inside as f64 / n as f64 }))
             .collect(),
-        result_covered: std::array::from_fn(|k| {
-            let truth = result_truth[k].iter().sum::<f64>() / result_truth[k].len().max(1) as f64;
-            match mean_with_budget(&result_points[k], &[]) {
-                Some(m) if truth.is_finite() => f64::from(u8::from((m.value - truth).abs() <= 2.0 * m.u)),
-                _ => f64::NAN,
-            }
-        }),
+        result_covered: result_covered(blob, &centre, geo, result_points, &result_truth),
         flag,
         nearest_training: None,
     };
