@@ -7,7 +7,7 @@
 //! | 3 | `per-pixel-geometry` | - | pixel k sees its own point along the line and (with `instrument.view_distance_cm`) its own view direction | every pixel sees the centre point along `view_deg`; rays are computed once for all pixels |
 //! | 4 | `inverse-square` | - | ray weight x (d / r)^2, d the LED's nominal distance | no distance is computed |
 //! | 5 | `emission-profile` | - | ray weight x the LED's emission profile (`leds[i].emission`, Lambertian when absent) | isotropic LEDs |
-//! | 6 | `led-drift` | `rate_per_frame` | LED frame at time t (frames since calibration) scaled by 1 + rate t | constant LEDs |
+//! | 6 | `led-drift` | `rate_per_frame` (every LED) or `rates_per_frame` (one per LED, in `instrument.leds` order) | LED k's frame at time t (frames since calibration) scaled by 1 + rate_k t | constant LEDs |
 //! | 7 | `ambient-light` | `counts` | adds ambient light to every frame, dark frame included | none |
 //! | 8 | `nonlinearity` | `gamma` | counts -> full_scale (counts / full_scale)^gamma | linear camera |
 //! | 9 | `dark-offset` | `counts`, `fixed_pattern_rms` = 0, `seed` = 1 | adds the dark level (plus a fixed per-pixel pattern) to every frame | zero dark level |
@@ -55,6 +55,30 @@ pub enum NoiseModel {
     ShotRead,
 }
 
+/// The `led-drift` effect's rates: relative change of intensity per frame
+/// since calibration. LEDs age and warm unequally (their junction
+/// temperatures, their bins), so a real head's LEDs drift each at its own
+/// rate, which changes the readings' ratios (a BRDF's shape), not only
+/// their scale: what the white standardisation corrects LED by LED.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DriftRate {
+    /// One rate for every LED (`rate_per_frame`).
+    Common(f64),
+    /// One rate per LED, in `instrument.leds` order (`rates_per_frame`).
+    PerLed(Vec<f64>),
+}
+
+impl DriftRate {
+    /// LED `k`'s rate (0 past the list: the scene's check refuses a list
+    /// of the wrong length before any frame is drawn).
+    pub fn of_led(&self, k: usize) -> f64 {
+        match self {
+            Self::Common(r) => *r,
+            Self::PerLed(r) => r.get(k).copied().unwrap_or(0.0),
+        }
+    }
+}
+
 /// One effect of a scene, as written in its `effects` list: a table with a
 /// `kind` and that effect's parameters. (Read through a flat table so that an
 /// unknown name, an unknown or foreign parameter and a missing one are all
@@ -75,7 +99,7 @@ pub enum EffectSpec {
     /// LED intensity drift with time.
     LedDrift {
         /// Relative change of intensity per frame since calibration.
-        rate_per_frame: f64,
+        rate: DriftRate,
     },
     /// Ambient light in every frame.
     AmbientLight {
@@ -153,6 +177,8 @@ pub(crate) struct EffectEntry {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     rate_per_frame: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    rates_per_frame: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     counts: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gamma: Option<f64>,
@@ -186,6 +212,7 @@ impl EffectEntry {
             }
         };
         add("rate_per_frame", self.rate_per_frame.is_some());
+        add("rates_per_frame", self.rates_per_frame.is_some());
         add("counts", self.counts.is_some());
         add("gamma", self.gamma.is_some());
         add("fixed_pattern_rms", self.fixed_pattern_rms.is_some());
@@ -229,10 +256,27 @@ impl EffectSpec {
             EffectKind::InverseSquare => (&[], EffectSpec::InverseSquare {}),
             EffectKind::EmissionProfile => (&[], EffectSpec::EmissionProfile {}),
             EffectKind::Saturation => (&[], EffectSpec::Saturation {}),
-            EffectKind::LedDrift => (
-                &["rate_per_frame"],
-                EffectSpec::LedDrift { rate_per_frame: need("led-drift", "rate_per_frame", e.rate_per_frame)? },
-            ),
+            EffectKind::LedDrift => {
+                let rate = match (e.rate_per_frame, e.rates_per_frame.clone()) {
+                    (Some(r), None) => DriftRate::Common(r),
+                    (None, Some(r)) => DriftRate::PerLed(r),
+                    (Some(_), Some(_)) => {
+                        return Err(FieldError::new(
+                            "rates_per_frame",
+                            "effect `led-drift`: give `rate_per_frame` (one rate for every LED) or \
+                             `rates_per_frame` (one per LED), not both",
+                        ));
+                    }
+                    (None, None) => {
+                        return Err(FieldError::new(
+                            "rate_per_frame",
+                            "effect `led-drift`: missing field `rate_per_frame` (one rate for every LED) or \
+                             `rates_per_frame` (one per LED, in `instrument.leds` order)",
+                        ));
+                    }
+                };
+                (&["rate_per_frame", "rates_per_frame"], EffectSpec::LedDrift { rate })
+            }
             EffectKind::AmbientLight => {
                 (&["counts"], EffectSpec::AmbientLight { counts: need("ambient-light", "counts", e.counts)? })
             }
@@ -310,8 +354,11 @@ impl From<EffectSpec> for EffectEntry {
             EffectSpec::InverseSquare {} => EffectKind::InverseSquare,
             EffectSpec::EmissionProfile {} => EffectKind::EmissionProfile,
             EffectSpec::Saturation {} => EffectKind::Saturation,
-            EffectSpec::LedDrift { rate_per_frame } => {
-                e.rate_per_frame = Some(rate_per_frame);
+            EffectSpec::LedDrift { rate } => {
+                match rate {
+                    DriftRate::Common(r) => e.rate_per_frame = Some(r),
+                    DriftRate::PerLed(r) => e.rates_per_frame = Some(r),
+                }
                 EffectKind::LedDrift
             }
             EffectSpec::AmbientLight { counts } => {
@@ -378,8 +425,17 @@ impl EffectSpec {
     /// Checks the parameters; paths are relative to the effect's table.
     pub fn validate(&self) -> Result<(), FieldError> {
         match self {
-            EffectSpec::LedDrift { rate_per_frame } => {
-                check_range("rate_per_frame", *rate_per_frame, -0.01, 0.01, "per frame")
+            EffectSpec::LedDrift { rate: DriftRate::Common(r) } => {
+                check_range("rate_per_frame", *r, -0.01, 0.01, "per frame")
+            }
+            EffectSpec::LedDrift { rate: DriftRate::PerLed(rates) } => {
+                if rates.is_empty() {
+                    return Err(FieldError::new("rates_per_frame", "must list one rate per LED; it is empty"));
+                }
+                for (k, r) in rates.iter().enumerate() {
+                    check_range(&format!("rates_per_frame[{k}]"), *r, -0.01, 0.01, "per frame")?;
+                }
+                Ok(())
             }
             EffectSpec::AmbientLight { counts } => check_range("counts", *counts, 0.0, 1e9, "counts"),
             EffectSpec::Nonlinearity { gamma } => check_range("gamma", *gamma, 0.2, 5.0, ""),

@@ -44,7 +44,7 @@ use crate::forward::brdf::{Brdf, BrdfSpec};
 use crate::forward::optics::{Instrument, Optics, OpticsError, RayModel, system_matrix_at};
 use crate::output::config::{ConfigError, FieldError, Validate};
 use anyhow::Context;
-pub use effects::{EffectSpec, NoiseModel, STAGE_ORDER};
+pub use effects::{DriftRate, EffectSpec, NoiseModel, STAGE_ORDER};
 use nalgebra::{DMatrix, Vector3};
 pub use pipeline::{LineReadings, Pipeline, Simulator};
 use serde::{Deserialize, Serialize};
@@ -101,6 +101,19 @@ impl Validate for Scene {
         for (i, e) in self.effects.iter().enumerate() {
             let at = |x: FieldError| x.within(&format!("effects[{i}]"));
             e.validate().map_err(at)?;
+            if let EffectSpec::LedDrift { rate: DriftRate::PerLed(rates) } = e
+                && rates.len() != self.instrument.leds.len()
+            {
+                return Err(at(FieldError::new(
+                    "rates_per_frame",
+                    format!(
+                        "lists {} rate(s) for {} LED(s); list one per LED, in `instrument.leds` order (or one \
+                         `rate_per_frame` for all)",
+                        rates.len(),
+                        self.instrument.leds.len()
+                    ),
+                )));
+            }
             if std::mem::replace(&mut seen[e.order()], true) {
                 return Err(at(FieldError::new(
                     "kind",

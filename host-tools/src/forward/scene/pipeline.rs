@@ -15,7 +15,7 @@
 //! computation that never runs); the others are boxed [`Stage`]s, one per
 //! listed effect and none for an unlisted one.
 use super::Scene;
-use super::effects::{EffectSpec, NoiseModel, STAGE_ORDER};
+use super::effects::{DriftRate, EffectSpec, NoiseModel, STAGE_ORDER};
 use crate::forward::brdf::{Brdf, ray_reflectance};
 use crate::forward::optics::{Optics, RayModel};
 use anyhow::{Context, bail};
@@ -77,7 +77,7 @@ pub trait Stage: Send + Sync + std::fmt::Debug {
 
 #[derive(Debug)]
 struct Drift {
-    rate: f64,
+    rate: DriftRate,
 }
 impl Stage for Drift {
     fn name(&self) -> &'static str {
@@ -85,7 +85,8 @@ impl Stage for Drift {
     }
     fn apply(&self, frame: &mut [f64], ctx: &FrameCtx) {
         if ctx.frame > 0 {
-            let f = 1.0 + self.rate * ctx.time() as f64;
+            // Frame 1 + k is LED k's (at any exposure).
+            let f = 1.0 + self.rate.of_led(ctx.frame - 1) * ctx.time() as f64;
             frame.iter_mut().for_each(|x| *x *= f);
         }
     }
@@ -237,7 +238,7 @@ impl Pipeline {
                 | EffectSpec::PerPixelGeometry {}
                 | EffectSpec::InverseSquare {}
                 | EffectSpec::EmissionProfile {} => geometry.push(e.name()),
-                EffectSpec::LedDrift { rate_per_frame } => stages.push(Box::new(Drift { rate: *rate_per_frame })),
+                EffectSpec::LedDrift { rate } => stages.push(Box::new(Drift { rate: rate.clone() })),
                 EffectSpec::AmbientLight { counts } => stages.push(Box::new(Ambient { counts: *counts })),
                 EffectSpec::Nonlinearity { gamma } => {
                     stages.push(Box::new(Nonlinearity { gamma: *gamma, full_scale: s.full_scale }))

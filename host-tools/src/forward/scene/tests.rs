@@ -325,7 +325,7 @@ mod one_effect {
     #[test]
     fn drift_scales_led_frames_by_time_and_leaves_dark_and_white() {
         let rate = 1e-4;
-        let t = with(EffectSpec::LedDrift { rate_per_frame: rate });
+        let t = with(EffectSpec::LedDrift { rate: DriftRate::Common(rate) });
         let (sb, st) = (sim(&base()), sim(&t));
         assert_eq!(sb.white(), st.white());
         let (rb, rt) = (sb.simulate_line(2, Mode::Full), st.simulate_line(2, Mode::Full));
@@ -336,6 +336,30 @@ mod one_effect {
                 assert!((rt.raw[1 + k][px] / rb.raw[1 + k][px] - (1.0 + rate * time)).abs() < 1e-12);
             }
         }
+    }
+
+    #[test]
+    fn per_led_drift_scales_each_leds_frames_by_its_own_rate() {
+        // LEDs drifting each at its own rate, one of them dimming: each
+        // LED's frames (at every exposure) by its own factor, the dark
+        // frame and the white untouched.
+        let rates: Vec<f64> = (0..7).map(|k| 1e-4 * (k as f64 - 2.0)).collect();
+        let t = with(EffectSpec::LedDrift { rate: DriftRate::PerLed(rates.clone()) });
+        let (sb, st) = (sim(&base()), sim(&t));
+        assert_eq!(sb.white(), st.white());
+        let (rb, rt) = (sb.simulate_line(3, Mode::Full), st.simulate_line(3, Mode::Full));
+        assert_eq!(rb.raw[0], rt.raw[0]);
+        for (k, rate) in rates.iter().enumerate() {
+            let time = (3 * 8 + 1 + k) as f64;
+            for px in [0, 64, 127] {
+                let got = rt.raw[1 + k][px] / rb.raw[1 + k][px];
+                assert!((got - (1.0 + rate * time)).abs() < 1e-12, "LED {k} pixel {px}: {got}");
+            }
+        }
+        // One rate for all is the same as that rate listed per LED.
+        let common = sim(&with(EffectSpec::LedDrift { rate: DriftRate::Common(3e-5) }));
+        let listed = sim(&with(EffectSpec::LedDrift { rate: DriftRate::PerLed(vec![3e-5; 7]) }));
+        assert_eq!(common.simulate_line(5, Mode::Full).raw, listed.simulate_line(5, Mode::Full).raw);
     }
 
     #[test]
@@ -622,6 +646,27 @@ brdf = { model = "ward", rho_d = 0.3, alpha = 0.05 }
             assert_eq!(e.line_col.map(|l| l.0), Some(line), "{e}");
             assert!(e.to_string().starts_with(&format!("bad.toml:{line}:")), "{e}");
         }
+    }
+
+    #[test]
+    fn per_led_drift_rates_are_one_per_led_in_range_and_not_with_a_common_rate() {
+        let drift = |fields: &str| {
+            GOOD.replace(
+                "{ kind = \"noise\", model = \"proportional\", sigma = 0.02 }",
+                &format!("{{ kind = \"led-drift\", {fields} }}"),
+            )
+        };
+        // The reference instrument has one LED.
+        let s = Scene::parse(&drift("rates_per_frame = [2e-5]"), "good.toml").unwrap();
+        assert_eq!(s.effects[1], EffectSpec::LedDrift { rate: DriftRate::PerLed(vec![2e-5]) });
+        let e = err(&drift("rates_per_frame = [2e-5, 1e-5]"));
+        assert_eq!(e.field.as_deref(), Some("effects[1].rates_per_frame"), "{e}");
+        at(&e, 4, &["2 rate(s) for 1 LED(s)", "instrument.leds"]);
+        let e = err(&drift("rates_per_frame = [0.5]"));
+        assert_eq!(e.field.as_deref(), Some("effects[1].rates_per_frame[0]"), "{e}");
+        at(&err(&drift("rates_per_frame = []")), 4, &["one rate per LED"]);
+        at(&err(&drift("rate_per_frame = 1e-5, rates_per_frame = [1e-5]")), 4, &["not both"]);
+        at(&err(&drift("rate_per_frame = 1e-5, seed = 3")), 4, &["`seed`", "does not apply"]);
     }
 
     #[test]
