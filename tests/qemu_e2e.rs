@@ -448,6 +448,7 @@ fn qemu_standardised_on_a_tile_and_a_black_glass_reads_them_at_their_certified_v
         black_glass_gu: None,
         black_glass_u: 0.0,
         source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        corrected_with: Default::default(),
         lines: 16,
         scene: SimSceneArgs { scene: Some("patent".into()), scene_surface: Some(tile.into()), ..Default::default() },
         out: out.clone(),
@@ -491,6 +492,7 @@ fn qemu_standardised_on_a_tile_and_a_black_glass_reads_them_at_their_certified_v
         black_glass_gu: Some(96.0),
         black_glass_u: 0.4,
         source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        corrected_with: Default::default(),
         lines: 16,
         scene: SimSceneArgs {
             scene: Some("patent".into()),
@@ -531,6 +533,7 @@ fn qemu_standardised_on_a_tile_and_a_black_glass_reads_them_at_their_certified_v
         gloss_gu: 96.0,
         gloss_u: 0.4,
         source: Source { port: None, tcp: Some(q.addr.clone()), readings: None },
+        corrected_with: Default::default(),
         lines: 8,
         scene: SimSceneArgs {
             scene: Some("patent".into()),

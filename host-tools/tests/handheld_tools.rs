@@ -324,3 +324,114 @@ fn unseen_set() -> host_tools::evaluation::pixel_map::unseen::UnseenSpec {
     ];
     host_tools::evaluation::pixel_map::unseen::UnseenSpec { source: "test set".into(), materials }
 }
+
+/// A standardisation replayed offline: the handheld's LEDs drifting each at
+/// its own rate, the white tile read 2,000 lines on and the calibration
+/// standardised on it; the Ward sample read then is estimated by the
+/// standardised calibration `--corrected-with` the one its readings were
+/// corrected with (the white it was trained with), and reads what it read
+/// at calibration. Without `--corrected-with` the drift is all still there.
+#[test]
+fn a_standardisation_replays_offline_with_the_readings_white() {
+    use host_tools::forward::scene::{DriftRate, EffectSpec};
+    let dir = tempfile::tempdir().unwrap();
+    let mut cut = handheld().window(60, 8).unwrap();
+    let rates = vec![0.6e-5, 1.4e-5, 0.8e-5, 1.2e-5, 1.0e-5, 0.7e-5, 1.3e-5];
+    for e in cut.effects.iter_mut() {
+        if let EffectSpec::LedDrift { rate } = e {
+            *rate = DriftRate::PerLed(rates.clone());
+        }
+    }
+    let scene = dir.path().join("uneven.toml");
+    std::fs::write(&scene, toml::to_string(&cut).unwrap()).unwrap();
+    let prior = scene_prior(&cut, "patent").unwrap();
+    let t = train_scene(&cut, 1, 0.01, EstimatorKind::Wiener, &prior, Criterion::PeakRelative).unwrap();
+    let cal = dir.path().join("cal.blob");
+    std::fs::write(&cal, &t.blob).unwrap();
+    let p = |x: &Path| x.to_str().unwrap().to_string();
+    let simulate = |surface: &str, line: &str, lines: &str, out: &Path| {
+        let (ok, text) = host_tools(&[
+            "simulate",
+            &p(&scene),
+            "--surface",
+            surface,
+            "--line",
+            line,
+            "--lines",
+            lines,
+            "--out",
+            &p(out),
+        ]);
+        assert!(ok, "{text}");
+        out.join("points.csv")
+    };
+    let tile = simulate("{ model = \"lambertian\", rho = 0.99 }", "2000", "16", &dir.path().join("tile"));
+    let std_blob = dir.path().join("std.blob");
+    let report = dir.path().join("std.json");
+    let (ok, text) = host_tools(&[
+        "standardise",
+        "--blob",
+        &p(&cal),
+        "--readings",
+        &p(&tile),
+        "--tile-rf",
+        "0.99",
+        "--out",
+        &p(&std_blob),
+        "--report",
+        &p(&report),
+    ]);
+    assert!(ok, "{text}");
+    // Each LED's own drift found: 1 + rate x about 16,070 frames.
+    let found: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    for r in found["readings"].as_array().unwrap() {
+        let k = r["reading"].as_u64().unwrap() as usize;
+        let want = 1.0 + rates[k] * 16_070.0;
+        assert!((r["ratio_median"].as_f64().unwrap() - want).abs() < 0.01, "LED {k}: {r} against {want}");
+    }
+    let ward = "{ model = \"ward\", rho_d = 0.2, alpha = 0.15 }";
+    let mean_gloss = |blob: &Path, readings: &Path, extra: &[&str], tag: &str| -> f64 {
+        let out = dir.path().join(format!("{tag}.json"));
+        let mut args = vec!["estimate", "--blob", blob.to_str().unwrap(), "--readings", readings.to_str().unwrap()];
+        let (csv, json) = (p(&dir.path().join(format!("{tag}.csv"))), p(&out));
+        args.extend(["--out", &csv, "--json", &json]);
+        args.extend(extra);
+        let (ok, text) = host_tools(&args);
+        assert!(ok, "{text}");
+        let e: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+        let g: Vec<f64> = e["points"].as_array().unwrap().iter().map(|x| x["gloss_gu"].as_f64().unwrap()).collect();
+        g.iter().sum::<f64>() / g.len() as f64
+    };
+    let at_calibration = mean_gloss(&cal, &simulate(ward, "0", "4", &dir.path().join("w0")), &[], "e0");
+    let later = simulate(ward, "2020", "4", &dir.path().join("w1"));
+    let cal_s = p(&cal);
+    let replayed = mean_gloss(&std_blob, &later, &["--corrected-with", &cal_s], "e1");
+    let as_logged = mean_gloss(&std_blob, &later, &[], "e2");
+    assert!((replayed / at_calibration - 1.0).abs() < 0.01, "{replayed} against {at_calibration} at calibration");
+    assert!(as_logged / at_calibration > 1.12, "{as_logged} against {at_calibration}");
+    // A white that is not this instrument's drifted (one pixel's 5 % off
+    // its neighbours' under an LED) is refused, naming the file and pixel.
+    let view = BlobView::parse(&t.blob).unwrap();
+    let m = view.dims().m;
+    let mut bent: Vec<f32> = (0..8 * m).map(|k| view.white(k / m, k % m)).collect();
+    bent[5 * m + 2] *= 1.05;
+    let mut other = t.blob.clone();
+    brdf_meter::blob::rewrite_white(&mut other, &bent).unwrap();
+    let other_path = dir.path().join("other.blob");
+    std::fs::write(&other_path, &other).unwrap();
+    let e3 = p(&dir.path().join("e3.csv"));
+    let (ok, text) = host_tools(&[
+        "estimate",
+        "--blob",
+        &p(&cal),
+        "--readings",
+        &p(&later),
+        "--corrected-with",
+        &p(&other_path),
+        "--out",
+        &e3,
+    ]);
+    assert!(!ok, "{text}");
+    assert!(text.contains("other.blob") && text.contains("at pixel 5"), "{text}");
+    assert!(!dir.path().join("e3.csv").exists());
+}

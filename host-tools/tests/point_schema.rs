@@ -122,6 +122,7 @@ fn written() -> Vec<(&'static str, Vec<u8>)> {
     host_tools::cli::estimate::run(host_tools::cli::estimate::Args {
         blob: cal,
         readings,
+        corrected_with: Default::default(),
         out: csv.clone(),
         json: Some(json.clone()),
         zone: 0,

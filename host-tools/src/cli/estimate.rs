@@ -7,7 +7,11 @@
 //! Input: one row per point, m white-corrected readings in the blob's LED
 //! order (a header row is optional); with `line` and `pixel` columns (the
 //! `points.csv` that `simulate` writes) each row is estimated with its
-//! pixel's zone, as the device does. Output: the points in the point
+//! pixel's zone, as the device does. Readings corrected with another
+//! calibration's white than the blob's (logged before a standardisation,
+//! or `simulate`'s) are first corrected as the blob's white would have
+//! corrected them (`--corrected-with`, `crate::cli::corrected_with`).
+//! Output: the points in the point
 //! schema (`output::points`, docs/point-schema.md), CSV and optionally
 //! JSON, the same fields as `measure` writes: the row's line and pixel when
 //! the input names them, zone, cluster, flags, the n bin values and their
@@ -33,6 +37,9 @@ pub struct Args {
     /// names them (`simulate`'s `points.csv`).
     #[arg(long, value_name = "R.csv")]
     pub readings: PathBuf,
+    /// The calibration the readings were corrected with, when not --blob.
+    #[command(flatten)]
+    pub corrected_with: crate::cli::corrected_with::CorrectedWith,
     /// Output CSV.
     #[arg(long, value_name = "E.csv")]
     pub out: PathBuf,
@@ -135,7 +142,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let view = BlobView::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", a.blob.display()))?;
     let d = view.dims();
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
-    let rows = read_readings(&a.readings, app.m())?;
+    let mut rows = read_readings(&a.readings, app.m())?;
+    if let Some(t) = a.corrected_with.transfer(&view, &a.readings)? {
+        for (k, r) in rows.iter_mut().enumerate() {
+            t.apply(k + 1, r.pixel, &mut r.v)?;
+        }
+    }
     let result_zones = match (a.result_zones.is_empty(), rows.iter().any(|r| r.pixel.is_some())) {
         (true, false) => vec![app.zone()],
         _ => crate::device::measurement_result::chosen_zones(&view, &a.result_zones, "--result-zones")?,
@@ -261,6 +273,7 @@ mod tests {
         Args {
             blob: cal.to_path_buf(),
             readings: r,
+            corrected_with: Default::default(),
             out: dir.join("e.csv"),
             json: Some(dir.join("e.json")),
             zone: 0,

@@ -2,6 +2,7 @@
 //! `verify`: the device with the standard under it (several lines, a
 //! simulated device loaded with a scene line of its own for each), or
 //! logged readings of it.
+use crate::cli::corrected_with::CorrectedWith;
 use crate::cli::sim_scene::SimSceneArgs;
 use crate::device::link::{Endpoint, PointRecord};
 use crate::device::reference::{PointEstimate, PointEstimator};
@@ -22,7 +23,8 @@ pub struct Source {
     pub tcp: Option<String>,
     /// Logged corrected readings of the standard, one row per point with
     /// `line` and `pixel` columns (`simulate`'s `points.csv`), corrected
-    /// with this calibration's white reference.
+    /// with this calibration's white reference (or the one
+    /// `--corrected-with` names).
     #[arg(long, value_name = "R.csv")]
     pub readings: Option<PathBuf>,
 }
@@ -90,15 +92,23 @@ pub fn read_standard_on_device(a: &OnDevice<'_>, blob: &[u8], what: &str) -> any
     Ok(points)
 }
 
-/// Logged corrected readings, each with its line and pixel.
+/// Logged corrected readings, each with its line and pixel, as the
+/// calibration `view` would have corrected them (`corrected_with`: the
+/// calibration whose white they were corrected with, when not `view`'s).
 /// `scene` must name none: logged readings need no simulated device.
 pub fn logged_readings(
     path: &Path,
     view: &BlobView<'_>,
     scene: &SimSceneArgs,
+    corrected_with: &CorrectedWith,
 ) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
     ensure!(scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
-    let rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
+    let mut rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
+    if let Some(t) = corrected_with.transfer(view, path)? {
+        for (k, r) in rows.iter_mut().enumerate() {
+            t.apply(k + 1, r.pixel, &mut r.v)?;
+        }
+    }
     let pixels = view.dims().pixels;
     rows.into_iter()
         .enumerate()
@@ -130,8 +140,9 @@ pub fn logged_estimates(
     path: &Path,
     view: &BlobView<'_>,
     scene: &SimSceneArgs,
+    corrected_with: &CorrectedWith,
 ) -> anyhow::Result<Vec<(u64, usize, PointEstimate)>> {
-    let rows = logged_readings(path, view, scene)?;
+    let rows = logged_readings(path, view, scene, corrected_with)?;
     let zones = (0..view.dims().zones).map(|z| PointEstimator::new(*view, z)).collect::<anyhow::Result<Vec<_>>>()?;
     Ok(rows
         .iter()

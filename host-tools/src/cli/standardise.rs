@@ -44,6 +44,9 @@ pub struct Args {
     /// Where the standard's readings come from.
     #[command(flatten)]
     pub source: Source,
+    /// The calibration logged readings were corrected with, when not this one.
+    #[command(flatten)]
+    pub corrected_with: crate::cli::corrected_with::CorrectedWith,
     /// Lines of the standard to read on the device.
     #[arg(long, default_value_t = 32)]
     pub lines: u32,
@@ -67,6 +70,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.corrected_with.check_logged(a.source.readings.is_some())?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
     let blob = view.as_bytes().to_vec();
@@ -140,7 +144,7 @@ enum Found {
 fn white(a: &Args, view: &BlobView<'_>, blob: &[u8], tile: Tile) -> anyhow::Result<(Standardisation, String)> {
     match &a.source.readings {
         Some(path) => {
-            let rows = logged_readings(path, view, &a.scene)?;
+            let rows = logged_readings(path, view, &a.scene, &a.corrected_with)?;
             let points = rows.iter().map(|(_, pixel, v)| TileReading { pixel: *pixel, v, flags: 0 });
             let s = standardise(view, points, tile).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))
@@ -173,12 +177,10 @@ fn gloss(
     );
     match &a.source.readings {
         Some(path) => {
-            let points = logged_estimates(path, view, &a.scene)?.into_iter().map(|(line, pixel, e)| GlossReading {
-                line,
-                pixel,
-                gu: e.readings[brdf_meter::gloss::SPECULAR_GU],
-                flags: e.flag_bits,
-            });
+            let points =
+                logged_estimates(path, view, &a.scene, &a.corrected_with)?.into_iter().map(|(line, pixel, e)| {
+                    GlossReading { line, pixel, gu: e.readings[brdf_meter::gloss::SPECULAR_GU], flags: e.flag_bits }
+                });
             let s = standardise_gloss(view, points, standard).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))
         }
@@ -222,6 +224,7 @@ mod tests {
             black_glass_gu: None,
             black_glass_u: 0.0,
             source: Source { port: None, tcp: None, readings: Some(readings.into()) },
+            corrected_with: Default::default(),
             lines: 32,
             scene: Default::default(),
             out: out.into(),
@@ -282,6 +285,50 @@ mod tests {
         let e = format!("{:#}", run(bad).unwrap_err());
         assert!(e.contains("times its certified 0.3"), "{e}");
         assert!(!refused.exists() && !refused.with_extension("json").exists());
+    }
+
+    /// LEDs drifting each at its own rate (the scene's `led-drift` with
+    /// `rates_per_frame`, one LED dimming, one steady, the rest
+    /// brightening): the standardisation finds each LED's own drift, the
+    /// mean of `1 + rate t` over the frames it read, to within the tile's
+    /// noise over 32 lines.
+    #[test]
+    fn the_standardisation_finds_each_leds_own_drift_in_a_simulated_scene() {
+        use crate::forward::scene::{DriftRate, EffectSpec};
+        let dir = tempfile::tempdir().unwrap();
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let mut scene = crate::forward::scene::Scene::load(&root.join("scenes/matte-white.toml")).unwrap();
+        let m = scene.instrument.leds.len();
+        let rates: Vec<f64> = (0..m).map(|k| 2e-6 * (k as f64 - 1.0)).collect();
+        scene.effects.push(EffectSpec::LedDrift { rate: DriftRate::PerLed(rates.clone()) });
+        crate::output::config::Validate::validate(&scene).unwrap();
+        let (first, lines) = (2000u64, 32u64);
+        let (out, _) = crate::forward::scene::readings::simulate_lines(&scene, first, lines).unwrap();
+        let blob = brdf_meter::test_blobs::test_blob(9, m, 1, out.pixels, 0.5);
+        let cal = dir.path().join("cal.blob");
+        std::fs::write(&cal, &blob).unwrap();
+        let readings = dir.path().join("tile.csv");
+        std::fs::write(&readings, crate::forward::scene::readings::points_csv(&out).unwrap()).unwrap();
+        let new = dir.path().join("cal-std.signed");
+        run(args(&cal, &readings, &new)).unwrap();
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(new.with_extension("json")).unwrap()).unwrap();
+        let found = report["readings"].as_array().unwrap();
+        assert_eq!(found.len(), m);
+        // Frames since calibration of LED k's frame, the mean over the lines.
+        let mean_time = |k: usize| (first as f64 + (lines as f64 - 1.0) / 2.0) * (m as f64 + 1.0) + 1.0 + k as f64;
+        // (The readings' columns are the scene's LEDs in its order: the
+        // report's `reading`; its `led` is the test blob's LED order.)
+        for r in found {
+            let k = r["reading"].as_u64().unwrap() as usize;
+            let want = 1.0 + rates[k] * mean_time(k);
+            let got = r["ratio_median"].as_f64().unwrap();
+            assert!((got - want).abs() < 0.012, "LED {k}: found {got}, drifted {want}");
+        }
+        // The LEDs did drift apart (about 0.03 a step): one common factor
+        // could not have passed the check above.
+        let span = rates[m - 1] * mean_time(m - 1) - rates[0] * mean_time(0);
+        assert!(span > 0.15, "{span}");
     }
 
     /// The gloss scale from logged readings: the host computes each point's

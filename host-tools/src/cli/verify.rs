@@ -29,6 +29,9 @@ pub struct Args {
     /// Where the standard's readings come from.
     #[command(flatten)]
     pub source: Source,
+    /// The calibration logged readings were corrected with, when not this one.
+    #[command(flatten)]
+    pub corrected_with: crate::cli::corrected_with::CorrectedWith,
     /// Lines of the standard to read on the device.
     #[arg(long, default_value_t = 16)]
     pub lines: u32,
@@ -53,6 +56,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.corrected_with.check_logged(a.source.readings.is_some())?;
     let standard = GlossStandard::new(a.gloss_gu, a.gloss_u)?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
@@ -63,7 +67,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let stated = |pixel: usize, g: f32, u: f32, flags: u8| StatedGloss { pixel, gu: g, u_gu: u, flags };
     let v = match &a.source.readings {
         Some(path) => {
-            let points = logged_estimates(path, &view, &a.scene)?
+            let points = logged_estimates(path, &view, &a.scene, &a.corrected_with)?
                 .into_iter()
                 .filter(|(_, p, _)| chosen(*p))
                 .map(|(_, pixel, e)| stated(pixel, e.readings[SPECULAR_GU], e.reading_sigma[SPECULAR_GU], e.flag_bits));
@@ -126,6 +130,7 @@ mod tests {
             gloss_gu: gu,
             gloss_u: 0.2,
             source: Source { port: None, tcp: None, readings: Some(readings.clone()) },
+            corrected_with: Default::default(),
             lines: 16,
             scene: Default::default(),
             zones: vec![],
