@@ -15,6 +15,7 @@
 //! new white. It is how a standardisation is replayed offline, and how a
 //! gloss standardisation or a `verify` is made from readings logged before
 //! the white was standardised.
+use crate::cli::estimate::ReadingsRow;
 use crate::forward::scene::frames::SAME_OPTICS_TOLERANCE;
 use anyhow::{Context, bail, ensure};
 use brdf_meter::blob::{BlobView, WHITE_RATIO_RANGE};
@@ -45,9 +46,20 @@ impl CorrectedWith {
         Ok(())
     }
 
+    /// Takes `rows`, read from `readings`, to `to`'s white when a
+    /// calibration is named (row by row, each with its pixel's factors).
+    pub fn apply(&self, to: &BlobView<'_>, readings: &Path, rows: &mut [ReadingsRow]) -> anyhow::Result<()> {
+        if let Some(t) = self.transfer(to, readings)? {
+            for (k, r) in rows.iter_mut().enumerate() {
+                t.apply(k + 1, r.pixel, &mut r.v)?;
+            }
+        }
+        Ok(())
+    }
+
     /// The transfer from the named calibration's white to `to`'s (`None`
     /// when none is named). `readings` names the readings in messages.
-    pub fn transfer(&self, to: &BlobView<'_>, readings: &Path) -> anyhow::Result<Option<WhiteTransfer>> {
+    fn transfer(&self, to: &BlobView<'_>, readings: &Path) -> anyhow::Result<Option<WhiteTransfer>> {
         let Some(path) = &self.path else { return Ok(None) };
         let bytes = crate::device::provision::read_blob_to_decode(path)
             .with_context(|| format!("--corrected-with {}", path.display()))?;

@@ -143,11 +143,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let d = view.dims();
     let app = PointEstimator::new(view, a.zone).with_context(|| format!("--zone {}", a.zone))?;
     let mut rows = read_readings(&a.readings, app.m())?;
-    if let Some(t) = a.corrected_with.transfer(&view, &a.readings)? {
-        for (k, r) in rows.iter_mut().enumerate() {
-            t.apply(k + 1, r.pixel, &mut r.v)?;
-        }
-    }
+    a.corrected_with.apply(&view, &a.readings, &mut rows)?;
     let result_zones = match (a.result_zones.is_empty(), rows.iter().any(|r| r.pixel.is_some())) {
         (true, false) => vec![app.zone()],
         _ => crate::device::measurement_result::chosen_zones(&view, &a.result_zones, "--result-zones")?,

@@ -104,11 +104,7 @@ pub fn logged_readings(
 ) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
     ensure!(scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
     let mut rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
-    if let Some(t) = corrected_with.transfer(view, path)? {
-        for (k, r) in rows.iter_mut().enumerate() {
-            t.apply(k + 1, r.pixel, &mut r.v)?;
-        }
-    }
+    corrected_with.apply(view, path, &mut rows)?;
     let pixels = view.dims().pixels;
     rows.into_iter()
         .enumerate()
