@@ -21,10 +21,11 @@ pub struct Source {
     /// TCP serial of the QEMU instrument (e.g. 127.0.0.1:4555, printed by `host-tools qemu`).
     #[arg(long, value_name = "HOST:PORT")]
     pub tcp: Option<String>,
-    /// Logged corrected readings of the standard, one row per point with
-    /// `line` and `pixel` columns (`simulate`'s `points.csv`), corrected
-    /// with this calibration's white reference (or the one
-    /// `--corrected-with` names).
+    /// Logged corrected readings of the standard, one row per point with a
+    /// `pixel` column (and a `line` column for the black glass, whose
+    /// scatter is judged line by line; `simulate`'s and `measure`'s
+    /// `points.csv` have both), corrected with this calibration's white
+    /// reference (or the one `--corrected-with` names).
     #[arg(long, value_name = "R.csv")]
     pub readings: Option<PathBuf>,
 }
@@ -92,16 +93,21 @@ pub fn read_standard_on_device(a: &OnDevice<'_>, blob: &[u8], what: &str) -> any
     Ok(points)
 }
 
-/// Logged corrected readings, each with its line and pixel, as the
-/// calibration `view` would have corrected them (`corrected_with`: the
-/// calibration whose white they were corrected with, when not `view`'s).
-/// `scene` must name none: logged readings need no simulated device.
+/// A logged point of a standard: its line (when the file has a `line`
+/// column), its pixel and its m corrected readings.
+pub type LoggedReading = (Option<u64>, usize, Vec<f32>);
+
+/// Logged corrected readings, each with its line (when the file has a
+/// `line` column) and pixel, as the calibration `view` would have
+/// corrected them (`corrected_with`: the calibration whose white they were
+/// corrected with, when not `view`'s). `scene` must name none: logged
+/// readings need no simulated device.
 pub fn logged_readings(
     path: &Path,
     view: &BlobView<'_>,
     scene: &SimSceneArgs,
     corrected_with: &CorrectedWith,
-) -> anyhow::Result<Vec<(u64, usize, Vec<f32>)>> {
+) -> anyhow::Result<Vec<LoggedReading>> {
     ensure!(scene.scene.is_none(), "--scene loads a simulated device; logged readings (--readings) need none");
     let mut rows = crate::cli::estimate::read_readings(path, view.dims().m)?;
     corrected_with.apply(view, path, &mut rows)?;
@@ -109,10 +115,10 @@ pub fn logged_readings(
     rows.into_iter()
         .enumerate()
         .map(|(k, r)| {
-            let (line, pixel) = r.line.zip(r.pixel).with_context(|| {
+            let pixel = r.pixel.with_context(|| {
                 format!(
-                    "{}: row {}: no `line` and `pixel` columns; a reading of a standard takes every pixel's own readings, \
-                     line by line (simulate's points.csv has both)",
+                    "{}: row {}: no `pixel` column; a reading of a standard takes every pixel's own readings \
+                     (simulate's and measure's points.csv have it)",
                     path.display(),
                     k + 1
                 )
@@ -124,20 +130,20 @@ pub fn logged_readings(
                 k + 1,
                 pixels - 1
             );
-            Ok((line, pixel, r.v))
+            Ok((r.line, pixel, r.v))
         })
         .collect()
 }
 
 /// Logged corrected readings ([`logged_readings`]) estimated as the device
-/// estimates them with the calibration `view`: each with its line and
-/// pixel.
+/// estimates them with the calibration `view`: each with its line (when
+/// the file names it) and pixel.
 pub fn logged_estimates(
     path: &Path,
     view: &BlobView<'_>,
     scene: &SimSceneArgs,
     corrected_with: &CorrectedWith,
-) -> anyhow::Result<Vec<(u64, usize, PointEstimate)>> {
+) -> anyhow::Result<Vec<(Option<u64>, usize, PointEstimate)>> {
     let rows = logged_readings(path, view, scene, corrected_with)?;
     let zones = (0..view.dims().zones).map(|z| PointEstimator::new(*view, z)).collect::<anyhow::Result<Vec<_>>>()?;
     Ok(rows

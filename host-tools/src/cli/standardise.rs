@@ -177,10 +177,21 @@ fn gloss(
     );
     match &a.source.readings {
         Some(path) => {
-            let points =
-                logged_estimates(path, view, &a.scene, &a.corrected_with)?.into_iter().map(|(line, pixel, e)| {
-                    GlossReading { line, pixel, gu: e.readings[brdf_meter::gloss::SPECULAR_GU], flags: e.flag_bits }
-                });
+            let points = logged_estimates(path, view, &a.scene, &a.corrected_with)?
+                .into_iter()
+                .enumerate()
+                .map(|(k, (line, pixel, e))| {
+                    let line = line.with_context(|| {
+                        format!(
+                            "{}: row {}: no `line` column; the black glass's scatter is judged line by line \
+                                 (simulate's and measure's points.csv have it)",
+                            path.display(),
+                            k + 1
+                        )
+                    })?;
+                    Ok(GlossReading { line, pixel, gu: e.readings[brdf_meter::gloss::SPECULAR_GU], flags: e.flag_bits })
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
             let s = standardise_gloss(view, points, standard).with_context(|| format!("{}", path.display()))?;
             Ok((s, path.display().to_string()))
         }
@@ -262,6 +273,24 @@ mod tests {
         std::fs::write(&readings, &csv).unwrap();
         let new = dir.path().join("cal-std.signed");
         run(args(&cal, &readings, &new)).unwrap();
+        // The white needs no `line` column (its scatter is each pixel's):
+        // the same readings without it give the same white.
+        let text = String::from_utf8(csv.clone()).unwrap();
+        let unlined = dir.path().join("tile-no-lines.csv");
+        std::fs::write(
+            &unlined,
+            text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect::<String>(),
+        )
+        .unwrap();
+        let same = dir.path().join("cal-std-unlined.signed");
+        run(args(&cal, &unlined, &same)).unwrap();
+        let white = |path: &Path| {
+            let image = crate::device::provision::read_blob(path).unwrap();
+            let v = BlobView::parse(&image).unwrap();
+            let (p, m) = (v.dims().pixels, v.dims().m);
+            (0..p * m).map(|k| v.white(k / m, k % m)).collect::<Vec<f32>>()
+        };
+        assert_eq!(white(&new), white(&same));
         let image = crate::device::provision::read_blob(&new).unwrap();
         let v = BlobView::parse(&image).unwrap();
         let old = BlobView::parse(&blob).unwrap();
@@ -392,6 +421,15 @@ mod tests {
         let args = Args { black_glass_gu: Some(certified / 1.2), ..args_gloss(&cal, &readings, &refused) };
         let e = format!("{:#}", run(args).unwrap_err());
         assert!(e.contains("Standardise on the white tile first"), "{e}");
+        assert!(!refused.exists());
+        // Without a `line` column the lines' scatter cannot be judged:
+        // refused, naming the file and row.
+        let text = std::fs::read_to_string(&readings).unwrap();
+        let no_lines: String = text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect();
+        let unlined = dir.path().join("glass-no-lines.csv");
+        std::fs::write(&unlined, no_lines).unwrap();
+        let e = format!("{:#}", run(args_gloss(&cal, &unlined, &refused)).unwrap_err());
+        assert!(e.contains("glass-no-lines.csv: row 1: no `line` column"), "{e}");
         assert!(!refused.exists());
     }
 
