@@ -157,5 +157,21 @@ mod tests {
         assert_eq!(r["zones"].as_array().unwrap().len(), 1);
         let e = run(Args { zones: vec![2], ..args(g, &one) }).unwrap_err().to_string();
         assert!(e.contains("--zones 2: the calibration has zones 0..=1"), "{e}");
+        // Zones are judged from the pixels alone: the same readings
+        // without a `line` column verify alike.
+        let text = std::fs::read_to_string(&readings).unwrap();
+        let unlined = dir.path().join("tile-no-lines.csv");
+        std::fs::write(
+            &unlined,
+            text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect::<String>(),
+        )
+        .unwrap();
+        let same = dir.path().join("same.json");
+        run(Args { source: Source { port: None, tcp: None, readings: Some(unlined) }, ..args(g, &same) }).unwrap();
+        let (a, b): (serde_json::Value, serde_json::Value) = (
+            serde_json::from_slice(&std::fs::read(&ok).unwrap()).unwrap(),
+            serde_json::from_slice(&std::fs::read(&same).unwrap()).unwrap(),
+        );
+        assert_eq!(a["zones"], b["zones"]);
     }
 }
