@@ -151,3 +151,13 @@ pub fn logged_estimates(
         .map(|(line, pixel, v)| (*line, *pixel, zones[view.zone_of_pixel(*pixel)].apply_pixel(*pixel, v)))
         .collect())
 }
+
+/// Writes the readings file `from` to `to` without its first column (the
+/// `line` column `simulate` and the tests write first): logged readings
+/// that do not name their lines.
+#[cfg(test)]
+pub(crate) fn write_without_line_column(from: &Path, to: &Path) {
+    let text = std::fs::read_to_string(from).unwrap();
+    let rows: String = text.lines().map(|l| l.split_once(',').expect("a first column").1.to_string() + "\n").collect();
+    std::fs::write(to, rows).unwrap();
+}

@@ -275,13 +275,8 @@ mod tests {
         run(args(&cal, &readings, &new)).unwrap();
         // The white needs no `line` column (its scatter is each pixel's):
         // the same readings without it give the same white.
-        let text = String::from_utf8(csv.clone()).unwrap();
         let unlined = dir.path().join("tile-no-lines.csv");
-        std::fs::write(
-            &unlined,
-            text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect::<String>(),
-        )
-        .unwrap();
+        crate::cli::standard_source::write_without_line_column(&readings, &unlined);
         let same = dir.path().join("cal-std-unlined.signed");
         run(args(&cal, &unlined, &same)).unwrap();
         let white = |path: &Path| {
@@ -424,10 +419,8 @@ mod tests {
         assert!(!refused.exists());
         // Without a `line` column the lines' scatter cannot be judged:
         // refused, naming the file and row.
-        let text = std::fs::read_to_string(&readings).unwrap();
-        let no_lines: String = text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect();
         let unlined = dir.path().join("glass-no-lines.csv");
-        std::fs::write(&unlined, no_lines).unwrap();
+        crate::cli::standard_source::write_without_line_column(&readings, &unlined);
         let e = format!("{:#}", run(args_gloss(&cal, &unlined, &refused)).unwrap_err());
         assert!(e.contains("glass-no-lines.csv: row 1: no `line` column"), "{e}");
         assert!(!refused.exists());

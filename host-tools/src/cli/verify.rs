@@ -159,13 +159,8 @@ mod tests {
         assert!(e.contains("--zones 2: the calibration has zones 0..=1"), "{e}");
         // Zones are judged from the pixels alone: the same readings
         // without a `line` column verify alike.
-        let text = std::fs::read_to_string(&readings).unwrap();
         let unlined = dir.path().join("tile-no-lines.csv");
-        std::fs::write(
-            &unlined,
-            text.lines().map(|l| l.split_once(',').unwrap().1.to_string() + "\n").collect::<String>(),
-        )
-        .unwrap();
+        crate::cli::standard_source::write_without_line_column(&readings, &unlined);
         let same = dir.path().join("same.json");
         run(Args { source: Source { port: None, tcp: None, readings: Some(unlined) }, ..args(g, &same) }).unwrap();
         let (a, b): (serde_json::Value, serde_json::Value) = (
