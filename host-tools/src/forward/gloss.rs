@@ -29,7 +29,11 @@
 //!   what 0.5 deg bins and ~1 deg sources resolve, so the shoulders are
 //!   taken at 0.5..1.5 deg).
 //!
-//! A mirror reads `D = 100`, a flat `R` reads `D = 0`.
+//! A mirror reads `D = 100`, a flat `R` reads `D = 0`, and so does a
+//! peak no higher than its shoulders (a fabric's dip at the mirror
+//! direction): distinctness is 0 to 100 % by definition
+//! (`brdf_meter::gloss::DOMAINS`), as the device reads it, so the truth
+//! it is judged against is cut to the same range.
 //!
 //! # The definitions in three dimensions
 //! A gloss meter's receptor has an extent across the plane of incidence
@@ -121,7 +125,9 @@ pub fn black_glass_specular(theta_o_deg: f64) -> f64 {
 /// `l`, on the scale where the black glass's `L_0` is `reference`.
 pub fn readings_of(l: &[f64], reference: f64) -> [f64; 3] {
     let q = ASSIGNED_GU / reference;
-    let d = if l[2] > 0.0 { 100.0 * (l[2] - l[3]) / l[2] } else { f64::NAN };
+    let (lowest, highest) = brdf_meter::gloss::DOMAINS[brdf_meter::gloss::DISTINCTNESS];
+    let d =
+        if l[2] > 0.0 { (100.0 * (l[2] - l[3]) / l[2]).clamp(f64::from(lowest), f64::from(highest)) } else { f64::NAN };
     [q * l[0], q * l[1], d]
 }
 
@@ -239,6 +245,19 @@ mod tests {
     use super::*;
     use crate::forward::brdf::{Lambertian, SmoothDielectric};
     use crate::forward::grid::AngleGrid;
+
+    #[test]
+    fn distinctness_is_0_to_100_percent_by_definition() {
+        // A peak above its shoulders, a flat R, a dip at the mirror
+        // direction (shoulders above the peak), and no peak at all.
+        assert_eq!(readings_of(&[1.0, 1.0, 4.0, 1.0], 1.0)[2], 75.0);
+        assert_eq!(readings_of(&[1.0, 1.0, 2.0, 2.0], 1.0)[2], 0.0);
+        assert_eq!(readings_of(&[1.0, 1.0, 2.0, 2.02], 1.0)[2], 0.0, "a dip reads no distinctness, not -1 %");
+        assert!(readings_of(&[1.0, 1.0, 0.0, 1.0], 1.0)[2].is_nan());
+        // Gloss and haze are not cut (the linear readings of a BRDF are
+        // never negative).
+        assert_eq!(readings_of(&[2.0, 3.0, 4.0, 1.0], 4.0)[..2], [50.0, 75.0]);
+    }
 
     #[test]
     fn windows_integrate_the_interpolated_brdf() {
