@@ -57,6 +57,13 @@ pub const HAZE_HU: usize = 1;
 pub const DISTINCTNESS: usize = 2;
 /// Names of the readings in order, as the host's outputs label them.
 pub const NAMES: [&str; crate::shape::READINGS] = ["gloss_gu", "haze_hu", "distinctness_pct"];
+/// Each reading's range by its definition, `(lowest, highest)`, in
+/// [`NAMES`] order: gloss and haze are reflected flux on the black glass's
+/// scale, never below 0 and unbounded above (a metal reads thousands of
+/// GU); distinctness is a share of the peak, 0 to 100 %. A stated
+/// coverage interval lies within it (the truth does), which is how the
+/// host states a result's.
+pub const DOMAINS: [(f32, f32); crate::shape::READINGS] = [(0.0, f32::INFINITY), (0.0, f32::INFINITY), (0.0, 100.0)];
 /// What a point without readings streams.
 pub const NO_READINGS: [f32; crate::shape::READINGS] = [f32::NAN; crate::shape::READINGS];
 

@@ -416,6 +416,14 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
         let got = b["value"][k].as_f64().unwrap();
         assert!((got - mean).abs() <= 1e-5 * mean.abs().max(1e-3), "bin {k}: {got} vs {mean}");
     }
+    // Each bin's coverage interval is value +- U, never below 0 (to the
+    // last digit or so: JSON's decimals are parsed back here).
+    for k in 0..brdf_meter::shape::BINS {
+        let (v, u) = (b["value"][k].as_f64().unwrap(), b["expanded_u"][k].as_f64().unwrap());
+        let (lo, hi) = (b["interval"][k][0].as_f64().unwrap(), b["interval"][k][1].as_f64().unwrap());
+        let near = |a: f64, b: f64| (a - b).abs() <= 1e-12 * (1.0 + b.abs());
+        assert!(lo >= 0.0 && near(lo, (v - u).max(0.0)) && near(hi, v + u), "bin {k}: {lo} .. {hi}, {v} +- {u}");
+    }
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
 }
 

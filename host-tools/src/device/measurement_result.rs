@@ -23,6 +23,17 @@
 //!   two readings, neither), as `crate::output::points` adds them to each
 //!   point.
 //!
+//! Each value is stated with its coverage interval: `value +- U`, within
+//! what the quantity can be by its definition (`gloss::DOMAINS`; a
+//! reflectance factor is never negative). The truth lies in that range, so
+//! the interval keeps the coverage of `value +- U` and says only what is
+//! possible: a matt sample's distinctness of 0.6 % with U = 4.3 % is
+//! 0-4.9 %, not -3.7-4.9 %, and a bin's reflectance factor is never below
+//! 0 however wide its uncertainty at a mirror bin the LEDs do not resolve.
+//! (Clipping is the conservative statement; a shorter interval from the
+//! distribution truncated at the bound would claim a shape of the
+//! distribution the budget does not know.)
+//!
 //! By default the points are those of the zones at the centre of the line
 //! ([`centre_zones`]): a surface other than a mirror reads differently
 //! where the pixels view it at other angles (the handheld's view at 41.5
@@ -51,12 +62,26 @@ use std::path::Path;
 pub const SCHEMA: &str = "brdf-meter/result";
 /// Its version: bumped when a field is renamed, removed, added, moved or
 /// changes its meaning or unit (`docs/point-schema.md`).
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 /// The coverage factor of the expanded uncertainty.
 pub const COVERAGE_FACTOR: f64 = 2.0;
 
 /// Each reading's unit, in `gloss::NAMES` order.
 const UNITS: [&str; READINGS] = ["GU", "HU", "%"];
+
+/// A reflectance factor's range: never negative, unbounded above.
+const REFLECTANCE_FACTOR_DOMAIN: (f64, f64) = (0.0, f64::INFINITY);
+
+/// The coverage interval `value +- expanded_u` within `(lowest, highest)`,
+/// the quantity's range by its definition. A value outside the range
+/// altogether (never for the device's readings, which are within their
+/// definitions) gives the nearest bound, an interval of no width, rather
+/// than one whose ends cross.
+pub fn coverage_interval(value: f64, expanded_u: f64, (lowest, highest): (f64, f64)) -> [f64; 2] {
+    let lo = (value - expanded_u).clamp(lowest, highest);
+    let hi = (value + expanded_u).clamp(lowest, highest);
+    [lo, hi.max(lo)]
+}
 
 /// A calibration's standards' relative standard uncertainties (0 when it
 /// was not standardised on them).
@@ -104,12 +129,17 @@ pub struct ReadingResult {
     pub u: f64,
     /// The expanded uncertainty (k = [`COVERAGE_FACTOR`]).
     pub expanded_u: f64,
+    /// The coverage interval, `[lowest, highest]`: `value +- expanded_u`
+    /// within the reading's definition ([`coverage_interval`]).
+    pub interval: [f64; 2],
 }
 
 impl ReadingResult {
-    /// Whether the result covers `truth`: within its expanded uncertainty.
+    /// Whether the result covers `truth`: within its coverage interval
+    /// (for a truth within the reading's definition, the same as within
+    /// its expanded uncertainty).
     pub fn covers(&self, truth: f64) -> bool {
-        (self.value - truth).abs() <= self.expanded_u
+        (self.interval[0]..=self.interval[1]).contains(&truth)
     }
 
     /// One contribution's standard uncertainty (0 when it has none).
@@ -163,13 +193,16 @@ pub fn reading_result(
     let relative: &[(&'static str, f64)] =
         if crate::output::points::READINGS_SCALE[reading] { &references } else { &[] };
     let m = mean_with_budget(points, relative)?;
+    let expanded_u = COVERAGE_FACTOR * m.u;
+    let (lowest, highest) = gloss::DOMAINS[reading];
     Some(ReadingResult {
         reading: gloss::NAMES[reading],
         unit: UNITS[reading],
         points: m.spread.count,
         value: m.spread.mean,
         sd: m.spread.sd,
-        expanded_u: COVERAGE_FACTOR * m.u,
+        interval: coverage_interval(m.spread.mean, expanded_u, (f64::from(lowest), f64::from(highest))),
+        expanded_u,
         u: m.u,
         budget: m.budget,
     })
@@ -215,6 +248,9 @@ pub struct BrdfResult {
     pub u: Vec<f64>,
     /// Its expanded uncertainty per bin (k = [`COVERAGE_FACTOR`]).
     pub expanded_u: Vec<f64>,
+    /// Its coverage interval per bin, `[lowest, highest]`: `value +-
+    /// expanded_u`, never below 0 ([`coverage_interval`]).
+    pub interval: Vec<[f64; 2]>,
     /// The contributions per bin: `calibration`, `repeatability`,
     /// `white_reference` (the gloss scale is not the BRDF's).
     pub budget: Vec<BinContribution>,
@@ -337,6 +373,10 @@ fn brdf_result(bins_deg: &[f32], estimates: &[&Point], white: f64) -> Option<Brd
         value: per_bin.iter().map(|m| m.spread.mean).collect(),
         u: per_bin.iter().map(|r| r.u).collect(),
         expanded_u: per_bin.iter().map(|m| COVERAGE_FACTOR * m.u).collect(),
+        interval: per_bin
+            .iter()
+            .map(|m| coverage_interval(m.spread.mean, COVERAGE_FACTOR * m.u, REFLECTANCE_FACTOR_DOMAIN))
+            .collect(),
         budget: (0..per_bin[0].budget.len()).map(part).collect(),
     })
 }
@@ -371,7 +411,7 @@ impl MeasurementResult {
         }
         let _ = writeln!(
             t,
-            "result over zone(s) {}: {lines}{} point(s){notes}; U = {} u_c:",
+            "result over zone(s) {}: {lines}{} point(s){notes}; U = {} u_c, the interval value +- U within the reading's definition:",
             zones.join(", "),
             self.points,
             self.coverage_factor
@@ -390,8 +430,8 @@ impl MeasurementResult {
         }
         let _ = writeln!(
             t,
-            "  {:<20} {:>9} {:>8} {:>8}  {:>11} {:>13} {:>7} {:>11}  points",
-            "reading", "value", "U", "u_c", "calibration", "repeatability", "white", "gloss scale"
+            "  {:<20} {:>9} {:>8} {:>17} {:>8}  {:>11} {:>13} {:>7} {:>11}  points",
+            "reading", "value", "U", "interval", "u_c", "calibration", "repeatability", "white", "gloss scale"
         );
         for r in &self.readings {
             let part = |s: &str| {
@@ -399,10 +439,11 @@ impl MeasurementResult {
             };
             let _ = writeln!(
                 t,
-                "  {:<20} {:>9.2} {:>8.2} {:>8.2}  {:>11} {:>13} {:>7} {:>11}  {}",
+                "  {:<20} {:>9.2} {:>8.2} {:>17} {:>8.2}  {:>11} {:>13} {:>7} {:>11}  {}",
                 format!("{} ({})", r.reading, r.unit),
                 r.value,
                 r.expanded_u,
+                format!("{:.2} .. {:.2}", r.interval[0], r.interval[1]),
                 r.u,
                 part("calibration"),
                 part("repeatability"),
@@ -511,6 +552,50 @@ mod tests {
         assert_eq!(j["schema"], SCHEMA);
         assert_eq!(j["readings"][0]["budget"][3]["source"], "gloss_scale");
         assert_eq!(j["brdf"]["value"].as_array().unwrap().len(), 3);
+    }
+
+    #[test]
+    fn coverage_intervals_lie_within_the_definitions() {
+        // Away from the bounds, value +- U; at a bound, cut there; a value
+        // past a bound gives that bound, never crossed ends.
+        assert_eq!(coverage_interval(10.0, 2.0, (0.0, 100.0)), [8.0, 12.0]);
+        assert_eq!(coverage_interval(0.6, 4.3, (0.0, 100.0)), [0.0, 0.6 + 4.3]);
+        assert_eq!(coverage_interval(99.0, 3.0, (0.0, 100.0)), [96.0, 100.0]);
+        assert_eq!(coverage_interval(-5.0, 2.0, (0.0, f64::INFINITY)), [0.0, 0.0]);
+        assert_eq!(coverage_interval(0.5, 0.0, (0.0, f64::INFINITY)), [0.5, 0.5]);
+        // Every reading's result and every bin: a matt sample whose
+        // distinctness is near 0 and a bin whose u is far above its value
+        // (the mirror bin the LEDs do not resolve).
+        let b = blob(0.0, 0.0);
+        let view = BlobView::parse(&b).unwrap();
+        let matt = |line: u64, d: f32| Point {
+            readings: [3.0, 0.4, d],
+            u_readings: [1.0, 0.3, 2.2],
+            rho: vec![0.05, 0.3, 0.05],
+            u_rho: vec![0.01, 0.9, 0.01],
+            ..point(line, 0, 3.0, 1.0)
+        };
+        let r = measurement_result(&view, &[0], &points(vec![matt(0, 0.5), matt(1, 0.7)]));
+        let d = &r.readings[2];
+        assert!((d.value - 0.6).abs() < 1e-6 && d.expanded_u > d.value, "{d:?}");
+        assert_eq!(d.interval[0], 0.0, "{d:?}");
+        assert!((d.interval[1] - (d.value + d.expanded_u)).abs() < 1e-12, "{d:?}");
+        let h = &r.readings[1];
+        assert_eq!(h.interval[0], 0.0, "haze 0.4 HU with U 0.6: {h:?}");
+        let g = &r.readings[0];
+        assert_eq!(g.interval, [g.value - g.expanded_u, g.value + g.expanded_u], "{g:?}");
+        assert!(g.covers(g.value + g.expanded_u) && !g.covers(g.value + 1.01 * g.expanded_u));
+        assert!(d.covers(0.0) && !d.covers(-0.1), "a truth below 0 % is no distinctness");
+        let brdf = r.brdf.as_ref().unwrap();
+        assert_eq!(brdf.interval[1][0], 0.0, "{brdf:?}");
+        assert!((brdf.interval[1][1] - (0.3 + brdf.expanded_u[1])).abs() < 1e-6, "{brdf:?}");
+        assert!((brdf.interval[0][0] - (0.05 - brdf.expanded_u[0])).abs() < 1e-9, "{brdf:?}");
+        let t = r.table();
+        assert!(t.contains(&format!("0.00 .. {:.2}", d.interval[1])), "{t}");
+        let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
+        assert_eq!(j["schema_version"], 2);
+        assert_eq!(j["readings"][2]["interval"][0], 0.0);
+        assert_eq!(j["brdf"]["interval"].as_array().unwrap().len(), 3);
     }
 
     #[test]
