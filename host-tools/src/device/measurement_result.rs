@@ -297,6 +297,26 @@ pub struct MeasurementResult {
     pub readings: Vec<ReadingResult>,
     /// The mean BRDF (`None`: no point with a finite estimate).
     pub brdf: Option<BrdfResult>,
+    /// Every zone with points, each a result of its own (its readings):
+    /// how the surface reads along the line.
+    pub per_zone: Vec<ZoneResult>,
+}
+
+/// One zone's result: its readings over its points alone, each with the
+/// same budget as the result's (the calibration's, the zone's own
+/// repeatability, the references'). A surface other than a mirror reads
+/// differently where the pixels view it at other angles, and a sample
+/// that is not uniform, differently where it differs: these say which.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ZoneResult {
+    /// The zone.
+    pub zone: usize,
+    /// Its first and last pixel.
+    pub pixels: (usize, usize),
+    /// Its points (saturated ones among them, left out of the readings).
+    pub points: usize,
+    /// Each reading its points have, in `gloss::NAMES` order.
+    pub readings: Vec<ReadingResult>,
 }
 
 /// The result of the points of `zones` among `points`, whose uncertainties
@@ -304,35 +324,19 @@ pub struct MeasurementResult {
 /// standards' are added here, as contributions of their own).
 pub fn measurement_result(view: &BlobView<'_>, zones: &[usize], points: &Points) -> MeasurementResult {
     let references = References::of(view);
-    let mut lines = BTreeSet::new();
-    let (mut count, mut saturated, mut out_of_prior, mut without_lines) = (0usize, 0usize, 0usize, false);
-    let mut kept: [Vec<(f64, f64)>; READINGS] = Default::default();
-    let mut estimates: Vec<&Point> = Vec::new();
-    for p in points.points.iter().filter(|p| zones.contains(&usize::from(p.zone))) {
-        count += 1;
-        match p.line {
-            Some(l) => drop(lines.insert(l)),
-            None => without_lines = true,
-        }
-        out_of_prior += usize::from(p.flags & flags::OUT_OF_PRIOR != 0);
-        if p.flags & flags::SATURATED != 0 {
-            saturated += 1;
-            continue;
-        }
-        for (k, kept) in kept.iter_mut().enumerate() {
-            let (x, u) = (f64::from(p.readings[k]), f64::from(p.u_readings[k]));
-            // A reading without a stated uncertainty is not one to state a
-            // result from (the device states one for every reading).
-            if x.is_finite() && u.is_finite() && u >= 0.0 {
-                kept.push((x, u));
-            }
-        }
-        let finite = |xs: &[f32]| xs.len() == points.bins_deg.len() && xs.iter().all(|x| x.is_finite());
-        if p.flags & flags::NON_FINITE == 0 && finite(&p.rho) && finite(&p.u_rho) {
-            estimates.push(p);
-        }
-    }
     let on_references = (references.white, references.gloss_scale);
+    let g = Gathered::of(points, |z| zones.contains(&z));
+    let per_zone = (0..view.dims().zones)
+        .filter_map(|zone| {
+            let z = Gathered::of(points, |p| p == zone);
+            (z.count > 0).then(|| ZoneResult {
+                zone,
+                pixels: zone_pixels(view, zone),
+                points: z.count,
+                readings: z.readings(on_references),
+            })
+        })
+        .collect();
     MeasurementResult {
         schema: SCHEMA,
         schema_version: SCHEMA_VERSION,
@@ -340,14 +344,73 @@ pub fn measurement_result(view: &BlobView<'_>, zones: &[usize], points: &Points)
         calibration_crc: format!("{:#010x}", points.calibration_crc),
         zones: zones.to_vec(),
         pixels: zones.iter().map(|&z| zone_pixels(view, z)).collect(),
-        lines: (!without_lines).then_some(lines.len()),
-        points: count,
-        saturated,
-        out_of_prior,
+        lines: (!g.without_lines).then_some(g.lines.len()),
+        points: g.count,
+        saturated: g.saturated,
+        out_of_prior: g.out_of_prior,
         coverage_factor: COVERAGE_FACTOR,
         references,
-        readings: (0..READINGS).filter_map(|k| reading_result(k, &kept[k], on_references)).collect(),
-        brdf: brdf_result(&points.bins_deg, &estimates, references.white),
+        readings: g.readings(on_references),
+        brdf: brdf_result(&points.bins_deg, &g.estimates, references.white),
+        per_zone,
+    }
+}
+
+/// The points of some zones, as a result takes them.
+struct Gathered<'a> {
+    count: usize,
+    saturated: usize,
+    out_of_prior: usize,
+    lines: BTreeSet<u64>,
+    without_lines: bool,
+    /// Per reading, each point's value and stated uncertainty.
+    kept: [Vec<(f64, f64)>; READINGS],
+    /// The points with a finite estimate.
+    estimates: Vec<&'a Point>,
+}
+
+impl<'a> Gathered<'a> {
+    /// The points of `points` whose zone `wanted` takes.
+    fn of(points: &'a Points, wanted: impl Fn(usize) -> bool) -> Self {
+        let mut g = Gathered {
+            count: 0,
+            saturated: 0,
+            out_of_prior: 0,
+            lines: BTreeSet::new(),
+            without_lines: false,
+            kept: Default::default(),
+            estimates: Vec::new(),
+        };
+        for p in points.points.iter().filter(|p| wanted(usize::from(p.zone))) {
+            g.count += 1;
+            match p.line {
+                Some(l) => drop(g.lines.insert(l)),
+                None => g.without_lines = true,
+            }
+            g.out_of_prior += usize::from(p.flags & flags::OUT_OF_PRIOR != 0);
+            if p.flags & flags::SATURATED != 0 {
+                g.saturated += 1;
+                continue;
+            }
+            for (k, kept) in g.kept.iter_mut().enumerate() {
+                let (x, u) = (f64::from(p.readings[k]), f64::from(p.u_readings[k]));
+                // A reading without a stated uncertainty is not one to state a
+                // result from (the device states one for every reading).
+                if x.is_finite() && u.is_finite() && u >= 0.0 {
+                    kept.push((x, u));
+                }
+            }
+            let finite = |xs: &[f32]| xs.len() == points.bins_deg.len() && xs.iter().all(|x| x.is_finite());
+            if p.flags & flags::NON_FINITE == 0 && finite(&p.rho) && finite(&p.u_rho) {
+                g.estimates.push(p);
+            }
+        }
+        g
+    }
+
+    /// Each reading's result over these points.
+    fn readings(&self, on_references: (f64, f64)) -> Vec<ReadingResult> {
+        (0..READINGS).filter_map(|k| reading_result(k, &self.kept[k], on_references)).collect()
     }
 }
 
@@ -452,7 +515,34 @@ impl MeasurementResult {
                 r.points
             );
         }
+        self.per_zone_table(&mut t);
         t
+    }
+
+    /// Each zone's readings, `value (U)`, when more than one zone has
+    /// points.
+    fn per_zone_table(&self, t: &mut String) {
+        if self.per_zone.len() < 2 {
+            return;
+        }
+        let _ = writeln!(t, "  along the line, each zone over its own points: value (U)");
+        let mut head = format!("  {:>5} {:>9} {:>7}", "zone", "pixels", "points");
+        for r in &self.readings {
+            head += &format!("  {:>20}", format!("{} ({})", r.reading, r.unit));
+        }
+        let _ = writeln!(t, "{head}");
+        for z in &self.per_zone {
+            let mut row = format!("  {:>5} {:>9} {:>7}", z.zone, format!("{}-{}", z.pixels.0, z.pixels.1), z.points);
+            for r in &self.readings {
+                let cell = z
+                    .readings
+                    .iter()
+                    .find(|x| x.reading == r.reading)
+                    .map_or("-".to_string(), |x| format!("{:.2} ({:.2})", x.value, x.expanded_u));
+                row += &format!("  {cell:>20}");
+            }
+            let _ = writeln!(t, "{row}");
+        }
     }
 
     /// The JSON document (pretty, ending in a newline).
@@ -596,6 +686,39 @@ mod tests {
         assert_eq!(j["schema_version"], 2);
         assert_eq!(j["readings"][2]["interval"][0], 0.0);
         assert_eq!(j["brdf"]["interval"].as_array().unwrap().len(), 3);
+    }
+
+    #[test]
+    fn every_zone_with_points_has_a_result_of_its_own() {
+        let b = blob(0.004, 0.0);
+        let view = BlobView::parse(&b).unwrap();
+        // Zone 0 reads 50 GU, zone 1 70 and 74 (and a saturated point).
+        let mut ps = vec![point(0, 0, 50.0, 1.0), point(0, 1, 70.0, 1.0), point(1, 1, 74.0, 2.0)];
+        ps.push(Point { flags: flags::SATURATED, ..point(2, 1, 500.0, 1.0) });
+        let r = measurement_result(&view, &[1], &points(ps.clone()));
+        assert_eq!(
+            r.per_zone.iter().map(|z| (z.zone, z.pixels, z.points)).collect::<Vec<_>>(),
+            [(0, (0, 3), 1), (1, (4, 7), 3)]
+        );
+        // Each zone's reading is the result over its points alone: zone 1's
+        // is the result's own (the zones asked for are zone 1).
+        assert_eq!(r.per_zone[1].readings, r.readings);
+        let g0 = &r.per_zone[0].readings[0];
+        assert_eq!((g0.points, g0.value, g0.sd), (1, 50.0, 0.0));
+        assert!((g0.contribution("white_reference") - 0.2).abs() < 1e-6, "{g0:?}");
+        // Over both zones the result differs from either.
+        let both = measurement_result(&view, &[0, 1], &points(ps.clone()));
+        assert!((both.readings[0].value - 194.0 / 3.0).abs() < 1e-9 && both.per_zone == r.per_zone);
+        let t = r.table();
+        assert!(t.contains("along the line, each zone over its own points: value (U)"), "{t}");
+        assert!(t.contains(&format!("{:.2} ({:.2})", g0.value, g0.expanded_u)), "{t}");
+        let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
+        assert_eq!(j["per_zone"][1]["pixels"], serde_json::json!([4, 7]));
+        assert_eq!(j["per_zone"][0]["readings"][0]["reading"], "gloss_gu");
+        // One zone with points: no table along the line (the result is it).
+        let one = measurement_result(&view, &[0], &points(vec![point(0, 0, 50.0, 1.0)]));
+        assert_eq!(one.per_zone.len(), 1);
+        assert!(!one.table().contains("along the line"), "{}", one.table());
     }
 
     #[test]
