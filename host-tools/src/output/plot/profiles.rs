@@ -2,6 +2,10 @@
 //! reflectance factor against incidence, each point's +-1 standard
 //! uncertainty band (the calibration's per-bin uncertainty times the point's
 //! scale) shaded behind its line, and its gloss readings in the legend.
+//! The band stops at 0 ([`band_edges`]): a reflectance factor below it is
+//! not one the surface can have, however wide the uncertainty (the mirror
+//! bin of a lobe the LEDs do not resolve), as the result's coverage
+//! intervals stop there too (`device::measurement_result`).
 use crate::output::profile::Profile;
 use anyhow::{anyhow, bail};
 use plotters::coord::Shift;
@@ -18,6 +22,12 @@ const COLOURS: [RGBColor; 6] = [
     RGBColor(255, 127, 14),
     RGBColor(140, 86, 75),
 ];
+
+/// The band drawn about reflectance factor `r` with standard uncertainty
+/// `u`: `r +- u`, never below 0.
+pub fn band_edges(r: f64, u: f64) -> (f64, f64) {
+    ((r - u).max(0.0), r + u)
+}
 
 /// The figure.
 pub struct ProfilePlot<'a> {
@@ -64,7 +74,7 @@ impl super::Figure for ProfilePlot<'_> {
         let lo = self
             .profiles
             .iter()
-            .flat_map(|p| p.reflectance.iter().zip(&p.uncertainty).map(|(r, u)| r - u))
+            .flat_map(|p| p.reflectance.iter().zip(&p.uncertainty).map(|(r, u)| band_edges(*r, *u).0.min(*r)))
             .filter(|x| x.is_finite())
             .fold(0.0f64, f64::min);
         let pad = 0.05 * (hi - lo).max(1e-6);
@@ -85,8 +95,10 @@ impl super::Figure for ProfilePlot<'_> {
         for (k, p) in self.profiles.iter().enumerate() {
             let col = COLOURS[k % COLOURS.len()];
             let pts = || p.theta_i_deg.iter().zip(p.reflectance.iter().zip(&p.uncertainty));
-            let band: Vec<(f64, f64)> =
-                pts().map(|(t, (r, u))| (*t, r + u)).chain(pts().rev().map(|(t, (r, u))| (*t, r - u))).collect();
+            let band: Vec<(f64, f64)> = pts()
+                .map(|(t, (r, u))| (*t, band_edges(*r, *u).1))
+                .chain(pts().rev().map(|(t, (r, u))| (*t, band_edges(*r, *u).0)))
+                .collect();
             c.draw_series(std::iter::once(Polygon::new(band, col.mix(0.2)))).map_err(e)?;
             c.draw_series(LineSeries::new(pts().map(|(t, (r, _))| (*t, *r)), col.stroke_width(2)))
                 .map_err(e)?
@@ -114,4 +126,16 @@ pub fn write(path: &Path, title: &str, profiles: &[Profile]) -> anyhow::Result<(
     let (svg, png) = super::render(&ProfilePlot { title: title.to_string(), profiles }, SIZE)?;
     let bytes = if ext == "svg" { svg.into_bytes() } else { png };
     crate::output::io::write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::band_edges;
+
+    #[test]
+    fn the_band_stops_at_zero() {
+        assert_eq!(band_edges(0.5, 0.1), (0.4, 0.6));
+        assert_eq!(band_edges(13.4, 91.0), (0.0, 104.4));
+        assert_eq!(band_edges(0.0, 0.2), (0.0, 0.2));
+    }
 }
