@@ -34,6 +34,10 @@
 //! distribution truncated at the bound would claim a shape of the
 //! distribution the budget does not know.)
 //!
+//! Beside the result over the zones asked for, every zone with points has
+//! one of its own ([`ZoneResult`]: its readings, the same budget over its
+//! points alone), which says how the surface reads along the line.
+//!
 //! By default the points are those of the zones at the centre of the line
 //! ([`centre_zones`]): a surface other than a mirror reads differently
 //! where the pixels view it at other angles (the handheld's view at 41.5
