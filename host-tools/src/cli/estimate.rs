@@ -51,8 +51,9 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub zone: usize,
     /// Also write the result as JSON here: each gloss reading's mean over
-    /// the points of `--result-zones` with its uncertainty budget and U at
-    /// k = 2 (printed either way).
+    /// the points of `--result-zones` with its uncertainty budget, U at
+    /// k = 2 and its coverage interval, and each zone's along the line
+    /// (printed either way).
     #[arg(long, value_name = "PATH")]
     pub result: Option<PathBuf>,
     /// The zones the result is over (comma separated). Default: the zones

@@ -33,7 +33,8 @@ pub struct Args {
     #[arg(long, value_name = "PATH", default_value = "out/measure.json")]
     pub json: PathBuf,
     /// The result as JSON: each gloss reading's mean over the points of
-    /// `--result-zones` with its uncertainty budget and U at k = 2.
+    /// `--result-zones` with its uncertainty budget, U at k = 2 and its
+    /// coverage interval, and each zone's along the line.
     #[arg(long, value_name = "PATH", default_value = "out/measure-result.json")]
     pub result: PathBuf,
     /// The zones the result is over (comma separated). Default: the zones
