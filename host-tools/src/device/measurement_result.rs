@@ -74,7 +74,7 @@ pub const COVERAGE_FACTOR: f64 = 2.0;
 const UNITS: [&str; READINGS] = ["GU", "HU", "%"];
 
 /// A reflectance factor's range: never negative, unbounded above.
-const REFLECTANCE_FACTOR_DOMAIN: (f64, f64) = (0.0, f64::INFINITY);
+pub const REFLECTANCE_FACTOR_DOMAIN: (f64, f64) = (0.0, f64::INFINITY);
 
 /// The coverage interval `value +- expanded_u` within `(lowest, highest)`,
 /// the quantity's range by its definition. A value outside the range

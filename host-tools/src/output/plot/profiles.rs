@@ -24,9 +24,11 @@ const COLOURS: [RGBColor; 6] = [
 ];
 
 /// The band drawn about reflectance factor `r` with standard uncertainty
-/// `u`: `r +- u`, never below 0.
+/// `u`: `r +- u`, never below 0 (the result's coverage interval at k = 1).
 pub fn band_edges(r: f64, u: f64) -> (f64, f64) {
-    ((r - u).max(0.0), r + u)
+    use crate::device::measurement_result::{REFLECTANCE_FACTOR_DOMAIN, coverage_interval};
+    let [lo, hi] = coverage_interval(r, u, REFLECTANCE_FACTOR_DOMAIN);
+    (lo, hi)
 }
 
 /// The figure.
