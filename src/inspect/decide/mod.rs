@@ -25,9 +25,17 @@
 //! (m-1)m/2 + R m + m multiply-adds (the scale's sums: 2 m adds), R the
 //! readings worked out: 35 for m = 7 with a gloss window only, 49 with all
 //! three, against the estimation's 567 plus its gloss readings; the BRDF
-//! is never needed. A point within the leaving thresholds is out at
-//! neither (they are no wider than the entering ones): one test
-//! ([`Limits::within`]) decides most points.
+//! is never needed. Worked out in two parts (`unscaled`): the first needs
+//! neither the last reading nor the line's scale, and the acquisition
+//! works it out while the line's last LED frame integrates
+//! ([`UnscaledLine`]); after that frame a point costs 3 multiply-adds for
+//! its distance and 3 per change ([`scaled`]), bit for bit what the two
+//! parts give worked out at once (the host's reference does that). Where
+//! the rewriting would round worse than the direct form (a scale far off 1
+//! on a reference far above its noise) the point is worked out directly.
+//! A point within the leaving thresholds is out at neither (they are no
+//! wider than the entering ones): one test ([`Limits::within`]) decides
+//! most points.
 //!
 //! # A point's kind (first that holds)
 //! unreadable (a saturated, under-exposed or non-finite reading) > gloss
@@ -58,16 +66,20 @@
 //!
 //! Where it lives: this file, the line's decision ([`Inspector`]);
 //! `point`, the decision per point ([`point_stat`], [`line_scale`],
-//! [`Limits`]); `defects`, what a line's decision says ([`Verdict`], its
-//! [`DefectRun`]s, [`InspectCounters`]).
+//! [`Limits`]); `unscaled`, a point's statistics in two parts, the first
+//! worked out before the last frame ([`unscaled`], [`scaled`],
+//! [`UnscaledLine`]); `defects`, what a line's decision says ([`Verdict`],
+//! its [`DefectRun`]s, [`InspectCounters`]).
 mod defects;
 mod point;
+mod unscaled;
 
 pub use defects::{DefectKind, DefectRun, InspectCounters, MAX_RUNS, Runs, Verdict, verdict};
 pub use point::{
     Limits, MAX_GROUP_VALUES, PixelRef, PointStat, classify, inverse_reference_sum, line_scale, point_stat,
     point_stat_at,
 };
+pub use unscaled::{LineScale, SCALED_BB_LIMIT, Unscaled, UnscaledLine, scaled, unscaled};
 
 use super::recipe::{RecipeView, pixel_len};
 use nalgebra::SVector;
@@ -130,6 +142,22 @@ impl<const P: usize> Inspector<P> {
         line: u32,
         v: &[SVector<f32, M>],
         reading_flags: &[u8],
+        out_of_prior: impl FnMut(usize) -> bool,
+    ) -> Verdict {
+        self.line_with(r, line, v, reading_flags, None, out_of_prior)
+    }
+
+    /// [`Self::line`] with the first parts of the points' statistics the
+    /// acquisition worked out while the line's last frame integrated
+    /// (`early`): only the rest is worked out here, and the verdict is
+    /// [`Self::line`]'s bit for bit.
+    pub fn line_with<const M: usize>(
+        &mut self,
+        r: &RecipeView<'_>,
+        line: u32,
+        v: &[SVector<f32, M>],
+        reading_flags: &[u8],
+        early: Option<&UnscaledLine<P>>,
         mut out_of_prior: impl FnMut(usize) -> bool,
     ) -> Verdict {
         debug_assert!(r.pixels() == P && r.leds() == M && v.len() == P && reading_flags.len() == P);
@@ -145,7 +173,8 @@ impl<const P: usize> Inspector<P> {
         let mut decoded = PixelRef::<M>::new();
         let (mut wsum, mut wdelta) = (0.0f32, 0.0f32);
         let mut max_d2 = 0.0f32;
-        let scale = line_scale(r, v, &mut [0.0f32; P]);
+        let raw_scale = line_scale(r, v, &mut [0.0f32; P]);
+        let scale = LineScale::new(raw_scale);
         for p in 0..P {
             if p == next_group {
                 g += 1;
@@ -159,7 +188,13 @@ impl<const P: usize> Inspector<P> {
                     (&decoded.mean, &decoded.inv_sd, decoded.weight)
                 }
             };
-            let stat = point_stat(mean, inv_sd, group, &v[p].data.0[0], scale, readings);
+            let vp = &v[p].data.0[0];
+            let first = match early.and_then(|e| e.get(p)) {
+                Some(u) => *u,
+                None => unscaled(mean, inv_sd, group, vp, readings),
+            };
+            let stat = scaled::<M>(&first, vp[M - 1], mean[M - 1], group, &scale, readings)
+                .unwrap_or_else(|| point::direct_stat(mean, inv_sd, group, vp, raw_scale, readings));
             let was_out = self.out[p].is_some();
             let (kind, held) = if reading_flags[p] & UNREADABLE == 0 && leaving.within(&stat) {
                 // Out at neither thresholds (see `Limits::within`).

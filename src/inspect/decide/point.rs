@@ -164,9 +164,13 @@ pub(super) fn select(x: &mut [f32], k: usize) -> f32 {
 
 /// The per-point statistics of a point with readings `v`, its pixel's
 /// reference `mean` and inverse standard deviations `inv_sd` and its
-/// group's values `group`, at the line's `scale` (see the module docs).
-/// Only the first `readings` changes are worked out, the rest left 0 (the
-/// decision skips those whose windows are off: [`Limits::readings`]).
+/// group's values `group`, at the line's `scale` (see the module docs), in
+/// one go and as the decision works them out: in two parts
+/// ([`unscaled`](super::unscaled::unscaled), then
+/// [`scaled`](super::unscaled::scaled)), or directly where the two parts
+/// would lose precision. Only the first `readings` changes are worked out,
+/// the rest left 0 (the decision skips those whose windows are off:
+/// [`Limits::readings`]).
 pub fn point_stat<const M: usize>(
     mean: &[f32; M],
     inv_sd: &[f32; M],
@@ -175,26 +179,28 @@ pub fn point_stat<const M: usize>(
     scale: f32,
     readings: usize,
 ) -> PointStat {
-    // One copy per count, each unrolled whole: with the count known only
-    // at run time the compiler keeps the differences in memory, which
-    // costs what skipping the rows saves.
-    match readings {
-        1 => point_stat_of::<M, 1>(mean, inv_sd, group, v, scale),
-        2 => point_stat_of::<M, 2>(mean, inv_sd, group, v, scale),
-        _ => point_stat_of::<M, READINGS>(mean, inv_sd, group, v, scale),
-    }
+    let u = super::unscaled::unscaled(mean, inv_sd, group, v, readings);
+    let s = super::unscaled::LineScale::new(scale);
+    super::unscaled::scaled::<M>(&u, v[M - 1], mean[M - 1], group, &s, readings)
+        .unwrap_or_else(|| direct_stat(mean, inv_sd, group, v, scale, readings))
 }
 
-/// [`point_stat`] of the first `R` readings. Not inlined: one symbol for
-/// the decision's per-point cost in QEMU.
+/// The per-point statistics worked out directly from the scaled readings,
+/// `z = s .* (k v - mu)` then `y = L^-1 z` (the module docs): for a point
+/// whose two parts would lose precision
+/// ([`scaled`](super::unscaled::scaled) says which). Not inlined: a cold
+/// path, and one symbol for its cost in QEMU.
 #[inline(never)]
-fn point_stat_of<const M: usize, const R: usize>(
+pub(super) fn direct_stat<const M: usize>(
     mean: &[f32; M],
     inv_sd: &[f32; M],
     group: &[f32],
     v: &[f32; M],
     scale: f32,
+    readings: usize,
 ) -> PointStat {
+    // One copy for every count of changes: the decision's fast path is the
+    // two parts; this one is for the points they would not keep precise.
     const { assert!(M >= 2 && crate::inspect::recipe::group_len(M) <= MAX_GROUP_VALUES) };
     // One length check here, none per value below.
     let group = &group[..crate::inspect::recipe::group_len(M)];
@@ -216,7 +222,7 @@ fn point_stat_of<const M: usize, const R: usize>(
         d2 += y * y;
     }
     let mut delta = [0.0f32; READINGS];
-    for d in delta.iter_mut().take(R) {
+    for d in delta.iter_mut().take(readings) {
         let mut acc = 0.0f32;
         for dvi in &dv {
             acc += group[k] * *dvi;
