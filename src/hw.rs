@@ -47,6 +47,9 @@ pub trait LineSensor {
     /// Largest raw value; readings at or above it are saturated.
     fn full_scale(&self) -> u16;
     /// Integrates light for `exposure_us` microseconds and reads one frame.
+    /// The integration starts before the first await that waits for it:
+    /// the acquisition polls the read once, then does other work while the
+    /// frame integrates ([`crate::acquire::FrameWork::integrating`]).
     async fn read_frame(&mut self, exposure_us: u32, out: &mut [u16]) -> Result<(), SensorError>;
 }
 

@@ -536,12 +536,27 @@ fn the_handheld_cut_reads_the_black_glass_through_its_shorter_exposures() {
     let mut c = client(flash(), ZONES);
     c.provision(&sign_for_tests(&trained.blob), |_, _| {}).unwrap();
     c.load_scene(&frames).unwrap();
+    let before = c.transport().scene.switches().len();
     let pts = c.measure(2).unwrap();
     check_points(&trained.blob, &frames, &pts, 2);
     for p in &pts {
         assert_eq!(p.flags & brdf_meter::protocol::flags::SATURATED, 0, "point {}", p.point);
         assert!((p.readings[0] - 100.0).abs() < 5.0, "point {}: {} GU", p.point, p.readings[0]);
     }
+    // Every other reading's frames, the shorter ones too, come before the
+    // last LED's long frame: while it integrates, each pixel's other
+    // readings are final (what an inspection works out early needs).
+    let order = BlobView::parse(&trained.blob).unwrap().led_order();
+    let sw = c.transport().scene.switches()[before..].to_vec();
+    let line = sw.len() / 2;
+    assert_eq!(sw[..line], sw[line..], "both lines take the same frames");
+    let last_long = sw[..line].iter().position(|l| *l == Some(order[M - 1])).unwrap();
+    let others = |l: &Option<u8>| l.is_some_and(|l| order[..M - 1].contains(&l));
+    assert!(sw[last_long..line].iter().all(|l| !others(l)), "{sw:?}");
+    assert!(
+        sw[..last_long].iter().filter(|l| others(l)).count() > M - 1,
+        "no shorter frame before the last LED: {sw:?}"
+    );
 }
 
 /// The handheld's line cut to the simulated device, trained as the product

@@ -76,6 +76,11 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
     }
     let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
     assert_eq!(rejected, [1, 3, 5, 7], "the scratch lines, and only them");
+    // Every point's first part was worked out while its line's last frame
+    // integrated: after it, only the rest (and the verdicts are still the
+    // host's, which works each point out whole).
+    let early = c.transport().shared.core.lock(|c| c.borrow().early_points);
+    assert_eq!(early as usize, 8 * P);
     for v in run.verdicts.iter().filter(|v| v.rejected()) {
         let r = v.runs.as_slice();
         assert!(

@@ -135,6 +135,12 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
         }
     }
 
+    /// Whether pixel `p`'s first `readings` readings are corrected: no
+    /// later frame of the line changes them.
+    pub fn final_through(&self, p: usize, readings: usize) -> bool {
+        self.done[..readings.min(M)].iter().all(|d| d[p])
+    }
+
     #[inline(always)]
     fn correct(&mut self, i: usize, p: usize, t: &mut Target<'_, M, P>, k: &Exposures<'_>) {
         let (x, f) = k.reading(t.raw, i, p, t.white[p][i], t.full_scale);
@@ -149,24 +155,29 @@ impl<const M: usize, const P: usize> LineCorrection<M, P> {
 
 impl<const M: usize, const P: usize> RawLine<M, P> {
     /// The frames of this recorded line in the order the acquisition reads
-    /// them (`acquire_line`): the dark frame, each reading's long exposure,
-    /// then per shorter exposure the readings whose frame at the exposure
-    /// before saturated somewhere and whose frame at this one was taken.
-    /// How a benchmark replays a line through [`LineCorrection`].
+    /// them (`acquire_line`): the dark frame, then in two passes (the first
+    /// m - 1 readings, then the last) each reading's long exposure, then per
+    /// shorter exposure the readings whose frame at the exposure before
+    /// saturated somewhere and whose frame at this one was taken. How a
+    /// benchmark replays a line through [`LineCorrection`].
     pub fn frames_read(&self, full_scale: u16, levels: usize) -> impl Iterator<Item = FrameRead> + '_ {
-        let long = (0..M).map(FrameRead::Long);
-        let short = (0..levels.min(MAX_SHORT_EXPOSURES)).flat_map(move |level| {
-            (0..M).filter_map(move |i| {
-                let longer = if level == 0 {
-                    Some(&self.lit[i])
-                } else {
-                    self.short_taken[level - 1][i].then_some(&self.short[level - 1][i])
-                };
-                let saturated = longer.is_some_and(|f| f.iter().any(|x| *x >= full_scale));
-                (saturated && self.short_taken[level][i]).then_some(FrameRead::Short { level, reading: i })
-            })
-        });
-        core::iter::once(FrameRead::Dark).chain(long).chain(short)
+        let pass = move |readings: core::ops::Range<usize>| {
+            let long = readings.clone().map(FrameRead::Long);
+            let short = (0..levels.min(MAX_SHORT_EXPOSURES)).flat_map(move |level| {
+                readings.clone().filter_map(move |i| {
+                    let longer = if level == 0 {
+                        Some(&self.lit[i])
+                    } else {
+                        self.short_taken[level - 1][i].then_some(&self.short[level - 1][i])
+                    };
+                    let saturated = longer.is_some_and(|f| f.iter().any(|x| *x >= full_scale));
+                    (saturated && self.short_taken[level][i]).then_some(FrameRead::Short { level, reading: i })
+                })
+            });
+            long.chain(short)
+        };
+        let last = M.saturating_sub(1);
+        core::iter::once(FrameRead::Dark).chain(pass(0..last)).chain(pass(last..M))
     }
 }
 

@@ -337,17 +337,44 @@ impl Default for AcqConfig {
     }
 }
 
+/// What the acquisition does beside reading a line's frames, in the time
+/// the line waits anyway.
+#[cfg(feature = "app")]
+pub trait FrameWork<const M: usize, const P: usize> {
+    /// Told of each frame read once the next LED is switched and its
+    /// settling time started; runs while it settles (the settle is a
+    /// deadline set before it, so work shorter than the settle costs the
+    /// line nothing): the acquisition task corrects the frame there
+    /// ([`LineCorrection`]). The last frame's call comes after the LEDs are
+    /// off, before [`acquire_line`] returns; a frame whose read failed is
+    /// not told.
+    fn read(&mut self, f: FrameRead, raw: &RawLine<M, P>);
+
+    /// Runs while LED frame `f` integrates (the sensor's read has started
+    /// its exposure and waits for it): work shorter than the exposure
+    /// costs the line nothing. The inspection works out the first part of
+    /// its decision here, while the line's last LED frame integrates.
+    fn integrating(&mut self, f: FrameRead) {
+        let _ = f;
+    }
+}
+
+#[cfg(feature = "app")]
+impl<F: FnMut(FrameRead, &RawLine<M, P>), const M: usize, const P: usize> FrameWork<M, P> for F {
+    fn read(&mut self, f: FrameRead, raw: &RawLine<M, P>) {
+        self(f, raw)
+    }
+}
+
 /// Reads one line's frames: dark, then one frame per reading with LED
-/// `order[i]` lit; then, for each shorter exposure while a frame still
-/// saturates, a dark frame and that frame again. The LEDs are off when this
-/// returns, error or not.
-///
-/// `on_frame` is told of each frame read once the next LED is switched and
-/// its settling time started, and runs while it settles (the settle is a
-/// deadline set before it, so work shorter than the settle costs the line
-/// nothing): the acquisition task corrects the frame there
-/// ([`LineCorrection`]). The last frame's call comes after the LEDs are off,
-/// before this returns; a frame whose read failed is not told.
+/// `order[i]` lit, and for each shorter exposure while a frame still
+/// saturates, that frame again (after a dark frame at that exposure, once a
+/// line). In two passes: the first m - 1 readings, then the last. So every
+/// other reading is final before the last LED's long frame integrates, and
+/// the inspection works out the first part of its decision then
+/// ([`FrameWork::integrating`]); the frames are the same, and as many, as
+/// in one pass. The LEDs are off when this returns, error or not. `work`
+/// runs between (see [`FrameWork`]).
 #[cfg(feature = "app")]
 pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M: usize, const P: usize>(
     leds: &mut L,
@@ -355,8 +382,9 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
     order: &[u8; M],
     cfg: &AcqConfig,
     raw: &mut RawLine<M, P>,
-    mut on_frame: impl FnMut(FrameRead, &RawLine<M, P>),
+    work: &mut impl FrameWork<M, P>,
 ) -> Result<(), crate::hw::SensorError> {
+    use embassy_futures::join::join;
     use embassy_time::Timer;
     // The frame read last, not yet told.
     let mut pending: Option<FrameRead> = None;
@@ -365,9 +393,17 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
         () => {{
             let t = Timer::after_micros(cfg.settle_us as u64);
             if let Some(f) = pending.take() {
-                on_frame(f, raw);
+                work.read(f, raw);
             }
             t.await;
+        }};
+    }
+    // Reads an LED frame, with the work for its exposure: the read is
+    // polled first, so the exposure has started when the work runs.
+    macro_rules! read_lit {
+        ($exposure:expr, $into:expr, $f:expr) => {{
+            let f = $f;
+            join(sensor.read_frame($exposure, $into), async { work.integrating(f) }).await.0
         }};
     }
     let fs = sensor.full_scale();
@@ -378,64 +414,72 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
     if r.is_ok() {
         pending = Some(FrameRead::Dark);
     }
-    for (i, &led) in order.iter().enumerate() {
-        if r.is_err() {
-            break;
-        }
-        leds.set(Some(led), cfg.intensity).await;
-        settle!();
-        r = sensor.read_frame(cfg.exposure_us, &mut raw.lit[i]).await;
-        if r.is_ok() {
-            pending = Some(FrameRead::Long(i));
-        }
-    }
-    'ladder: for level in 0..cfg.short_levels() {
-        if r.is_err() {
-            break;
-        }
-        let exposure = cfg.short_exposures_us[level];
-        let mut dark_taken = false;
-        for (i, &led) in order.iter().enumerate() {
-            let longer = if level == 0 {
-                Some(&raw.lit[i])
-            } else {
-                raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i])
-            };
-            if !longer.is_some_and(|f| f.iter().any(|x| *x >= fs)) {
-                continue;
+    // A dark frame per shorter exposure, once a line (bit `level` once
+    // taken); none after a simulated sensor said it has no frames at one.
+    let mut dark_taken = 0u8;
+    let mut shorter = true;
+    for pass in [0..M.saturating_sub(1), M.saturating_sub(1)..M] {
+        for i in pass.clone() {
+            if r.is_err() {
+                break;
             }
-            if !dark_taken {
-                leds.set(None, 0).await;
+            leds.set(Some(order[i]), cfg.intensity).await;
+            settle!();
+            r = read_lit!(cfg.exposure_us, &mut raw.lit[i], FrameRead::Long(i));
+            if r.is_ok() {
+                pending = Some(FrameRead::Long(i));
+            }
+        }
+        let levels = if shorter { cfg.short_levels() } else { 0 };
+        'ladder: for level in 0..levels {
+            if r.is_err() {
+                break;
+            }
+            let exposure = cfg.short_exposures_us[level];
+            for i in pass.clone() {
+                let longer = if level == 0 {
+                    Some(&raw.lit[i])
+                } else {
+                    raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i])
+                };
+                if !longer.is_some_and(|f| f.iter().any(|x| *x >= fs)) {
+                    continue;
+                }
+                if dark_taken & (1 << level) == 0 {
+                    leds.set(None, 0).await;
+                    settle!();
+                    r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
+                    dark_taken |= 1 << level;
+                    if r == Err(crate::hw::SensorError::NoData) {
+                        // A simulated sensor without frames at this exposure:
+                        // the line goes on with what it has (saturated stays so).
+                        r = Ok(());
+                        shorter = false;
+                        break 'ladder;
+                    }
+                    if r.is_err() {
+                        break;
+                    }
+                }
+                leds.set(Some(order[i]), cfg.intensity).await;
                 settle!();
-                r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
-                dark_taken = true;
+                r = read_lit!(exposure, &mut raw.short[level][i], FrameRead::Short { level, reading: i });
                 if r == Err(crate::hw::SensorError::NoData) {
-                    // A simulated sensor without frames at this exposure:
-                    // the line goes on with what it has (saturated stays so).
                     r = Ok(());
+                    shorter = false;
                     break 'ladder;
                 }
                 if r.is_err() {
                     break;
                 }
+                raw.short_taken[level][i] = true;
+                pending = Some(FrameRead::Short { level, reading: i });
             }
-            leds.set(Some(led), cfg.intensity).await;
-            settle!();
-            r = sensor.read_frame(exposure, &mut raw.short[level][i]).await;
-            if r == Err(crate::hw::SensorError::NoData) {
-                r = Ok(());
-                break 'ladder;
-            }
-            if r.is_err() {
-                break;
-            }
-            raw.short_taken[level][i] = true;
-            pending = Some(FrameRead::Short { level, reading: i });
         }
     }
     leds.set(None, 0).await;
     if let (Ok(()), Some(f)) = (r, pending) {
-        on_frame(f, raw);
+        work.read(f, raw);
     }
     r
 }

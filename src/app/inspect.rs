@@ -163,6 +163,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         line: u32,
         v: &[SVector<f32, M>; P],
         reading_flags: &[u8; P],
+        early: &crate::inspect::decide::UnscaledLine<P>,
     ) -> Result<(Verdict, Option<Pulse>), DeviceError> {
         let now = Instant::now().as_micros();
         self.core.lock(|c| {
@@ -176,7 +177,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
                 cal.active().is_some()
                     && cal.estimate_point(p, &v[p], reading_flags[p], &mut rho).flags & flags::OUT_OF_PRIOR != 0
             };
-            let verdict = c.inspector.line(&recipe, line, v, reading_flags, out_of_prior);
+            let verdict = c.inspector.line_with(&recipe, line, v, reading_flags, Some(early), out_of_prior);
             let pulse = c.reject_plan.after_verdict(recipe.settings(), line, verdict.rejected(), now);
             Ok((verdict, pulse))
         })

@@ -111,6 +111,9 @@ pub struct LineBuf<const M: usize, const P: usize> {
     pub v: [SVector<f32, M>; P],
     /// Flags per pixel.
     pub flags: [u8; P],
+    /// An inspection's first part of each point's statistics, worked out
+    /// while the line's last LED frame integrated.
+    pub early: crate::inspect::decide::UnscaledLine<P>,
 }
 
 impl<const M: usize, const P: usize> LineBuf<M, P> {
@@ -121,6 +124,28 @@ impl<const M: usize, const P: usize> LineBuf<M, P> {
             raw: RawLine::new(),
             v: [SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])); P],
             flags: [0; P],
+            early: crate::inspect::decide::UnscaledLine::new(),
+        }
+    }
+}
+
+impl<const M: usize, const P: usize> LineBuf<M, P> {
+    /// Writes `K` empty line buffers into `slot` in place and returns them.
+    /// The firmware's two (29 KB on the board) are too large to build on
+    /// the stack and move into their static, as `StaticCell::init` would.
+    pub fn init_in_place<const K: usize>(slot: &mut core::mem::MaybeUninit<[Self; K]>) -> &mut [Self; K] {
+        let p = slot.as_mut_ptr();
+        // SAFETY: `p` is valid for writes of one `[Self; K]`. Every field of
+        // an empty buffer but `state` is integers, floats and bools, for
+        // which zero bytes are the valid values 0, 0.0 and false (what
+        // `new` gives); each `state`, whose zero bytes need not be a valid
+        // `LineState`, is written whole before the reference is made.
+        unsafe {
+            core::ptr::write_bytes(p, 0, 1);
+            for k in 0..K {
+                core::ptr::addr_of_mut!((*p)[k].state).write(LineState::Empty);
+            }
+            &mut *p
         }
     }
 }
@@ -162,6 +187,10 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     /// (the store never writes the active slot, and neither the recipe nor
     /// the calibration can change while a job runs).
     pub recipe_view: Option<crate::inspect::RecipeView<'static>>,
+    /// Points of inspected lines whose first part of the decision was
+    /// worked out while their line's last frame integrated (a diagnostic:
+    /// the rest are decided whole after the last frame).
+    pub early_points: u32,
 }
 
 /// Everything the three tasks share; the platform puts one in a `static`.
@@ -227,6 +256,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             reject_plan: crate::inspect::reject::Planner::new(),
             inspecting: false,
             recipe_view: None,
+            early_points: 0,
         };
         Self {
             core: BlockingMutex::new(RefCell::new(core)),

@@ -3,8 +3,9 @@
 use super::self_test::Check;
 use super::{Job, LineBuf, LineState, OutFrame, Shared};
 use crate::acquire::by_frame::Target;
-use crate::acquire::{FrameRead, LineCorrection, RawLine, acquire_line};
+use crate::acquire::{FrameRead, FrameWork, LineCorrection, RawLine, acquire_line};
 use crate::hw::{FrameInput, Leds, LineSensor, MappedFlash};
+use crate::inspect::decide::UnscaledLine;
 use crate::protocol::{
     self, DeviceError, Encoding, FrameReader, MAX_FRAME, MAX_WIRE_BINS, PointIn, PointMetaWire, PointsBlock, PushError,
     Pushed, Request, Response, flags,
@@ -118,47 +119,14 @@ where
             };
             // Waits while both buffers are in use: estimation is the pace.
             let buf = lines_out.send().await;
-            let LineBuf { raw, v, flags, .. } = &mut *buf;
-            // Each frame is corrected while the next one's LED settles, by
-            // the calibration the line started with; whatever that leaves
-            // (or all of it, when the calibration changed meanwhile) after
-            // the last frame.
-            let correct =
-                |f: Option<FrameRead>, raw: &RawLine<M, P>, v: &mut _, fl: &mut _, by: &mut LineCorrection<M, P>| {
-                    shared.core.lock(|c| {
-                        let c = c.borrow();
-                        let a = c.cal.active()?;
-                        let mut t = Target {
-                            raw,
-                            white: &a.white,
-                            linearity: a.linearity.as_ref(),
-                            full_scale: shared.full_scale,
-                            cfg: &shared.acq,
-                            v,
-                            fl,
-                        };
-                        match f {
-                            Some(f) if a.info == cal => by.frame(f, &mut t),
-                            Some(_) => {}
-                            None if a.info == cal => by.finish(&mut t),
-                            None => {
-                                // The whole line again, by the calibration now active.
-                                by.frame(FrameRead::Dark, &mut t);
-                                by.finish(&mut t);
-                            }
-                        }
-                        Some(())
-                    })
-                };
-            let acquired = acquire_line(&mut leds, &mut sensor, &order, &shared.acq, raw, |f, raw| {
-                correct(Some(f), raw, &mut *v, &mut *flags, &mut by_frame);
-            })
-            .await;
-            if let Err(e) = acquired {
+            let LineBuf { raw, v, flags, early, .. } = &mut *buf;
+            let mut work =
+                LineWork { shared, cal, v, fl: flags, by: &mut by_frame, early, inspect: job.inspect.is_some() };
+            if let Err(e) = acquire_line(&mut leds, &mut sensor, &order, &shared.acq, raw, &mut work).await {
                 error = Some(DeviceError::Sensor(e));
                 break;
             }
-            if correct(None, raw, v, flags, &mut by_frame).is_none() {
+            if work.finish(raw).is_none() {
                 error = Some(DeviceError::NoCalibration);
                 break;
             }
@@ -172,6 +140,95 @@ where
         let buf = lines_out.send().await;
         buf.state = LineState::End { job, lines: line, error };
         lines_out.send_done();
+    }
+}
+
+/// What the acquisition task does while a line's frames settle and
+/// integrate: each frame corrected while the next one's LED settles, by
+/// the calibration the line started with (whatever that leaves, or all of
+/// it when the calibration changed meanwhile, after the last frame:
+/// [`Self::finish`]); in an inspection, the first part of each point's
+/// decision while the last LED frame integrates.
+struct LineWork<'a, F, const N: usize, const M: usize, const P: usize> {
+    shared: &'a Shared<F, N, M, P>,
+    /// The calibration the line started with.
+    cal: protocol::CalInfo,
+    v: &'a mut [SVector<f32, M>; P],
+    fl: &'a mut [u8; P],
+    /// Which readings are corrected.
+    by: &'a mut LineCorrection<M, P>,
+    early: &'a mut UnscaledLine<P>,
+    inspect: bool,
+}
+
+impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> LineWork<'_, F, N, M, P> {
+    /// Corrects frame `f` (`None`: what is left after the last one).
+    fn correct(&mut self, f: Option<FrameRead>, raw: &RawLine<M, P>) -> Option<()> {
+        self.shared.core.lock(|c| {
+            let c = c.borrow();
+            let a = c.cal.active()?;
+            let mut t = Target {
+                raw,
+                white: &a.white,
+                linearity: a.linearity.as_ref(),
+                full_scale: self.shared.full_scale,
+                cfg: &self.shared.acq,
+                v: self.v,
+                fl: self.fl,
+            };
+            match f {
+                Some(f) if a.info == self.cal => self.by.frame(f, &mut t),
+                Some(_) => {}
+                None if a.info == self.cal => self.by.finish(&mut t),
+                None => {
+                    // The whole line again, by the calibration now active:
+                    // what was worked out early is of readings now changed.
+                    self.by.frame(FrameRead::Dark, &mut t);
+                    self.by.finish(&mut t);
+                    self.early.clear();
+                }
+            }
+            Some(())
+        })
+    }
+
+    /// What is left after the line's last frame (`None`: no calibration).
+    fn finish(&mut self, raw: &RawLine<M, P>) -> Option<()> {
+        self.correct(None, raw)
+    }
+}
+
+impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> FrameWork<M, P> for LineWork<'_, F, N, M, P> {
+    fn read(&mut self, f: FrameRead, raw: &RawLine<M, P>) {
+        if f == FrameRead::Dark {
+            self.early.clear();
+        }
+        let _ = self.correct(Some(f), raw);
+    }
+
+    fn integrating(&mut self, f: FrameRead) {
+        // The last LED's long exposure (2 ms on the board, the CPU idle
+        // otherwise): the pixels whose other readings are all corrected get
+        // the first part of their decision, which needs neither the last
+        // reading nor the line's scale. The recipe is fixed while a job
+        // runs and lives in flash: no lock held while this works.
+        if !self.inspect || f != FrameRead::Long(M - 1) {
+            return;
+        }
+        let recipe = self.shared.core.lock(|c| {
+            let c = c.borrow();
+            // Readings corrected by a calibration since replaced are
+            // corrected again after the line: nothing to work out now.
+            if c.cal.active().map(|a| a.info) == Some(self.cal) { c.recipe_view } else { None }
+        });
+        if let Some(recipe) = recipe {
+            let by = &*self.by;
+            let n = self.early.work_out(&recipe, self.v, |p| by.final_through(p, M - 1)) as u32;
+            self.shared.core.lock(|c| {
+                let mut c = c.borrow_mut();
+                c.early_points = c.early_points.wrapping_add(n);
+            });
+        }
     }
 }
 
@@ -202,7 +259,7 @@ where
                 // for a rejected line whose points the host asked for.
                 let points = match job.inspect {
                     None => P,
-                    Some(ins) => match shared.decide_line(line, &buf.v, &buf.flags) {
+                    Some(ins) => match shared.decide_line(line, &buf.v, &buf.flags, &buf.early) {
                         Ok((mut verdict, pulse)) => {
                             let follow = verdict.rejected() && ins.defect_points;
                             if follow {

@@ -149,7 +149,7 @@ async fn main(spawner: Spawner) {
 
     static LINES: StaticCell<[LineBuf<M, P>; 2]> = StaticCell::new();
     static CHANNEL: StaticCell<Channel<'static, Cs, LineBuf<M, P>>> = StaticCell::new();
-    let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
+    let channel = CHANNEL.init(Channel::new(LineBuf::init_in_place(LINES.uninit())));
     let (lines_tx, lines_rx) = channel.split();
 
     // The USB device, now that the application that serves its DFU

@@ -119,7 +119,7 @@ fn main() -> ! {
     let shared: &'static QemuShared =
         SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true).with_firmware(updater));
     shared.set_recipes(RECIPES.init(shared.open_recipes(qemu::flash::take(&RECIPE_MEM), RECIPE_SLOT_LEN as u32)));
-    let channel = CHANNEL.init(Channel::new(LINES.init([LineBuf::new(), LineBuf::new()])));
+    let channel = CHANNEL.init(Channel::new(LineBuf::init_in_place(LINES.uninit())));
     let (lines_tx, lines_rx) = channel.split();
     let (rx, tx) = qemu::usart::init();
     EXECUTOR.init(Executor::new()).run(|spawner| {
