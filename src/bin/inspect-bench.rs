@@ -15,10 +15,16 @@
 //!   (`acquire::LineCorrection::frame`), which the acquisition task runs
 //!   while the next frame's LED settles, so it is not in the latency; each
 //!   is counted, so the largest can be held against the settling time;
+//! - `early`: the first part of each point's decision
+//!   (`UnscaledLine::work_out`, for the pixels whose other readings are
+//!   corrected), which the acquisition task works out while the last LED's
+//!   long frame integrates, so it is not in the latency either;
 //! - `correct`: what is left after the last frame: its correction and
 //!   `LineCorrection::finish`;
-//! - `decide`: `Inspector::line` (distance, windows, runs, drift; the
-//!   calibration's out-of-prior question at the points out);
+//! - `decide`: `Inspector::line_with` those first parts (the rest of each
+//!   point's statistics and the whole statistics of the points without
+//!   one, windows, runs, drift; the calibration's out-of-prior question at
+//!   the points out);
 //! - `frame`: the verdict's frame (postcard, CRC, COBS: `protocol::encode`);
 //! - `estimate`: `Calibration::estimate_point` for every point: the
 //!   estimation path a measurement runs instead, for the comparison.
@@ -29,6 +35,7 @@ use brdf_meter::acquire::by_frame::Target;
 use brdf_meter::acquire::{FrameRead, LineCorrection, MAX_SHORT_EXPOSURES, RawLine};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::{Calibration, ZoneMatrix};
+use brdf_meter::inspect::decide::UnscaledLine;
 use brdf_meter::inspect::{Inspector, RecipeView};
 use brdf_meter::nalgebra::SVector;
 use brdf_meter::protocol::{self, MAX_FRAME, Response, flags};
@@ -49,6 +56,9 @@ static mut DATA: Aligned<DATA_LEN> = Aligned([0; DATA_LEN]);
 static mut RAM: [ZoneMatrix<N, M>; shape::board::RAM_ZONES] =
     [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::board::RAM_ZONES];
 static mut INSPECTOR: Inspector<P> = Inspector::new();
+/// In SRAM2: SRAM1 holds the data, the matrices and the stack.
+#[unsafe(link_section = ".sram2")]
+static mut EARLY: core::mem::MaybeUninit<UnscaledLine<P>> = core::mem::MaybeUninit::uninit();
 static mut OUT: [u8; MAX_FRAME] = [0; MAX_FRAME];
 
 /// Names the segments (first pass) or marks them (second pass).
@@ -71,11 +81,12 @@ const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
 #[entry]
 fn main() -> ! {
     // SAFETY: single-threaded firmware, no interrupts use these statics.
-    let (data, ram, inspector, out) = unsafe {
+    let (data, ram, inspector, early, out) = unsafe {
         (
             &mut (*core::ptr::addr_of_mut!(DATA)).0,
             &mut *core::ptr::addr_of_mut!(RAM),
             &mut *core::ptr::addr_of_mut!(INSPECTOR),
+            (*core::ptr::addr_of_mut!(EARLY)).write(UnscaledLine::new()),
             &mut *core::ptr::addr_of_mut!(OUT),
         )
     };
@@ -109,17 +120,28 @@ fn main() -> ! {
             let mut by_frame = LineCorrection::<M, P>::new();
             let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =
                 raw.frames_read(full_scale, acq.short_levels()).collect();
-            let Some((last, before)) = read.split_last() else { fail(b"inspect-bench: a line without frames") };
-            let mut t = Target { raw: &raw, white, linearity, full_scale, cfg: &acq, v: &mut v, fl: &mut fl };
-            for f in before {
-                at(marking, l, b"overlap");
-                by_frame.frame(*f, &mut t);
+            if read.is_empty() {
+                fail(b"inspect-bench: a line without frames");
             }
-            at(marking, l, b"correct");
-            by_frame.frame(*last, &mut t);
-            by_frame.finish(&mut t);
+            early.clear();
+            for (k, f) in read.iter().enumerate() {
+                if *f == FrameRead::Long(M - 1) {
+                    // While that frame integrates, before its correction.
+                    at(marking, l, b"early");
+                    let _ = early.work_out(&recipe, &v, |p| by_frame.final_through(p, M - 1));
+                }
+                let mut t = Target { raw: &raw, white, linearity, full_scale, cfg: &acq, v: &mut v, fl: &mut fl };
+                if k + 1 == read.len() {
+                    at(marking, l, b"correct");
+                    by_frame.frame(*f, &mut t);
+                    by_frame.finish(&mut t);
+                } else {
+                    at(marking, l, b"overlap");
+                    by_frame.frame(*f, &mut t);
+                }
+            }
             at(marking, l, b"decide");
-            let verdict = inspector.line(&recipe, l as u32, &v, &fl, |p| {
+            let verdict = inspector.line_with(&recipe, l as u32, &v, &fl, Some(early), |p| {
                 let mut rho = SVector::<f32, N>::zeros();
                 cal.estimate_point(p, &v[p], fl[p], &mut rho).flags & flags::OUT_OF_PRIOR != 0
             });
@@ -138,6 +160,8 @@ fn main() -> ! {
                 s.num(l as u32);
                 s.push(if verdict.rejected() { b" reject " } else { b" good " });
                 s.num(n as u32);
+                s.push(b" ");
+                s.num(early.ready() as u32);
                 s.end();
             }
         }

@@ -4,7 +4,8 @@
 //! shape (P = 128), what the device does between a line's last LED frame and
 //! its verdict (the correction left after that frame, decision, the
 //! verdict's frame; each earlier frame's correction, which runs while the
-//! next frame's LED settles, is counted on its own) and, for the
+//! next frame's LED settles, and the decision's first part, which runs
+//! while the last LED frame integrates, are counted on their own) and, for the
 //! comparison, the estimation path of every point; the trace is counted
 //! with the kernel bench's counter (instructions exact, Cortex-M4 cycles
 //! from its timing table, zero wait states assumed).
@@ -36,6 +37,12 @@ pub struct LineCost {
     /// The largest of those frames' corrections, cycles: what must fit in
     /// the settling time for the overlap to cost the line nothing.
     pub overlapped_max_cycles: f64,
+    /// The decision's first part, worked out while the last LED frame
+    /// integrates, cycles: what must fit in the exposure.
+    pub early_cycles: f64,
+    /// Points whose first part was worked out then (the rest are worked
+    /// out whole after the last frame).
+    pub early_points: usize,
     /// Correction left after the last frame + decision + frame, cycles.
     pub latency_cycles: f64,
     /// The same in us at 80 MHz.
@@ -85,18 +92,19 @@ pub fn run(root: &Path, zones: usize, progress: &dyn Fn(&str)) -> anyhow::Result
     progress("running the bench in QEMU (instruction trace)");
     let segs = run_traced(root, "scripts/inspect-bench.sh", &dir)?;
     let stdout = std::fs::read_to_string(dir.join("stdout.txt"))?;
-    let verdicts: Vec<(bool, usize)> = stdout
+    let verdicts: Vec<(bool, usize, usize)> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("VERDICT "))
         .map(|l| {
             let w: Vec<&str> = l.split_whitespace().collect();
-            (w.get(1) == Some(&"reject"), w.get(2).and_then(|n| n.parse().ok()).unwrap_or(0))
+            let number = |i: usize| w.get(i).and_then(|n| n.parse().ok()).unwrap_or(0);
+            (w.get(1) == Some(&"reject"), number(2), number(3))
         })
         .collect();
     ensure!(verdicts.len() == frames.len(), "the bench printed {} verdicts for {} lines", verdicts.len(), frames.len());
     let names = ["defect-free", "4-pixel scratch"];
     let mut out = Vec::new();
-    for (k, (rejected, bytes)) in verdicts.into_iter().enumerate() {
+    for (k, (rejected, bytes, early_points)) in verdicts.into_iter().enumerate() {
         ensure!(
             rejected == want[k],
             "line {k}: the firmware's verdict (reject {rejected}) is not the host's ({})",
@@ -119,6 +127,8 @@ pub fn run(root: &Path, zones: usize, progress: &dyn Fn(&str)) -> anyhow::Result
             frame_bytes: bytes,
             overlapped_frames: overlapped.len(),
             overlapped_max_cycles: overlapped.iter().copied().fold(0.0, f64::max),
+            early_cycles: cyc("early"),
+            early_points,
             latency_cycles: latency,
             latency_us: latency / SYSCLK_HZ as f64 * 1e6,
             decision_share: cyc("decide") / cyc("estimate"),
