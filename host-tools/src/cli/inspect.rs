@@ -577,14 +577,14 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
     let lines = crate::inspection::bench::run(&root, a.zones, &|s| eprintln!("  {s}"))?;
     let p = brdf_meter::shape::board::PIXELS as f64;
     println!(
-        "| line (P = 128) | verdict | frame bytes | frames corrected while the next settles (largest) | first part while the last frame integrates (points) | correct after the last frame | decide | frame | latency (cycles) | latency at 80 MHz | decide per point | estimate per point | decide / estimate |"
+        "| line (P = 128) | verdict | frame bytes | frames corrected while the next settles (largest) | first part while the last frame integrates (points) | correct after the last frame | decide | frame | latency (cycles) | latency at 80 MHz | decide per point | estimate per point | decide / estimate (with the first part) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for l in &lines {
         let get = |n: &str| l.stages.iter().filter(|s| s.0 == n).fold((0.0, 0.0), |a, s| (a.0 + s.1, a.1 + s.2));
         let (c, d, f, e) = (get("correct"), get("decide"), get("frame"), get("estimate"));
         println!(
-            "| {} | {} | {} | {} ({:.0} cyc = {:.0} us) | {:.0} cyc = {:.0} us ({}) | {:.0} instr / {:.0} cyc | {:.0} / {:.0} | {:.0} / {:.0} | {:.0} | {:.3} ms | {:.0} cyc | {:.0} cyc | {:.1} % |",
+            "| {} | {} | {} | {} ({:.0} cyc = {:.0} us) | {:.0} cyc = {:.0} us ({}) | {:.0} instr / {:.0} cyc | {:.0} / {:.0} | {:.0} / {:.0} | {:.0} | {:.3} ms | {:.0} cyc | {:.0} cyc | {:.1} % ({:.1} %) |",
             l.line,
             if l.rejected { "reject" } else { "good" },
             l.frame_bytes,
@@ -604,7 +604,8 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
             l.latency_us / 1000.0,
             d.1 / p,
             e.1 / p,
-            100.0 * l.decision_share
+            100.0 * l.decision_share,
+            100.0 * l.decision_share_with_early
         );
     }
     if let Some(path) = &a.json {

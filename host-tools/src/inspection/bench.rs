@@ -49,6 +49,9 @@ pub struct LineCost {
     pub latency_us: f64,
     /// Decision cycles per point over the estimation path's per point.
     pub decision_share: f64,
+    /// The same with the decision's first part (worked out before the
+    /// last frame) counted in.
+    pub decision_share_with_early: f64,
 }
 
 /// Prepares the data, runs the bench in QEMU and counts it.
@@ -132,6 +135,7 @@ pub fn run(root: &Path, zones: usize, progress: &dyn Fn(&str)) -> anyhow::Result
             latency_cycles: latency,
             latency_us: latency / SYSCLK_HZ as f64 * 1e6,
             decision_share: cyc("decide") / cyc("estimate"),
+            decision_share_with_early: (cyc("early") + cyc("decide")) / cyc("estimate"),
             stages,
         });
     }
