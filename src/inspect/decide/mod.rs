@@ -81,9 +81,9 @@ pub use point::{
 };
 pub use unscaled::{LineScale, SCALED_BB_LIMIT, Unscaled, UnscaledLine, scaled, unscaled};
 
-use super::recipe::{RecipeView, pixel_len};
+use super::recipe::RecipeView;
 use nalgebra::SVector;
-use point::{UNREADABLE, group_values, split_pixel};
+use point::{UNREADABLE, group_values, pixel_ref};
 
 /// The decision's state across lines for a sensor of P pixels.
 pub struct Inspector<const P: usize> {
@@ -181,13 +181,7 @@ impl<const P: usize> Inspector<P> {
                 next_group = if g + 1 < r.groups() { r.group_start(g + 1) } else { P };
                 group = group_values(r, g, &mut room);
             }
-            let (mean, inv_sd, weight) = match table.and_then(|t| split_pixel::<M>(&t[p * pixel_len(M)..])) {
-                Some(x) => x,
-                None => {
-                    decoded.load(r, p);
-                    (&decoded.mean, &decoded.inv_sd, decoded.weight)
-                }
-            };
+            let (mean, inv_sd, weight) = pixel_ref(table, r, p, &mut decoded);
             let vp = &v[p].data.0[0];
             let first = match early.and_then(|e| e.get(p)) {
                 Some(u) => *u,

@@ -99,10 +99,29 @@ pub(super) fn group_values<'a>(r: &RecipeView<'a>, g: usize, room: &'a mut [f32;
 /// A pixel's values read in place: its reference mean, inverse standard
 /// deviations and drift weight (`None` if `w` is shorter than a pixel).
 #[inline(always)]
-pub(super) fn split_pixel<const M: usize>(w: &[f32]) -> Option<(&[f32; M], &[f32; M], f32)> {
+fn split_pixel<const M: usize>(w: &[f32]) -> Option<(&[f32; M], &[f32; M], f32)> {
     let (mean, rest) = w.split_first_chunk::<M>()?;
     let (inv_sd, rest) = rest.split_first_chunk::<M>()?;
     Some((mean, inv_sd, *rest.first()?))
+}
+
+/// Pixel `p`'s reference mean, inverse standard deviations and drift
+/// weight: read in place from the recipe's pixel `table` when it is aligned
+/// (always on the device), else decoded into `decoded`.
+#[inline(always)]
+pub(super) fn pixel_ref<'a, const M: usize>(
+    table: Option<&'a [f32]>,
+    r: &RecipeView<'_>,
+    p: usize,
+    decoded: &'a mut PixelRef<M>,
+) -> (&'a [f32; M], &'a [f32; M], f32) {
+    match table.and_then(|t| split_pixel::<M>(&t[p * pixel_len(M)..])) {
+        Some(x) => x,
+        None => {
+            decoded.load(r, p);
+            (&decoded.mean, &decoded.inv_sd, decoded.weight)
+        }
+    }
 }
 
 /// The line's scale `k` (see the module docs): 1 over the median of the

@@ -28,7 +28,7 @@
 //! such a point is worked out directly, as before (a test bounds both on
 //! hard references).
 use super::point::PointStat;
-use crate::inspect::recipe::{RecipeView, pixel_len};
+use crate::inspect::recipe::RecipeView;
 use crate::shape::READINGS;
 use nalgebra::SVector;
 
@@ -212,18 +212,12 @@ impl<const P: usize> UnscaledLine<P> {
         for g in 0..r.groups() {
             let end = if g + 1 < r.groups() { r.group_start(g + 1) } else { P };
             let group = super::point::group_values(r, g, &mut room);
-            for p in r.group_start(g)..end.min(P) {
+            for (p, vp) in v.iter().enumerate().take(end).skip(r.group_start(g)) {
                 if !final_through(p) {
                     continue;
                 }
-                let (mean, inv_sd) = match table.and_then(|t| super::point::split_pixel::<M>(&t[p * pixel_len(M)..])) {
-                    Some((mean, inv_sd, _)) => (mean, inv_sd),
-                    None => {
-                        decoded.load(r, p);
-                        (&decoded.mean, &decoded.inv_sd)
-                    }
-                };
-                self.points[p] = unscaled(mean, inv_sd, group, &v[p].data.0[0], readings);
+                let (mean, inv_sd, _) = super::point::pixel_ref(table, r, p, &mut decoded);
+                self.points[p] = unscaled(mean, inv_sd, group, &vp.data.0[0], readings);
                 self.ready[p] = true;
                 n += 1;
             }
