@@ -24,6 +24,21 @@ use nalgebra::{SMatrix, SMatrixView, SVector};
 /// One zone's matrix as the kernel takes it: `W` transposed, M x N.
 pub type ZoneMatrix<const N: usize, const M: usize> = SMatrix<f32, M, N>;
 
+/// Fills `slot` with `Z` zero matrices in place and returns them: the
+/// firmware's RAM copy of the matrices (18 KB on the board), which built
+/// on the stack and moved into its static, as `StaticCell::init` would,
+/// would take that much stack for good (the firmware's `main` never
+/// returns).
+pub fn zeroed_in_place<const N: usize, const M: usize, const Z: usize>(
+    slot: &mut core::mem::MaybeUninit<[ZoneMatrix<N, M>; Z]>,
+) -> &mut [ZoneMatrix<N, M>; Z] {
+    // SAFETY: a matrix is `f32`s only, and zero bytes are 0.0.
+    unsafe {
+        core::ptr::write_bytes(slot.as_mut_ptr(), 0, 1);
+        slot.assume_init_mut()
+    }
+}
+
 /// Where the active matrices are read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -177,15 +192,6 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
         let out_of_prior_form = view.out_of_prior_form().unwrap_or(OutOfPriorForm::Linear);
         let uncertainty = view.uncertainty_in_place().ok_or(DeviceError::Storage)?;
         let gloss = if view.has_gloss() { Some(view.gloss_in_place().ok_or(DeviceError::Storage)?) } else { None };
-        let mut white = [[0.0f32; M]; P];
-        for (p, wp) in white.iter_mut().enumerate() {
-            for (i, x) in wp.iter_mut().enumerate() {
-                *x = view.white(p, i);
-            }
-        }
-        let zone_of: [u16; P] = core::array::from_fn(|p| view.zone_of_pixel(p) as u16);
-        let gloss_q =
-            core::array::from_fn(|p| gloss.map_or(0.0, |g| g.assigned_gu / g.reference_for(p, zone_of[p] as usize, P)));
         let led_order = core::array::from_fn(|i| view.led_order()[i]);
         if in_ram {
             for (i, dst) in self.ram[..z * k].iter_mut().enumerate() {
@@ -202,9 +208,9 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                 in_ram,
             },
             led_order,
-            white,
+            white: [[0.0; M]; P],
             linearity: view.linearity(),
-            zone_of,
+            zone_of: [0; P],
             zones: z,
             home: if in_ram { MatrixHome::Ram } else { MatrixHome::InPlace },
             in_place,
@@ -219,8 +225,18 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             uncertainty,
             gloss,
             gloss_clusters: view.gloss_clusters(),
-            gloss_q,
+            gloss_q: [0.0; P],
         });
+        // The per-pixel tables written in place: built on the stack and
+        // moved in, they took 4 KB of stack on the board (P = 128).
+        let a = self.active.as_mut().expect("just set");
+        for p in 0..P {
+            for (i, x) in a.white[p].iter_mut().enumerate() {
+                *x = view.white(p, i);
+            }
+            a.zone_of[p] = view.zone_of_pixel(p) as u16;
+            a.gloss_q[p] = gloss.map_or(0.0, |g| g.assigned_gu / g.reference_for(p, a.zone_of[p] as usize, P));
+        }
         Ok(())
     }
 

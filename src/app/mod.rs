@@ -193,6 +193,27 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub early_points: u32,
 }
 
+impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Core<F, N, M, P> {
+    /// The core on `store` with no calibration loaded yet.
+    fn booting(store: Store<F>, ram: &'static mut [ZoneMatrix<N, M>]) -> Self {
+        Self {
+            store,
+            cal: Calibration::new(ram),
+            status: DeviceStatus::default(),
+            firmware: None,
+            // The store was opened and both slots read: the self-test's first part.
+            self_test: crate::protocol::SelfTest { store: true, ..Default::default() },
+            update_refused: None,
+            recipes: None,
+            inspector: crate::inspect::Inspector::new(),
+            reject_plan: crate::inspect::reject::Planner::new(),
+            inspecting: false,
+            recipe_view: None,
+            early_points: 0,
+        }
+    }
+}
+
 /// Everything the three tasks share; the platform puts one in a `static`.
 pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     /// Store, calibration, status. A blocking mutex: every use is short and
@@ -233,56 +254,97 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         full_scale: u16,
         simulated: bool,
     ) -> Self {
-        let store =
-            Store::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| Calibration::<N, M, P>::check(v).is_ok());
-        let mut cal = Calibration::new(ram);
-        if let Some((info, view)) = store.active_blob() {
-            // Checked by `open`'s filter; a failure here would leave no
-            // calibration, which Measure reports as NoCalibration.
-            let _ = cal.load(&view, info);
-        }
-        let status = DeviceStatus { calibration: cal.active().map(|a| a.info), ..Default::default() };
-        // The store was opened and both slots read: the self-test's first part.
-        let self_test = crate::protocol::SelfTest { store: true, ..Default::default() };
-        let core = Core {
-            store,
-            cal,
-            status,
-            firmware: None,
-            self_test,
-            update_refused: None,
-            recipes: None,
-            inspector: crate::inspect::Inspector::new(),
-            reject_plan: crate::inspect::reject::Planner::new(),
-            inspecting: false,
-            recipe_view: None,
-            early_points: 0,
+        let mut slot = core::mem::MaybeUninit::uninit();
+        Self::init_in_place(&mut slot, flash, slot_len, ram, acq, full_scale, simulated);
+        // SAFETY: `init_in_place` wrote every field.
+        unsafe { slot.assume_init() }
+    }
+
+    /// [`Self::new`] written into `slot` in place, for the firmware's
+    /// static: the application (10 KB on the board) built on the stack and
+    /// moved, as `StaticCell::init` would, would take that much stack for
+    /// good, in the frame of a `main` that never returns.
+    pub fn init_in_place<'a>(
+        slot: &'a mut core::mem::MaybeUninit<Self>,
+        flash: F,
+        slot_len: u32,
+        ram: &'static mut [ZoneMatrix<N, M>],
+        acq: AcqConfig,
+        full_scale: u16,
+        simulated: bool,
+    ) -> &'a mut Self {
+        let store = Self::open_store(flash, slot_len);
+        let p = slot.as_mut_ptr();
+        // SAFETY: `p` is valid for writes of one `Self`, and every field is
+        // written before the reference is made.
+        let shared = unsafe {
+            use core::ptr::addr_of_mut;
+            addr_of_mut!((*p).core).write(BlockingMutex::new(RefCell::new(Core::booting(store, ram))));
+            addr_of_mut!((*p).start).write(Signal::new());
+            addr_of_mut!((*p).stop).write(AtomicBool::new(false));
+            addr_of_mut!((*p).out).write(Channel::new());
+            addr_of_mut!((*p).acq).write(acq);
+            addr_of_mut!((*p).full_scale).write(full_scale);
+            addr_of_mut!((*p).simulated).write(simulated);
+            addr_of_mut!((*p).reboot).write(Signal::new());
+            addr_of_mut!((*p).reject).write(Channel::new());
+            addr_of_mut!((*p).version).write(built_version());
+            addr_of_mut!((*p).target).write(Self::target_of(simulated));
+            slot.assume_init_mut()
         };
-        Self {
-            core: BlockingMutex::new(RefCell::new(core)),
-            start: Signal::new(),
-            stop: AtomicBool::new(false),
-            out: Channel::new(),
-            acq,
-            full_scale,
-            simulated,
-            reboot: Signal::new(),
-            reject: Channel::new(),
-            version: built_version(),
-            target: if simulated {
-                crate::firmware::image::Target::Qemu
-            } else {
-                crate::firmware::image::Target::Board
-            },
-        }
+        // Every field above: a field added to `Shared` fails to compile here
+        // until it is written too.
+        let Self {
+            core: _,
+            start: _,
+            stop: _,
+            out: _,
+            acq: _,
+            full_scale: _,
+            simulated: _,
+            reboot: _,
+            reject: _,
+            version: _,
+            target: _,
+        } = shared;
+        shared.load_active();
+        shared
+    }
+
+    fn open_store(flash: F, slot_len: u32) -> Store<F> {
+        Store::open(flash, slot_len, crate::signed::TRUSTED_KEYS, |v| Calibration::<N, M, P>::check(v).is_ok())
+    }
+
+    /// The machine this build is for: QEMU's for a simulated sensor.
+    fn target_of(simulated: bool) -> crate::firmware::image::Target {
+        if simulated { crate::firmware::image::Target::Qemu } else { crate::firmware::image::Target::Board }
+    }
+
+    /// Loads the store's newest valid blob, as booting does.
+    fn load_active(&self) {
+        self.core.lock(|c| {
+            let c = &mut *c.borrow_mut();
+            if let Some((info, view)) = c.store.active_blob() {
+                // Checked by `open`'s filter; a failure here would leave no
+                // calibration, which Measure reports as NoCalibration.
+                let _ = c.cal.load(&view, info);
+            }
+            c.status.calibration = c.cal.active().map(|a| a.info);
+        });
     }
 
     /// Hands the application the platform's firmware updater: it then
     /// takes updates over the link and confirms a trial boot after its
     /// self-test.
     pub fn with_firmware(self, port: FirmwarePort) -> Self {
-        self.core.lock(|c| c.borrow_mut().firmware = Some(port));
+        self.set_firmware(port);
         self
+    }
+
+    /// [`Self::with_firmware`] on the application in its static (the
+    /// firmware's, built in place: it is too large to move).
+    pub fn set_firmware(&self, port: FirmwarePort) {
+        self.core.lock(|c| c.borrow_mut().firmware = Some(port));
     }
 
     /// The version this firmware reports, when it is not this build's

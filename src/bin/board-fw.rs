@@ -111,7 +111,7 @@ async fn main(spawner: Spawner) {
     board::watchdog::start(iwdg);
 
     static RAM: StaticCell<[SMatrix<f32, M, N>; RAM_ZONES]> = StaticCell::new();
-    let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
+    let ram = brdf_meter::estimate::zeroed_in_place(RAM.uninit());
     // One flash, two users: the calibration store and embassy-boot's
     // updater, each in its own window of it.
     let cal = board::flash::calibration(b.flash);
@@ -128,7 +128,8 @@ async fn main(spawner: Spawner) {
         brdf_meter::signed::TRUSTED_KEYS,
     ));
     let shared: &'static BoardShared =
-        SHARED.init(Shared::new(cal, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false).with_firmware(updater));
+        Shared::init_in_place(SHARED.uninit(), cal, slot_len, ram, ACQ, board::sensor::FULL_SCALE, false);
+    shared.set_firmware(updater);
     // The inspection recipes: a third window of the same flash.
     static RECIPES: StaticCell<brdf_meter::inspect::RecipeStore<Part>> = StaticCell::new();
     let recipe_flash = board::flash::recipes(b.flash);

@@ -106,7 +106,7 @@ fn main() -> ! {
     let cp = cortex_m::Peripherals::take().expect("taken once");
     qemu::init();
     qemu::time_driver::init(cp.SYST);
-    let ram = RAM.init([SMatrix::zeros(); RAM_ZONES]);
+    let ram = brdf_meter::estimate::zeroed_in_place(RAM.uninit());
     let flash = qemu::flash::take(&FLASH_MEM);
     let updater = UPDATER.init(Updater::new(
         qemu::flash::take(&DFU_MEM),
@@ -117,7 +117,8 @@ fn main() -> ! {
         brdf_meter::signed::TRUSTED_KEYS,
     ));
     let shared: &'static QemuShared =
-        SHARED.init(Shared::new(flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true).with_firmware(updater));
+        Shared::init_in_place(SHARED.uninit(), flash, SLOT_LEN as u32, ram, ACQ, FULL_SCALE, true);
+    shared.set_firmware(updater);
     shared.set_recipes(RECIPES.init(shared.open_recipes(qemu::flash::take(&RECIPE_MEM), RECIPE_SLOT_LEN as u32)));
     let channel = CHANNEL.init(Channel::new(LineBuf::init_in_place(LINES.uninit())));
     let (lines_tx, lines_rx) = channel.split();
