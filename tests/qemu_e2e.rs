@@ -161,6 +161,7 @@ fn qemu_provisions_a_trained_blob_and_streams_bit_identical_estimates() {
     check_bit_identical(&marked, &frames, &points, 2, info.full_scale);
     assert!(points.iter().any(|p| p.zone == 1) && points.iter().any(|p| p.zone == 0 && p.readings[0].is_finite()));
     assert!(!q.log_text().contains("panic"), "{}", q.log_text());
+    system_tests::qemu::assert_stack_within_reserve(&q, "provisioning and measuring with each kind of calibration");
 }
 
 #[test]

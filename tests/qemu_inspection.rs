@@ -72,4 +72,5 @@ fn qemu_inspects_bit_for_bit_as_the_host_and_reports_its_reject_pulses() {
         run.pulses,
         run.link_bytes
     );
+    system_tests::qemu::assert_stack_within_reserve(&q, "teaching a recipe and inspecting");
 }

@@ -91,6 +91,8 @@ fn qemu_takes_a_signed_update_over_its_link_and_refuses_what_it_must() {
     let fw = c.firmware_info().unwrap();
     assert_eq!((fw.pending, fw.refused, fw.boot), (Some([0, 2, 0]), None, BootState::Confirmed));
     drop(c);
+    // Before the reset, which paints the stack again.
+    system_tests::qemu::assert_stack_within_reserve(&q, "verifying and marking two signed updates");
 
     // The reset goes through the bootloader, which reads the boot state from
     // QEMU's read-only flash: no swap, the same image comes back confirmed.

@@ -1,8 +1,8 @@
 //! The device as the host sees it: the link (transports, client, QEMU
 //! launcher), provisioning over USB and SWD, the board's memory map, the
 //! host's reference computation of the device, a measurement as files,
-//! its summary and its result with the uncertainty budget, and the firmware
-//! budget.
+//! its summary and its result with the uncertainty budget, the firmware
+//! budget, and the firmware's stack high-water mark.
 pub mod budget;
 pub mod link;
 pub mod measurement;
@@ -12,3 +12,4 @@ pub mod memory_map;
 pub mod provision;
 pub mod qemu_demo;
 pub mod reference;
+pub mod stack_use;

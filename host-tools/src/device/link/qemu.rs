@@ -5,6 +5,9 @@
 //!
 //! QEMU always runs under `timeout`, and [`QemuInstrument`] stops it when
 //! dropped, so a failing test or an interrupted command never leaves it behind.
+//!
+//! Its machine interface (QMP, on a Unix socket) reads the emulated RAM:
+//! [`QemuInstrument::stack_use`], the firmware's stack high-water mark.
 use super::{Client, TcpTransport};
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
@@ -64,6 +67,9 @@ pub struct QemuInstrument {
     pub addr: String,
     /// QEMU's output (its messages, and firmware panics through semihosting).
     pub log: PathBuf,
+    /// Its QMP socket (in the temporary directory: a Unix socket's path is
+    /// limited to about 100 bytes, which a deep target directory exceeds).
+    qmp: PathBuf,
 }
 
 fn free_port() -> std::io::Result<u16> {
@@ -94,8 +100,9 @@ impl QemuInstrument {
     /// pty's path, for [`Self::connect_serial`] or `--port`.
     pub fn start_pty(elf: &Path, max_run: Duration, extra: &[String]) -> anyhow::Result<Self> {
         let log = elf.with_file_name(format!("qemu-pty-{}.log", std::process::id()));
-        let child = Self::spawn(elf, "pty", max_run, extra, &log)?;
-        let mut q = Self { child: Some(child), addr: String::new(), log };
+        let qmp = qmp_socket();
+        let child = Self::spawn(elf, "pty", max_run, extra, &log, &qmp)?;
+        let mut q = Self { child: Some(child), addr: String::new(), log, qmp };
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
             // QEMU prints "char device redirected to /dev/pts/N (label serial0)".
@@ -123,7 +130,14 @@ impl QemuInstrument {
         Ok(c)
     }
 
-    fn spawn(elf: &Path, serial: &str, max_run: Duration, extra: &[String], log: &Path) -> anyhow::Result<Child> {
+    fn spawn(
+        elf: &Path,
+        serial: &str,
+        max_run: Duration,
+        extra: &[String],
+        log: &Path,
+        qmp: &Path,
+    ) -> anyhow::Result<Child> {
         let stderr = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
         Command::new("timeout")
             .arg("--foreground")
@@ -131,6 +145,8 @@ impl QemuInstrument {
             .args(["qemu-system-arm", "-machine", "b-l475e-iot01a", "-display", "none", "-monitor", "none"])
             .arg("-serial")
             .arg(serial)
+            .arg("-qmp")
+            .arg(format!("unix:{},server=on,wait=off", qmp.display()))
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
             // The bootloader at the reset vector, the application in ACTIVE.
             .arg(bootloader_path(elf))
@@ -149,8 +165,9 @@ impl QemuInstrument {
         let log = elf.with_file_name(format!("qemu-{port}.log"));
         // --foreground (in spawn): QEMU stays in our process group, so a
         // Ctrl-C of `host-tools qemu` reaches it too; `timeout` still ends it.
-        let child = Self::spawn(elf, &format!("tcp:127.0.0.1:{port},server=on,wait=off"), max_run, extra, &log)?;
-        let mut q = Self { child: Some(child), addr: format!("127.0.0.1:{port}"), log };
+        let qmp = qmp_socket();
+        let child = Self::spawn(elf, &format!("tcp:127.0.0.1:{port},server=on,wait=off"), max_run, extra, &log, &qmp)?;
+        let mut q = Self { child: Some(child), addr: format!("127.0.0.1:{port}"), log, qmp };
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
             if let Some(st) = q.child.as_mut().and_then(|c| c.try_wait().ok().flatten()) {
@@ -192,6 +209,33 @@ impl QemuInstrument {
         Ok(c.wait()?)
     }
 
+    /// `len` bytes of the machine's memory from address `addr`, read while
+    /// it runs (QMP's `pmemsave` into a temporary file).
+    pub fn read_memory(&self, addr: u32, len: u32) -> anyhow::Result<Vec<u8>> {
+        let mut qmp = Qmp::connect(&self.qmp)?;
+        let file = tempfile::NamedTempFile::new().context("creating a temporary file for QEMU's memory dump")?;
+        qmp.execute(&serde_json::json!({
+            "execute": "pmemsave",
+            "arguments": { "val": addr, "size": len, "filename": file.path() },
+        }))
+        .with_context(|| format!("reading {len} bytes of QEMU's memory at {addr:#010x}"))?;
+        let bytes = std::fs::read(file.path()).context("reading QEMU's memory dump")?;
+        if bytes.len() != len as usize {
+            bail!("QEMU wrote {} bytes of memory at {addr:#010x}, not the {len} asked", bytes.len());
+        }
+        Ok(bytes)
+    }
+
+    /// The stack high-water mark of the running firmware `elf` (built with
+    /// cortex-m-rt's `paint-stack`, as the QEMU firmware is):
+    /// [`crate::device::stack_use`].
+    pub fn stack_use(&self, elf: &Path) -> anyhow::Result<crate::device::stack_use::StackUse> {
+        use crate::device::stack_use::{StackRegion, StackUse};
+        let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+        let region = StackRegion::of_elf(&bytes, &elf.display().to_string())?;
+        StackUse::of(region, &self.read_memory(region.bottom, region.len())?)
+    }
+
     /// Stops QEMU: SIGTERM to `timeout` (which passes it on to QEMU), then
     /// SIGKILL if it lingers.
     pub fn stop(&mut self) {
@@ -212,5 +256,61 @@ impl QemuInstrument {
 impl Drop for QemuInstrument {
     fn drop(&mut self) {
         self.stop();
+        let _ = std::fs::remove_file(&self.qmp);
+    }
+}
+
+/// A new QMP socket path, unique in this process (tests start several
+/// instruments at once) and across processes.
+fn qmp_socket() -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    std::env::temp_dir().join(format!("brdf-qemu-{}-{k}.qmp", std::process::id()))
+}
+
+/// A connection to QEMU's machine interface: JSON lines, after the
+/// greeting and the capabilities' negotiation.
+struct Qmp {
+    reader: std::io::BufReader<std::os::unix::net::UnixStream>,
+    writer: std::os::unix::net::UnixStream,
+}
+
+impl Qmp {
+    fn connect(path: &Path) -> anyhow::Result<Self> {
+        let s = std::os::unix::net::UnixStream::connect(path)
+            .with_context(|| format!("connecting to QEMU's machine interface at {}", path.display()))?;
+        s.set_read_timeout(Some(Duration::from_secs(20)))?;
+        let mut q = Self { reader: std::io::BufReader::new(s.try_clone()?), writer: s };
+        let greeting = q.message()?;
+        if greeting.get("QMP").is_none() {
+            bail!("QEMU's machine interface greeted with {greeting}, not a QMP greeting");
+        }
+        q.execute(&serde_json::json!({ "execute": "qmp_capabilities" }))?;
+        Ok(q)
+    }
+
+    /// The next message (a JSON line).
+    fn message(&mut self) -> anyhow::Result<serde_json::Value> {
+        use std::io::BufRead as _;
+        let mut line = String::new();
+        if self.reader.read_line(&mut line).context("reading from QEMU's machine interface")? == 0 {
+            bail!("QEMU's machine interface closed");
+        }
+        serde_json::from_str(&line).with_context(|| format!("QEMU's machine interface sent {line:?}"))
+    }
+
+    /// Runs `command` and returns its `return`, skipping events.
+    fn execute(&mut self, command: &serde_json::Value) -> anyhow::Result<serde_json::Value> {
+        use std::io::Write as _;
+        writeln!(self.writer, "{command}").context("writing to QEMU's machine interface")?;
+        loop {
+            let mut m = self.message()?;
+            if let Some(r) = m.get_mut("return") {
+                return Ok(r.take());
+            }
+            if let Some(e) = m.get("error") {
+                bail!("QEMU refused {command}: {e}");
+            }
+        }
     }
 }
