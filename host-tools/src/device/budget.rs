@@ -268,7 +268,25 @@ pub fn check_file(path: &std::path::Path, kind: ImageKind, script: &str) -> Resu
     }
     let map = MemoryMap::from_script(script)?;
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    Ok(check(&name, kind, &sections, &map, MAX_DIMS, STACK_RESERVE))
+    let mut budget = check(&name, kind, &sections, &map, MAX_DIMS, STACK_RESERVE);
+    let frames = crate::device::stack_frames::frames(&elf).with_context(|| format!("{}", path.display()))?;
+    budget.lines.push(largest_frame_line(&frames));
+    budget.notes.push(format!(
+        "largest stack frames: {}",
+        frames.iter().take(4).map(|f| format!("{} B {}", f.bytes, f.function)).collect::<Vec<_>>().join("; ")
+    ));
+    Ok(budget)
+}
+
+/// One function's frame against half the stack reserve: a frame larger
+/// than that leaves too little of the reserve for the calls under it (the
+/// board's stack is only measured in QEMU, `crate::device::stack_use`).
+pub fn largest_frame_line(frames: &[crate::device::stack_frames::Frame]) -> Line {
+    Line {
+        what: "stack: largest function frame".into(),
+        used: frames.first().map_or(0, |f| u64::from(f.bytes)),
+        limit: STACK_RESERVE / 2,
+    }
 }
 
 #[cfg(test)]

@@ -2,7 +2,8 @@
 //! launcher), provisioning over USB and SWD, the board's memory map, the
 //! host's reference computation of the device, a measurement as files,
 //! its summary and its result with the uncertainty budget, the firmware
-//! budget, and the firmware's stack high-water mark.
+//! budget, and the firmware's stack: each function's frame and the
+//! high-water mark.
 pub mod budget;
 pub mod link;
 pub mod measurement;
@@ -12,4 +13,5 @@ pub mod memory_map;
 pub mod provision;
 pub mod qemu_demo;
 pub mod reference;
+pub mod stack_frames;
 pub mod stack_use;
