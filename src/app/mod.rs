@@ -243,27 +243,13 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
-    /// Boots: opens the store on `flash` (two slots of `slot_len` bytes), takes
-    /// the newest valid blob made for this build, and loads it (matrices to
-    /// `ram` when they fit, else in place).
-    pub fn new(
-        flash: F,
-        slot_len: u32,
-        ram: &'static mut [ZoneMatrix<N, M>],
-        acq: AcqConfig,
-        full_scale: u16,
-        simulated: bool,
-    ) -> Self {
-        let mut slot = core::mem::MaybeUninit::uninit();
-        Self::init_in_place(&mut slot, flash, slot_len, ram, acq, full_scale, simulated);
-        // SAFETY: `init_in_place` wrote every field.
-        unsafe { slot.assume_init() }
-    }
-
-    /// [`Self::new`] written into `slot` in place, for the firmware's
-    /// static: the application (10 KB on the board) built on the stack and
-    /// moved, as `StaticCell::init` would, would take that much stack for
-    /// good, in the frame of a `main` that never returns.
+    /// Boots into `slot`, in place: opens the store on `flash` (two slots
+    /// of `slot_len` bytes), takes the newest valid blob made for this
+    /// build, and loads it (matrices to `ram` when they fit, else in
+    /// place). In place because the application (10 KB on the board) built
+    /// on the stack and moved into its static, as `StaticCell::init` would,
+    /// would take that much stack for good, in the frame of a `main` that
+    /// never returns. The host simulation boots through here too.
     pub fn init_in_place<'a>(
         slot: &'a mut core::mem::MaybeUninit<Self>,
         flash: F,
@@ -336,23 +322,8 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     /// Hands the application the platform's firmware updater: it then
     /// takes updates over the link and confirms a trial boot after its
     /// self-test.
-    pub fn with_firmware(self, port: FirmwarePort) -> Self {
-        self.set_firmware(port);
-        self
-    }
-
-    /// [`Self::with_firmware`] on the application in its static (the
-    /// firmware's, built in place: it is too large to move).
     pub fn set_firmware(&self, port: FirmwarePort) {
         self.core.lock(|c| c.borrow_mut().firmware = Some(port));
-    }
-
-    /// The version this firmware reports, when it is not this build's
-    /// [`FIRMWARE_VERSION`]: the host simulation runs one build as image A
-    /// and image B of an update.
-    pub fn with_version(mut self, version: [u8; 3]) -> Self {
-        self.version = version;
-        self
     }
 
     /// A copy of the status.

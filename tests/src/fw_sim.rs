@@ -107,7 +107,11 @@ pub fn boot(chip: &SimFlash) -> FwDevice {
         Target::Qemu,
         brdf_meter::signed::TRUSTED_KEYS,
     )));
-    SimDevice::boot_on(part(CAL, CAL_LEN), chip.clone(), 4, |dev| dev.with_firmware(updater).with_version(version))
+    SimDevice::boot_on(part(CAL, CAL_LEN), chip.clone(), 4, |dev| {
+        dev.set_firmware(updater);
+        // One build runs as image A and image B of an update.
+        dev.version = version;
+    })
 }
 
 /// The bytes of the regions an update must never touch: the recipe slots

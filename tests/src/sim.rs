@@ -83,12 +83,12 @@ impl SimDevice {
     /// Boots a device on `flash` with room for `ram_zones` matrices in RAM
     /// (more zones are read in place from flash).
     pub fn boot(flash: SimFlash, ram_zones: usize) -> Self {
-        SimDevice::boot_on(flash.clone(), flash, ram_zones, |dev| dev)
+        SimDevice::boot_on(flash.clone(), flash, ram_zones, |_| {})
     }
 
     /// Boots a device on calibration flash `flash` and recipe flash `recipes`.
     pub fn boot_with_recipes(flash: SimFlash, recipes: SimFlash, ram_zones: usize) -> Self {
-        SimDevice::boot_full(flash.clone(), flash, recipes, ram_zones, |dev| dev)
+        SimDevice::boot_full(flash.clone(), flash, recipes, ram_zones, |_| {})
     }
 }
 
@@ -97,7 +97,7 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
     /// simulated `chip`), with room for `ram_zones` matrices in RAM;
     /// `setup` completes the application before its tasks start (hands it
     /// an updater, sets the version the running image reports).
-    pub fn boot_on(store: Fl, chip: SimFlash, ram_zones: usize, setup: impl FnOnce(Dev<Fl>) -> Dev<Fl>) -> Self {
+    pub fn boot_on(store: Fl, chip: SimFlash, ram_zones: usize, setup: impl FnOnce(&mut Dev<Fl>)) -> Self {
         Self::boot_full(store, chip, SimFlash::new(2 * RECIPE_SLOT_LEN as usize), ram_zones, setup)
     }
 
@@ -107,7 +107,7 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
         chip: SimFlash,
         recipes: SimFlash,
         ram_zones: usize,
-        setup: impl FnOnce(Dev<Fl>) -> Dev<Fl>,
+        setup: impl FnOnce(&mut Dev<Fl>),
     ) -> Self {
         let lock = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         MockDriver::get().reset();
@@ -115,7 +115,11 @@ impl<Fl: MappedFlash + 'static> SimDevice<Fl> {
         let (host, dev_end) = pipe();
         let (leds, sensor, scene): (SimLeds<P, F>, SimSensor<P, F>, SimFrames<P, F>) =
             sim_optics(FULL_SCALE, ACQ, host.frames_counter());
-        let shared: &'static Dev<Fl> = leak(setup(Shared::new(store, SLOT_LEN, ram, ACQ, FULL_SCALE, true)));
+        // Booted in place, as the firmware boots.
+        let shared =
+            Shared::init_in_place(leak(core::mem::MaybeUninit::uninit()), store, SLOT_LEN, ram, ACQ, FULL_SCALE, true);
+        setup(shared);
+        let shared: &'static Dev<Fl> = shared;
         shared.set_recipes(leak(shared.open_recipes(recipes.clone(), RECIPE_SLOT_LEN)));
         let reject = SimReject::default();
         let reject_out = reject.clone();
