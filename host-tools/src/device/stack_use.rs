@@ -11,8 +11,8 @@
 //! really takes (its tasks' poll frames, the estimation, the inspection,
 //! the update's signature check) and hold it within that reserve.
 //!
-//! On the board the same region can be read through the probe (`probe-rs
-//! read b32 ADDR WORDS`) and given to [`StackUse::of`].
+//! On a board the same region can be read through the probe (`probe-rs
+//! read b32`, `docs/guide/board.md`) and its words looked at the same way.
 use anyhow::{Context, anyhow};
 
 /// cortex-m-rt's paint (`STACK_PAINT_VALUE`).
