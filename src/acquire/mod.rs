@@ -450,21 +450,16 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
                     settle!();
                     r = sensor.read_frame(exposure, &mut raw.short_dark[level]).await;
                     dark_taken |= 1 << level;
-                    if r == Err(crate::hw::SensorError::NoData) {
-                        // A simulated sensor without frames at this exposure:
-                        // the line goes on with what it has (saturated stays so).
-                        r = Ok(());
-                        shorter = false;
-                        break 'ladder;
-                    }
-                    if r.is_err() {
-                        break;
-                    }
                 }
-                leds.set(Some(order[i]), cfg.intensity).await;
-                settle!();
-                r = read_lit!(exposure, &mut raw.short[level][i], FrameRead::Short { level, reading: i });
+                // The lit frame once the dark one is there; one outcome for both.
+                if r.is_ok() {
+                    leds.set(Some(order[i]), cfg.intensity).await;
+                    settle!();
+                    r = read_lit!(exposure, &mut raw.short[level][i], FrameRead::Short { level, reading: i });
+                }
                 if r == Err(crate::hw::SensorError::NoData) {
+                    // A simulated sensor without frames at this exposure:
+                    // the line goes on with what it has (saturated stays so).
                     r = Ok(());
                     shorter = false;
                     break 'ladder;
