@@ -8,9 +8,10 @@
 //!   search path:
 //!   - the applications (`board-fw`, `qemu-fw`, the board tests): ACTIVE;
 //!   - the bootloader: BOOTLOADER;
-//!   - the QEMU benches (kernel, line, verify): the chip's flash from the
-//!     reset vector to the end of ACTIVE, so QEMU runs them with no
-//!     bootloader in front (they are measuring tools, never installed).
+//!   - the QEMU benches (kernel, line, verify, inspect) and the
+//!     stack-overflow probe: the chip's flash from the reset vector to the
+//!     end of ACTIVE, so QEMU runs them with no bootloader in front (they
+//!     are measuring tools, never installed).
 //! - `-Tlink.x` is passed to every binary of this package: on a bare-metal
 //!   target all of them are firmware images.
 //! - `-Tdefmt.x` only to `board-fw`, the one binary that links defmt (the QEMU
@@ -90,8 +91,9 @@ fn trusted_keys(root: &Path) {
 /// region, started by the bootloader. A binary missing from these lists
 /// fails to link (its linker finds no memory.x).
 const APP_BINS: &[&str] = &["board-fw", "qemu-fw"];
-/// The QEMU benches: linked from the reset vector, run without a bootloader.
-const BENCH_BINS: &[&str] = &["kernel-bench", "line-bench", "verify-bench", "inspect-bench"];
+/// The QEMU benches and the stack-overflow probe: linked from the reset
+/// vector, run without a bootloader.
+const BENCH_BINS: &[&str] = &["kernel-bench", "line-bench", "verify-bench", "inspect-bench", "stack-overflow-probe"];
 
 /// Writes `OUT_DIR/region-<name>/image-region.x` (the file memory.x
 /// includes to say which region is FLASH); returns the folder.

@@ -2,8 +2,9 @@
 # Firmware checks for CI (called by scripts/test-all.sh):
 #  1. every firmware binary (board-fw; qemu-fw when the package has it) builds
 #     for thumbv7em-none-eabihf with no warning at all: board-fw and qemu-fw
-#     in the firmware profile (release + fat LTO), qemu-fw as its QEMU tests
-#     use it, so the test run builds it once;
+#     in the firmware profile (release + fat LTO), qemu-fw (and the
+#     stack-overflow probe, built on the same library) as their QEMU tests
+#     use them, so the test run builds each once;
 #  2. clippy is clean (-D warnings) for each of them, library included;
 #  3. the board image links its logger and memory.x's slot symbols, and a
 #     size report (flash and RAM per section). The budget check on that image
@@ -23,7 +24,7 @@ target_dir=${CARGO_TARGET_DIR:-target}
 # alias:profile:bin, their alias not being their binary's name.
 firmwares=("board-fw:firmware" "bootloader:bootloader:bootloader" "qemu-bootloader:qemu-bootloader:bootloader")
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
-  firmwares+=("qemu-fw:firmware")
+  firmwares+=("qemu-fw:firmware" "stack-overflow-probe:firmware")
 fi
 
 log=$(mktemp)

@@ -95,10 +95,14 @@ pub mod board {
     /// below this) uses it, and flashing board-fw again overwrites it; the
     /// calibration slots are never touched by the tests.
     pub const TEST_REGION: u32 = ACTIVE + ACTIVE_LEN - 2 * TEST_SLOT_LEN;
-    /// SRAM1 (statics, stack, the RAM zone buffer).
+    /// SRAM1 (the stack, then the statics, the RAM zone buffer among them).
     pub const RAM_ORIGIN: u32 = 0x2000_0000;
     /// Size of SRAM1.
     pub const RAM_LEN: u32 = 96 * 1024;
+    /// The stack: the start of SRAM1, below the statics, so that a stack
+    /// that outgrows it faults off the start of SRAM1 instead of
+    /// overwriting them (memory.x's STACK; the statics have the rest).
+    pub const STACK_LEN: u32 = 16 * 1024;
 
     const _: () = assert!(SLOT_B + SLOT_LEN == FLASH_BASE + FLASH_SIZE, "the map fills the chip's flash");
     const _: () = assert!(SLOT_LEN >= 320 * KIB, "calibration slots stay at least 320 KiB");

@@ -18,7 +18,10 @@
 //!   without overlap inside the chip, in whole erase pages;
 //! - slot header + blob + signature trailer <= one calibration slot;
 //! - static RAM (.data, .bss, .uninit; the executor's task futures and every
-//!   buffer are statics) + the stack reserve <= RAM.
+//!   buffer are statics) <= RAM, the part of SRAM1 after the stack;
+//! - the stack reserve <= STACK, the start of SRAM1, which the image's
+//!   stack symbols must be (a stack that outgrows it then faults off the
+//!   start of SRAM1 rather than overwriting the statics: memory.x says why).
 use std::fmt::Write as _;
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -45,6 +48,7 @@ pub const MAX_DIMS: Dims =
 /// board's own frames are larger where they hold a line's pixels (P = 128
 /// against QEMU's 32: loading a calibration takes 3.8 KB there, 1.4 KB in
 /// QEMU) and it serves USB, so its reserve keeps about half again that.
+/// memory.x's STACK region must hold it.
 pub const STACK_RESERVE: u64 = 12 * 1024;
 
 /// One allocated section of an ELF image.
@@ -190,6 +194,14 @@ fn layout_problems(map: &MemoryMap) -> Vec<String> {
             problems.push(format!("{a} ends at {:#x}, past {b} at {:#x}", ra.end(), rb.origin));
         }
     }
+    if map.stack.end() != map.ram.origin as u64 {
+        problems.push(format!(
+            "STACK ends at {:#x}, not where RAM (the statics) begins at {:#x}: a stack below the statics is what \
+             makes its overflow fault instead of overwriting them",
+            map.stack.end(),
+            map.ram.origin
+        ));
+    }
     if (map.dfu.length as u64) < map.flash.length as u64 + shape::FLASH_PAGE as u64 {
         problems.push("DFU is not one page larger than the active image (embassy-boot's swap needs it)".into());
     }
@@ -244,17 +256,14 @@ pub fn check(
             used: SLOT_HEADER_LEN as u64 + blob + brdf_meter::signed::TRAILER_LEN as u64,
             limit: map.slot_a.length.min(map.slot_b.length) as u64,
         },
-        Line {
-            what: format!("RAM: statics + {} B stack reserve", stack_reserve),
-            used: statics + stack_reserve,
-            limit: map.ram.length as u64,
-        },
+        Line { what: "RAM: statics (after the stack)".into(), used: statics, limit: map.ram.length as u64 },
+        Line { what: "STACK: the reserve the stack needs".into(), used: stack_reserve, limit: map.stack.length as u64 },
     ];
     let matrices = 4 * (dims.zones * dims.n * dims.m) as u64;
     let notes = vec![format!(
-        "the {} B of matrices stay in flash and are read in place; the RAM left after statics and stack is {} B",
+        "the {} B of matrices stay in flash and are read in place; the RAM left after the statics is {} B",
         matrices,
-        (map.ram.length as u64).saturating_sub(statics + stack_reserve)
+        (map.ram.length as u64).saturating_sub(statics)
     )];
     Budget { name: name.into(), lines, problems, notes }
 }
@@ -269,6 +278,16 @@ pub fn check_file(path: &std::path::Path, kind: ImageKind, script: &str) -> Resu
     let map = MemoryMap::from_script(script)?;
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     let mut budget = check(&name, kind, &sections, &map, MAX_DIMS, STACK_RESERVE);
+    let stack = crate::device::stack_use::StackRegion::of_elf(&elf, &name)?;
+    if (stack.bottom, u64::from(stack.top)) != (map.stack.origin, map.stack.end()) {
+        budget.problems.push(format!(
+            "the image's stack runs {:#x}..{:#x}, not memory.x's STACK {:#x}..{:#x} (was it linked with this memory.x?)",
+            stack.bottom,
+            stack.top,
+            map.stack.origin,
+            map.stack.end()
+        ));
+    }
     let frames = crate::device::stack_frames::frames(&elf).with_context(|| format!("{}", path.display()))?;
     budget.lines.push(largest_frame_line(&frames));
     budget.notes.push(format!(
@@ -307,9 +326,9 @@ mod tests {
             sec(".vector_table", 0x0800_7000, 0x188, true),
             sec(".text", 0x0800_7188, 60_000, true),
             sec(".rodata", 0x0801_7000, 8_000, true),
-            sec(".data", 0x2000_0000, 100, true),
-            sec(".bss", 0x2000_0064, 30_000, false),
-            sec(".uninit", 0x2000_8000, 1_024, false),
+            sec(".data", 0x2000_4000, 100, true),
+            sec(".bss", 0x2000_4064, 30_000, false),
+            sec(".uninit", 0x2000_C000, 1_024, false),
         ]
     }
 
@@ -319,7 +338,8 @@ mod tests {
         assert!(b.ok(), "{}", b.table());
         assert_eq!(b.lines[0].used, 0x188 + 60_000 + 8_000 + 100);
         assert_eq!(b.lines[1].used, (SLOT_HEADER_LEN + MAX_DIMS.blob_len() + brdf_meter::signed::TRAILER_LEN) as u64);
-        assert_eq!(b.lines[2].used, 100 + 30_000 + 1_024 + STACK_RESERVE);
+        assert_eq!(b.lines[2].used, 100 + 30_000 + 1_024);
+        assert_eq!((b.lines[3].used, b.lines[3].limit), (STACK_RESERVE, 16 * 1024));
     }
 
     #[test]
@@ -360,11 +380,26 @@ mod tests {
     }
 
     #[test]
-    fn statics_that_leave_no_stack_fail() {
+    fn statics_past_their_region_or_a_reserve_past_the_stack_fail() {
         let mut s = typical();
-        s[4].size = 90 * 1024;
+        s[4].size = 80 * 1024;
         let b = check("fw", ImageKind::Application, &s, &board_map(), MAX_DIMS, STACK_RESERVE);
         assert!(!b.lines[2].ok() && !b.ok());
+        let b = check("fw", ImageKind::Application, &typical(), &board_map(), MAX_DIMS, 17 * 1024);
+        assert!(!b.lines[3].ok() && !b.ok());
+    }
+
+    #[test]
+    fn a_stack_above_the_statics_fails() {
+        // cortex-m-rt's own layout: the statics at the start of SRAM1, the
+        // stack over them, where an overflow writes over them unseen.
+        let script = MEMORY_X
+            .replace("STACK         : ORIGIN = 0x20000000", "STACK         : ORIGIN = 0x20014000")
+            .replace("RAM           : ORIGIN = 0x20004000", "RAM           : ORIGIN = 0x20000000");
+        assert_ne!(script, MEMORY_X, "the test must change memory.x");
+        let map = MemoryMap::from_script(&script).unwrap();
+        let b = check("fw", ImageKind::Application, &[], &map, MAX_DIMS, STACK_RESERVE);
+        assert!(b.problems.iter().any(|p| p.contains("STACK ends at 0x20018000")), "{:?}", b.problems);
     }
 
     #[test]
@@ -413,7 +448,7 @@ mod tests {
         };
         sh(0, 0, 0, 0, 0, 0);
         sh(1, 1, 2 | 4, 0x0800_0000, 0, 1234); // .text
-        sh(7, 8, 2 | 1, 0x2000_0000, 0, 4321); // .bss
+        sh(7, 8, 2 | 1, 0x2000_4000, 0, 4321); // .bss
         sh(12, 1, 0, 0, 0, 99); // .comment
         sh(21, 3, 0, 0, str_off, strtab.len() as u32); // .shstrtab
         elf[0x20..0x24].copy_from_slice(&shoff.to_le_bytes());
@@ -426,7 +461,7 @@ mod tests {
     #[test]
     fn elf_sections_reads_allocated_sections_only() {
         let s = elf_sections(&tiny_elf()).unwrap();
-        assert_eq!(s, vec![sec(".text", 0x0800_0000, 1234, true), sec(".bss", 0x2000_0000, 4321, false)]);
+        assert_eq!(s, vec![sec(".text", 0x0800_0000, 1234, true), sec(".bss", 0x2000_4000, 4321, false)]);
         assert!(elf_sections(b"not an elf at all, certainly not one for a Cortex-M4F target").is_err());
         let mut truncated = tiny_elf();
         truncated.truncate(80);

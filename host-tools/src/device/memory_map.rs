@@ -133,7 +133,10 @@ pub struct MemoryMap {
     pub slot_a: Region,
     /// Calibration slot B.
     pub slot_b: Region,
-    /// Main RAM (statics and stack).
+    /// The stack, at the start of SRAM1.
+    pub stack: Region,
+    /// The statics, the rest of SRAM1 (memory.x's RAM, as cortex-m-rt
+    /// names the region it places them in).
     pub ram: Region,
 }
 
@@ -149,6 +152,7 @@ impl MemoryMap {
             recipe_b: region(script, "RECIPE_SLOT_B")?,
             slot_a: region(script, "CAL_SLOT_A")?,
             slot_b: region(script, "CAL_SLOT_B")?,
+            stack: region(script, "STACK")?,
             ram: region(script, "RAM")?,
         })
     }
@@ -186,7 +190,12 @@ impl MemoryMap {
         for ((name, got), want) in m.flash_regions().into_iter().zip(want) {
             assert_eq!(got, want, "memory.x's {name} disagrees with brdf_meter::shape::board");
         }
-        assert_eq!(m.ram, r(b::RAM_ORIGIN, b::RAM_LEN), "memory.x's RAM disagrees with brdf_meter::shape::board");
+        assert_eq!(m.stack, r(b::RAM_ORIGIN, b::STACK_LEN), "memory.x's STACK disagrees with brdf_meter::shape::board");
+        assert_eq!(
+            m.ram,
+            r(b::RAM_ORIGIN + b::STACK_LEN, b::RAM_LEN - b::STACK_LEN),
+            "memory.x's RAM is not the rest of brdf_meter::shape::board's SRAM1 after the stack"
+        );
         m
     }
 }
@@ -228,7 +237,9 @@ mod tests {
                 kib(0x080B_0000, 320),
             ]
         );
-        assert_eq!((m.ram.origin, m.ram.length), (0x2000_0000, 96 * 1024));
+        // SRAM1: the stack at its start, the statics after it.
+        assert_eq!((m.stack.origin, m.stack.length), (0x2000_0000, 16 * 1024));
+        assert_eq!((m.ram.origin, m.ram.length), (0x2000_4000, 80 * 1024));
         // Back to back, filling the chip's 1 MiB.
         let regions = m.flash_regions();
         for w in regions.windows(2) {

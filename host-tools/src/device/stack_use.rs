@@ -3,10 +3,10 @@
 //!
 //! The firmware images are built with cortex-m-rt's `paint-stack`: before
 //! `main`, the reset handler fills the whole stack region (from
-//! `_stack_end`, the end of the statics, up to `_stack_start`, the top of
-//! RAM) with [`PAINT`]. The stack grows down from the top, so the lowest
-//! word that no longer holds the paint is as deep as the stack has ever
-//! been. The firmware budget reserves [`crate::device::budget::STACK_RESERVE`]
+//! `_stack_end`, the start of SRAM1, up to `_stack_start`, where the
+//! statics begin: memory.x's STACK) with [`PAINT`]. The stack grows down
+//! from the top, so the lowest word that no longer holds the paint is as
+//! deep as the stack has ever been. The firmware budget reserves [`crate::device::budget::STACK_RESERVE`]
 //! for the stack; this is how the QEMU tests measure what the application
 //! really takes (its tasks' poll frames, the estimation, the inspection,
 //! the update's signature check) and hold it within that reserve.
@@ -21,9 +21,10 @@ pub const PAINT: u32 = 0xcccc_cccc;
 /// A firmware's stack region, from its ELF's symbols.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StackRegion {
-    /// `_stack_end`: the lowest address the stack may reach (after the statics).
+    /// `_stack_end`: the lowest address the stack may reach (the start of
+    /// SRAM1: below it, no memory).
     pub bottom: u32,
-    /// `_stack_start`: the initial stack pointer (the top of RAM).
+    /// `_stack_start`: the initial stack pointer (where the statics begin).
     pub top: u32,
 }
 
@@ -50,7 +51,7 @@ impl StackRegion {
         self.top - self.bottom
     }
 
-    /// Whether it is empty (the statics fill RAM).
+    /// Whether it is empty (no room was given to the stack).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -69,7 +70,7 @@ impl StackUse {
     /// The high-water mark from the region's bytes `memory` (read from
     /// `region.bottom` on, little-endian words): the top less the lowest
     /// word without the paint. A region whose lowest word is not painted
-    /// reads as used whole: the stack reached the statics, or the image
+    /// reads as used whole: the stack reached the end of its region, or the image
     /// was built without `paint-stack` (either way, nothing is known to be
     /// free).
     pub fn of(region: StackRegion, memory: &[u8]) -> anyhow::Result<Self> {
@@ -116,7 +117,7 @@ mod tests {
         m[1024 - 301] = 0;
         assert_eq!(StackUse::of(r, &m).unwrap().used, 304);
         assert_eq!(StackUse::of(r, &painted(1024, 0)).unwrap().used, 0);
-        // Reached the statics, or not painted at all: nothing is free.
+        // Reached the end of its region, or not painted at all: nothing is free.
         let full = StackUse::of(r, &painted(1024, 1024)).unwrap();
         assert_eq!((full.used, full.free()), (1024, 0));
         assert!(StackUse::of(r, &painted(1000, 0)).is_err(), "too few bytes read");

@@ -32,12 +32,11 @@ pub fn bootloader_path(elf: &Path) -> PathBuf {
     profile_dir.join("qemu-bootloader/bootloader")
 }
 
-/// Builds the QEMU firmware and its bootloader (`cargo qemu-fw`, `cargo
-/// qemu-bootloader`) and returns the firmware's ELF.
-pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
+/// Runs `cargo ALIAS` in the workspace `root` for each of `aliases`: the
+/// aliases (.cargo/config.toml) are the one firmware build command.
+pub fn cargo_aliases(root: &Path, aliases: &[&str]) -> anyhow::Result<()> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    // The aliases (.cargo/config.toml) are the one firmware build command.
-    for alias in ["qemu-fw", "qemu-bootloader"] {
+    for alias in aliases {
         let status = Command::new(&cargo)
             .current_dir(root)
             .arg(alias)
@@ -51,6 +50,13 @@ pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
             bail!("cargo {alias} failed ({status}); is the target installed? (scripts/install-test-deps.sh)");
         }
     }
+    Ok(())
+}
+
+/// Builds the QEMU firmware and its bootloader (`cargo qemu-fw`, `cargo
+/// qemu-bootloader`) and returns the firmware's ELF.
+pub fn build_firmware(root: &Path) -> anyhow::Result<PathBuf> {
+    cargo_aliases(root, &["qemu-fw", "qemu-bootloader"])?;
     let elf = firmware_path(root);
     for built in [elf.clone(), bootloader_path(&elf)] {
         if !built.is_file() {
