@@ -74,28 +74,40 @@ impl<const M: usize, const P: usize> RawLine<M, P> {
     /// each `P` values. How the benchmarks replay lines the host recorded.
     ///
     /// # Panics
+    /// As [`Self::read_le_frames`].
+    pub fn from_le_frames(frames: &[u8], shorter: usize) -> Self {
+        let mut raw = Self::new();
+        raw.read_le_frames(frames, shorter);
+        raw
+    }
+
+    /// Makes this line the one `frames` records ([`Self::from_le_frames`]),
+    /// in place: a bench replays lines into a static, where a line built
+    /// as a value (6 KB with P = 128) would pass through its stack.
+    ///
+    /// # Panics
     /// If `shorter > MAX_SHORT_EXPOSURES` or `frames` holds fewer than
     /// `2 P (M + 1) (1 + shorter)` bytes.
-    pub fn from_le_frames(frames: &[u8], shorter: usize) -> Self {
+    pub fn read_le_frames(&mut self, frames: &[u8], shorter: usize) {
         assert!(shorter <= MAX_SHORT_EXPOSURES, "at most {MAX_SHORT_EXPOSURES} shorter exposures");
         assert!(frames.len() >= 2 * P * (M + 1) * (1 + shorter), "too few bytes for the line's frames");
         let px = |f: usize, p: usize| u16::from_le_bytes([frames[2 * (f * P + p)], frames[2 * (f * P + p) + 1]]);
-        let mut raw = Self::new();
+        for (l, taken) in self.short_taken.iter_mut().enumerate() {
+            *taken = [l < shorter; M];
+        }
         for p in 0..P {
-            raw.dark[p] = px(0, p);
+            self.dark[p] = px(0, p);
             for i in 0..M {
-                raw.lit[i][p] = px(1 + i, p);
+                self.lit[i][p] = px(1 + i, p);
             }
             for l in 0..shorter {
                 let base = (l + 1) * (M + 1);
-                raw.short_dark[l][p] = px(base, p);
+                self.short_dark[l][p] = px(base, p);
                 for i in 0..M {
-                    raw.short[l][i][p] = px(base + 1 + i, p);
-                    raw.short_taken[l][i] = true;
+                    self.short[l][i][p] = px(base + 1 + i, p);
                 }
             }
         }
-        raw
     }
 }
 
@@ -558,6 +570,11 @@ mod tests {
         assert_eq!(raw.short_taken, [[true, true], [false, false]]);
         let long_only = RawLine::<2, 3>::from_le_frames(&bytes[..2 * 3 * 3], 0);
         assert_eq!((long_only.lit, long_only.short_taken), (raw.lit, [[false; 2]; MAX_SHORT_EXPOSURES]));
+        // Replayed in place over a line that had a shorter exposure, the
+        // shorter frames are no longer taken.
+        let mut reused = raw.clone();
+        reused.read_le_frames(&bytes[..2 * 3 * 3], 0);
+        assert_eq!((reused.dark, reused.lit, reused.short_taken), (raw.dark, raw.lit, long_only.short_taken));
     }
 
     #[test]

@@ -59,6 +59,14 @@ static mut INSPECTOR: Inspector<P> = Inspector::new();
 /// In SRAM2: SRAM1 holds the data, the matrices and the stack.
 #[unsafe(link_section = ".sram2")]
 static mut EARLY: core::mem::MaybeUninit<UnscaledLine<P>> = core::mem::MaybeUninit::uninit();
+/// The calibration, the line replayed and its corrected readings, in SRAM2
+/// too: as locals of `main` they took 14 KB of its 16 KB stack.
+#[unsafe(link_section = ".sram2")]
+static mut CAL: core::mem::MaybeUninit<Calibration<N, M, P>> = core::mem::MaybeUninit::uninit();
+#[unsafe(link_section = ".sram2")]
+static mut RAW: core::mem::MaybeUninit<RawLine<M, P>> = core::mem::MaybeUninit::uninit();
+#[unsafe(link_section = ".sram2")]
+static mut V: core::mem::MaybeUninit<[SVector<f32, M>; P]> = core::mem::MaybeUninit::uninit();
 static mut OUT: [u8; MAX_FRAME] = [0; MAX_FRAME];
 
 /// Names the segments (first pass) or marks them (second pass).
@@ -78,16 +86,34 @@ fn at(marking: bool, line: usize, stage: &[u8]) {
 /// Bytes of one line in the data: every exposure level's dark and LED frames.
 const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
 
+/// The static `slot` zeroed where it is (built as a value, its zeros
+/// would pass through the stack first).
+///
+/// # Safety
+/// `slot` is a static no other reference reaches, of a type (`RawLine`,
+/// readings, `UnscaledLine`: integers, `bool`s and `f32`s) for which
+/// all-zero bytes are a value (for `UnscaledLine`, `new()`'s).
+unsafe fn zeroed<T>(slot: *mut core::mem::MaybeUninit<T>) -> &'static mut T {
+    // SAFETY: as the caller promises.
+    unsafe {
+        core::ptr::write_bytes(slot, 0, 1);
+        (*slot).assume_init_mut()
+    }
+}
+
 #[entry]
 fn main() -> ! {
     // SAFETY: single-threaded firmware, no interrupts use these statics.
-    let (data, ram, inspector, early, out) = unsafe {
+    let (data, ram, inspector, early, out, cal, raw, v) = unsafe {
         (
             &mut (*core::ptr::addr_of_mut!(DATA)).0,
             &mut *core::ptr::addr_of_mut!(RAM),
             &mut *core::ptr::addr_of_mut!(INSPECTOR),
-            (*core::ptr::addr_of_mut!(EARLY)).write(UnscaledLine::new()),
+            zeroed(core::ptr::addr_of_mut!(EARLY)),
             &mut *core::ptr::addr_of_mut!(OUT),
+            &mut *core::ptr::addr_of_mut!(CAL),
+            zeroed(core::ptr::addr_of_mut!(RAW)),
+            zeroed(core::ptr::addr_of_mut!(V)),
         )
     };
     let n = read_file(b"target/inspect-bench/data.bin\0", data);
@@ -103,7 +129,7 @@ fn main() -> ! {
     let frames_at = recipe_at + recipe_len.div_ceil(4) * 4;
     let frames = &data[frames_at..frames_at + frames_len];
     let view = BlobView::parse(blob).unwrap_or_else(|_| fail(b"inspect-bench: bad blob"));
-    let mut cal = Calibration::<N, M, P>::new(ram);
+    let cal = cal.write(Calibration::<N, M, P>::new(ram));
     if cal.load(&view, SlotInfo { slot: 0, sequence: 1, blob_len: blob.len() as u32, blob_crc: 0 }).is_err() {
         fail(b"inspect-bench: the blob does not fit this build");
     }
@@ -114,8 +140,8 @@ fn main() -> ! {
     let lines = frames.len() / LINE_BYTES;
     for marking in [false, true] {
         for l in 0..lines {
-            let raw = RawLine::<M, P>::from_le_frames(&frames[l * LINE_BYTES..], MAX_SHORT_EXPOSURES);
-            let mut v = [SVector::<f32, M>::zeros(); P];
+            raw.read_le_frames(&frames[l * LINE_BYTES..], MAX_SHORT_EXPOSURES);
+            v.iter_mut().for_each(|x| *x = SVector::zeros());
             let mut fl = [0u8; P];
             let mut by_frame = LineCorrection::<M, P>::new();
             let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =
@@ -128,9 +154,9 @@ fn main() -> ! {
                 if *f == FrameRead::Long(M - 1) {
                     // While that frame integrates, before its correction.
                     at(marking, l, b"early");
-                    let _ = early.work_out(&recipe, &v, |p| by_frame.final_through(p, M - 1));
+                    let _ = early.work_out(&recipe, v, |p| by_frame.final_through(p, M - 1));
                 }
-                let mut t = Target { raw: &raw, white, linearity, full_scale, cfg: &acq, v: &mut v, fl: &mut fl };
+                let mut t = Target { raw, white, linearity, full_scale, cfg: &acq, v, fl: &mut fl };
                 if k + 1 == read.len() {
                     at(marking, l, b"correct");
                     by_frame.frame(*f, &mut t);
@@ -141,7 +167,7 @@ fn main() -> ! {
                 }
             }
             at(marking, l, b"decide");
-            let verdict = inspector.line_with(&recipe, l as u32, &v, &fl, Some(early), |p| {
+            let verdict = inspector.line_with(&recipe, l as u32, &v[..], &fl, Some(early), |p| {
                 let mut rho = SVector::<f32, N>::zeros();
                 cal.estimate_point(p, &v[p], fl[p], &mut rho).flags & flags::OUT_OF_PRIOR != 0
             });

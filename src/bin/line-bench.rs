@@ -49,6 +49,7 @@ use brdf_meter::protocol::{
 };
 use brdf_meter::shape;
 use brdf_meter::store::SlotInfo;
+use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
@@ -68,6 +69,16 @@ static mut RAM_QEMU: [ZoneMatrix<N, M>; shape::qemu::RAM_ZONES] =
     [ZoneMatrix::from_array_storage(brdf_meter::nalgebra::ArrayStorage([[0.0; M]; N])); shape::qemu::RAM_ZONES];
 /// Where a frame goes after encoding (the estimation task's channel slot).
 static mut OUT_SLOT: heapless::Vec<u8, MAX_FRAME> = heapless::Vec::new();
+/// Each build's calibration and line, in SRAM2: as locals of `main` they
+/// took 14 KB of its 16 KB stack.
+#[unsafe(link_section = ".sram2")]
+static mut CAL_BOARD: MaybeUninit<Calibration<N, M, BOARD_P>> = MaybeUninit::uninit();
+#[unsafe(link_section = ".sram2")]
+static mut CAL_QEMU: MaybeUninit<Calibration<N, M, QEMU_P>> = MaybeUninit::uninit();
+#[unsafe(link_section = ".sram2")]
+static mut RAW_BOARD: MaybeUninit<RawLine<M, BOARD_P>> = MaybeUninit::uninit();
+#[unsafe(link_section = ".sram2")]
+static mut RAW_QEMU: MaybeUninit<RawLine<M, QEMU_P>> = MaybeUninit::uninit();
 
 /// Names the segments (first pass) or marks them (second pass).
 struct Bounds {
@@ -262,24 +273,45 @@ fn build_at(d: &'static [u8], at: usize) -> (BuildData, usize) {
     (build, frames_at + frames_len)
 }
 
-fn load<const P: usize>(ram: &'static mut [ZoneMatrix<N, M>], blob: &'static [u8]) -> Calibration<N, M, P> {
+/// The calibration `blob`, loaded into `cal` where it is.
+fn load<const P: usize>(
+    cal: &'static mut MaybeUninit<Calibration<N, M, P>>,
+    ram: &'static mut [ZoneMatrix<N, M>],
+    blob: &'static [u8],
+) -> &'static Calibration<N, M, P> {
     let view = BlobView::parse(blob).unwrap_or_else(|_| fail(b"line-bench: bad blob"));
     let slot = SlotInfo { slot: 0, sequence: 1, blob_len: blob.len() as u32, blob_crc: 0 };
-    let mut cal = Calibration::<N, M, P>::new(ram);
+    let cal = cal.write(Calibration::<N, M, P>::new(ram));
     if cal.load(&view, slot).is_err() {
         fail(b"line-bench: the blob does not fit this build");
     }
     cal
 }
 
+/// The line `build`'s frames record, replayed into `raw` where it is (its
+/// bytes zeroed first: integers and `bool`s, for which zeros are a value).
+fn replay<const P: usize>(raw: &'static mut MaybeUninit<RawLine<M, P>>, build: &BuildData) -> &'static RawLine<M, P> {
+    // SAFETY: all-zero bytes are a `RawLine` (integers and `bool`s).
+    let raw = unsafe {
+        core::ptr::write_bytes(raw.as_mut_ptr(), 0, 1);
+        raw.assume_init_mut()
+    };
+    raw.read_le_frames(build.frames, build.shorter);
+    raw
+}
+
 #[entry]
 fn main() -> ! {
     // SAFETY: single-threaded firmware, no interrupts use these statics.
-    let (data, ram_board, ram_qemu) = unsafe {
+    let (data, ram_board, ram_qemu, cal_board, cal_qemu, raw_board, raw_qemu) = unsafe {
         (
             &mut (*core::ptr::addr_of_mut!(DATA)).0,
             &mut *core::ptr::addr_of_mut!(RAM_BOARD),
             &mut *core::ptr::addr_of_mut!(RAM_QEMU),
+            &mut *core::ptr::addr_of_mut!(CAL_BOARD),
+            &mut *core::ptr::addr_of_mut!(CAL_QEMU),
+            &mut *core::ptr::addr_of_mut!(RAW_BOARD),
+            &mut *core::ptr::addr_of_mut!(RAW_QEMU),
         )
     };
     let n = read_file(b"target/line-bench/data.bin\0", data);
@@ -292,14 +324,14 @@ fn main() -> ! {
     if board.pixels != BOARD_P || qemu.pixels != QEMU_P {
         fail(b"line-bench: the data is for other pixel counts");
     }
-    let cal_b = load::<BOARD_P>(ram_board, board.blob);
-    let cal_q = load::<QEMU_P>(ram_qemu, qemu.blob);
-    let raw_b = RawLine::<M, BOARD_P>::from_le_frames(board.frames, board.shorter);
-    let raw_q = RawLine::<M, QEMU_P>::from_le_frames(qemu.frames, qemu.shorter);
+    let cal_b = load(cal_board, ram_board, board.blob);
+    let cal_q = load(cal_qemu, ram_qemu, qemu.blob);
+    let raw_b = replay(raw_board, &board);
+    let raw_q = replay(raw_qemu, &qemu);
     let (acq_b, acq_q) = (brdf_meter::platform::timing::ACQUISITION, brdf_meter::platform::timing::QEMU_ACQUISITION);
     for marking in [false, true] {
-        run(&Bounds { marking, build: BOARD_P }, &cal_b, &raw_b, board.full_scale, &acq_b);
-        run(&Bounds { marking, build: QEMU_P }, &cal_q, &raw_q, qemu.full_scale, &acq_q);
+        run(&Bounds { marking, build: BOARD_P }, cal_b, raw_b, board.full_scale, &acq_b);
+        run(&Bounds { marking, build: QEMU_P }, cal_q, raw_q, qemu.full_scale, &acq_q);
     }
     done()
 }
