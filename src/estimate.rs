@@ -55,12 +55,8 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     pub info: CalInfo,
     /// LED fired for reading i.
     pub led_order: [u8; M],
-    /// White reference per pixel and reading.
-    pub white: [[f32; M]; P],
     /// The sensor's linearity correction, when the calibration has one.
     pub linearity: Option<crate::acquire::Linearity>,
-    /// Zone of each pixel.
-    pub zone_of: [u16; P],
     zones: usize,
     home: MatrixHome,
     /// The blob's matrices in flash (Z x K x n x m f32), when read in place.
@@ -88,6 +84,20 @@ pub struct Active<const N: usize, const M: usize, const P: usize> {
     gloss: Option<GlossData<'static>>,
     /// The gloss rows' clusters per zone (K unless they have their own).
     gloss_clusters: usize,
+}
+
+/// What the active calibration says of each pixel, kept beside [`Active`]
+/// rather than in it, and uninitialised until the first load: `load` writes
+/// these tables where they live, while a new `Active` is built as a value
+/// and moved into place (with the tables in it, that value took 3.8 KB of
+/// the board's stack, P = 128), and a holder that started with them zeroed
+/// built the zeros as a value too (4 KB more in the board's main task,
+/// which never returns).
+pub struct PixelTables<const M: usize, const P: usize> {
+    /// White reference per pixel and reading.
+    pub white: [[f32; M]; P],
+    /// Zone of each pixel.
+    pub zone_of: [u16; P],
     /// Per pixel, its zone's gloss scale `assigned / S_z` (`crate::gloss`),
     /// divided once at load rather than per point.
     gloss_q: [f32; P],
@@ -117,12 +127,16 @@ pub struct PointMeta {
 pub struct Calibration<const N: usize, const M: usize, const P: usize> {
     ram: &'static mut [ZoneMatrix<N, M>],
     active: Option<Active<N, M, P>>,
+    /// The active calibration's per-pixel tables: written in full by
+    /// `load` before it sets `active`, so initialised whenever `active` is
+    /// `Some` ([`Self::loaded`]).
+    pixels: core::mem::MaybeUninit<PixelTables<M, P>>,
 }
 
 impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// A holder whose RAM budget is `ram` (room for `ram.len()` zones).
     pub fn new(ram: &'static mut [ZoneMatrix<N, M>]) -> Self {
-        Self { ram, active: None }
+        Self { ram, active: None, pixels: core::mem::MaybeUninit::uninit() }
     }
 
     /// RAM budget in f32 words.
@@ -198,6 +212,22 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                 view.copy_matrix_of(i / k, i % k, dst.as_mut_slice());
             }
         }
+        let t = self.pixels.as_mut_ptr();
+        for p in 0..P {
+            let zone = view.zone_of_pixel(p);
+            let q = gloss.map_or(0.0, |g| g.assigned_gu / g.reference_for(p, zone, P));
+            // SAFETY: `t` points to this holder's own tables, borrowed
+            // mutably through `self`; each write is of a plain value into
+            // an element of an array (place projections, no reference to
+            // memory that may be uninitialised). Every element is written.
+            unsafe {
+                for i in 0..M {
+                    core::ptr::addr_of_mut!((*t).white[p][i]).write(view.white(p, i));
+                }
+                core::ptr::addr_of_mut!((*t).zone_of[p]).write(zone as u16);
+                core::ptr::addr_of_mut!((*t).gloss_q[p]).write(q);
+            }
+        }
         self.active = Some(Active {
             info: CalInfo {
                 slot: slot.slot,
@@ -208,9 +238,7 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
                 in_ram,
             },
             led_order,
-            white: [[0.0; M]; P],
             linearity: view.linearity(),
-            zone_of: [0; P],
             zones: z,
             home: if in_ram { MatrixHome::Ram } else { MatrixHome::InPlace },
             in_place,
@@ -225,25 +253,21 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             uncertainty,
             gloss,
             gloss_clusters: view.gloss_clusters(),
-            gloss_q: [0.0; P],
         });
-        // The per-pixel tables are written in place: built in locals first,
-        // they took another 1.3 KB of the board's stack (P = 128). The
-        // value above still passes through the stack (3.8 KB there).
-        let a = self.active.as_mut().expect("just set");
-        for p in 0..P {
-            for (i, x) in a.white[p].iter_mut().enumerate() {
-                *x = view.white(p, i);
-            }
-            a.zone_of[p] = view.zone_of_pixel(p) as u16;
-            a.gloss_q[p] = gloss.map_or(0.0, |g| g.assigned_gu / g.reference_for(p, a.zone_of[p] as usize, P));
-        }
         Ok(())
     }
 
     /// The active calibration.
     pub fn active(&self) -> Option<&Active<N, M, P>> {
         self.active.as_ref()
+    }
+
+    /// The active calibration with its per-pixel tables.
+    pub fn loaded(&self) -> Option<(&Active<N, M, P>, &PixelTables<M, P>)> {
+        let a = self.active.as_ref()?;
+        // SAFETY: `load` writes every element of the tables before it sets
+        // `active`, and nothing unsets `active` or writes them otherwise.
+        Some((a, unsafe { self.pixels.assume_init_ref() }))
     }
 
     /// Zone `z`'s matrix (cluster 0), wherever it lives.
@@ -331,8 +355,8 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
     /// the functions it calls.
     #[inline(never)]
     pub fn estimate_pixel(&self, p: usize, v: &SVector<f32, M>, out: &mut SVector<f32, N>) -> PointMeta {
-        let a = self.active.as_ref().expect("no active calibration");
-        let z = a.zone_of[p] as usize;
+        let (a, t) = self.loaded().expect("no active calibration");
+        let z = t.zone_of[p] as usize;
         // Built in locals and written once at the end (the frame's fields
         // are not stored twice per point).
         let (mut cluster, mut flags, mut sigma_scale) = (0u8, 0u8, 1.0f32);
@@ -381,9 +405,9 @@ impl<const N: usize, const M: usize, const P: usize> Calibration<N, M, P> {
             Some(g) => {
                 let block = g.block(z, c, a.gloss_clusters, v.as_slice());
                 if a.root {
-                    crate::gloss::readings_root(block, x.as_slice(), a.gloss_q[p], root_sqrt_s, g.root_readings)
+                    crate::gloss::readings_root(block, x.as_slice(), t.gloss_q[p], root_sqrt_s, g.root_readings)
                 } else {
-                    crate::gloss::readings(block, x.as_slice(), a.gloss_q[p], sigma_scale)
+                    crate::gloss::readings(block, x.as_slice(), t.gloss_q[p], sigma_scale)
                 }
             }
             None => (crate::gloss::NO_READINGS, crate::gloss::NO_READINGS),

@@ -166,10 +166,10 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> LineWork<'_
     fn correct(&mut self, f: Option<FrameRead>, raw: &RawLine<M, P>) -> Option<()> {
         self.shared.core.lock(|c| {
             let c = c.borrow();
-            let a = c.cal.active()?;
+            let (a, pixels) = c.cal.loaded()?;
             let mut t = Target {
                 raw,
-                white: &a.white,
+                white: &pixels.white,
                 linearity: a.linearity.as_ref(),
                 full_scale: self.shared.full_scale,
                 cfg: &self.shared.acq,

@@ -135,8 +135,8 @@ fn main() -> ! {
     }
     let recipe = RecipeView::parse(recipe).unwrap_or_else(|_| fail(b"inspect-bench: bad recipe"));
     let acq = brdf_meter::platform::timing::ACQUISITION;
-    let active = cal.active().expect("loaded");
-    let (white, linearity) = (&active.white, active.linearity.as_ref());
+    let (active, pixels) = cal.loaded().expect("loaded");
+    let (white, linearity) = (&pixels.white, active.linearity.as_ref());
     let lines = frames.len() / LINE_BYTES;
     for marking in [false, true] {
         for l in 0..lines {

@@ -147,8 +147,8 @@ fn send_msg(b: &Bounds, msg: &Response<'_>, enc: &str, seq: u32, prefix: &'stati
 
 /// One build's line, stage by stage.
 fn run<const P: usize>(b: &Bounds, cal: &Calibration<N, M, P>, raw: &RawLine<M, P>, full_scale: u16, cfg: &AcqConfig) {
-    let active = cal.active().expect("loaded");
-    let (white, linearity, crc) = (&active.white, active.linearity.as_ref(), active.info.blob_crc);
+    let (active, pixels) = cal.loaded().expect("loaded");
+    let (white, linearity, crc) = (&pixels.white, active.linearity.as_ref(), active.info.blob_crc);
     let mut v = [SVector::<f32, M>::zeros(); P];
     let mut fl = [0u8; P];
     let read: heapless::Vec<FrameRead, { 1 + M * (1 + MAX_SHORT_EXPOSURES) }> =

@@ -46,9 +46,8 @@ pub const MAX_DIMS: Dims =
 /// [`crate::device::stack_use`]): 5.6 KB at most, over provisioning,
 /// measuring, inspecting and updates, and they fail above this reserve. The
 /// board's own frames are larger where they hold a line's pixels (P = 128
-/// against QEMU's 32: loading a calibration takes 3.8 KB there, 1.4 KB in
-/// QEMU) and it serves USB, so its reserve keeps about half again that.
-/// memory.x's STACK region must hold it.
+/// against QEMU's 32) and it serves USB, so its reserve keeps about half
+/// again that. memory.x's STACK region must hold it.
 pub const STACK_RESERVE: u64 = 12 * 1024;
 
 /// One allocated section of an ELF image.
