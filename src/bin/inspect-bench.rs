@@ -45,7 +45,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at, zeroed};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -85,21 +85,6 @@ fn at(marking: bool, line: usize, stage: &[u8]) {
 
 /// Bytes of one line in the data: every exposure level's dark and LED frames.
 const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
-
-/// The static `slot` zeroed where it is (built as a value, its zeros
-/// would pass through the stack first).
-///
-/// # Safety
-/// `slot` is a static no other reference reaches, of a type (`RawLine`,
-/// readings, `UnscaledLine`: integers, `bool`s and `f32`s) for which
-/// all-zero bytes are a value (for `UnscaledLine`, `new()`'s).
-unsafe fn zeroed<T>(slot: *mut core::mem::MaybeUninit<T>) -> &'static mut T {
-    // SAFETY: as the caller promises.
-    unsafe {
-        core::ptr::write_bytes(slot, 0, 1);
-        (*slot).assume_init_mut()
-    }
-}
 
 #[entry]
 fn main() -> ! {

@@ -54,7 +54,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at, zeroed};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -288,14 +288,12 @@ fn load<const P: usize>(
     cal
 }
 
-/// The line `build`'s frames record, replayed into `raw` where it is (its
-/// bytes zeroed first: integers and `bool`s, for which zeros are a value).
-fn replay<const P: usize>(raw: &'static mut MaybeUninit<RawLine<M, P>>, build: &BuildData) -> &'static RawLine<M, P> {
-    // SAFETY: all-zero bytes are a `RawLine` (integers and `bool`s).
-    let raw = unsafe {
-        core::ptr::write_bytes(raw.as_mut_ptr(), 0, 1);
-        raw.assume_init_mut()
-    };
+/// The line `build`'s frames record, replayed into the static `raw` where
+/// it is.
+fn replay<const P: usize>(raw: *mut MaybeUninit<RawLine<M, P>>, build: &BuildData) -> &'static RawLine<M, P> {
+    // SAFETY: `raw` is one of this bench's statics, reached only here, and
+    // all-zero bytes are a `RawLine` (integers and `bool`s).
+    let raw = unsafe { zeroed(raw) };
     raw.read_le_frames(build.frames, build.shorter);
     raw
 }
@@ -310,8 +308,8 @@ fn main() -> ! {
             &mut *core::ptr::addr_of_mut!(RAM_QEMU),
             &mut *core::ptr::addr_of_mut!(CAL_BOARD),
             &mut *core::ptr::addr_of_mut!(CAL_QEMU),
-            &mut *core::ptr::addr_of_mut!(RAW_BOARD),
-            &mut *core::ptr::addr_of_mut!(RAW_QEMU),
+            core::ptr::addr_of_mut!(RAW_BOARD),
+            core::ptr::addr_of_mut!(RAW_QEMU),
         )
     };
     let n = read_file(b"target/line-bench/data.bin\0", data);
