@@ -51,8 +51,9 @@ pub type FwDevice = SimDevice<Part>;
 /// signed with the development key for the simulated (QEMU) target.
 pub fn app_image(len: usize, seed: u8, version: [u8; 3]) -> Vec<u8> {
     let mut raw: Vec<u8> = (0..len).map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed)).collect();
-    let b = brdf_meter::shape::board::RAM_ORIGIN + brdf_meter::shape::board::STACK_LEN;
-    raw[0..4].copy_from_slice(&b.to_le_bytes());
+    // The initial stack pointer: the top of the stack, below the statics.
+    let sp = brdf_meter::shape::board::RAM_ORIGIN + brdf_meter::shape::board::STACK_LEN;
+    raw[0..4].copy_from_slice(&sp.to_le_bytes());
     raw[4..8].copy_from_slice(&(brdf_meter::shape::board::ACTIVE + 0x401).to_le_bytes());
     image::sign(&raw, Target::Qemu, version, &DEV_SECRET)
 }
