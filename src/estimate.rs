@@ -33,10 +33,7 @@ pub fn zeroed_in_place<const N: usize, const M: usize, const Z: usize>(
     slot: &mut core::mem::MaybeUninit<[ZoneMatrix<N, M>; Z]>,
 ) -> &mut [ZoneMatrix<N, M>; Z] {
     // SAFETY: a matrix is `f32`s only, and zero bytes are 0.0.
-    unsafe {
-        core::ptr::write_bytes(slot.as_mut_ptr(), 0, 1);
-        slot.assume_init_mut()
-    }
+    unsafe { crate::in_place::zeroed(slot) }
 }
 
 /// Where the active matrices are read from.

@@ -18,6 +18,7 @@
 //!   `app`) the updater on embassy-boot.
 //! - [`kernel`]: the estimator kernels (f32, Q15, cluster selection).
 //! - [`estimate`]: the active calibration and one point's estimate.
+//! - [`in_place`]: large statics zeroed where they live, not on the stack.
 //! - [`gloss`]: the gloss readings (specular gloss, haze, distinctness) and
 //!   their uncertainties, from a point's estimate.
 //! - [`inspect`]: on-device inspection: the recipe taught from a reference,
@@ -48,6 +49,7 @@ pub mod firmware;
 pub mod frame_store;
 pub mod gloss;
 pub mod hw;
+pub mod in_place;
 pub mod inspect;
 pub mod kernel;
 pub mod platform;

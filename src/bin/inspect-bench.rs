@@ -35,6 +35,7 @@ use brdf_meter::acquire::by_frame::Target;
 use brdf_meter::acquire::{FrameRead, LineCorrection, MAX_SHORT_EXPOSURES, RawLine};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::{Calibration, ZoneMatrix};
+use brdf_meter::in_place::zeroed;
 use brdf_meter::inspect::decide::UnscaledLine;
 use brdf_meter::inspect::{Inspector, RecipeView};
 use brdf_meter::nalgebra::SVector;
@@ -45,7 +46,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at, zeroed};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -88,17 +89,19 @@ const LINE_BYTES: usize = 2 * P * (M + 1) * (1 + MAX_SHORT_EXPOSURES);
 
 #[entry]
 fn main() -> ! {
-    // SAFETY: single-threaded firmware, no interrupts use these statics.
+    // SAFETY: single-threaded firmware, no interrupts use these statics;
+    // zeros are a line (integers, `bool`s), readings and first parts
+    // (`f32`s, `bool`s: `UnscaledLine::new()`).
     let (data, ram, inspector, early, out, cal, raw, v) = unsafe {
         (
             &mut (*core::ptr::addr_of_mut!(DATA)).0,
             &mut *core::ptr::addr_of_mut!(RAM),
             &mut *core::ptr::addr_of_mut!(INSPECTOR),
-            zeroed(core::ptr::addr_of_mut!(EARLY)),
+            zeroed(&mut *core::ptr::addr_of_mut!(EARLY)),
             &mut *core::ptr::addr_of_mut!(OUT),
             &mut *core::ptr::addr_of_mut!(CAL),
-            zeroed(core::ptr::addr_of_mut!(RAW)),
-            zeroed(core::ptr::addr_of_mut!(V)),
+            zeroed(&mut *core::ptr::addr_of_mut!(RAW)),
+            zeroed(&mut *core::ptr::addr_of_mut!(V)),
         )
     };
     let n = read_file(b"target/inspect-bench/data.bin\0", data);

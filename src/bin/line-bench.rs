@@ -42,6 +42,7 @@ use brdf_meter::acquire::by_frame::Target;
 use brdf_meter::acquire::{AcqConfig, FrameRead, LineCorrection, MAX_SHORT_EXPOSURES, RawLine};
 use brdf_meter::blob::BlobView;
 use brdf_meter::estimate::{Calibration, ZoneMatrix};
+use brdf_meter::in_place::zeroed;
 use brdf_meter::nalgebra::SVector;
 use brdf_meter::protocol::{
     self, Encoding, LeBytes, MAX_FRAME, MAX_PAYLOAD, PointFrame, PointIn, PointMetaWire, PointsBlock, PushError,
@@ -54,7 +55,7 @@ use cortex_m_rt::entry;
 
 #[path = "bench_io/mod.rs"]
 mod bench_io;
-use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at, zeroed};
+use bench_io::{Aligned, Line, bench_mark, done, fail, read_file, u32_at};
 
 const N: usize = shape::BINS;
 const M: usize = shape::LEDS;
@@ -290,9 +291,8 @@ fn load<const P: usize>(
 
 /// The line `build`'s frames record, replayed into the static `raw` where
 /// it is.
-fn replay<const P: usize>(raw: *mut MaybeUninit<RawLine<M, P>>, build: &BuildData) -> &'static RawLine<M, P> {
-    // SAFETY: `raw` is one of this bench's statics, reached only here, and
-    // all-zero bytes are a `RawLine` (integers and `bool`s).
+fn replay<const P: usize>(raw: &'static mut MaybeUninit<RawLine<M, P>>, build: &BuildData) -> &'static RawLine<M, P> {
+    // SAFETY: all-zero bytes are a `RawLine` (integers and `bool`s).
     let raw = unsafe { zeroed(raw) };
     raw.read_le_frames(build.frames, build.shorter);
     raw
@@ -308,8 +308,8 @@ fn main() -> ! {
             &mut *core::ptr::addr_of_mut!(RAM_QEMU),
             &mut *core::ptr::addr_of_mut!(CAL_BOARD),
             &mut *core::ptr::addr_of_mut!(CAL_QEMU),
-            core::ptr::addr_of_mut!(RAW_BOARD),
-            core::ptr::addr_of_mut!(RAW_QEMU),
+            &mut *core::ptr::addr_of_mut!(RAW_BOARD),
+            &mut *core::ptr::addr_of_mut!(RAW_QEMU),
         )
     };
     let n = read_file(b"target/line-bench/data.bin\0", data);

@@ -18,22 +18,6 @@ pub fn bench_mark() {
     unsafe { core::arch::asm!("nop", options(nomem, nostack)) };
 }
 
-/// The static `slot` zeroed where it is: a bench's line, readings and
-/// first parts (6 KB with P = 128) built as values would pass through its
-/// 16 KiB stack first.
-///
-/// # Safety
-/// No other reference reaches `slot`, and all-zero bytes are a value of
-/// `T` (integers, `bool`s and `f32`s: `RawLine`, readings, `UnscaledLine`,
-/// whose `new()` is all zeros).
-pub unsafe fn zeroed<T>(slot: *mut core::mem::MaybeUninit<T>) -> &'static mut T {
-    // SAFETY: as the caller promises.
-    unsafe {
-        core::ptr::write_bytes(slot, 0, 1);
-        (*slot).assume_init_mut()
-    }
-}
-
 /// A bench's input file, 4-byte aligned (a calibration read in place).
 #[repr(C, align(4))]
 pub struct Aligned<const N: usize>(pub [u8; N]);
