@@ -5,6 +5,10 @@
 #     in the firmware profile (release + fat LTO), qemu-fw (and the
 #     stack-overflow probe, built on the same library) as their QEMU tests
 #     use them, so the test run builds each once;
+#     The QEMU benches (kernel-bench, line-bench, inspect-bench, verify-bench)
+#     are built and checked too: the test suite does not run them (their
+#     traces take minutes), but host-tools/tests/firmware_budget.rs checks
+#     their stack frames on these images;
 #  2. clippy is clean (-D warnings) for each of them, library included;
 #  3. the board image links its logger and memory.x's slot symbols, and a
 #     size report (flash and RAM per section). The budget check on that image
@@ -26,6 +30,9 @@ firmwares=("board-fw:firmware" "bootloader:bootloader:bootloader" "qemu-bootload
 if grep -q '^name = "qemu-fw"' Cargo.toml; then
   firmwares+=("qemu-fw:firmware" "stack-overflow-probe:firmware")
 fi
+for bench in kernel-bench line-bench inspect-bench verify-bench; do
+  firmwares+=("$bench-fw:firmware:$bench")
+done
 
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

@@ -1,8 +1,9 @@
 //! The board firmware's flash/RAM budget for the largest calibration
 //! (Z = 128 zones of 81 x 7 matrices, P = 128), checked on the real image:
 //! builds `board-fw` (`cargo board-fw`: a no-op when scripts/check-firmware.sh
-//! already did, same command and profile) and fails if it is over budget. Run with
-//! `-- --nocapture` to see the table.
+//! already did, same command and profile) and fails if it is over budget.
+//! The bootloader's budget and the QEMU benches' stacks are checked the
+//! same way. Run with `-- --nocapture` to see the tables.
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -10,46 +11,33 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools sits in the workspace root").to_path_buf()
 }
 
-fn build_board_fw(root: &Path) -> PathBuf {
+/// Builds a firmware with its cargo alias (`.cargo/config.toml`: a no-op
+/// when scripts/check-firmware.sh already did, same command and profile)
+/// and returns its ELF, `profile/elf` under the target's directory.
+fn build_firmware(root: &Path, alias: &str, elf: &str) -> PathBuf {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
-        .arg("board-fw")
+        .arg(alias)
         // The enclosing `cargo test`'s host settings must not reach the firmware build.
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
         .env_remove("CARGO_BUILD_TARGET")
         .status()
-        .expect("running cargo to build board-fw");
+        .unwrap_or_else(|e| panic!("running cargo {alias}: {e}"));
     assert!(
         status.success(),
-        "board-fw does not build ({status}); is the target installed? (scripts/install-test-deps.sh)"
+        "cargo {alias} does not build ({status}); is the target installed? (scripts/install-test-deps.sh)"
     );
     let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
-    target_dir.join("thumbv7em-none-eabihf/firmware/board-fw")
-}
-
-/// Builds the board bootloader (`cargo bootloader`) and returns its ELF.
-fn build_bootloader(root: &Path) -> PathBuf {
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(root)
-        .arg("bootloader")
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .status()
-        .expect("running cargo to build the bootloader");
-    assert!(status.success(), "the bootloader does not build ({status})");
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
-    target_dir.join("thumbv7em-none-eabihf/bootloader/bootloader")
+    target_dir.join("thumbv7em-none-eabihf").join(elf)
 }
 
 #[test]
 fn the_bootloader_fits_its_24_kib() {
     use host_tools::device::budget::{ImageKind, check_file};
     let root = root();
-    let elf = build_bootloader(&root);
+    let elf = build_firmware(&root, "bootloader", "bootloader/bootloader");
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
     let budget = check_file(&elf, ImageKind::Bootloader, &script).expect("reading the bootloader image");
     println!("{}", budget.table());
@@ -61,7 +49,7 @@ fn the_bootloader_fits_its_24_kib() {
 #[test]
 fn board_firmware_fits_its_budget_with_the_largest_calibration() {
     let root = root();
-    let elf = build_board_fw(&root);
+    let elf = build_firmware(&root, "board-fw", "firmware/board-fw");
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
     let budget =
         host_tools::device::budget::check_file(&elf, host_tools::device::budget::ImageKind::Application, &script)
@@ -77,4 +65,19 @@ fn board_firmware_fits_its_budget_with_the_largest_calibration() {
     // stack"), which this line would refuse.
     let frame = &budget.lines[4];
     assert!(frame.what.contains("frame") && frame.used > 512, "{frame:?}");
+}
+
+#[test]
+fn every_qemu_bench_links_the_stack_and_no_frame_outgrows_it() {
+    let root = root();
+    let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
+    for bench in ["kernel-bench", "line-bench", "inspect-bench", "verify-bench"] {
+        let elf = build_firmware(&root, &format!("{bench}-fw"), &format!("firmware/{bench}"));
+        let budget = host_tools::device::budget::check_bench_file(&elf, &script).expect("reading the bench image");
+        println!("{}", budget.table());
+        assert!(budget.ok(), "{bench}'s stack does not fit:\n{}", budget.table());
+        // The frames were read: each bench's `main` holds its inputs.
+        let frame = &budget.lines[0];
+        assert!(frame.what.contains("frame") && frame.used > 256, "{bench}: {frame:?}");
+    }
 }
