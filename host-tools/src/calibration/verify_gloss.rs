@@ -142,7 +142,9 @@ pub fn verify_gloss(
         .filter_map(|(zone, points)| {
             let r = reading_result(SPECULAR_GU, points, (references.white, references.gloss_scale))?;
             let deviation = r.value - standard.gu;
-            let e_n = deviation.abs() / (COVERAGE_FACTOR * r.u.hypot(standard.u_gu));
+            // Each side's expanded uncertainty: the reading's with its own
+            // coverage factor, the certificate's at k = 2.
+            let e_n = deviation.abs() / r.expanded_u.hypot(COVERAGE_FACTOR * standard.u_gu);
             let (first_pixel, last_pixel) = zone_pixels(view, zone);
             Some(ZoneVerdict {
                 zone,
@@ -168,7 +170,7 @@ impl Verification {
     pub fn table(&self) -> String {
         let mut s = format!(
             "standard: certified {} GU (u = {} GU); E_n = |reading - certified| / sqrt(U_reading^2 + U_certified^2), \
-             U = 2u\nzone  pixels  points  reads GU  stated u GU  deviation GU   E_n  verdict\n",
+             U = k u (the reading's k from its effective degrees of freedom, 2 with many; the certificate's 2)\nzone  pixels  points  reads GU  stated u GU  deviation GU   E_n  verdict\n",
             self.standard.gu, self.standard.u_gu
         );
         for z in &self.zones {

@@ -1,8 +1,10 @@
 //! A measurement's result as a calibration laboratory states one: each
 //! gloss reading's mean over the points of the zones asked for, and the
 //! mean BRDF bin by bin, with its uncertainty budget (GUM: each contribution's standard uncertainty in
-//! the reading's unit, their root sum of squares `u_c`, and `U = k u_c`
-//! at k = 2). `measure` and `estimate` print it and write it as JSON;
+//! the reading's unit and its degrees of freedom, their root sum of
+//! squares `u_c`, and `U = k u_c` at a coverage probability of 95.45 %,
+//! k from the effective degrees of freedom: 2 with many,
+//! [`crate::device::coverage_factor`]). `measure` and `estimate` print it and write it as JSON;
 //! `verify` compares a standard's zone means by the same budget.
 //!
 //! The contributions:
@@ -14,7 +16,8 @@
 //! - **repeatability**: the points' sample standard deviation over the
 //!   square root of their number (type A), how well the points pin the
 //!   mean over the area read: the noise on a uniform sample, the sample's
-//!   own variation on one that is not. The noise is then counted in both,
+//!   own variation on one that is not. Its `n - 1` degrees of freedom are
+//!   the budget's only finite ones: few points that vary much widen k. The noise is then counted in both,
 //!   which is the safe side: on the handheld, counting it once left
 //!   the gloss results of materials from other databases within U 85 %
 //!   of the time, not 98 % (`docs/guide/measuring.md`).
@@ -52,6 +55,7 @@
 //! are kept, as the gloss standardisation keeps them:
 //! a glossy surface is dark under every LED but those near its mirror
 //! direction, which the gloss readings take.
+use crate::device::coverage_factor;
 use crate::device::measurement_summary::{Spread, spread};
 use crate::output::points::{Point, Points};
 use anyhow::Context;
@@ -68,9 +72,11 @@ use std::path::Path;
 pub const SCHEMA: &str = "brdf-meter/result";
 /// Its version: bumped when a field is renamed, removed, added, moved or
 /// changes its meaning or unit (`docs/point-schema.md`).
-pub const SCHEMA_VERSION: u32 = 2;
-/// The coverage factor of the expanded uncertainty.
-pub const COVERAGE_FACTOR: f64 = 2.0;
+pub const SCHEMA_VERSION: u32 = 3;
+/// The coverage factor of an expanded uncertainty with many degrees of
+/// freedom (a certificate's k = 2; a result's own is
+/// [`ReadingResult::coverage_factor`]).
+pub const COVERAGE_FACTOR: f64 = crate::device::coverage_factor::LARGE_DOF_FACTOR;
 
 /// Each reading's unit, in `gloss::NAMES` order.
 const UNITS: [&str; READINGS] = ["GU", "HU", "%"];
@@ -114,6 +120,10 @@ pub struct Contribution {
     pub source: &'static str,
     /// Its standard uncertainty, in the reading's unit.
     pub u: f64,
+    /// Its degrees of freedom: the repeatability's `points - 1`; `None`
+    /// (null) for infinitely many, as for the calibration's and the
+    /// standards' (type B, known from many readings).
+    pub dof: Option<f64>,
 }
 
 /// One reading's result.
@@ -133,7 +143,12 @@ pub struct ReadingResult {
     pub budget: Vec<Contribution>,
     /// The combined standard uncertainty (k = 1).
     pub u: f64,
-    /// The expanded uncertainty (k = [`COVERAGE_FACTOR`]).
+    /// Its effective degrees of freedom (Welch-Satterthwaite; `None`, null:
+    /// infinitely many, no part evaluated from few points).
+    pub dof_eff: Option<f64>,
+    /// The coverage factor `k` for them at 95.45 % (2 with many).
+    pub coverage_factor: f64,
+    /// The expanded uncertainty, `coverage_factor * u`.
     pub expanded_u: f64,
     /// The coverage interval, `[lowest, highest]`: `value +- expanded_u`
     /// within the reading's definition ([`coverage_interval`]).
@@ -163,6 +178,10 @@ struct Mean {
     budget: Vec<Contribution>,
     /// The combined standard uncertainty (k = 1).
     u: f64,
+    /// Its effective degrees of freedom (`None`: infinitely many).
+    dof_eff: Option<f64>,
+    /// The coverage factor for them.
+    k: f64,
 }
 
 /// The mean of `points` (each a value and the calibration's standard
@@ -178,12 +197,13 @@ fn mean_with_budget(points: &[(f64, f64)], relative: &[(&'static str, f64)]) -> 
     let n = spread.count as f64;
     let calibration = (points.iter().map(|p| p.1 * p.1).sum::<f64>() / n).sqrt();
     let mut budget = vec![
-        Contribution { source: "calibration", u: calibration },
-        Contribution { source: "repeatability", u: spread.sd / n.sqrt() },
+        Contribution { source: "calibration", u: calibration, dof: None },
+        Contribution { source: "repeatability", u: spread.sd / n.sqrt(), dof: Some(n - 1.0) },
     ];
-    budget.extend(relative.iter().map(|&(source, rel)| Contribution { source, u: rel * spread.mean.abs() }));
+    budget.extend(relative.iter().map(|&(source, rel)| Contribution { source, u: rel * spread.mean.abs(), dof: None }));
     let u = budget.iter().map(|c| c.u * c.u).sum::<f64>().sqrt();
-    Some(Mean { spread, budget, u })
+    let dof_eff = coverage_factor::effective_dof(&budget.iter().map(|c| (c.u, c.dof)).collect::<Vec<_>>());
+    Some(Mean { spread, budget, u, dof_eff, k: coverage_factor::coverage_factor(dof_eff) })
 }
 
 /// The result of reading `reading` (`gloss::NAMES`' index) over `points`
@@ -199,7 +219,7 @@ pub fn reading_result(
     let relative: &[(&'static str, f64)] =
         if crate::output::points::READINGS_SCALE[reading] { &references } else { &[] };
     let m = mean_with_budget(points, relative)?;
-    let expanded_u = COVERAGE_FACTOR * m.u;
+    let expanded_u = m.k * m.u;
     let (lowest, highest) = gloss::DOMAINS[reading];
     Some(ReadingResult {
         reading: gloss::NAMES[reading],
@@ -210,6 +230,8 @@ pub fn reading_result(
         interval: coverage_interval(m.spread.mean, expanded_u, (f64::from(lowest), f64::from(highest))),
         expanded_u,
         u: m.u,
+        dof_eff: m.dof_eff,
+        coverage_factor: m.k,
         budget: m.budget,
     })
 }
@@ -252,7 +274,12 @@ pub struct BrdfResult {
     pub value: Vec<f64>,
     /// Its combined standard uncertainty per bin (k = 1).
     pub u: Vec<f64>,
-    /// Its expanded uncertainty per bin (k = [`COVERAGE_FACTOR`]).
+    /// Its effective degrees of freedom per bin (`None`, null: infinitely
+    /// many).
+    pub dof_eff: Vec<Option<f64>>,
+    /// The coverage factor per bin for them at 95.45 % (2 with many).
+    pub coverage_factor: Vec<f64>,
+    /// Its expanded uncertainty per bin, `coverage_factor * u`.
     pub expanded_u: Vec<f64>,
     /// Its coverage interval per bin, `[lowest, highest]`: `value +-
     /// expanded_u`, never below 0 ([`coverage_interval`]).
@@ -269,6 +296,9 @@ pub struct BinContribution {
     pub source: &'static str,
     /// Its standard uncertainty per bin.
     pub u: Vec<f64>,
+    /// Its degrees of freedom, the same on every bin (`None`, null:
+    /// infinitely many).
+    pub dof: Option<f64>,
 }
 
 /// A measurement's result.
@@ -295,8 +325,9 @@ pub struct MeasurementResult {
     /// Of them, flagged out-of-prior (kept: their stated uncertainty is
     /// already the wider one the calibration states for such points).
     pub out_of_prior: usize,
-    /// The coverage factor of `expanded_u`.
-    pub coverage_factor: f64,
+    /// The coverage probability of every `expanded_u` (each with its own
+    /// coverage factor).
+    pub coverage_probability: f64,
     /// The references' relative standard uncertainties.
     pub references: References,
     /// Each reading the points have, in `gloss::NAMES` order.
@@ -354,7 +385,7 @@ pub fn measurement_result(view: &BlobView<'_>, zones: &[usize], points: &Points)
         points: g.count,
         saturated: g.saturated,
         out_of_prior: g.out_of_prior,
-        coverage_factor: COVERAGE_FACTOR,
+        coverage_probability: coverage_factor::COVERAGE_PROBABILITY,
         references,
         readings: g.readings(on_references),
         brdf: brdf_result(&points.bins_deg, &g.estimates, references.white),
@@ -435,16 +466,19 @@ fn brdf_result(bins_deg: &[f32], estimates: &[&Point], white: f64) -> Option<Brd
     let part = |k: usize| BinContribution {
         source: per_bin[0].budget[k].source,
         u: per_bin.iter().map(|m| m.budget[k].u).collect(),
+        dof: per_bin[0].budget[k].dof,
     };
     Some(BrdfResult {
         points: estimates.len(),
         bins_deg: bins_deg.to_vec(),
         value: per_bin.iter().map(|m| m.spread.mean).collect(),
         u: per_bin.iter().map(|r| r.u).collect(),
-        expanded_u: per_bin.iter().map(|m| COVERAGE_FACTOR * m.u).collect(),
+        dof_eff: per_bin.iter().map(|m| m.dof_eff).collect(),
+        coverage_factor: per_bin.iter().map(|m| m.k).collect(),
+        expanded_u: per_bin.iter().map(|m| m.k * m.u).collect(),
         interval: per_bin
             .iter()
-            .map(|m| coverage_interval(m.spread.mean, COVERAGE_FACTOR * m.u, REFLECTANCE_FACTOR_DOMAIN))
+            .map(|m| coverage_interval(m.spread.mean, m.k * m.u, REFLECTANCE_FACTOR_DOMAIN))
             .collect(),
         budget: (0..per_bin[0].budget.len()).map(part).collect(),
     })
@@ -480,10 +514,11 @@ impl MeasurementResult {
         }
         let _ = writeln!(
             t,
-            "result over zone(s) {}: {lines}{} point(s){notes}; U = {} u_c, the interval value +- U within the reading's definition:",
+            "result over zone(s) {}: {lines}{} point(s){notes}; U = k u_c at {:.2} % (k from the effective degrees of \
+             freedom nu_eff, 2 with many), the interval value +- U within the reading's definition:",
             zones.join(", "),
             self.points,
-            self.coverage_factor
+            100.0 * self.coverage_probability
         );
         if let Some(b) = &self.brdf {
             let _ = writeln!(
@@ -499,8 +534,18 @@ impl MeasurementResult {
         }
         let _ = writeln!(
             t,
-            "  {:<20} {:>9} {:>8} {:>17} {:>8}  {:>11} {:>13} {:>7} {:>11}  points",
-            "reading", "value", "U", "interval", "u_c", "calibration", "repeatability", "white", "gloss scale"
+            "  {:<20} {:>9} {:>8} {:>17} {:>8} {:>5} {:>6}  {:>11} {:>13} {:>7} {:>11}  points",
+            "reading",
+            "value",
+            "U",
+            "interval",
+            "u_c",
+            "k",
+            "nu_eff",
+            "calibration",
+            "repeatability",
+            "white",
+            "gloss scale"
         );
         for r in &self.readings {
             let part = |s: &str| {
@@ -508,12 +553,14 @@ impl MeasurementResult {
             };
             let _ = writeln!(
                 t,
-                "  {:<20} {:>9.2} {:>8.2} {:>17} {:>8.2}  {:>11} {:>13} {:>7} {:>11}  {}",
+                "  {:<20} {:>9.2} {:>8.2} {:>17} {:>8.2} {:>5.2} {:>6}  {:>11} {:>13} {:>7} {:>11}  {}",
                 format!("{} ({})", r.reading, r.unit),
                 r.value,
                 r.expanded_u,
                 format!("{:.2} .. {:.2}", r.interval[0], r.interval[1]),
                 r.u,
+                r.coverage_factor,
+                r.dof_eff.map_or("many".to_string(), |nu| if nu > 999.0 { ">999".into() } else { format!("{nu:.0}") }),
                 part("calibration"),
                 part("repeatability"),
                 part("white_reference"),
@@ -625,7 +672,16 @@ mod tests {
         assert!((g.contribution("white_reference") - 0.4).abs() < 1e-4, "{g:?}");
         assert!((g.contribution("gloss_scale") - 0.3).abs() < 1e-4, "{g:?}");
         let u = (0.36f64 + (sd / 2.0).powi(2) + 0.16 + 0.09).sqrt();
-        assert!((g.u - u).abs() < 1e-4 && (g.expanded_u - 2.0 * g.u).abs() < 1e-12, "{g:?}");
+        assert!((g.u - u).abs() < 1e-4, "{g:?}");
+        // The repeatability's 3 degrees of freedom are the only finite
+        // ones: nu_eff = u^4 / (u_rep^4 / 3), about 87, and k a little
+        // above 2.
+        let dofs: Vec<Option<f64>> = g.budget.iter().map(|c| c.dof).collect();
+        assert_eq!(dofs, [None, Some(3.0), None, None]);
+        let nu = u.powi(4) / ((sd / 2.0).powi(4) / 3.0);
+        assert!((g.dof_eff.unwrap() - nu).abs() < 1e-3 * nu, "{g:?} against {nu}");
+        assert!(g.coverage_factor > 2.03 && g.coverage_factor < 2.05, "{g:?}");
+        assert!((g.expanded_u - g.coverage_factor * g.u).abs() < 1e-12, "{g:?}");
         // Distinctness, a ratio, carries neither reference.
         let d = &r.readings[2];
         assert_eq!(d.reading, "distinctness_pct");
@@ -639,15 +695,48 @@ mod tests {
         assert!((brdf.value[1] - 1.0).abs() < 1e-6 && (brdf.value[0] - 0.5).abs() < 1e-9, "{brdf:?}");
         let want = (0.01f64 + (sd / 200.0).powi(2) + 0.004f64.powi(2)).sqrt();
         assert!((brdf.u[1] - want).abs() < 1e-6, "{} vs {want}", brdf.u[1]);
-        assert!((brdf.u[0] - 0.02f64.hypot(0.002)).abs() < 1e-6 && brdf.expanded_u[0] == 2.0 * brdf.u[0]);
+        assert!((brdf.u[0] - 0.02f64.hypot(0.002)).abs() < 1e-6, "{brdf:?}");
+        // Bins 0 and 2 do not vary: no repeatability, k = 2; bin 1 does.
+        assert_eq!((brdf.dof_eff[0], brdf.coverage_factor[0], brdf.expanded_u[0]), (None, 2.0, 2.0 * brdf.u[0]));
+        assert!(brdf.coverage_factor[1] > 2.0 && brdf.expanded_u[1] == brdf.coverage_factor[1] * brdf.u[1]);
+        assert_eq!(brdf.budget[1].dof, Some(3.0));
         let t = r.table();
-        assert!(t.contains("result over zone(s) 0 (pixels 0-3): 4 line(s), 4 point(s); U = 2 u_c"), "{t}");
+        assert!(t.contains("result over zone(s) 0 (pixels 0-3): 4 line(s), 4 point(s); U = k u_c at 95.45 %"), "{t}");
+        assert!(t.contains(&format!("{:>5.2} {:>6}", g.coverage_factor, format!("{:.0}", g.dof_eff.unwrap()))), "{t}");
         assert!(t.contains("gloss_gu (GU)") && t.contains("100.00"), "{t}");
         assert!(t.contains("BRDF: the mean of 4 point(s), 3 bin(s) with their budgets in the JSON"), "{t}");
         let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
         assert_eq!(j["schema"], SCHEMA);
+        assert_eq!(j["coverage_probability"], coverage_factor::COVERAGE_PROBABILITY);
         assert_eq!(j["readings"][0]["budget"][3]["source"], "gloss_scale");
+        assert_eq!(j["readings"][0]["budget"][1]["dof"], 3.0);
+        assert!(j["readings"][0]["budget"][0]["dof"].is_null());
+        assert_eq!(j["readings"][0]["coverage_factor"], g.coverage_factor);
         assert_eq!(j["brdf"]["value"].as_array().unwrap().len(), 3);
+    }
+
+    #[test]
+    fn few_points_that_vary_much_widen_the_coverage_factor() {
+        let b = blob(0.0, 0.0);
+        let view = BlobView::parse(&b).unwrap();
+        // Three points, 90 / 100 / 110 GU, each stated to 0.5 GU: the
+        // repeatability (5.8 GU, 2 degrees of freedom) is nearly all of
+        // u_c, so k is nearly Student's t for 2 (4.53), not 2.
+        let ps = points(vec![point(0, 0, 90.0, 0.5), point(1, 0, 100.0, 0.5), point(2, 0, 110.0, 0.5)]);
+        let g = &measurement_result(&view, &[0], &ps).readings[0];
+        let rep = g.contribution("repeatability");
+        assert!((rep - 10.0 / 3f64.sqrt()).abs() < 1e-4, "{g:?}");
+        let nu = g.dof_eff.unwrap();
+        assert!(nu > 2.0 && nu < 2.1, "{g:?}");
+        assert!(g.coverage_factor > 4.4 && g.coverage_factor < 4.53, "{g:?}");
+        assert!((g.expanded_u - g.coverage_factor * g.u).abs() < 1e-12);
+        // Many points of the same spread keep k at 2 to the second decimal.
+        let many: Vec<Point> = (0..300).map(|l| point(l, 0, 90.0 + 20.0 * (l % 3) as f32 / 2.0, 0.5)).collect();
+        let g = &measurement_result(&view, &[0], &points(many)).readings[0];
+        assert!(g.coverage_factor < 2.01 && g.dof_eff.unwrap() > 250.0, "{g:?}");
+        // One point: nothing evaluated from the points, k = 2.
+        let one = &measurement_result(&view, &[0], &points(vec![point(0, 0, 90.0, 0.5)])).readings[0];
+        assert_eq!((one.dof_eff, one.coverage_factor), (None, 2.0));
     }
 
     #[test]
@@ -689,7 +778,7 @@ mod tests {
         let t = r.table();
         assert!(t.contains(&format!("0.00 .. {:.2}", d.interval[1])), "{t}");
         let j: serde_json::Value = serde_json::from_slice(&r.json().unwrap()).unwrap();
-        assert_eq!(j["schema_version"], 2);
+        assert_eq!(j["schema_version"], 3);
         assert_eq!(j["readings"][2]["interval"][0], 0.0);
         assert_eq!(j["brdf"]["interval"].as_array().unwrap().len(), 3);
     }
