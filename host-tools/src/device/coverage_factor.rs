@@ -81,7 +81,8 @@ mod tests {
         assert_eq!(coverage_factor(None), 2.0);
         assert_eq!(coverage_factor(Some(f64::INFINITY)), 2.0);
         // Many degrees of freedom tend to 2 from above, without a jump
-        // where the expansion takes over, and return at any size (2 itself once 2.5 / nu is below f64's resolution).
+        // where the expansion takes over, and return at any size (2
+        // itself once 2.5 / nu is below f64's resolution).
         let below = coverage_factor(Some(ASYMPTOTIC_DOF * (1.0 - 1e-9)));
         let above = coverage_factor(Some(ASYMPTOTIC_DOF));
         assert!((below - above).abs() < 1e-10 && (above - 2.00025003).abs() < 1e-8, "{below} {above}");
@@ -99,7 +100,8 @@ mod tests {
         // A type B part of equal size: u_c^4 = 4 u^4, so 4 nu.
         let nu = effective_dof(&[(0.5, None), (0.5, Some(3.0))]).unwrap();
         assert!((nu - 12.0).abs() < 1e-12, "{nu}");
-        // Three equal parts: the finite ones summed, the type B one adds to u_c only.
+        // Three equal parts: the finite ones summed, the type B one
+        // adding to u_c only.
         let nu = effective_dof(&[(1.0, Some(4.0)), (1.0, Some(9.0)), (1.0, None)]).unwrap();
         assert!((nu - 9.0 / (0.25 + 1.0 / 9.0)).abs() < 1e-12, "{nu}");
         // Nothing finite, or only zero parts with finite degrees of freedom.

@@ -1,11 +1,12 @@
 //! A measurement's result as a calibration laboratory states one: each
 //! gloss reading's mean over the points of the zones asked for, and the
-//! mean BRDF bin by bin, with its uncertainty budget (GUM: each contribution's standard uncertainty in
-//! the reading's unit and its degrees of freedom, their root sum of
-//! squares `u_c`, and `U = k u_c` at a coverage probability of 95.45 %,
-//! k from the effective degrees of freedom: 2 with many,
-//! [`crate::device::coverage_factor`]). `measure` and `estimate` print it and write it as JSON;
-//! `verify` compares a standard's zone means by the same budget.
+//! mean BRDF bin by bin, with its uncertainty budget (GUM: each
+//! contribution's standard uncertainty in the reading's unit and its
+//! degrees of freedom, their root sum of squares `u_c`, and `U = k u_c` at
+//! a coverage probability of 95.45 %, k from the effective degrees of
+//! freedom: 2 with many, [`crate::device::coverage_factor`]). `measure`
+//! and `estimate` print it and write it as JSON; `verify` compares a
+//! standard's zone means by the same budget.
 //!
 //! The contributions:
 //! - **calibration**: the RMS of the uncertainty the calibration states
@@ -17,10 +18,11 @@
 //!   square root of their number (type A), how well the points pin the
 //!   mean over the area read: the noise on a uniform sample, the sample's
 //!   own variation on one that is not. Its `n - 1` degrees of freedom are
-//!   the budget's only finite ones: few points that vary much widen k. The noise is then counted in both,
-//!   which is the safe side: on the handheld, counting it once left
-//!   the gloss results of materials from other databases within U 85 %
-//!   of the time, not 98 % (`docs/guide/measuring.md`).
+//!   the budget's only finite ones: few points that vary much widen k.
+//!   The noise is then counted in both, which is the safe side: on the
+//!   handheld, counting it once left the gloss results of materials from
+//!   other databases within U 85 % of the time, not 98 %
+//!   (`docs/guide/measuring.md`).
 //! - **white reference** and **gloss scale**: a standardised calibration's
 //!   relative uncertainties (`BlobView::white_uncertainty`,
 //!   `gloss_uncertainty`) times the mean, on the readings that scale with
