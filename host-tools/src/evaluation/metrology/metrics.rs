@@ -398,7 +398,8 @@ mod tests {
         let (truth, draws) = surface(&[101.9, 101.9, 101.9, 101.9], 1.0);
         t.add("a", &truth, &draws);
         // Off by 2.3 on average, beyond 2 u, but the draws scatter (sd
-        // 2.66): the mean's repeatability (1.33) widens U to 3.33.
+        // 2.66): the mean's repeatability (1.33, 3 degrees of freedom)
+        // widens u_c to 1.66 and k to 2.4 (nu_eff 7.4): U about 4.0.
         let (truth, draws) = surface(&[100.0, 104.6, 100.0, 104.6], 1.0);
         t.add("b", &truth, &draws);
         // Off by 2.1: not covered; a reading of a surface each draw of which

@@ -327,7 +327,7 @@ impl Report {
             );
         }
         s += &format!(
-            "\nGloss readings (|G_est - G_true| / G_true per estimate, split at {GLOSS_SPLIT_GU} GU of the truth; haze HU and distinctness % absolute; coverage k=2 of the stated u; result: per surface, the mean of its draws with U = 2 sqrt(RMS of their u^2 + the mean's repeatability^2), as `measure` states it)\n\n"
+            "\nGloss readings (|G_est - G_true| / G_true per estimate, split at {GLOSS_SPLIT_GU} GU of the truth; haze HU and distinctness % absolute; coverage k=2 of the stated u; result: per surface, the mean of its draws with U = k sqrt(RMS of their u^2 + the mean's repeatability^2), k from the effective degrees of freedom (2 with many), as `measure` states it)\n\n"
         );
         s += "| family | method | G <= 300: p50 / p90 (n) | G <= 300: GU p50 / p90 | G > 300: p50 / p90 (n) | haze HU p50 / p90 | distinctness % p50 / p90 | no reading | coverage G / H / D | result coverage G / H / D |\n";
         s += "|---|---|---|---|---|---|---|---|---|---|\n";
