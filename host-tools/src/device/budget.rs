@@ -111,6 +111,9 @@ impl Line {
 pub struct Budget {
     /// Firmware name.
     pub name: String,
+    /// The calibration its slots were checked for (`None`: an image with
+    /// no slots, a bench, whose budget is its stack alone).
+    pub calibration: Option<Dims>,
     /// The lines; all must fit.
     pub lines: Vec<Line>,
     /// Layout problems (overlaps, misalignment), each a failure.
@@ -128,16 +131,17 @@ impl Budget {
     /// A plain-text table.
     pub fn table(&self) -> String {
         let mut s = String::new();
-        // The calibration it is sized for, where it has slots for one (a
-        // bench's budget is its stack alone).
-        if self.lines.iter().any(|l| l.what.starts_with("flash")) {
-            let _ = writeln!(
-                s,
-                "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):",
-                self.name, MAX_DIMS.zones, MAX_DIMS.n, MAX_DIMS.m, MAX_DIMS.pixels
-            );
-        } else {
-            let _ = writeln!(s, "budget of {}:", self.name);
+        match self.calibration {
+            Some(d) => {
+                let _ = writeln!(
+                    s,
+                    "budget of {} (calibration Z = {}, n = {}, m = {}, P = {}):",
+                    self.name, d.zones, d.n, d.m, d.pixels
+                );
+            }
+            None => {
+                let _ = writeln!(s, "budget of {}:", self.name);
+            }
         }
         let _ = writeln!(s, "  {:<44} {:>10} {:>10} {:>10} {:>6}", "resource", "used", "limit", "free", "use%");
         for l in &self.lines {
@@ -270,7 +274,7 @@ pub fn check(
         matrices,
         (map.ram.length as u64).saturating_sub(statics)
     )];
-    Budget { name: name.into(), lines, problems, notes }
+    Budget { name: name.into(), calibration: Some(dims), lines, problems, notes }
 }
 
 /// Reads an ELF file and checks it against `memory.x`.
@@ -300,7 +304,7 @@ pub fn check_bench_file(path: &std::path::Path, script: &str) -> Result<Budget> 
     let elf = std::fs::read(path).with_context(|| format!("cannot read bench firmware {}", path.display()))?;
     let map = MemoryMap::from_script(script)?;
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    let mut budget = Budget { name, lines: Vec::new(), problems: Vec::new(), notes: Vec::new() };
+    let mut budget = Budget { name, calibration: None, lines: Vec::new(), problems: Vec::new(), notes: Vec::new() };
     add_stack_checks(&mut budget, &elf, path, &map, STACK_RESERVE)?;
     Ok(budget)
 }
