@@ -157,21 +157,16 @@ impl<const M: usize, const P: usize> RawLine<M, P> {
     /// The frames of this recorded line in the order the acquisition reads
     /// them (`acquire_line`): the dark frame, then in two passes (the first
     /// m - 1 readings, then the last) each reading's long exposure, then per
-    /// shorter exposure the readings whose frame at the exposure before
-    /// saturated somewhere and whose frame at this one was taken. How a
+    /// shorter exposure the readings that needed it
+    /// ([`RawLine::needs_shorter`]) and whose frame at it was taken. How a
     /// benchmark replays a line through [`LineCorrection`].
     pub fn frames_read(&self, full_scale: u16, levels: usize) -> impl Iterator<Item = FrameRead> + '_ {
         let pass = move |readings: core::ops::Range<usize>| {
             let long = readings.clone().map(FrameRead::Long);
             let short = (0..levels.min(MAX_SHORT_EXPOSURES)).flat_map(move |level| {
                 readings.clone().filter_map(move |i| {
-                    let longer = if level == 0 {
-                        Some(&self.lit[i])
-                    } else {
-                        self.short_taken[level - 1][i].then_some(&self.short[level - 1][i])
-                    };
-                    let saturated = longer.is_some_and(|f| f.iter().any(|x| *x >= full_scale));
-                    (saturated && self.short_taken[level][i]).then_some(FrameRead::Short { level, reading: i })
+                    (self.needs_shorter(level, i, full_scale) && self.short_taken[level][i])
+                        .then_some(FrameRead::Short { level, reading: i })
                 })
             });
             long.chain(short)

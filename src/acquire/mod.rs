@@ -68,6 +68,20 @@ impl<const M: usize, const P: usize> RawLine<M, P> {
         }
     }
 
+    /// Whether reading `i` needs its frame at shorter exposure `level`:
+    /// its frame at the exposure before (the long one for level 0) was
+    /// taken and saturated somewhere. The exposure ladder's one rule, which
+    /// the acquisition follows and a benchmark's replay of a line repeats.
+    #[inline(always)]
+    pub fn needs_shorter(&self, level: usize, i: usize, full_scale: u16) -> bool {
+        let longer = if level == 0 {
+            Some(&self.lit[i])
+        } else {
+            self.short_taken[level - 1][i].then_some(&self.short[level - 1][i])
+        };
+        longer.is_some_and(|f| f.iter().any(|x| *x >= full_scale))
+    }
+
     /// A line from recorded frames, little-endian u16: per exposure level
     /// (the long one, then `shorter` of the shorter ones, every frame of
     /// which counts as taken) the dark frame, then one frame per reading,
@@ -449,12 +463,7 @@ pub async fn acquire_line<L: crate::hw::Leds, S: crate::hw::LineSensor, const M:
             }
             let exposure = cfg.short_exposures_us[level];
             for i in pass.clone() {
-                let longer = if level == 0 {
-                    Some(&raw.lit[i])
-                } else {
-                    raw.short_taken[level - 1][i].then_some(&raw.short[level - 1][i])
-                };
-                if !longer.is_some_and(|f| f.iter().any(|x| *x >= fs)) {
+                if !raw.needs_shorter(level, i, fs) {
                     continue;
                 }
                 if dark_taken & (1 << level) == 0 {
