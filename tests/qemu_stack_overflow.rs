@@ -6,7 +6,7 @@
 //! the canary above the stack is never written. With the stack above the
 //! statics, cortex-m-rt's default, the probe finds its canary overwritten
 //! and exits with a failure instead, and this test fails.
-use host_tools::device::link::qemu::{cargo_aliases, firmware_path, workspace_root};
+use host_tools::device::link::qemu::{MACHINE_ARGS, SEMIHOSTING_ARGS, cargo_aliases, firmware_path, workspace_root};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -20,8 +20,10 @@ fn a_stack_overflow_faults_below_sram1_and_never_reaches_the_statics() {
     let elf = firmware_path(&root).with_file_name("stack-overflow-probe");
     let out = tempfile::NamedTempFile::new().expect("a temporary file for QEMU's output");
     let mut child = Command::new("qemu-system-arm")
-        .args(["-machine", "b-l475e-iot01a", "-display", "none", "-monitor", "none", "-serial", "null"])
-        .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
+        .args(MACHINE_ARGS)
+        .args(["-serial", "null"])
+        .args(SEMIHOSTING_ARGS)
+        .arg("-kernel")
         .arg(&elf)
         .stdin(Stdio::null())
         .stdout(out.reopen().expect("QEMU's output file"))

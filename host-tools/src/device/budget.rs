@@ -342,7 +342,7 @@ fn add_stack_checks(
 /// stack reserve, as a frame larger than that leaves too little of the
 /// reserve for the calls under it (the board's stack is only measured in
 /// QEMU, `crate::device::stack_use`).
-pub fn largest_frame_line(frames: &[crate::device::stack_frames::Frame], limit: u64) -> Line {
+fn largest_frame_line(frames: &[crate::device::stack_frames::Frame], limit: u64) -> Line {
     Line { what: "stack: largest function frame".into(), used: frames.first().map_or(0, |f| u64::from(f.bytes)), limit }
 }
 
