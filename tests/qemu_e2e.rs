@@ -343,6 +343,7 @@ fn qemu_measure_writes_the_plot_and_the_standard_files() {
             bird: Some(dir.path().join("m.bird.json")),
             astm: Some(dir.path().join("m.astm")),
             result_astm: Some(dir.path().join("m-result.astm")),
+            result_bird: None,
             view_deg: 45.0,
             solid_angle_sr: Some(1e-3),
         },

@@ -246,7 +246,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for line in a.exports.write(&profiles, &export, &title)? {
         println!("{line}");
     }
-    if let Some(line) = a.exports.write_result(&result, &export)? {
+    for line in a.exports.write_result(&result, &export)? {
         println!("{line}");
     }
     Ok(())
@@ -342,6 +342,7 @@ mod tests {
             bird: Some(dir.path().join("e.bird.json")),
             astm: Some(dir.path().join("e.astm")),
             result_astm: Some(dir.path().join("result.astm")),
+            result_bird: Some(dir.path().join("result.bird.json")),
             view_deg: 45.0,
             solid_angle_sr: Some(1e-3),
         };
@@ -358,6 +359,37 @@ mod tests {
         assert_eq!(t.rows.len(), 81);
         let sample = t.header.iter().find(|(k, _)| k == "SAMPLE").map(|(_, v)| v.as_str());
         assert_eq!(sample, Some("mean of 3 point(s): zone(s) 0, pixels 0-7; u is the combined standard uncertainty"));
+        // And as one BiRD file: the same mean, no line or point, its
+        // coverage in the ad hoc section.
+        let (mean, view) = crate::output::bird::read(&dir.path().join("result.bird.json")).unwrap();
+        assert_eq!((mean.len(), view), (1, 45.0));
+        for ((x, u), (want, want_u)) in mean[0]
+            .reflectance
+            .iter()
+            .zip(&mean[0].uncertainty)
+            .zip(r["brdf"]["value"].as_array().unwrap().iter().zip(r["brdf"]["u"].as_array().unwrap()))
+        {
+            let (want, want_u) = (want.as_f64().unwrap(), want_u.as_f64().unwrap());
+            assert!((x - want).abs() <= 1e-9 * want.abs().max(1e-9), "{x} vs {want}");
+            assert!((u - want_u).abs() <= 1e-9 * want_u.abs().max(1e-9), "{u} vs {want_u}");
+        }
+        let doc: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("result.bird.json")).unwrap()).unwrap();
+        assert!(crate::output::bird::check_required(&doc).is_empty());
+        let names: Vec<&str> =
+            doc["data"]["variables"].as_array().unwrap().iter().map(|v| v["name"].as_str().unwrap()).collect();
+        assert_eq!(names, ["theta_i", "phi_i", "theta_r", "phi_r", "BRDF", "uBRDF"]);
+        let coverage = &doc["metadata"]["adhoc_section"]["result"];
+        let (k, big_u) = (
+            coverage["coverage_factor"].as_array().unwrap(),
+            coverage["expanded_uncertainty_BRDF"].as_array().unwrap(),
+        );
+        assert_eq!((k.len(), big_u.len()), (81, 81));
+        for ((k, big_u), row) in k.iter().zip(big_u).zip(doc["data"]["values"].as_array().unwrap()) {
+            let u = row[5].as_f64().unwrap();
+            assert!((k.as_f64().unwrap() * u - big_u.as_f64().unwrap()).abs() <= 1e-12 + 1e-9 * u, "{k} {u} {big_u}");
+        }
+        assert_eq!(coverage["readings"], r["readings"]);
         let svg = std::fs::read_to_string(dir.path().join("p.svg")).unwrap();
         assert_eq!(svg.matches("<polygon").count(), 2);
         assert!(svg.contains("line 0 point 2"));

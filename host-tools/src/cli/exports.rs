@@ -32,6 +32,11 @@ pub struct ExportArgs {
     /// E1392 table.
     #[arg(long, value_name = "FILE")]
     pub result_astm: Option<PathBuf>,
+    /// Write the result's mean BRDF as one BiRD universal BRDF JSON file:
+    /// its combined standard uncertainty per bin, and per bin and reading
+    /// the coverage factor, expanded uncertainty and interval.
+    #[arg(long, value_name = "FILE")]
+    pub result_bird: Option<PathBuf>,
     /// The instrument's view angle (deg): the scatter direction in the files,
     /// and the mirror incidence the points' specular peak is sought about.
     #[arg(long, default_value_t = DEFAULT_VIEW_DEG, value_name = "DEG")]
@@ -126,18 +131,25 @@ impl ExportArgs {
         Ok(said)
     }
 
-    /// Writes the result's mean BRDF when `--result-astm` asks; what was
-    /// written (or why nothing was), for the user.
+    /// Writes the result's mean BRDF where `--result-astm` and
+    /// `--result-bird` ask; what was written (or why nothing was), one line
+    /// per file, for the user.
     pub fn write_result(
         &self,
         result: &crate::device::measurement_result::MeasurementResult,
         info: &ExportInfo,
-    ) -> anyhow::Result<Option<String>> {
-        let Some(path) = &self.result_astm else { return Ok(None) };
+    ) -> anyhow::Result<Vec<String>> {
+        let asked: Vec<&PathBuf> = self.result_astm.iter().chain(&self.result_bird).collect();
+        if asked.is_empty() {
+            return Ok(Vec::new());
+        }
         let Some(b) = &result.brdf else {
-            return Ok(Some(format!("{}: not written, no point of the result has a finite estimate", path.display())));
+            return Ok(asked
+                .iter()
+                .map(|p| format!("{}: not written, no point of the result has a finite estimate", p.display()))
+                .collect());
         };
-        let profile = Profile {
+        let mean = Profile {
             line: 0,
             point: 0,
             flags: Vec::new(),
@@ -146,9 +158,30 @@ impl ExportArgs {
             uncertainty: b.u.clone(),
             readings: result.readings.iter().map(|r| (r.reading.to_string(), r.value, r.u)).collect(),
         };
-        let text = crate::output::astm_e1392::sample_text(&result.sample(), &profile, info);
-        crate::output::io::write_atomic(path, text.as_bytes())
-            .with_context(|| format!("writing the ASTM E1392 file {}", path.display()))?;
-        Ok(Some(format!("ASTM E1392 table of the result: {}", path.display())))
+        let sample = result.sample();
+        let mut said = Vec::new();
+        if let Some(path) = &self.result_astm {
+            let text = crate::output::astm_e1392::sample_text(&sample, &mean, info);
+            crate::output::io::write_atomic(path, text.as_bytes())
+                .with_context(|| format!("writing the ASTM E1392 file {}", path.display()))?;
+            said.push(format!("ASTM E1392 table of the result: {}", path.display()));
+        }
+        if let Some(path) = &self.result_bird {
+            // In the file's unit, sr^-1 (the reflectance factor / pi).
+            let per_sr = |x: &f64| x / std::f64::consts::PI;
+            let coverage = serde_json::json!({
+                "coverage_probability": result.coverage_probability,
+                "coverage_factor": b.coverage_factor,
+                "expanded_uncertainty_BRDF": b.expanded_u.iter().map(per_sr).collect::<Vec<_>>(),
+                "interval_BRDF": b.interval.iter().map(|[lo, hi]| [per_sr(lo), per_sr(hi)]).collect::<Vec<_>>(),
+                "points": b.points,
+                "out_of_prior": result.out_of_prior,
+                "saturated_left_out": result.saturated,
+                "readings": result.readings,
+            });
+            crate::output::bird::write_result(path, &mean, &sample, coverage, info)?;
+            said.push(format!("BiRD universal BRDF file of the result: {}", path.display()));
+        }
+        Ok(said)
     }
 }

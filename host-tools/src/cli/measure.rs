@@ -162,7 +162,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for line in a.exports.write(&profiles, &export, &title)? {
         println!("{line}");
     }
-    if let Some(line) = a.exports.write_result(&result, &export)? {
+    for line in a.exports.write_result(&result, &export)? {
         println!("{line}");
     }
     Ok(())

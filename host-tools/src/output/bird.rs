@@ -124,6 +124,49 @@ pub fn document(profiles: &[Profile], info: &ExportInfo) -> Value {
     })
 }
 
+/// The BiRD document of a measurement's result: `mean`, its mean BRDF
+/// (`uncertainty` the combined standard uncertainty, k = 1), over what
+/// `sample` names, with `coverage` (per bin and reading the coverage
+/// factor, the expanded uncertainty and the interval, which the schema has
+/// no field for) as its ad hoc section's `result`. A mean is of no one
+/// line or point, so it has neither variable; its readings are in
+/// `coverage`.
+pub fn result_document(mean: &Profile, sample: &str, coverage: Value, info: &ExportInfo) -> Value {
+    let mut doc = document(std::slice::from_ref(mean), info);
+    let data = &mut doc["data"];
+    let vars = data["variables"].as_array_mut().expect("document writes its variables");
+    vars.drain(..2);
+    vars[5]["description"] = json!(
+        "Combined standard uncertainty of BRDF (k = 1) of the result's mean: the calibration's, the repeatability \
+         and the white reference's; its coverage factor and expanded uncertainty per row are in \
+         metadata.adhoc_section.result."
+    );
+    for row in data["values"].as_array_mut().expect("document writes its rows") {
+        row.as_array_mut().expect("a row is an array").drain(..2);
+    }
+    let meta = &mut doc["metadata"];
+    meta["name"] = json!(format!("{}: result, {sample}", info.source));
+    meta["adhoc_section"] = json!({ "result": coverage });
+    meta["comments"] = json!(sample);
+    doc
+}
+
+/// Writes a measurement's result ([`result_document`]) as a BiRD file,
+/// atomically.
+pub fn write_result(
+    path: &Path,
+    mean: &Profile,
+    sample: &str,
+    coverage: Value,
+    info: &ExportInfo,
+) -> anyhow::Result<()> {
+    let mut t = serde_json::to_string_pretty(&result_document(mean, sample, coverage, info))
+        .context("serialising the result's BiRD file")?;
+    t.push('\n');
+    crate::output::io::write_atomic(path, t.as_bytes())
+        .with_context(|| format!("writing the result's BiRD file {}", path.display()))
+}
+
 /// The document as pretty JSON text.
 pub fn to_text(profiles: &[Profile], info: &ExportInfo) -> anyhow::Result<String> {
     let mut t = serde_json::to_string_pretty(&document(profiles, info)).context("serialising the BiRD file")?;
