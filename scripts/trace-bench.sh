@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Builds a QEMU bench firmware (src/bin/BENCH.rs, feature kernel-bench, its
 # `cargo BENCH-fw` alias) and runs it once in QEMU (machine b-l475e-iot01a)
-# with an exact execution trace, as scripts/kernel-bench.sh does for the
-# kernels. Its input, target/BENCH/data.bin, is written by the host-tools
-# command that calls this script through a wrapper (line-bench.sh:
-# `host-tools rate`; inspect-bench.sh: `host-tools inspect bench`), which
-# then counts OUTDIR:
+# with an exact execution trace: one instruction per translation block,
+# every executed instruction logged (`-accel tcg,one-insn-per-tb=on -d
+# exec,nochain`, design.md). Its input, target/BENCH/data.bin, is written
+# by the host-tools command that calls this script through a wrapper
+# (line-bench.sh: `host-tools rate`; inspect-bench.sh: `host-tools inspect
+# bench`; kernel-bench.sh, `host-tools tradeoff`, has its inputs built in),
+# which then counts OUTDIR:
 #   BENCH.elf     the firmware
 #   stdout.txt    what the firmware printed (segment names)
 #   trace.txt     QEMU's execution trace (deleted once counted)
@@ -18,7 +20,10 @@ cd "$(dirname "$0")/.."
 bench=$1
 out=${2:-target/$bench}
 mkdir -p "$out"
-[ -f "target/$bench/data.bin" ] || { echo "$bench: no target/$bench/data.bin (the host-tools command that runs it writes it)" >&2; exit 2; }
+# BENCH_INPUT=none: a bench whose inputs are built in (the kernel bench).
+if [ "${BENCH_INPUT:-data}" != none ]; then
+  [ -f "target/$bench/data.bin" ] || { echo "$bench: no target/$bench/data.bin (the host-tools command that runs it writes it)" >&2; exit 2; }
+fi
 for tool in qemu-system-arm arm-none-eabi-nm arm-none-eabi-objdump; do
   command -v "$tool" >/dev/null || { echo "$bench: $tool not found (scripts/install-test-deps.sh installs it)" >&2; exit 2; }
 done
