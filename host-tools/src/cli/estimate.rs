@@ -230,25 +230,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.out.display(),
         [&a.json, &a.result].into_iter().flatten().map(|p| format!(", {}", p.display())).collect::<String>()
     );
-    let export = crate::output::profile::ExportInfo {
-        view_deg: a.exports.view_deg,
-        source: "host-tools estimate".into(),
-        instrument: format!("offline estimate from {}", a.readings.display()),
-        calibration: format!(
-            "{} blob crc {:#010x}, {zones_used}",
-            crate::calibration::estimators::kind_name(view.estimator()),
-            view.crc()
-        ),
-        timestamp: crate::output::profile::utc_now(),
-        solid_angle_sr: a.exports.solid_angle_sr,
-    };
+    let export = a.exports.info(
+        "host-tools estimate",
+        format!("offline estimate from {}", a.readings.display()),
+        format!("{}, {zones_used}", crate::cli::exports::calibration_label(&view)),
+    );
     let title = format!("BRDF profiles, {} ({})", a.readings.display(), export.calibration);
-    for line in a.exports.write(&profiles, &export, &title)? {
-        println!("{line}");
-    }
-    for line in a.exports.write_result(&result, &export)? {
-        println!("{line}");
-    }
+    a.exports.write_and_say(&profiles, &result, &export, &title)?;
     Ok(())
 }
 

@@ -5,6 +5,11 @@ use crate::output::profile::{ExportInfo, Profile};
 use anyhow::{Context, bail, ensure};
 use std::path::PathBuf;
 
+/// A calibration as the files name it: its estimator kind and CRC.
+pub fn calibration_label(view: &brdf_meter::blob::BlobView<'_>) -> String {
+    format!("{} blob crc {:#010x}", crate::calibration::estimators::kind_name(view.estimator()), view.crc())
+}
+
 /// The instrument's view angle the files assume unless told (deg).
 pub const DEFAULT_VIEW_DEG: f64 = 45.0;
 
@@ -69,6 +74,36 @@ impl ExportArgs {
                     p.display()
                 );
             }
+        }
+        Ok(())
+    }
+
+    /// What the files say of where their points came from: `source` the
+    /// command, `instrument` what read them, `calibration` the blob
+    /// (`calibration_label`, and what else the command adds), now.
+    pub fn info(&self, source: &str, instrument: String, calibration: String) -> ExportInfo {
+        ExportInfo {
+            view_deg: self.view_deg,
+            source: source.into(),
+            instrument,
+            calibration,
+            timestamp: crate::output::profile::utc_now(),
+            solid_angle_sr: self.solid_angle_sr,
+        }
+    }
+
+    /// Writes everything asked for, the points' files ([`Self::write`])
+    /// and the result's ([`Self::write_result`]), and prints a line per
+    /// file.
+    pub fn write_and_say(
+        &self,
+        profiles: &[Profile],
+        result: &crate::device::measurement_result::MeasurementResult,
+        info: &ExportInfo,
+        title: &str,
+    ) -> anyhow::Result<()> {
+        for line in self.write(profiles, info, title)?.into_iter().chain(self.write_result(result, info)?) {
+            println!("{line}");
         }
         Ok(())
     }

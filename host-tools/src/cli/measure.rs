@@ -3,7 +3,6 @@
 //! readings, flags), and on request plot chosen points and write the
 //! standard files (BiRD JSON, ASTM E1392).
 use crate::device::link::{Endpoint, PointRecord};
-use crate::output::profile::ExportInfo;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::protocol::{BinRange, Encoding, StreamFormat};
@@ -145,26 +144,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.json.display(),
         a.result.display()
     );
-    let export = ExportInfo {
-        view_deg: a.exports.view_deg,
-        source: "host-tools measure".into(),
-        instrument: format!("BRDF meter{}", if info.simulated { " (simulated sensor, QEMU)" } else { "" }),
-        calibration: format!(
-            "{} blob crc {:#010x}",
-            crate::calibration::estimators::kind_name(view.estimator()),
-            view.crc()
-        ),
-        timestamp: crate::output::profile::utc_now(),
-        solid_angle_sr: a.exports.solid_angle_sr,
-    };
-    let profiles = files.profiles();
+    let export = a.exports.info(
+        "host-tools measure",
+        format!("BRDF meter{}", if info.simulated { " (simulated sensor, QEMU)" } else { "" }),
+        crate::cli::exports::calibration_label(&view),
+    );
     let title = format!("BRDF profiles, {} ({})", a.blob.display(), export.calibration);
-    for line in a.exports.write(&profiles, &export, &title)? {
-        println!("{line}");
-    }
-    for line in a.exports.write_result(&result, &export)? {
-        println!("{line}");
-    }
+    a.exports.write_and_say(&files.profiles(), &result, &export, &title)?;
     Ok(())
 }
 
