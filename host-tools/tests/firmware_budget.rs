@@ -4,39 +4,21 @@
 //! already did, same command and profile) and fails if it is over budget.
 //! The bootloader's budget and the QEMU benches' stacks are checked the
 //! same way. Run with `-- --nocapture` to see the tables.
+use host_tools::device::link::qemu::{cargo_aliases, firmware_elf, workspace_root};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools sits in the workspace root").to_path_buf()
-}
 
 /// Builds a firmware with its cargo alias (`.cargo/config.toml`: a no-op
 /// when scripts/check-firmware.sh already did, same command and profile)
 /// and returns its ELF, `profile/elf` under the target's directory.
 fn build_firmware(root: &Path, alias: &str, elf: &str) -> PathBuf {
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(root)
-        .arg(alias)
-        // The enclosing `cargo test`'s host settings must not reach the firmware build.
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .status()
-        .unwrap_or_else(|e| panic!("running cargo {alias}: {e}"));
-    assert!(
-        status.success(),
-        "cargo {alias} does not build ({status}); is the target installed? (scripts/install-test-deps.sh)"
-    );
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
-    target_dir.join("thumbv7em-none-eabihf").join(elf)
+    cargo_aliases(root, &[alias]).unwrap_or_else(|e| panic!("{e:#}"));
+    firmware_elf(root, elf)
 }
 
 #[test]
 fn the_bootloader_fits_its_24_kib() {
     use host_tools::device::budget::{ImageKind, check_file};
-    let root = root();
+    let root = workspace_root();
     let elf = build_firmware(&root, "bootloader", "bootloader/bootloader");
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
     let budget = check_file(&elf, ImageKind::Bootloader, &script).expect("reading the bootloader image");
@@ -48,7 +30,7 @@ fn the_bootloader_fits_its_24_kib() {
 
 #[test]
 fn board_firmware_fits_its_budget_with_the_largest_calibration() {
-    let root = root();
+    let root = workspace_root();
     let elf = build_firmware(&root, "board-fw", "firmware/board-fw");
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
     let budget =
@@ -69,7 +51,7 @@ fn board_firmware_fits_its_budget_with_the_largest_calibration() {
 
 #[test]
 fn every_qemu_bench_links_the_stack_and_no_frame_outgrows_it() {
-    let root = root();
+    let root = workspace_root();
     let script = std::fs::read_to_string(root.join("memory.x")).expect("memory.x");
     for bench in ["kernel-bench", "line-bench", "inspect-bench", "verify-bench"] {
         let elf = build_firmware(&root, &format!("{bench}-fw"), &format!("firmware/{bench}"));

@@ -19,10 +19,17 @@ pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools is a workspace member").to_path_buf()
 }
 
+/// Path of the firmware ELF `profile/name` (`firmware/qemu-fw`,
+/// `bootloader/bootloader`) that a cargo alias builds under the target's
+/// directory.
+pub fn firmware_elf(root: &Path, profile_and_name: &str) -> PathBuf {
+    let target = std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("target"));
+    target.join("thumbv7em-none-eabihf").join(profile_and_name)
+}
+
 /// Path of the QEMU firmware ELF that `cargo qemu-fw` builds.
 pub fn firmware_path(root: &Path) -> PathBuf {
-    let target = std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("target"));
-    target.join("thumbv7em-none-eabihf/firmware/qemu-fw")
+    firmware_elf(root, "firmware/qemu-fw")
 }
 
 /// The QEMU bootloader's ELF (`cargo qemu-bootloader`) for the application
