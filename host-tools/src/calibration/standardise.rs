@@ -56,8 +56,8 @@ impl Tile {
         );
         ensure!(
             u_rf.is_finite() && u_rf >= 0.0 && u_rf <= rf / 20.0,
-            "--tile-u {u_rf}: the certificate's standard uncertainty (k = 1) is at least 0 and at most 5 % of \
-             --tile-rf (a certificate at k = 2 states twice it)"
+            "--tile-u: the certificate's standard uncertainty {u_rf} (k = 1) is not at least 0 and at most 5 % of \
+             --tile-rf (a certificate at k = 2 states twice it: give that with --tile-k 2)"
         );
         Ok(Self { rf, u_rf })
     }

@@ -57,8 +57,8 @@ impl BlackGlass {
         );
         ensure!(
             u_gu.is_finite() && u_gu >= 0.0 && u_gu <= gu / 20.0,
-            "--black-glass-u {u_gu}: the certificate's standard uncertainty (k = 1) is at least 0 and at most 5 % \
-             of --black-glass-gu (a certificate at k = 2 states twice it)"
+            "--black-glass-u: the certificate's standard uncertainty {u_gu} (k = 1) is not at least 0 and at most \
+             5 % of --black-glass-gu (a certificate at k = 2 states twice it: give that with --black-glass-k 2)"
         );
         Ok(Self { gu, u_gu })
     }

@@ -5,8 +5,9 @@
 //! standard, checked on a working standard of another gloss level. The
 //! comparison a calibration laboratory signs is the normalised error
 //! `E_n = |x - X| / sqrt(U_x^2 + U_X^2)`, both expanded uncertainties at
-//! k = 2: `x` what the instrument read, `X` the certified value. `E_n <= 1`
-//! is agreement. Here `x` is a zone's mean reading over the lines read and
+//! about 95 %: `x` what the instrument read, `X` the certified value, `U_X`
+//! the certificate's at the coverage factor it states (2 unless told).
+//! `E_n <= 1` is agreement. Here `x` is a zone's mean reading over the lines read and
 //! `U_x` the expanded uncertainty `measure` states for such a mean
 //! (`crate::device::measurement_result`): its calibration's (the RMS of
 //! what it states for each reading, mostly the estimator's error for this
@@ -17,26 +18,31 @@
 //! again.
 use crate::calibration::standardise::check_standard_reading;
 use crate::calibration::standardise_gloss::REFUSED;
-use crate::device::measurement_result::{COVERAGE_FACTOR, Contribution, References, reading_result, zone_pixels};
+use crate::device::measurement_result::{Contribution, References, reading_result, zone_pixels};
 use anyhow::ensure;
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss::SPECULAR_GU;
 use serde::Serialize;
 
-/// A certified gloss standard: its value at the instrument's geometry and
-/// that value's standard uncertainty (k = 1), GU.
+/// A certified gloss standard: its value at the instrument's geometry,
+/// that value's standard uncertainty (k = 1), GU, and the coverage factor
+/// of the expanded uncertainty its certificate states.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct GlossStandard {
     /// Certified gloss, GU.
     pub gu: f64,
     /// Its standard uncertainty (k = 1), GU.
     pub u_gu: f64,
+    /// The certificate's coverage factor: its expanded uncertainty, which
+    /// E_n takes, is `k u_gu`.
+    pub k: f64,
 }
 
 impl GlossStandard {
     /// A standard, checked: `gu` above 0 and at most 2,000 GU (a mirror),
-    /// `u_gu` at least 0 and at most `gu`.
-    pub fn new(gu: f64, u_gu: f64) -> anyhow::Result<Self> {
+    /// `u_gu` at least 0 and at most `gu`, `k` at least 1 (the command
+    /// line's `crate::cli::certificate` checks what the user entered).
+    pub fn new(gu: f64, u_gu: f64, k: f64) -> anyhow::Result<Self> {
         ensure!(
             gu.is_finite() && gu > 0.0 && gu <= 2000.0,
             "--gloss-gu {gu}: a gloss standard's certified value is above 0 and at most 2000 GU (take the value for \
@@ -44,10 +50,11 @@ impl GlossStandard {
         );
         ensure!(
             u_gu.is_finite() && u_gu >= 0.0 && u_gu <= gu,
-            "--gloss-u {u_gu}: the certificate's standard uncertainty (k = 1) in GU is at least 0 and at most \
-             --gloss-gu (a certificate at k = 2 states twice it)"
+            "--gloss-u: the certificate's standard uncertainty {u_gu} GU (k = 1) is not at least 0 and at most \
+             --gloss-gu (a certificate at k = 2 states twice it: give that with --gloss-k 2)"
         );
-        Ok(Self { gu, u_gu })
+        ensure!(k.is_finite() && k >= 1.0, "the certificate's coverage factor {k} is not one: at least 1");
+        Ok(Self { gu, u_gu, k })
     }
 }
 
@@ -144,7 +151,7 @@ pub fn verify_gloss(
             let deviation = r.value - standard.gu;
             // Each side's expanded uncertainty: the reading's with its own
             // coverage factor, the certificate's at k = 2.
-            let e_n = deviation.abs() / r.expanded_u.hypot(COVERAGE_FACTOR * standard.u_gu);
+            let e_n = deviation.abs() / r.expanded_u.hypot(standard.k * standard.u_gu);
             let (first_pixel, last_pixel) = zone_pixels(view, zone);
             Some(ZoneVerdict {
                 zone,
@@ -169,9 +176,13 @@ impl Verification {
     /// The report's lines.
     pub fn table(&self) -> String {
         let mut s = format!(
-            "standard: certified {} GU (u = {} GU); E_n = |reading - certified| / sqrt(U_reading^2 + U_certified^2), \
-             U = k u (the reading's k from its effective degrees of freedom, 2 with many; the certificate's 2)\nzone  pixels  points  reads GU  stated u GU  deviation GU   E_n  verdict\n",
-            self.standard.gu, self.standard.u_gu
+            "standard: certified {} GU (u = {} GU, U = {:.3} GU at k = {}); E_n = |reading - certified| / \
+             sqrt(U_reading^2 + U_certified^2), U = k u (the reading's k from its effective degrees of freedom, 2 \
+             with many; the certificate's as it states)\nzone  pixels  points  reads GU  stated u GU  deviation GU   E_n  verdict\n",
+            self.standard.gu,
+            self.standard.u_gu,
+            self.standard.k * self.standard.u_gu,
+            self.standard.k
         );
         for z in &self.zones {
             s += &format!(
@@ -210,7 +221,7 @@ mod tests {
     fn a_zone_agrees_within_what_both_state_and_not_beyond() {
         let b = blob();
         let view = BlobView::parse(&b).unwrap();
-        let standard = GlossStandard::new(48.0, 0.4).unwrap();
+        let standard = GlossStandard::new(48.0, 0.4, 2.0).unwrap();
         // Reading 49 with u 0.8: E_n = 1 / (2 sqrt(0.8^2 + 0.4^2)) = 0.56.
         let v = verify_gloss(&view, points(|_| 49.0, 0.8), standard).unwrap();
         assert_eq!(v.zones.len(), 1, "the zone without gloss is not verified");
@@ -223,6 +234,15 @@ mod tests {
         let v = verify_gloss(&view, points(|_| 50.5, 0.8), standard).unwrap();
         assert!(!v.agrees && (v.zones[0].e_n - 1.398).abs() < 1e-3, "{:?}", v.zones[0]);
         assert!(v.table().contains("DOES NOT AGREE"));
+        // Reading 50: E_n = 2 / sqrt(1.6^2 + 0.8^2) = 1.12 with the
+        // certificate's u at k = 2; the same u stated at k = 3.5 (U 1.4 GU):
+        // 2 / sqrt(1.6^2 + 1.4^2) = 0.94, which agrees.
+        let v = verify_gloss(&view, points(|_| 50.0, 0.8), standard).unwrap();
+        assert!(!v.agrees && (v.zones[0].e_n - 2.0 / 1.6f64.hypot(0.8)).abs() < 1e-6, "{:?}", v.zones[0]);
+        let wide = GlossStandard { k: 3.5, ..standard };
+        let v = verify_gloss(&view, points(|_| 50.0, 0.8), wide).unwrap();
+        assert!(v.agrees && (v.zones[0].e_n - 2.0 / 1.6f64.hypot(1.4)).abs() < 1e-6, "{:?}", v.zones[0]);
+        assert!(v.table().contains("(u = 0.4 GU, U = 1.400 GU at k = 3.5)"), "{}", v.table());
         // The zone's u is the budget of its mean as `measure` states it:
         // the RMS of the points' (not shrunk by their count) and the
         // mean's repeatability.
@@ -240,7 +260,7 @@ mod tests {
     fn what_cannot_be_verified_is_refused() {
         let b = blob();
         let view = BlobView::parse(&b).unwrap();
-        let standard = GlossStandard::new(48.0, 0.4).unwrap();
+        let standard = GlossStandard::new(48.0, 0.4, 2.0).unwrap();
         let mut ps = points(|_| 48.0, 0.8);
         ps[2].flags = brdf_meter::protocol::flags::SATURATED;
         let e = verify_gloss(&view, ps, standard).unwrap_err().to_string();
@@ -253,7 +273,10 @@ mod tests {
         let e = verify_gloss(&BlobView::parse(&plain).unwrap(), points(|_| 48.0, 0.8), standard).unwrap_err();
         assert!(e.to_string().contains("reads no gloss"));
         for (gu, u) in [(0.0, 0.0), (2500.0, 1.0), (50.0, 60.0), (f64::NAN, 0.0)] {
-            assert!(GlossStandard::new(gu, u).is_err(), "{gu} {u}");
+            assert!(GlossStandard::new(gu, u, 2.0).is_err(), "{gu} {u}");
+        }
+        for k in [0.5, f64::NAN] {
+            assert!(GlossStandard::new(48.0, 0.4, k).is_err(), "{k}");
         }
     }
 }

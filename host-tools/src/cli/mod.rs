@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod accuracy;
+pub mod certificate;
 pub mod corrected_with;
 pub mod design;
 pub mod estimate;

@@ -9,6 +9,7 @@
 //! good calibration if it fails).
 use crate::calibration::standardise::{Standardisation, Tile, TileReading, standardise};
 use crate::calibration::standardise_gloss::{BlackGlass, GlossReading, GlossStandardisation, standardise_gloss};
+use crate::cli::certificate::CertificateUncertainty;
 pub use crate::cli::standard_source::Source;
 use crate::cli::standard_source::{OnDevice, logged_estimates, logged_readings, read_standard_on_device};
 use anyhow::{Context, ensure};
@@ -30,17 +31,27 @@ pub struct Args {
     /// geometry (a perfect diffuser is 1).
     #[arg(long, value_name = "RF")]
     pub tile_rf: Option<f64>,
-    /// Its standard uncertainty (k = 1) from the certificate.
+    /// Its uncertainty from the certificate: the standard uncertainty
+    /// (k = 1), or with --tile-k the expanded uncertainty U it prints.
     #[arg(long, value_name = "U", default_value_t = 0.0)]
     pub tile_u: f64,
+    /// The coverage factor the certificate states --tile-u at (e.g. 2):
+    /// the standard uncertainty is then U / k.
+    #[arg(long, value_name = "K")]
+    pub tile_k: Option<f64>,
     /// Or the black-glass gloss standard's certified gloss at the
     /// instrument's geometry, GU: the gloss scale is standardised on it.
     /// Standardise on the white tile first.
     #[arg(long, value_name = "GU")]
     pub black_glass_gu: Option<f64>,
-    /// Its standard uncertainty (k = 1) from the certificate, GU.
+    /// Its uncertainty from the certificate, GU: the standard uncertainty
+    /// (k = 1), or with --black-glass-k the expanded uncertainty U it prints.
     #[arg(long, value_name = "U", default_value_t = 0.0)]
     pub black_glass_u: f64,
+    /// The coverage factor the certificate states --black-glass-u at (e.g.
+    /// 2): the standard uncertainty is then U / k.
+    #[arg(long, value_name = "K")]
+    pub black_glass_k: Option<f64>,
     /// Where the standard's readings come from.
     #[command(flatten)]
     pub source: Source,
@@ -77,12 +88,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let secret = a.key.as_deref().map(crate::calibration::signing::read_secret).transpose()?;
     let found = match (a.tile_rf, a.black_glass_gu) {
         (Some(rf), None) => {
-            ensure!(a.black_glass_u == 0.0, "--black-glass-u goes with --black-glass-gu, not --tile-rf");
-            Found::White(white(&a, &view, &blob, Tile::new(rf, a.tile_u)?)?)
+            ensure!(
+                a.black_glass_u == 0.0 && a.black_glass_k.is_none(),
+                "--black-glass-u and --black-glass-k go with --black-glass-gu, not --tile-rf"
+            );
+            let u = CertificateUncertainty { u: a.tile_u, k: a.tile_k, flags: ("--tile-u", "--tile-k") };
+            let tile = Tile::new(rf, u.standard()?).map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
+            Found::White(white(&a, &view, &blob, tile)?)
         }
         (None, Some(gu)) => {
-            ensure!(a.tile_u == 0.0, "--tile-u goes with --tile-rf, not --black-glass-gu");
-            Found::Gloss(gloss(&a, &view, &blob, BlackGlass::new(gu, a.black_glass_u)?)?)
+            ensure!(
+                a.tile_u == 0.0 && a.tile_k.is_none(),
+                "--tile-u and --tile-k go with --tile-rf, not --black-glass-gu"
+            );
+            let u = CertificateUncertainty {
+                u: a.black_glass_u,
+                k: a.black_glass_k,
+                flags: ("--black-glass-u", "--black-glass-k"),
+            };
+            let glass = BlackGlass::new(gu, u.standard()?).map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
+            Found::Gloss(gloss(&a, &view, &blob, glass)?)
         }
         _ => unreachable!("clap requires exactly one of --tile-rf and --black-glass-gu"),
     };
@@ -232,8 +257,10 @@ mod tests {
             blob: blob.into(),
             tile_rf: Some(0.9),
             tile_u: 0.002,
+            tile_k: None,
             black_glass_gu: None,
             black_glass_u: 0.0,
+            black_glass_k: None,
             source: Source { port: None, tcp: None, readings: Some(readings.into()) },
             corrected_with: Default::default(),
             lines: 32,
@@ -286,6 +313,20 @@ mod tests {
             (0..p * m).map(|k| v.white(k / m, k % m)).collect::<Vec<f32>>()
         };
         assert_eq!(white(&new), white(&same));
+        // The certificate's expanded uncertainty at its k, as printed: the
+        // same calibration, byte for byte, as its standard uncertainty.
+        let printed = dir.path().join("cal-std-printed.signed");
+        let mut at_k = args(&cal, &readings, &printed);
+        (at_k.tile_u, at_k.tile_k) = (0.004, Some(2.0));
+        run(at_k).unwrap();
+        assert_eq!(std::fs::read(&printed).unwrap(), std::fs::read(&new).unwrap());
+        // A coverage factor no certificate states is refused, named, and
+        // nothing is written.
+        let never = dir.path().join("cal-bad-k.signed");
+        let mut bad_k = args(&cal, &readings, &never);
+        bad_k.tile_k = Some(0.5);
+        assert!(format!("{:#}", run(bad_k).unwrap_err()).starts_with("--tile-k 0.5: "));
+        assert!(!never.exists());
         let image = crate::device::provision::read_blob(&new).unwrap();
         let v = BlobView::parse(&image).unwrap();
         let old = BlobView::parse(&blob).unwrap();
@@ -397,8 +438,10 @@ mod tests {
         let args = Args {
             tile_rf: None,
             tile_u: 0.0,
+            tile_k: None,
             black_glass_gu: Some(certified),
             black_glass_u: 0.0,
+            black_glass_k: None,
             key: None,
             report: None,
             ..args(&cal, &readings, &out)
@@ -430,6 +473,7 @@ mod tests {
         Args {
             tile_rf: None,
             tile_u: 0.0,
+            tile_k: None,
             black_glass_gu: Some(100.0),
             key: None,
             report: None,

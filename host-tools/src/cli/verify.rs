@@ -5,8 +5,9 @@
 //! written but the report; a zone that does not agree makes the command
 //! fail, so a script that checks an instrument stops on it.
 use crate::calibration::verify_gloss::{GlossStandard, StatedGloss, verify_gloss};
+use crate::cli::certificate::CertificateUncertainty;
 use crate::cli::standard_source::{OnDevice, Source, logged_estimates, read_standard_on_device};
-use crate::device::measurement_result::chosen_zones;
+use crate::device::measurement_result::{COVERAGE_FACTOR, chosen_zones};
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss::SPECULAR_GU;
@@ -23,9 +24,15 @@ pub struct Args {
     /// The standard's certified gloss at the instrument's geometry, GU.
     #[arg(long, value_name = "GU")]
     pub gloss_gu: f64,
-    /// Its standard uncertainty (k = 1) from the certificate, GU.
+    /// Its uncertainty from the certificate, GU: the standard uncertainty
+    /// (k = 1), or with --gloss-k the expanded uncertainty U it prints.
     #[arg(long, value_name = "U", default_value_t = 0.0)]
     pub gloss_u: f64,
+    /// The coverage factor the certificate states --gloss-u at (e.g. 2):
+    /// the standard uncertainty is then U / k, and E_n takes U as printed
+    /// (without it, U = 2 u).
+    #[arg(long, value_name = "K")]
+    pub gloss_k: Option<f64>,
     /// Where the standard's readings come from.
     #[command(flatten)]
     pub source: Source,
@@ -57,7 +64,9 @@ pub struct Args {
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.corrected_with.check_logged(a.source.readings.is_some())?;
-    let standard = GlossStandard::new(a.gloss_gu, a.gloss_u)?;
+    let u = CertificateUncertainty { u: a.gloss_u, k: a.gloss_k, flags: ("--gloss-u", "--gloss-k") };
+    let standard = GlossStandard::new(a.gloss_gu, u.standard()?, u.coverage_factor(COVERAGE_FACTOR))
+        .map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
     let verified = chosen_zones(&view, &a.zones, "--zones")?;
@@ -129,6 +138,7 @@ mod tests {
             blob: cal.clone(),
             gloss_gu: gu,
             gloss_u: 0.2,
+            gloss_k: None,
             source: Source { port: None, tcp: None, readings: Some(readings.clone()) },
             corrected_with: Default::default(),
             lines: 16,
