@@ -133,16 +133,28 @@ pub fn document(profiles: &[Profile], info: &ExportInfo) -> Value {
 /// `coverage`.
 pub fn result_document(mean: &Profile, sample: &str, coverage: Value, info: &ExportInfo) -> Value {
     let mut doc = document(std::slice::from_ref(mean), info);
+    // Each row's cells, and the variables, in `VARIABLES`' order.
+    let without_line_and_point = |cells: &[Value]| -> Vec<Value> {
+        cells
+            .iter()
+            .zip(VARIABLES)
+            .filter(|(_, (name, ..))| !matches!(*name, "line" | "point"))
+            .map(|(c, _)| c.clone())
+            .collect()
+    };
     let data = &mut doc["data"];
     let vars = data["variables"].as_array_mut().expect("document writes its variables");
-    vars.drain(..2);
-    vars[5]["description"] = json!(
-        "Combined standard uncertainty of BRDF (k = 1) of the result's mean: the calibration's, the repeatability \
-         and the white reference's; its coverage factor and expanded uncertainty per row are in \
-         metadata.adhoc_section.result."
-    );
+    *vars = without_line_and_point(vars);
+    for v in vars.iter_mut().filter(|v| v["name"] == "uBRDF") {
+        v["description"] = json!(
+            "Combined standard uncertainty of BRDF (k = 1) of the result's mean: the calibration's, the \
+             repeatability and the white reference's; its coverage factor and expanded uncertainty per row are in \
+             metadata.adhoc_section.result."
+        );
+    }
     for row in data["values"].as_array_mut().expect("document writes its rows") {
-        row.as_array_mut().expect("a row is an array").drain(..2);
+        let cells = row.as_array_mut().expect("a row is an array");
+        *cells = without_line_and_point(cells);
     }
     let meta = &mut doc["metadata"];
     meta["name"] = json!(format!("{}: result, {sample}", info.source));
@@ -160,18 +172,21 @@ pub fn write_result(
     coverage: Value,
     info: &ExportInfo,
 ) -> anyhow::Result<()> {
-    let mut t = serde_json::to_string_pretty(&result_document(mean, sample, coverage, info))
-        .context("serialising the result's BiRD file")?;
-    t.push('\n');
+    let t = pretty(&result_document(mean, sample, coverage, info))?;
     crate::output::io::write_atomic(path, t.as_bytes())
         .with_context(|| format!("writing the result's BiRD file {}", path.display()))
 }
 
-/// The document as pretty JSON text.
-pub fn to_text(profiles: &[Profile], info: &ExportInfo) -> anyhow::Result<String> {
-    let mut t = serde_json::to_string_pretty(&document(profiles, info)).context("serialising the BiRD file")?;
+/// A document as pretty JSON text, ending in a newline.
+fn pretty(doc: &Value) -> anyhow::Result<String> {
+    let mut t = serde_json::to_string_pretty(doc).context("serialising the BiRD file")?;
     t.push('\n');
     Ok(t)
+}
+
+/// The document as pretty JSON text.
+pub fn to_text(profiles: &[Profile], info: &ExportInfo) -> anyhow::Result<String> {
+    pretty(&document(profiles, info))
 }
 
 /// Writes `profiles` as a BiRD file, atomically.
