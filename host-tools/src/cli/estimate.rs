@@ -347,6 +347,11 @@ mod tests {
         assert_eq!(t.rows.len(), 81);
         let sample = t.header.iter().find(|(k, _)| k == "SAMPLE").map(|(_, v)| v.as_str());
         assert_eq!(sample, Some("mean of 3 point(s): zone(s) 0, pixels 0-7; u is the combined standard uncertainty"));
+        let expanded = t.header.iter().find(|(k, _)| k == "GLOSS_GU_EXPANDED").map(|(_, v)| v.as_str());
+        let g = &r["readings"][0];
+        let want =
+            format!("U {} at k = {:.2} (95.45 %): interval ", g["expanded_u"], g["coverage_factor"].as_f64().unwrap());
+        assert!(expanded.is_some_and(|e| e.starts_with(&want)), "{expanded:?} against {want}");
         // And as one BiRD file: the same mean, no line or point, its
         // coverage in the ad hoc section.
         let (mean, view) = crate::output::bird::read(&dir.path().join("result.bird.json")).unwrap();

@@ -196,7 +196,32 @@ impl ExportArgs {
         let sample = result.sample();
         let mut said = Vec::new();
         if let Some(path) = &self.result_astm {
-            let text = crate::output::astm_e1392::sample_text(&sample, &mean, info);
+            // Each reading's expanded uncertainty, and the bins' coverage
+            // factors, beside the standard uncertainties the table holds.
+            let expanded = result.readings.iter().map(|r| {
+                (
+                    format!("{}_EXPANDED", r.reading.to_ascii_uppercase()),
+                    format!(
+                        "U {} at k = {:.2} ({:.2} %): interval {} .. {}",
+                        r.expanded_u,
+                        r.coverage_factor,
+                        100.0 * result.coverage_probability,
+                        r.interval[0],
+                        r.interval[1]
+                    ),
+                )
+            });
+            let (k_lo, k_hi) =
+                b.coverage_factor.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), k| (lo.min(*k), hi.max(*k)));
+            let bins = (
+                "BRDF_EXPANDED".to_string(),
+                format!(
+                    "U = k u_BRDF per bin, k {k_lo:.2} to {k_hi:.2} ({:.2} %)",
+                    100.0 * result.coverage_probability
+                ),
+            );
+            let more: Vec<(String, String)> = expanded.chain([bins]).collect();
+            let text = crate::output::astm_e1392::sample_text(&sample, &mean, &more, info);
             crate::output::io::write_atomic(path, text.as_bytes())
                 .with_context(|| format!("writing the ASTM E1392 file {}", path.display()))?;
             said.push(format!("ASTM E1392 table of the result: {}", path.display()));

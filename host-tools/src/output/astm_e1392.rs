@@ -28,12 +28,14 @@ pub const VARS: [&str; 8] = ["theta_i", "phi_i", "theta_s", "phi_s", "wavelength
 
 /// One profile as ASTM E1392 text, named by its line and point.
 pub fn to_text(p: &Profile, info: &ExportInfo) -> String {
-    sample_text(&format!("line {} point {}", p.line, p.point), p, info)
+    sample_text(&format!("line {} point {}", p.line, p.point), p, &[], info)
 }
 
 /// One profile as ASTM E1392 text, its `SAMPLE` named `sample` (a
-/// measurement's result is no one point: `crate::device::measurement_result`).
-pub fn sample_text(sample: &str, p: &Profile, info: &ExportInfo) -> String {
+/// measurement's result is no one point: `crate::device::measurement_result`),
+/// with `more` header lines (`KEY`, value) after its readings: a result's
+/// expanded uncertainties.
+pub fn sample_text(sample: &str, p: &Profile, more: &[(String, String)], info: &ExportInfo) -> String {
     let mut t = String::new();
     let q = |s: &str| s.replace('"', "'");
     let _ =
@@ -53,6 +55,9 @@ pub fn sample_text(sample: &str, p: &Profile, info: &ExportInfo) -> String {
     let _ = writeln!(t, "DATE \"{}\"", info.timestamp);
     for (name, v, u) in &p.readings {
         let _ = writeln!(t, "{} \"{v} (standard uncertainty {u})\"", name.to_ascii_uppercase());
+    }
+    for (key, value) in more {
+        let _ = writeln!(t, "{key} \"{}\"", q(value));
     }
     if !p.flags.is_empty() {
         let _ = writeln!(t, "FLAGS \"{}\"", p.flags.join(","));
