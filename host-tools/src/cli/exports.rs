@@ -1,6 +1,7 @@
 //! The options `measure` and `estimate` share for what they hand the user
 //! besides their CSV/JSON: a plot of chosen points' BRDF profiles and the
 //! standard files (BiRD universal BRDF JSON, ASTM E1392 tables).
+use crate::device::measurement_result::{BrdfResult, MeasurementResult};
 use crate::output::profile::{ExportInfo, Profile};
 use anyhow::{Context, bail, ensure};
 use std::path::PathBuf;
@@ -98,7 +99,7 @@ impl ExportArgs {
     pub fn write_and_say(
         &self,
         profiles: &[Profile],
-        result: &crate::device::measurement_result::MeasurementResult,
+        result: &MeasurementResult,
         info: &ExportInfo,
         title: &str,
     ) -> anyhow::Result<()> {
@@ -169,11 +170,7 @@ impl ExportArgs {
     /// Writes the result's mean BRDF where `--result-astm` and
     /// `--result-bird` ask; what was written (or why nothing was), one line
     /// per file, for the user.
-    pub fn write_result(
-        &self,
-        result: &crate::device::measurement_result::MeasurementResult,
-        info: &ExportInfo,
-    ) -> anyhow::Result<Vec<String>> {
+    pub fn write_result(&self, result: &MeasurementResult, info: &ExportInfo) -> anyhow::Result<Vec<String>> {
         let asked: Vec<&PathBuf> = self.result_astm.iter().chain(&self.result_bird).collect();
         if asked.is_empty() {
             return Ok(Vec::new());
@@ -196,52 +193,55 @@ impl ExportArgs {
         let sample = result.sample();
         let mut said = Vec::new();
         if let Some(path) = &self.result_astm {
-            // Each reading's expanded uncertainty, and the bins' coverage
-            // factors, beside the standard uncertainties the table holds.
-            let expanded = result.readings.iter().map(|r| {
-                (
-                    format!("{}_EXPANDED", r.reading.to_ascii_uppercase()),
-                    format!(
-                        "U {} at k = {:.2} ({:.2} %): interval {} .. {}",
-                        r.expanded_u,
-                        r.coverage_factor,
-                        100.0 * result.coverage_probability,
-                        r.interval[0],
-                        r.interval[1]
-                    ),
-                )
-            });
-            let (k_lo, k_hi) =
-                b.coverage_factor.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), k| (lo.min(*k), hi.max(*k)));
-            let bins = (
-                "BRDF_EXPANDED".to_string(),
-                format!(
-                    "U = k u_BRDF per bin, k {k_lo:.2} to {k_hi:.2} ({:.2} %)",
-                    100.0 * result.coverage_probability
-                ),
-            );
-            let more: Vec<(String, String)> = expanded.chain([bins]).collect();
+            let more = result_astm_coverage(result, b);
             let text = crate::output::astm_e1392::sample_text(&sample, &mean, &more, info);
             crate::output::io::write_atomic(path, text.as_bytes())
                 .with_context(|| format!("writing the ASTM E1392 file {}", path.display()))?;
             said.push(format!("ASTM E1392 table of the result: {}", path.display()));
         }
         if let Some(path) = &self.result_bird {
-            // In the file's unit, sr^-1 (the reflectance factor / pi).
-            let per_sr = |x: &f64| x / std::f64::consts::PI;
-            let coverage = serde_json::json!({
-                "coverage_probability": result.coverage_probability,
-                "coverage_factor": b.coverage_factor,
-                "expanded_uncertainty_BRDF": b.expanded_u.iter().map(per_sr).collect::<Vec<_>>(),
-                "interval_BRDF": b.interval.iter().map(|[lo, hi]| [per_sr(lo), per_sr(hi)]).collect::<Vec<_>>(),
-                "points": b.points,
-                "out_of_prior": result.out_of_prior,
-                "saturated_left_out": result.saturated,
-                "readings": result.readings,
-            });
+            let coverage = result_bird_coverage(result, b);
             crate::output::bird::write_result(path, &mean, &sample, coverage, info)?;
             said.push(format!("BiRD universal BRDF file of the result: {}", path.display()));
         }
         Ok(said)
     }
+}
+
+/// A result's coverage for its ASTM table's header, beside the standard
+/// uncertainties the table holds: each reading's expanded uncertainty, k
+/// and interval, and the range of the bins' coverage factors.
+fn result_astm_coverage(result: &MeasurementResult, b: &BrdfResult) -> Vec<(String, String)> {
+    let percent = 100.0 * result.coverage_probability;
+    let readings = result.readings.iter().map(|r| {
+        (
+            format!("{}_EXPANDED", r.reading.to_ascii_uppercase()),
+            format!(
+                "U {} at k = {:.2} ({percent:.2} %): interval {} .. {}",
+                r.expanded_u, r.coverage_factor, r.interval[0], r.interval[1]
+            ),
+        )
+    });
+    let (k_lo, k_hi) = b.coverage_factor.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), k| (lo.min(*k), hi.max(*k)));
+    let bins =
+        ("BRDF_EXPANDED".to_string(), format!("U = k u_BRDF per bin, k {k_lo:.2} to {k_hi:.2} ({percent:.2} %)"));
+    readings.chain([bins]).collect()
+}
+
+/// A result's coverage for its BiRD file's ad hoc section, in the file's
+/// unit, sr^-1 (the reflectance factor / pi): the coverage probability,
+/// per bin the coverage factor, expanded uncertainty and interval, the
+/// points, and the readings' results as the result document gives them.
+fn result_bird_coverage(result: &MeasurementResult, b: &BrdfResult) -> serde_json::Value {
+    let per_sr = |x: &f64| x / std::f64::consts::PI;
+    serde_json::json!({
+        "coverage_probability": result.coverage_probability,
+        "coverage_factor": b.coverage_factor,
+        "expanded_uncertainty_BRDF": b.expanded_u.iter().map(per_sr).collect::<Vec<_>>(),
+        "interval_BRDF": b.interval.iter().map(|[lo, hi]| [per_sr(lo), per_sr(hi)]).collect::<Vec<_>>(),
+        "points": b.points,
+        "out_of_prior": result.out_of_prior,
+        "saturated_left_out": result.saturated,
+        "readings": result.readings,
+    })
 }
