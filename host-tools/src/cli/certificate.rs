@@ -4,6 +4,7 @@
 //! unless they are given the certificate's k; then it is the expanded
 //! uncertainty U the certificate prints, and the standard uncertainty is
 //! U / k (GUM 7.2.3), so nobody has to divide by hand.
+use crate::device::coverage_factor::LARGE_DOF_FACTOR;
 use anyhow::ensure;
 
 /// The largest coverage factor a certificate is taken to state (Student's
@@ -39,24 +40,21 @@ impl CertificateUncertainty {
         Ok(self.u / k)
     }
 
-    /// The certificate's expanded uncertainty: `u` as entered with its
-    /// `k`, else `default_k` times the standard uncertainty entered.
-    pub fn expanded(&self, default_k: f64) -> f64 {
-        if self.k.is_some() { self.u } else { default_k * self.u }
+    /// The certificate's coverage factor: the one entered, else that of
+    /// many degrees of freedom (2).
+    pub fn coverage_factor(&self) -> f64 {
+        self.k.unwrap_or(LARGE_DOF_FACTOR)
     }
 
-    /// The coverage factor of [`Self::expanded`].
-    pub fn coverage_factor(&self, default_k: f64) -> f64 {
-        self.k.unwrap_or(default_k)
-    }
-
-    /// What a refusal of [`Self::standard`]'s value should add: where it came
-    /// from, when it was worked out (empty when it was entered).
-    pub fn origin(&self) -> String {
-        match self.k {
-            Some(k) => format!("; here {} = {} {} / {} {k}", self.u / k, self.flags.0, self.u, self.flags.1),
-            None => String::new(),
-        }
+    /// `check`'s standard (a tile, a glass, a gloss standard) built on
+    /// [`Self::standard`]; a refusal of a value worked out from U / k says
+    /// so ("here 0.1 = --tile-u 0.2 / --tile-k 2").
+    pub fn checked<T>(&self, check: impl FnOnce(f64) -> anyhow::Result<T>) -> anyhow::Result<T> {
+        let u = self.standard()?;
+        check(u).map_err(|e| match self.k {
+            Some(k) => anyhow::anyhow!("{e}; here {u} = {} {} / {} {k}", self.flags.0, self.u, self.flags.1),
+            None => e,
+        })
     }
 }
 
@@ -69,16 +67,23 @@ mod tests {
         let entered = |u, k| CertificateUncertainty { u, k, flags: ("--tile-u", "--tile-k") };
         assert_eq!(entered(0.004, None).standard().unwrap(), 0.004);
         assert_eq!(entered(0.004, Some(2.0)).standard().unwrap(), 0.002);
-        assert_eq!((entered(0.004, None).expanded(2.0), entered(0.004, Some(2.5)).expanded(2.0)), (0.008, 0.004));
-        assert_eq!(
-            (entered(0.004, None).coverage_factor(2.0), entered(0.004, Some(2.5)).coverage_factor(2.0)),
-            (2.0, 2.5)
-        );
+        assert_eq!((entered(0.004, None).coverage_factor(), entered(0.004, Some(2.5)).coverage_factor()), (2.0, 2.5));
+        // The expanded uncertainty E_n takes, k u: the U printed with its
+        // k, twice the standard uncertainty without.
+        let expanded = |c: CertificateUncertainty| c.coverage_factor() * c.standard().unwrap();
+        assert_eq!((expanded(entered(0.004, None)), expanded(entered(0.004, Some(2.5)))), (0.008, 0.004));
         for bad in [0.5, 11.0, f64::NAN, f64::INFINITY] {
             let e = entered(0.004, Some(bad)).standard().unwrap_err().to_string();
             assert!(e.starts_with("--tile-k ") && e.contains("give --tile-u the U it prints"), "{e}");
         }
-        assert_eq!(entered(0.004, Some(2.0)).origin(), "; here 0.002 = --tile-u 0.004 / --tile-k 2");
-        assert_eq!(entered(0.004, None).origin(), "");
+        // A refusal of a value worked out from U / k says so; of one
+        // entered, it is the check's own.
+        let refuse = |u: f64| -> anyhow::Result<()> { anyhow::bail!("{u} refused") };
+        assert_eq!(
+            entered(0.004, Some(2.0)).checked(refuse).unwrap_err().to_string(),
+            "0.002 refused; here 0.002 = --tile-u 0.004 / --tile-k 2"
+        );
+        assert_eq!(entered(0.004, None).checked(refuse).unwrap_err().to_string(), "0.004 refused");
+        assert_eq!(entered(0.004, Some(2.0)).checked(Ok).unwrap(), 0.002);
     }
 }

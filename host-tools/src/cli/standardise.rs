@@ -93,7 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "--black-glass-u and --black-glass-k go with --black-glass-gu, not --tile-rf"
             );
             let u = CertificateUncertainty { u: a.tile_u, k: a.tile_k, flags: ("--tile-u", "--tile-k") };
-            let tile = Tile::new(rf, u.standard()?).map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
+            let tile = u.checked(|u| Tile::new(rf, u))?;
             Found::White(white(&a, &view, &blob, tile)?)
         }
         (None, Some(gu)) => {
@@ -106,7 +106,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 k: a.black_glass_k,
                 flags: ("--black-glass-u", "--black-glass-k"),
             };
-            let glass = BlackGlass::new(gu, u.standard()?).map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
+            let glass = u.checked(|u| BlackGlass::new(gu, u))?;
             Found::Gloss(gloss(&a, &view, &blob, glass)?)
         }
         _ => unreachable!("clap requires exactly one of --tile-rf and --black-glass-gu"),

@@ -7,7 +7,7 @@
 use crate::calibration::verify_gloss::{GlossStandard, StatedGloss, verify_gloss};
 use crate::cli::certificate::CertificateUncertainty;
 use crate::cli::standard_source::{OnDevice, Source, logged_estimates, read_standard_on_device};
-use crate::device::measurement_result::{COVERAGE_FACTOR, chosen_zones};
+use crate::device::measurement_result::chosen_zones;
 use anyhow::{Context, bail};
 use brdf_meter::blob::BlobView;
 use brdf_meter::gloss::SPECULAR_GU;
@@ -65,8 +65,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.corrected_with.check_logged(a.source.readings.is_some())?;
     let u = CertificateUncertainty { u: a.gloss_u, k: a.gloss_k, flags: ("--gloss-u", "--gloss-k") };
-    let standard = GlossStandard::new(a.gloss_gu, u.standard()?, u.coverage_factor(COVERAGE_FACTOR))
-        .map_err(|e| anyhow::anyhow!("{e}{}", u.origin()))?;
+    let standard = u.checked(|s| GlossStandard::new(a.gloss_gu, s, u.coverage_factor()))?;
     let file = crate::device::provision::read_blob_to_decode(&a.blob)?;
     let view = BlobView::parse(&file).expect("read_blob_to_decode checked it");
     let verified = chosen_zones(&view, &a.zones, "--zones")?;

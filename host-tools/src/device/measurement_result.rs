@@ -75,10 +75,6 @@ pub const SCHEMA: &str = "brdf-meter/result";
 /// Its version: bumped when a field is renamed, removed, added, moved or
 /// changes its meaning or unit (`docs/point-schema.md`).
 pub const SCHEMA_VERSION: u32 = 3;
-/// The coverage factor of an expanded uncertainty with many degrees of
-/// freedom (a certificate's k = 2; a result's own is
-/// [`ReadingResult::coverage_factor`]).
-pub const COVERAGE_FACTOR: f64 = crate::device::coverage_factor::LARGE_DOF_FACTOR;
 
 /// Each reading's unit, in `gloss::NAMES` order.
 const UNITS: [&str; READINGS] = ["GU", "HU", "%"];
