@@ -40,6 +40,7 @@ trap 'rm -f "$log"' EXIT
 elfs=()
 for fw in "${firmwares[@]}"; do
   IFS=: read -r bin profile elf_name <<<"$fw"
+  start=$SECONDS
   echo "[firmware] build $bin (cargo $bin: profile $profile, $TARGET)"
   if ! cargo "$bin" >"$log" 2>&1; then
     cat "$log"
@@ -60,6 +61,7 @@ for fw in "${firmwares[@]}"; do
     exit 1
   fi
   elfs+=("$target_dir/$TARGET/$profile/${elf_name:-$bin}")
+  echo "[firmware] $bin: built and clippy-clean in $((SECONDS - start)) s"
 done
 
 # The board image must carry its logger (RTT control block) and find the
