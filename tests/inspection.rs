@@ -107,6 +107,9 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
         assert_eq!((*start, *len), (p.start_us, p.len_us as u64));
         assert!(*len >= 20_000, "a pulse a PLC scanning every 10 ms cannot miss");
     }
+    // The run ended after its pulses: the last one reported is the last
+    // rejected line's (a merged pulse names the last line it took in).
+    assert_eq!(run.pulses.last().map(|p| p.line), rejected.last().copied(), "pulses {:?}", run.pulses);
 }
 
 #[test]

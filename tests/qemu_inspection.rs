@@ -63,6 +63,11 @@ fn qemu_inspects_bit_for_bit_as_the_host_and_reports_its_reject_pulses() {
     for p in &run.pulses {
         assert!(p.len_us >= 20_000, "pulse {p:?}");
     }
+    // The run ended after its pulses (the device's MeasureDone waits for
+    // them; the client no longer waits its timeout out where they merged):
+    // the last one reported is the last rejected line's, and the device
+    // counted no pulse the run did not report.
+    assert_eq!(run.pulses.last().map(|p| p.line), rejected.last().copied(), "pulses {:?}", run.pulses);
     let status = c.inspect_status().unwrap();
     assert_eq!((status.counters.lines, status.counters.rejected), (lines as u32, rejected.len() as u32));
     assert_eq!(status.counters.pulses as usize, run.pulses.len());

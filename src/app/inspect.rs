@@ -204,6 +204,7 @@ where
         out.set(true);
         let mut end = start + embassy_time::Duration::from_micros(first.len_us as u64);
         let mut pulse = Pulse { line: first.line, start_us: start.as_micros(), len_us: first.len_us };
+        let mut taken = 1;
         // A pulse due before this one ends lengthens it.
         loop {
             match select(Timer::at(end), shared.reject.receive()).await {
@@ -213,6 +214,7 @@ where
                         + embassy_time::Duration::from_micros(next.len_us as u64);
                     end = end.max(next_end);
                     pulse.line = next.line;
+                    taken += 1;
                 }
             }
         }
@@ -224,5 +226,10 @@ where
             &Response::RejectPulse { line: pulse.line, start_us: pulse.start_us, len_us: pulse.len_us },
         );
         shared.out.send(f).await;
+        // Reported: an inspection waiting for its pulses may end now.
+        shared.core.lock(|c| {
+            let c = &mut *c.borrow_mut();
+            c.pulses_under_way = c.pulses_under_way.saturating_sub(taken);
+        });
     }
 }

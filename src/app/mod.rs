@@ -181,6 +181,11 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     pub inspector: crate::inspect::Inspector<P>,
     /// The reject pulses waiting for their line.
     pub reject_plan: crate::inspect::reject::Planner,
+    /// Reject pulses handed to the reject output and not yet reported on the
+    /// link (a merged pulse reports every one it took in): an inspection's
+    /// `MeasureDone` waits for them, so the host has every pulse of its run
+    /// when it sees the run end.
+    pub pulses_under_way: u32,
     /// Whether the running job is an inspection.
     pub inspecting: bool,
     /// The recipe of the running inspection, parsed once when it started
@@ -207,6 +212,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Core<F, N, 
             recipes: None,
             inspector: crate::inspect::Inspector::new(),
             reject_plan: crate::inspect::reject::Planner::new(),
+            pulses_under_way: 0,
             inspecting: false,
             recipe_view: None,
             early_points: 0,

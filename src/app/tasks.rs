@@ -267,6 +267,7 @@ where
                             }
                             shared.out.send(frame(job.seq, &Response::Verdict(verdict))).await;
                             if let Some(pulse) = pulse {
+                                shared.core.lock(|c| c.borrow_mut().pulses_under_way += 1);
                                 shared.reject.send((job.seq, pulse)).await;
                             }
                             if follow { P } else { 0 }
@@ -359,6 +360,16 @@ where
                 current = None;
                 if let Some(e) = error {
                     shared.out.send(frame(job.seq, &Response::Error(e))).await;
+                }
+                // An inspection ends when its reject pulses have been driven
+                // and reported (at most the recipe's delay and pulse after
+                // the last verdict): the host cannot count them, since
+                // pulses that overlap merge into one. Still measuring
+                // meanwhile, so no job starts under a pulse of this one.
+                if job.inspect.is_some() {
+                    while shared.core.lock(|c| c.borrow().pulses_under_way) > 0 {
+                        embassy_time::Timer::after_millis(1).await;
+                    }
                 }
                 shared.core.lock(|c| c.borrow_mut().status.measuring = false);
                 shared.out.send(frame(job.seq, &Response::MeasureDone { lines_done: lines })).await;

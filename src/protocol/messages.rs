@@ -161,7 +161,8 @@ pub enum Request<'a> {
     /// Inspects `lines` lines (0: until [`Request::Stop`]) with the active
     /// recipe: one [`Response::Verdict`] per line, reject pulses as
     /// [`Response::RejectPulse`] events, and with `defect_points` the
-    /// points of each rejected line in `format` after its verdict.
+    /// points of each rejected line in `format` after its verdict;
+    /// [`Response::MeasureDone`] once the pulses are over.
     Inspect {
         /// Number of lines, 0 for continuous.
         lines: u32,
@@ -207,7 +208,10 @@ pub enum Response<'a> {
     /// follows.
     StopRequested,
     /// The measurement is over (all requested lines sent, stopped, or ended by
-    /// an error sent just before).
+    /// an error sent just before). An inspection's comes after the last of
+    /// its [`Response::RejectPulse`] events: every pulse its lines set off
+    /// has been driven and reported (not those a delay in lines holds for
+    /// lines still to come, which the next inspection drives).
     MeasureDone {
         /// Lines measured.
         lines_done: u32,

@@ -54,9 +54,10 @@ impl<T: Transport> Client<T> {
         }
     }
 
-    /// Inspects `lines` lines (>= 1); `on_verdict` sees each verdict as it arrives.
-    /// The pulses still under way when the last verdict arrives are waited
-    /// for (up to the client's timeout).
+    /// Inspects `lines` lines (>= 1); `on_verdict` sees each verdict as it
+    /// arrives. The run ends with the device's `MeasureDone`, which follows
+    /// the last reject pulse it reports (merged pulses report once for
+    /// several rejected lines, so only the device knows when they are over).
     pub fn inspect(
         &mut self,
         lines: u32,
@@ -68,11 +69,13 @@ impl<T: Transport> Client<T> {
         let mut run = InspectRun::default();
         let mut started = false;
         let mut error = None;
-        let mut done = None;
         loop {
             let f = match self.next_frame(self.timeout) {
-                // After the end, the wait for pulses still under way is over.
-                Err(LinkError::Timeout(..)) if done.is_some() => break,
+                // The last verdict is in: what is left is a reject pulse the
+                // device is still driving.
+                Err(LinkError::Timeout(..)) if run.verdicts.len() == lines as usize => {
+                    return Err(LinkError::Timeout(self.timeout, "the end of the inspection's last reject pulse"));
+                }
                 Err(LinkError::Timeout(..)) => return Err(LinkError::Timeout(self.timeout, "inspection verdicts")),
                 r => r?,
             };
@@ -102,19 +105,11 @@ impl<T: Transport> Client<T> {
                     if lines_done != lines {
                         return Err(LinkError::Unexpected(format!("{lines_done} of {lines} lines inspected")));
                     }
-                    done = Some(lines_done);
-                    let rejected = run.verdicts.iter().filter(|v| v.rejected()).count();
-                    if run.pulses.len() >= rejected {
-                        break;
-                    }
+                    return Ok(run);
                 }
                 Reply::Msg(r) => return Err(LinkError::Unexpected(format!("{r:?} during an inspection"))),
             }
-            if done.is_some() && run.pulses.len() >= run.verdicts.iter().filter(|v| v.rejected()).count() {
-                break;
-            }
         }
-        Ok(run)
     }
 }
 
