@@ -46,9 +46,11 @@ stage "code style (cargo fmt --check, rustfmt.toml)" cargo fmt --all -- --check
 # the last thing printed.
 stage "firmware: builds, clippy, size and flash/RAM budget" bash scripts/check-firmware.sh
 stage "board tests: build for the chip; run only when a debug probe is attached" bash scripts/board-test.sh
-stage "clippy on the host crates (-D warnings)" cargo clippy --workspace --release --all-targets -q -- -D warnings
-# The API docs: broken intra-doc links and bad markup fail the run (about a
-# minute and a half on a cold cache: rustdoc checks the dependencies' metadata).
+# Clippy in the dev profile: the API docs below then reuse the dependencies'
+# metadata it checked (measured from cold: clippy 79 s, then the docs 17 s;
+# with clippy in release the docs took 69 s, checking them all again).
+stage "clippy on the host crates (-D warnings)" cargo clippy --workspace --all-targets -q -- -D warnings
+# The API docs: broken intra-doc links and bad markup fail the run.
 RUSTDOCFLAGS="-D warnings" stage "API docs (cargo doc, warnings denied)" cargo doc --workspace --no-deps -q
 
 # cargo test's output is kept for the totals above; its status is cargo's.
