@@ -11,7 +11,9 @@ use brdf_meter::inspect::RecipeStore;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{DeviceError, Response};
 use host_tools::device::link::{Client, LinkError, frame_len};
-use system_tests::inspection::{TEACH_LINES, bytes, fixture, host_verdicts, recipe_cal, scene_lines, teach_spec};
+use system_tests::inspection::{
+    TEACH_LINES, bytes, fixture, host_verdicts, recipe_cal, scene_lines, taught_recipe, teach_spec,
+};
 use system_tests::sim::{ACQ, FULL_SCALE, P, RECIPE_SLOT_LEN, SLOT_LEN, SimDevice};
 
 fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
@@ -110,6 +112,43 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
     // The run ended after its pulses: the last one reported is the last
     // rejected line's (a merged pulse names the last line it took in).
     assert_eq!(run.pulses.last().map(|p| p.line), rejected.last().copied(), "pulses {:?}", run.pulses);
+}
+
+/// A delay in lines: each rejected line pulses when the line that many
+/// lines later is read, and the one whose delay outlasts the run pulses at
+/// its end, before the run's `MeasureDone`.
+#[test]
+fn a_delay_in_lines_pulses_later_and_the_run_ends_after_the_lines_it_still_held() {
+    use brdf_meter::inspect::recipe::DelayUnit;
+    let f = fixture();
+    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
+    let spec = host_tools::inspection::teach::TeachSpec { delay: (2, DelayUnit::Lines), ..teach_spec() };
+    let recipe = taught_recipe(unsigned, &f.scene, &spec);
+    let mut c = Client::new(SimDevice::boot_with_recipes(
+        SimFlash::new(2 * SLOT_LEN as usize),
+        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
+        4,
+    ))
+    .unwrap();
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    c.provision_recipe(&recipe, |_, _| {}).unwrap();
+    c.load_scene(&scene_lines(&f)).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    // Lines 1, 3 and 5 pulse at the verdicts of 3, 5 and 7; nothing counts
+    // line 7's delay down, so it pulses as the run ends.
+    let run = c.inspect(8, false, &mut |_| {}).unwrap();
+    let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
+    assert_eq!(rejected, [1, 3, 5, 7]);
+    assert_eq!(run.pulses.last().map(|p| p.line), Some(7), "pulses {:?}", run.pulses);
+    let status = c.inspect_status().unwrap();
+    assert_eq!(status.counters.pulses as usize, run.pulses.len());
+    let edges = c.transport().reject.edges();
+    assert_eq!(edges.windows(2).filter(|w| w[0].1 && !w[1].1).count(), run.pulses.len(), "edges {edges:?}");
+    // Every pulse names a rejected line, and the next run starts with
+    // nothing held over.
+    assert!(run.pulses.iter().all(|p| rejected.contains(&p.line)), "{:?}", run.pulses);
+    let again = c.inspect(1, false, &mut |_| {}).unwrap();
+    assert!(again.pulses.is_empty(), "{:?}", again.pulses);
 }
 
 #[test]

@@ -57,6 +57,15 @@ impl Planner {
             }
         }
     }
+
+    /// At the end of an inspection, one of the rejected lines a delay in
+    /// lines still holds (oldest first), to pulse at `now_us`: with no more
+    /// lines there is no count left to wait for, and, as when the queue is
+    /// full, a rejected part is better ejected at once than never. `None`
+    /// once none is left.
+    pub fn flush(&mut self, s: &RecipeSettings, now_us: u64) -> Option<Pulse> {
+        self.waiting.pop_front().map(|(_, line)| Pulse { line, start_us: now_us, len_us: s.pulse_us })
+    }
 }
 
 #[cfg(test)]
@@ -81,5 +90,27 @@ mod tests {
         assert_eq!(fired, [(2, 0), (3, 1)]);
         s.delay = 0;
         assert_eq!(Planner::new().after_verdict(&s, 7, true, 9).map(|x| x.start_us), Some(9));
+    }
+
+    #[test]
+    fn the_end_of_an_inspection_flushes_the_lines_a_delay_still_holds() {
+        let mut s = crate::inspect::recipe::tests::settings();
+        s.delay_unit = DelayUnit::Lines;
+        s.delay = 3;
+        let mut p = Planner::new();
+        for (l, r) in [(0, false), (1, true), (2, false), (3, true)] {
+            assert_eq!(p.after_verdict(&s, l, r, 10 * l as u64), None, "line {l}");
+        }
+        // Line 1 waits for line 4, whose verdict fires it; lines 3 and 4
+        // wait for 6 and 7, which the run does not reach.
+        assert_eq!(p.after_verdict(&s, 4, true, 40).map(|x| x.line), Some(1));
+        assert_eq!(p.after_verdict(&s, 5, false, 50), None);
+        let flushed: Vec<_> = core::iter::from_fn(|| p.flush(&s, 60)).collect();
+        assert_eq!(flushed, [3, 4].map(|line| Pulse { line, start_us: 60, len_us: s.pulse_us }));
+        assert_eq!(p.flush(&s, 70), None);
+        s.delay_unit = DelayUnit::Micros;
+        let mut p = Planner::new();
+        assert!(p.after_verdict(&s, 0, true, 0).is_some());
+        assert_eq!(p.flush(&s, 10), None, "a delay in time holds nothing back");
     }
 }

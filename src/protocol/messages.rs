@@ -209,9 +209,9 @@ pub enum Response<'a> {
     StopRequested,
     /// The measurement is over (all requested lines sent, stopped, or ended by
     /// an error sent just before). An inspection's comes after the last of
-    /// its [`Response::RejectPulse`] events: every pulse its lines set off
-    /// has been driven and reported (not those a delay in lines holds for
-    /// lines still to come, which the next inspection drives).
+    /// its [`Response::RejectPulse`] events: every pulse its rejected lines
+    /// set off has been driven and reported, those a delay in lines still
+    /// held at its end driven at once.
     MeasureDone {
         /// Lines measured.
         lines_done: u32,

@@ -36,18 +36,23 @@ pub fn fixture() -> Fixture {
         &prior,
     )
     .unwrap();
-    let view = brdf_meter::blob::BlobView::parse(&cal).unwrap();
-    let model = DeviceModel::new(view, FULL_SCALE, ACQ).unwrap();
     let clean = DefectScene::new("clean", scene.clone(), &[]).unwrap();
-    let lines: Vec<_> = (0..TEACH_LINES).map(|l| model.correct(&clean.raw_frames_at(l as u64).unwrap())).collect();
-    let taught = teach(&model, &lines, &teach_spec()).unwrap();
-    let recipe = host_tools::calibration::signing::sign_with_dev_key(&taught.bytes);
+    let recipe = taught_recipe(&cal, &clean, &teach_spec());
     let scratch = |first_line| DefectSpec::Scratch {
         at: Extent { first_pixel: 10, pixels: 3, first_line, lines: 1 },
         brdf: BrdfSpec::Ward { rho_d: 0.9, rho_s: Some(0.05), alpha: 0.4 },
     };
     let scene = DefectScene::new("scratch", scene, &[scratch(61), scratch(63)]).unwrap();
     Fixture { cal: host_tools::calibration::signing::sign_with_dev_key(&cal), recipe, scene }
+}
+
+/// A recipe taught with `spec` on the first [`TEACH_LINES`] lines of
+/// `scene` (defect-free there) through the calibration `cal` (unsigned),
+/// signed with the development key.
+pub fn taught_recipe(cal: &[u8], scene: &DefectScene, spec: &TeachSpec) -> Vec<u8> {
+    let model = DeviceModel::new(brdf_meter::blob::BlobView::parse(cal).unwrap(), FULL_SCALE, ACQ).unwrap();
+    let lines: Vec<_> = (0..TEACH_LINES).map(|l| model.correct(&scene.raw_frames_at(l as u64).unwrap())).collect();
+    host_tools::calibration::signing::sign_with_dev_key(&teach(&model, &lines, spec).unwrap().bytes)
 }
 
 /// Lines the recipe is taught from (the scene's first).
