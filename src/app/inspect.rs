@@ -182,6 +182,33 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             Ok((verdict, pulse))
         })
     }
+
+    /// Hands `pulse` (of the job `seq`) to the reject output, counted as
+    /// under way until its event is on the link.
+    pub(super) async fn schedule_pulse(&self, seq: u32, pulse: Pulse) {
+        self.core.lock(|c| c.borrow_mut().pulses_under_way += 1);
+        self.reject.send((seq, pulse)).await;
+    }
+
+    /// The end of an inspection: the rejected lines whose delay in lines
+    /// outlasts the run pulse now (no line is left to count it down), then
+    /// this waits until every pulse of the run has been driven and reported
+    /// (at most the recipe's delay and pulse after the last verdict). The
+    /// run's `MeasureDone` follows: the host cannot tell the end of the
+    /// pulses itself, since pulses that overlap merge into one event. (A new
+    /// inspection starts with an empty schedule.)
+    pub(super) async fn finish_pulses(&self, seq: u32) {
+        let now = Instant::now().as_micros();
+        while let Some(pulse) = self.core.lock(|c| {
+            let c = &mut *c.borrow_mut();
+            c.reject_plan.flush(c.recipe_view?.settings(), now)
+        }) {
+            self.schedule_pulse(seq, pulse).await;
+        }
+        while self.core.lock(|c| c.borrow().pulses_under_way) > 0 {
+            Timer::after_millis(1).await;
+        }
+    }
 }
 
 /// The reject output's task: drives each scheduled pulse on `out` (pulses

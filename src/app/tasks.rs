@@ -267,8 +267,7 @@ where
                             }
                             shared.out.send(frame(job.seq, &Response::Verdict(verdict))).await;
                             if let Some(pulse) = pulse {
-                                shared.core.lock(|c| c.borrow_mut().pulses_under_way += 1);
-                                shared.reject.send((job.seq, pulse)).await;
+                                shared.schedule_pulse(job.seq, pulse).await;
                             }
                             if follow { P } else { 0 }
                         }
@@ -361,27 +360,10 @@ where
                 if let Some(e) = error {
                     shared.out.send(frame(job.seq, &Response::Error(e))).await;
                 }
-                // An inspection ends when its reject pulses have been driven
-                // and reported (at most the recipe's delay and pulse after
-                // the last verdict): the host cannot count them, since
-                // pulses that overlap merge into one. Still measuring
-                // meanwhile, so no job starts under a pulse of this one (a
-                // new inspection starts with an empty schedule).
+                // Still measuring while the pulses end, so no job starts
+                // under a pulse of this one.
                 if job.inspect.is_some() {
-                    // Rejected lines whose delay in lines outlasts the run:
-                    // no line will count it down, so they pulse now.
-                    let now = embassy_time::Instant::now().as_micros();
-                    while let Some(pulse) = shared.core.lock(|c| {
-                        let c = &mut *c.borrow_mut();
-                        let pulse = c.reject_plan.flush(c.recipe_view?.settings(), now)?;
-                        c.pulses_under_way += 1;
-                        Some(pulse)
-                    }) {
-                        shared.reject.send((job.seq, pulse)).await;
-                    }
-                    while shared.core.lock(|c| c.borrow().pulses_under_way) > 0 {
-                        embassy_time::Timer::after_millis(1).await;
-                    }
+                    shared.finish_pulses(job.seq).await;
                 }
                 shared.core.lock(|c| c.borrow_mut().status.measuring = false);
                 shared.out.send(frame(job.seq, &Response::MeasureDone { lines_done: lines })).await;
