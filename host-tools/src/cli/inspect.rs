@@ -439,6 +439,11 @@ fn run_inspect(a: RunArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
+    // The run ends after its last reject pulse, which a delay in time may
+    // put well after the last line.
+    let settings = recipe.settings();
+    c.timeout =
+        c.timeout.max(crate::device::link::end_of_run_wait(settings.pulse_us, (settings.delay, settings.delay_unit)));
     let progress = crate::output::progress::bar(a.lines as u64, "lines");
     let mut rejected = 0usize;
     let run = c.inspect(a.lines, a.defect_points.is_some(), &mut |v| {

@@ -4,7 +4,9 @@
 use super::Transport;
 use super::client::{Client, LinkError, PointRecord, Reply, SlotKind};
 use brdf_meter::inspect::Verdict;
+use brdf_meter::inspect::recipe::DelayUnit;
 use brdf_meter::protocol::{DeviceError, InspectStatus, RecipeInfo, Request, Response};
+use std::time::Duration;
 
 /// A reject pulse the device reported.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -15,6 +17,21 @@ pub struct PulseEvent {
     pub start_us: u64,
     /// Length, us.
     pub len_us: u32,
+}
+
+/// How long after a run's last verdict its `MeasureDone` may come with a
+/// recipe's reject pulse of `pulse_us` and its `delay`: the device sends it
+/// once the last pulse is over, which starts at most the delay in time after
+/// that verdict (a delay in lines still held at the end pulses at once) and
+/// lasts the pulse; plus a second for the link. A client whose timeout is
+/// shorter gives up on a run that is going well (`inspect run` raises its
+/// timeout to this).
+pub fn end_of_run_wait(pulse_us: u32, (delay, unit): (u32, DelayUnit)) -> Duration {
+    let delay_us = match unit {
+        DelayUnit::Micros => u64::from(delay),
+        DelayUnit::Lines => 0,
+    };
+    Duration::from_micros(delay_us + u64::from(pulse_us)) + Duration::from_secs(1)
 }
 
 /// What an inspection sent.
@@ -72,7 +89,7 @@ impl<T: Transport> Client<T> {
         loop {
             let f = match self.next_frame(self.timeout) {
                 // The last verdict is in: what is left is a reject pulse the
-                // device is still driving.
+                // device is still driving ([`end_of_run_wait`]).
                 Err(LinkError::Timeout(..)) if run.verdicts.len() == lines as usize => {
                     return Err(LinkError::Timeout(self.timeout, "the end of the inspection's last reject pulse"));
                 }
@@ -117,4 +134,16 @@ impl<T: Transport> Client<T> {
 pub fn frame_len(seq: u32, r: &Response<'_>) -> usize {
     let mut buf = [0u8; brdf_meter::protocol::MAX_FRAME];
     brdf_meter::protocol::encode(seq, r, &mut buf).expect("every reply fits a frame")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_end_of_a_run_waits_for_a_delay_in_time_and_the_pulse() {
+        assert_eq!(end_of_run_wait(25_000, (8_000_000, DelayUnit::Micros)), Duration::from_micros(9_025_000));
+        // A delay in lines still held at the end pulses at once.
+        assert_eq!(end_of_run_wait(25_000, (3, DelayUnit::Lines)), Duration::from_micros(1_025_000));
+    }
 }

@@ -12,7 +12,7 @@ mod stream;
 mod tcp;
 
 pub use client::{Client, Frame, LinkError, PointRecord, Reply};
-pub use inspect::{InspectRun, PulseEvent, frame_len};
+pub use inspect::{InspectRun, PulseEvent, end_of_run_wait, frame_len};
 pub use retrying::{LinkStats, ProvisionOutcome, StreamReport};
 pub use serial::SerialTransport;
 pub use stream::{DecodeError, StreamDecoder, decode_points, decode_with};
