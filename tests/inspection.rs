@@ -151,6 +151,64 @@ fn a_delay_in_lines_pulses_later_and_the_run_ends_after_the_lines_it_still_held(
     assert!(again.pulses.is_empty(), "{:?}", again.pulses);
 }
 
+/// A delay in time keeps a run open past its last line, until its pulse is
+/// over: the device stays busy meanwhile, and the board's watchdog rule,
+/// fed what `measuring_lines` says, does not take the wait for a stall
+/// (fed the plain "measuring" it would reset the board mid-run).
+#[test]
+fn a_run_waiting_for_a_late_pulse_is_busy_but_not_stalled() {
+    use brdf_meter::inspect::recipe::DelayUnit;
+    use brdf_meter::platform::watchdog_health::{Health, STALL_LIMIT_MS};
+    use brdf_meter::protocol::Request;
+    use host_tools::device::link::Reply;
+    let f = fixture();
+    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
+    let delay_us = 4_000_000; // longer than the stall limit
+    assert!(delay_us / 1000 > STALL_LIMIT_MS as u32);
+    let spec = host_tools::inspection::teach::TeachSpec { delay: (delay_us, DelayUnit::Micros), ..teach_spec() };
+    let recipe = taught_recipe(unsigned, &f.scene, &spec);
+    let mut c = Client::new(SimDevice::boot_with_recipes(
+        SimFlash::new(2 * SLOT_LEN as usize),
+        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
+        4,
+    ))
+    .unwrap();
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    c.provision_recipe(&recipe, |_, _| {}).unwrap();
+    c.load_scene(&scene_lines(&f)).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    // Two lines, the second with the scratch: its pulse starts 4 s after its verdict.
+    let seq = c.send(&Request::Inspect { lines: 2, defect_points: false, format: c.format }).unwrap();
+    let (mut plain, mut watched) = (Health::default(), Health::default());
+    let (mut plain_stalled, mut waited_ms) = (false, 0u64);
+    for _ in 0..(2 * delay_us / 1000 / 10) {
+        let dev = c.transport();
+        dev.advance_us(10_000);
+        let (st, lines) = (dev.shared.status(), dev.shared.measuring_lines());
+        if !st.measuring {
+            break;
+        }
+        waited_ms += u64::from(st.measuring && !lines) * 10;
+        let now = embassy_time::Instant::now().as_millis();
+        plain_stalled |= !plain.observe(now, st.measuring, st.lines_total);
+        assert!(watched.observe(now, lines, st.lines_total), "a stall seen at {now} ms");
+    }
+    assert!(!c.transport().shared.status().measuring, "the run never ended");
+    assert!(waited_ms >= u64::from(delay_us) / 1000 - 100, "waited {waited_ms} ms for the pulse");
+    assert!(plain_stalled, "without measuring_lines the wait would have looked like a stall");
+    // On the link: the verdicts, the pulse, then the run's end.
+    let mut order = Vec::new();
+    while let Ok(fr) = c.next_frame(std::time::Duration::from_millis(1)) {
+        match fr.reply {
+            Reply::Msg(Response::Verdict(v)) if fr.seq == seq => order.push(format!("verdict {}", v.line)),
+            Reply::Msg(Response::RejectPulse { line, .. }) => order.push(format!("pulse {line}")),
+            Reply::Msg(Response::MeasureDone { lines_done }) => order.push(format!("done {lines_done}")),
+            _ => {}
+        }
+    }
+    assert_eq!(order, ["verdict 0", "verdict 1", "pulse 1", "done 2"]);
+}
+
 #[test]
 fn a_power_cut_while_provisioning_a_recipe_leaves_the_old_or_the_new_whole() {
     let f = fixture();

@@ -198,6 +198,9 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     /// pulses itself, since pulses that overlap merge into one event. (A new
     /// inspection starts with an empty schedule.)
     pub(super) async fn finish_pulses(&self, seq: u32) {
+        // No line completes from here on: the watchdog's stall rule must not
+        // take a long delay in time for a stall (`Shared::measuring_lines`).
+        self.core.lock(|c| c.borrow_mut().awaiting_pulses = true);
         let now = Instant::now().as_micros();
         while let Some(pulse) = self.core.lock(|c| {
             let c = &mut *c.borrow_mut();
@@ -208,6 +211,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         while self.core.lock(|c| c.borrow().pulses_under_way) > 0 {
             Timer::after_millis(1).await;
         }
+        self.core.lock(|c| c.borrow_mut().awaiting_pulses = false);
     }
 }
 

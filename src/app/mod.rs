@@ -186,6 +186,8 @@ pub struct Core<F, const N: usize, const M: usize, const P: usize> {
     /// `MeasureDone` waits for them, so the host has every pulse of its run
     /// when it sees the run end.
     pub pulses_under_way: u32,
+    /// An inspection is past its last line and waits for those pulses.
+    pub awaiting_pulses: bool,
     /// Whether the running job is an inspection.
     pub inspecting: bool,
     /// The recipe of the running inspection, parsed once when it started
@@ -213,6 +215,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Core<F, N, 
             inspector: crate::inspect::Inspector::new(),
             reject_plan: crate::inspect::reject::Planner::new(),
             pulses_under_way: 0,
+            awaiting_pulses: false,
             inspecting: false,
             recipe_view: None,
             early_points: 0,
@@ -335,5 +338,15 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
     /// A copy of the status.
     pub fn status(&self) -> DeviceStatus {
         self.core.lock(|c| c.borrow().status)
+    }
+
+    /// Whether lines are to complete: a job runs and is not an inspection
+    /// past its last line, waiting for its reject pulses (which a delay in
+    /// time may hold for seconds). What the watchdog's stall rule watches.
+    pub fn measuring_lines(&self) -> bool {
+        self.core.lock(|c| {
+            let c = c.borrow();
+            c.status.measuring && !c.awaiting_pulses
+        })
     }
 }

@@ -91,7 +91,7 @@ async fn supervisor(shared: &'static BoardShared, mut led: embassy_stm32::gpio::
     let mut health = Health::default();
     loop {
         let st = shared.status();
-        if health.observe(Instant::now().as_millis(), st.measuring, st.lines_total) {
+        if health.observe(Instant::now().as_millis(), shared.measuring_lines(), st.lines_total) {
             board::watchdog::healthy();
             led.toggle();
         } else {

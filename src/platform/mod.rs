@@ -26,5 +26,5 @@ pub mod nor_fake;
 #[cfg(all(feature = "qemu", target_os = "none"))]
 pub mod qemu;
 pub mod timing;
-#[cfg(any(test, all(feature = "board", target_os = "none")))]
+#[cfg(any(test, feature = "sim", all(feature = "board", target_os = "none")))]
 pub mod watchdog_health;

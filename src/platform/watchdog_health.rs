@@ -1,6 +1,8 @@
 //! When the application counts as healthy, for the watchdog: pure logic, no
-//! hardware, so it is built for the library's host tests as well as for the
-//! board firmware (its supervisor, src/bin/board-fw.rs, feeds the watchdog by it).
+//! hardware, so it is built for the library's host tests and the host
+//! simulation's as well as for the board firmware (its supervisor,
+//! src/bin/board-fw.rs, feeds the watchdog by it, with
+//! `app::Shared::measuring_lines` for "measuring").
 
 /// A measurement whose lines stop completing for this long is stuck. The
 /// longest healthy line is 8 frames, each taken again at up to 2 shorter
