@@ -209,6 +209,47 @@ fn a_run_waiting_for_a_late_pulse_is_busy_but_not_stalled() {
     assert_eq!(order, ["verdict 0", "verdict 1", "pulse 1", "done 2"]);
 }
 
+/// A delay in time schedules pulses ahead of their start: each rejected
+/// line's pulse is its own, as long as the recipe says, where pulses do
+/// not overlap (a pulse driven while the next was already scheduled once
+/// stretched to that one's end, holding the ejector through the good parts
+/// between).
+#[test]
+fn pulses_scheduled_ahead_by_a_delay_in_time_stay_apart() {
+    use brdf_meter::inspect::recipe::DelayUnit;
+    let f = fixture();
+    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
+    let spec = host_tools::inspection::teach::TeachSpec {
+        pulse_us: 1_000,
+        delay: (50_000, DelayUnit::Micros),
+        ..teach_spec()
+    };
+    let recipe = taught_recipe(unsigned, &f.scene, &spec);
+    let mut c = Client::new(SimDevice::boot_with_recipes(
+        SimFlash::new(2 * SLOT_LEN as usize),
+        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
+        4,
+    ))
+    .unwrap();
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    c.provision_recipe(&recipe, |_, _| {}).unwrap();
+    c.load_scene(&scene_lines(&f)).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    let run = c.inspect(8, false, &mut |_| {}).unwrap();
+    let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
+    assert_eq!(rejected, [1, 3, 5, 7]);
+    // Two lines apart is several milliseconds (a line is 7 exposures):
+    // 1 ms pulses 50 ms late never overlap.
+    let lines: Vec<u32> = run.pulses.iter().map(|p| p.line).collect();
+    assert_eq!(lines, rejected, "pulses {:?}", run.pulses);
+    assert!(run.pulses.iter().all(|p| p.len_us == 1_000), "pulses {:?}", run.pulses);
+    assert!(run.pulses.windows(2).all(|w| w[1].start_us > w[0].start_us + 1_000), "{:?}", run.pulses);
+    let edges = c.transport().reject.edges();
+    let highs: Vec<(u64, u64)> =
+        edges.windows(2).filter(|w| w[0].1 && !w[1].1).map(|w| (w[0].0, w[1].0 - w[0].0)).collect();
+    assert_eq!(highs, run.pulses.iter().map(|p| (p.start_us, u64::from(p.len_us))).collect::<Vec<_>>());
+}
+
 #[test]
 fn a_power_cut_while_provisioning_a_recipe_leaves_the_old_or_the_new_whole() {
     let f = fixture();

@@ -228,18 +228,30 @@ where
     O: RejectOutput,
 {
     out.set(false);
+    // A pulse taken from the schedule while another was driven, due only
+    // after that one ended: the next to drive.
+    let mut carried = None;
     loop {
-        let (seq, first) = shared.reject.receive().await;
+        let (seq, first) = match carried.take() {
+            Some(p) => p,
+            None => shared.reject.receive().await,
+        };
         Timer::at(Instant::from_micros(first.start_us)).await;
         let start = Instant::now();
         out.set(true);
         let mut end = start + embassy_time::Duration::from_micros(first.len_us as u64);
         let mut pulse = Pulse { line: first.line, start_us: start.as_micros(), len_us: first.len_us };
         let mut taken = 1;
-        // A pulse due before this one ends lengthens it.
+        // A pulse due before this one ends lengthens it; one due later (a
+        // delay in time schedules pulses ahead) is a pulse of its own.
         loop {
             match select(Timer::at(end), shared.reject.receive()).await {
                 Either::First(()) => break,
+                Either::Second(later) if Instant::from_micros(later.1.start_us) > end => {
+                    carried = Some(later);
+                    Timer::at(end).await;
+                    break;
+                }
                 Either::Second((_, next)) => {
                     let next_end = Instant::from_micros(next.start_us.max(start.as_micros()))
                         + embassy_time::Duration::from_micros(next.len_us as u64);
