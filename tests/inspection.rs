@@ -11,6 +11,7 @@ use brdf_meter::inspect::RecipeStore;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{DeviceError, Response};
 use host_tools::device::link::{Client, LinkError, frame_len};
+use host_tools::inspection::teach::TeachSpec;
 use system_tests::inspection::{
     TEACH_LINES, bytes, fixture, host_verdicts, recipe_cal, scene_lines, taught_recipe, teach_spec,
 };
@@ -21,6 +22,25 @@ fn device_error<T: std::fmt::Debug>(r: Result<T, LinkError>) -> DeviceError {
         Err(LinkError::Device(e)) => e,
         other => panic!("expected a device error, got {other:?}"),
     }
+}
+
+/// A host-simulated device inspecting the fixture's scene (lines 60..64)
+/// with its calibration and a recipe taught with `spec`.
+fn inspecting(spec: TeachSpec) -> Client<SimDevice> {
+    let f = fixture();
+    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
+    let recipe = taught_recipe(unsigned, &f.scene, &spec);
+    let mut c = Client::new(SimDevice::boot_with_recipes(
+        SimFlash::new(2 * SLOT_LEN as usize),
+        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
+        4,
+    ))
+    .unwrap();
+    c.provision(&f.cal, |_, _| {}).unwrap();
+    c.provision_recipe(&recipe, |_, _| {}).unwrap();
+    c.load_scene(&scene_lines(&f)).unwrap();
+    c.set_calibration(&f.cal).unwrap();
+    c
 }
 
 #[test]
@@ -120,20 +140,7 @@ fn a_taught_recipe_inspects_bit_for_bit_as_the_host_and_drives_the_reject_output
 #[test]
 fn a_delay_in_lines_pulses_later_and_the_run_ends_after_the_lines_it_still_held() {
     use brdf_meter::inspect::recipe::DelayUnit;
-    let f = fixture();
-    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
-    let spec = host_tools::inspection::teach::TeachSpec { delay: (2, DelayUnit::Lines), ..teach_spec() };
-    let recipe = taught_recipe(unsigned, &f.scene, &spec);
-    let mut c = Client::new(SimDevice::boot_with_recipes(
-        SimFlash::new(2 * SLOT_LEN as usize),
-        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
-        4,
-    ))
-    .unwrap();
-    c.provision(&f.cal, |_, _| {}).unwrap();
-    c.provision_recipe(&recipe, |_, _| {}).unwrap();
-    c.load_scene(&scene_lines(&f)).unwrap();
-    c.set_calibration(&f.cal).unwrap();
+    let mut c = inspecting(TeachSpec { delay: (2, DelayUnit::Lines), ..teach_spec() });
     // Lines 1, 3 and 5 pulse at the verdicts of 3, 5 and 7; nothing counts
     // line 7's delay down, so it pulses as the run ends.
     let run = c.inspect(8, false, &mut |_| {}).unwrap();
@@ -161,22 +168,9 @@ fn a_run_waiting_for_a_late_pulse_is_busy_but_not_stalled() {
     use brdf_meter::platform::watchdog_health::{Health, STALL_LIMIT_MS};
     use brdf_meter::protocol::Request;
     use host_tools::device::link::Reply;
-    let f = fixture();
-    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
     let delay_us = 4_000_000; // longer than the stall limit
     assert!(delay_us / 1000 > STALL_LIMIT_MS as u32);
-    let spec = host_tools::inspection::teach::TeachSpec { delay: (delay_us, DelayUnit::Micros), ..teach_spec() };
-    let recipe = taught_recipe(unsigned, &f.scene, &spec);
-    let mut c = Client::new(SimDevice::boot_with_recipes(
-        SimFlash::new(2 * SLOT_LEN as usize),
-        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
-        4,
-    ))
-    .unwrap();
-    c.provision(&f.cal, |_, _| {}).unwrap();
-    c.provision_recipe(&recipe, |_, _| {}).unwrap();
-    c.load_scene(&scene_lines(&f)).unwrap();
-    c.set_calibration(&f.cal).unwrap();
+    let mut c = inspecting(TeachSpec { delay: (delay_us, DelayUnit::Micros), ..teach_spec() });
     // Two lines, the second with the scratch: its pulse starts 4 s after its verdict.
     let seq = c.send(&Request::Inspect { lines: 2, defect_points: false, format: c.format }).unwrap();
     let (mut plain, mut watched) = (Health::default(), Health::default());
@@ -217,24 +211,7 @@ fn a_run_waiting_for_a_late_pulse_is_busy_but_not_stalled() {
 #[test]
 fn pulses_scheduled_ahead_by_a_delay_in_time_stay_apart() {
     use brdf_meter::inspect::recipe::DelayUnit;
-    let f = fixture();
-    let unsigned = &f.cal[..f.cal.len() - brdf_meter::signed::TRAILER_LEN];
-    let spec = host_tools::inspection::teach::TeachSpec {
-        pulse_us: 1_000,
-        delay: (50_000, DelayUnit::Micros),
-        ..teach_spec()
-    };
-    let recipe = taught_recipe(unsigned, &f.scene, &spec);
-    let mut c = Client::new(SimDevice::boot_with_recipes(
-        SimFlash::new(2 * SLOT_LEN as usize),
-        SimFlash::new(2 * RECIPE_SLOT_LEN as usize),
-        4,
-    ))
-    .unwrap();
-    c.provision(&f.cal, |_, _| {}).unwrap();
-    c.provision_recipe(&recipe, |_, _| {}).unwrap();
-    c.load_scene(&scene_lines(&f)).unwrap();
-    c.set_calibration(&f.cal).unwrap();
+    let mut c = inspecting(TeachSpec { pulse_us: 1_000, delay: (50_000, DelayUnit::Micros), ..teach_spec() });
     let run = c.inspect(8, false, &mut |_| {}).unwrap();
     let rejected: Vec<u32> = run.verdicts.iter().filter(|v| v.rejected()).map(|v| v.line).collect();
     assert_eq!(rejected, [1, 3, 5, 7]);
