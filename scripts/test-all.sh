@@ -42,8 +42,7 @@ trap finish EXIT
 stage "what the tests need (scripts/install-test-deps.sh)" bash scripts/install-test-deps.sh
 stage "code style (cargo fmt --check, rustfmt.toml)" cargo fmt --all -- --check
 # Firmware first (warning-free builds, clippy, size and budget): it also builds
-# the QEMU firmware the QEMU tests below reuse, and cargo test's summary stays
-# the last thing printed.
+# the QEMU firmware the QEMU tests below reuse.
 stage "firmware: builds, clippy, size and flash/RAM budget" bash scripts/check-firmware.sh
 stage "board tests: build for the chip; run only when a debug probe is attached" bash scripts/board-test.sh
 # Clippy in the dev profile: the API docs below then reuse the dependencies'
