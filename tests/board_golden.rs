@@ -14,7 +14,7 @@
 //! harness would then compare against stale values). Regenerate after a
 //! deliberate change with
 //!
-//!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test board_golden
+//!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test system -- board_golden::
 use brdf_meter::blob::{BlobView, Dims};
 use brdf_meter::shape::{BINS, LEDS, board};
 use brdf_meter::store::SLOT_HEADER_LEN;
@@ -92,7 +92,7 @@ fn board_check_golden_files_are_what_the_host_computes() {
         assert!(
             on_disk == *bytes,
             "{} differs from the host's computation: the board tests would check stale values; \
-             regenerate with GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test board_golden",
+             regenerate with GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test system -- board_golden::",
             path.display()
         );
     }

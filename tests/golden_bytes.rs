@@ -15,7 +15,7 @@
 //! `protocol::PROTOCOL_VERSION`)
 //! and regenerate with
 //!
-//!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test golden_bytes
+//!     GOLDEN_REGENERATE=1 cargo test --release -p system-tests --test system -- golden_bytes::
 use brdf_meter::blob::{BlobExtras, EstimatorKind, OutOfPriorData, Section, write_blob_with};
 use brdf_meter::hw::SensorError;
 use brdf_meter::kernel::scale_free::OutOfPriorForm;
@@ -545,7 +545,7 @@ fn encodings_match_the_golden_bytes() {
     }
     let golden = std::fs::read_to_string(&path).unwrap_or_else(|e| {
         panic!(
-            "{}: {e}; generate it with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes",
+            "{}: {e}; generate it with {REGENERATE}=1 cargo test --release -p system-tests --test system -- golden_bytes::",
             path.display()
         )
     });
@@ -561,7 +561,7 @@ fn encodings_match_the_golden_bytes() {
         assert_eq!(
             g, w,
             "the encoding of `{name}` changed: bump the version of its format (blob::FORMAT_VERSION, store::SLOT_VERSION or \
-             protocol::PROTOCOL_VERSION) and regenerate with {REGENERATE}=1 cargo test --release -p system-tests --test golden_bytes"
+             protocol::PROTOCOL_VERSION) and regenerate with {REGENERATE}=1 cargo test --release -p system-tests --test system -- golden_bytes::"
         );
     }
 }
