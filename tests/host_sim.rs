@@ -5,8 +5,8 @@ use brdf_meter::blob::{BlobView, CRC32};
 use brdf_meter::hw::SensorError;
 use brdf_meter::platform::host_sim::SimFlash;
 use brdf_meter::protocol::{
-    BinRange, DeviceError, Encoding, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, Request, Response, SizeField,
-    StreamFormat, encode, flags, point_uncertainty,
+    BinRange, DeviceError, Encoding, FrameError, LeBytes, MAX_CHUNK, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION, Request,
+    Response, SizeField, StreamFormat, encode, flags, point_uncertainty, seal, serialise, stuff,
 };
 use brdf_meter::signed::SignatureFault;
 use brdf_meter::test_blobs::{sign_for_tests, signed_test_blob, test_blob};
@@ -243,6 +243,19 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
     let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
     assert_eq!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::Oversized))));
 
+    // Another protocol version (a whole frame, its CRC right): the reply
+    // names the version the device got, in the device's own version, so
+    // the host can say which two disagree.
+    let other = PROTOCOL_VERSION + 1;
+    let mut raw = [0u8; MAX_PAYLOAD];
+    let len = serialise(80, &Request::Info, &mut raw).unwrap();
+    raw[0..2].copy_from_slice(&other.to_le_bytes());
+    seal(&mut raw[..len]);
+    let n = stuff(&raw[..len], &mut frame).unwrap();
+    c.send_raw(&frame[..n]).unwrap();
+    let r = c.next_frame(std::time::Duration::from_secs(1)).unwrap();
+    assert_eq!(r.reply, Reply::Msg(Response::Error(DeviceError::Frame(FrameError::UnsupportedVersion { got: other }))));
+
     // Out of order: chunks, commit and chunk without begin.
     let b = blob(6.0);
     assert_eq!(
@@ -275,7 +288,7 @@ fn malformed_frames_get_typed_errors_and_the_device_keeps_serving() {
 
     // And the device still serves, and provisions from scratch.
     let st = c.status().unwrap();
-    assert_eq!(st.bad_frames, 4);
+    assert_eq!(st.bad_frames, 5);
     let cal = c.provision(&b, |_, _| {}).unwrap();
     assert_eq!(c.info().unwrap().calibration, Some(cal));
 }

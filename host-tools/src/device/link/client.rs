@@ -25,6 +25,20 @@ pub enum LinkError {
     /// A frame from the device could not be read.
     #[error("unreadable frame from the device: {0:?}")]
     Frame(FrameError),
+    /// The device speaks another protocol version. Its frames passed their
+    /// CRC, so this is no damage on the way: nothing it sends can be read,
+    /// and asking again cannot help.
+    #[error(
+        "the device speaks protocol {device} and these host tools speak protocol {host}: they cannot talk to each \
+         other. Use the host tools of the device's firmware release, or bring the firmware to this release (on the \
+         board with standard `dfu-util -D` and this release's signed image, which does not go through this protocol; \
+         a QEMU instrument: start it again with these tools' `qemu`)",
+        host = protocol::PROTOCOL_VERSION
+    )]
+    ProtocolMismatch {
+        /// The version in the device's frames.
+        device: u16,
+    },
     /// The device answered with an error.
     #[error("{0}")]
     Device(DeviceError),
@@ -198,6 +212,9 @@ impl<T: Transport> Client<T> {
                     Pushed::Oversized => self.ready.push_back(Err(LinkError::Frame(FrameError::Oversized))),
                     Pushed::Frame(f) => {
                         let r = match protocol::decode::<Response<'_>>(f) {
+                            Err(FrameError::UnsupportedVersion { got }) => {
+                                Err(LinkError::ProtocolMismatch { device: got })
+                            }
                             Err(e) => Err(LinkError::Frame(e)),
                             Ok((seq, r)) => match r.detach() {
                                 Ok(m) => Ok(Frame { seq, reply: Reply::Msg(m) }),

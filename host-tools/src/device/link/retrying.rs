@@ -380,6 +380,17 @@ mod tests {
         buf[..n].to_vec()
     }
 
+    /// A frame as a device of protocol `version` would send it.
+    fn frame_of_version(version: u16, seq: u32, r: &Response<'_>) -> Vec<u8> {
+        let mut raw = [0u8; protocol::MAX_PAYLOAD];
+        let len = protocol::serialise(seq, r, &mut raw).unwrap();
+        raw[0..2].copy_from_slice(&version.to_le_bytes());
+        protocol::seal(&mut raw[..len]);
+        let mut buf = [0u8; MAX_FRAME];
+        let n = protocol::stuff(&raw[..len], &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
     fn point(seq: u32, values: &[u8]) -> Response<'_> {
         Response::Point(protocol::PointFrame {
             line: 0,
@@ -419,10 +430,8 @@ mod tests {
         assert_eq!((c.stats.bad_frames, c.stats.missing_points, c.stats.duplicate_points), (1, 3, 1));
     }
 
-    #[test]
-    fn a_retried_request_skips_the_damaged_reply_and_takes_the_next() {
-        // The first Info reply arrives damaged; the retry's reply (seq 2) is whole.
-        let info = DeviceInfo {
+    fn info() -> DeviceInfo {
+        DeviceInfo {
             protocol: protocol::PROTOCOL_VERSION,
             firmware: [0, 1, 0],
             bins: 1,
@@ -433,7 +442,13 @@ mod tests {
             ram_matrix_words: 1,
             simulated: true,
             calibration: None,
-        };
+        }
+    }
+
+    #[test]
+    fn a_retried_request_skips_the_damaged_reply_and_takes_the_next() {
+        // The first Info reply arrives damaged; the retry's reply (seq 2) is whole.
+        let info = info();
         let mut first = frame(1, &Response::Info(info));
         first[2] ^= 0x01;
         let mut c = Client::new(Scripted::new(vec![first, frame(2, &Response::Info(info))])).unwrap();
@@ -441,5 +456,31 @@ mod tests {
         let r = c.request_retrying(&Request::Info, 3).unwrap();
         assert_eq!(r, Response::Info(info));
         assert_eq!((c.stats.bad_frames, c.stats.retries), (1, 1));
+    }
+
+    /// A device of another protocol version is named at its first reply,
+    /// not retried into a timeout: its frames are whole (their CRC holds),
+    /// so asking again gets the same answer.
+    #[test]
+    fn a_device_of_another_protocol_version_is_named_and_not_retried() {
+        for other in [protocol::PROTOCOL_VERSION - 1, protocol::PROTOCOL_VERSION + 1] {
+            // What a device answers a request it cannot read: an error of seq 0.
+            let refusal = Response::Error(DeviceError::Frame(protocol::FrameError::UnsupportedVersion {
+                got: protocol::PROTOCOL_VERSION,
+            }));
+            let replies = vec![frame_of_version(other, 0, &refusal), frame(2, &Response::Info(info()))];
+            let mut c = Client::new(Scripted::new(replies)).unwrap();
+            c.timeout = Duration::from_millis(50);
+            let e = c.request_retrying(&Request::Info, 3).unwrap_err();
+            assert!(matches!(e, LinkError::ProtocolMismatch { device } if device == other), "{e:?}");
+            assert_eq!((c.stats.retries, c.stats.bad_frames), (0, 0));
+            let says = e.to_string();
+            assert!(
+                says.contains(&format!("device speaks protocol {other}"))
+                    && says.contains(&format!("host tools speak protocol {}", protocol::PROTOCOL_VERSION))
+                    && says.contains("dfu-util"),
+                "{says}"
+            );
+        }
     }
 }
