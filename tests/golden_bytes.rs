@@ -7,7 +7,9 @@
 //! calibration store's slot header, and one frame of
 //! every request and response (and every device error) of the wire protocol.
 //! The lists below match every variant without a wildcard: a new variant
-//! does not compile until it has a golden line.
+//! does not compile until it has a golden line. The fuzz corpus's seeds of
+//! golden frames (`tests/fuzz/corpus/frame_decode/golden-*`) are pinned to
+//! these frames, and regenerated with them.
 //!
 //! A difference means the bytes changed: bump the version of what changed
 //! (`blob::FORMAT_VERSION`, `inspect::recipe::FORMAT_VERSION`,
@@ -562,6 +564,44 @@ fn encodings_match_the_golden_bytes() {
             g, w,
             "the encoding of `{name}` changed: bump the version of its format (blob::FORMAT_VERSION, store::SLOT_VERSION or \
              protocol::PROTOCOL_VERSION) and regenerate with {REGENERATE}=1 cargo test --release -p system-tests --test system -- golden_bytes::"
+        );
+    }
+}
+
+/// The fuzz corpus's seeds named `golden-<name>` (`tests/fuzz/corpus/frame_decode/`)
+/// are the golden frames of those names without their delimiter. A seed of
+/// an older protocol version only reaches the version check, never the
+/// decoder of the bodies it was put there for, so the seeds follow the
+/// golden bytes: regenerating these rewrites them too.
+#[test]
+fn fuzz_seeds_of_golden_frames_are_the_golden_frames() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/frame_decode");
+    let golden: Vec<(String, Vec<u8>)> = encodings();
+    let mut seeds: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("golden-")))
+        .collect();
+    seeds.sort();
+    assert!(!seeds.is_empty(), "{}: no golden-* seeds", dir.display());
+    for seed in &seeds {
+        let stem = seed.file_name().unwrap().to_str().unwrap().trim_start_matches("golden-");
+        let name = stem.replace('-', ".");
+        let (_, frame) = golden
+            .iter()
+            .find(|(n, _)| *n == name)
+            .unwrap_or_else(|| panic!("{}: no golden encoding named {name}", seed.display()));
+        let want = &frame[..frame.len() - 1]; // without the 0x00 delimiter
+        if std::env::var_os(REGENERATE).is_some() {
+            host_tools::output::io::write_atomic(seed, want).unwrap();
+            continue;
+        }
+        let got = std::fs::read(seed).unwrap();
+        assert!(
+            got == want,
+            "{}: not the golden frame `{name}` of this protocol version; regenerate with {REGENERATE}=1 cargo test \
+             --release -p system-tests --test system -- golden_bytes::",
+            seed.display()
         );
     }
 }

@@ -22,7 +22,17 @@
 //! # Compatibility rules
 //! - Any change to a message's encoding bumps [`PROTOCOL_VERSION`]; postcard
 //!   is not self-describing, so there is no "compatible addition".
+//! - So does any change to what a message promises or when it comes, with
+//!   the encoding unchanged: a host that relies on the new meaning would
+//!   misread a device of the old one without a word. (Protocol 5: an
+//!   inspection's `MeasureDone` comes after its last reject pulse. A host
+//!   that stops at it would lose the late pulses of a protocol-4 device.)
 //! - Variants are only appended, never reordered, within one version's life.
+//! - A host and a device of different versions refuse each other's frames;
+//!   the device answers with the version it got, and the host names both
+//!   (`host_tools::device::link::LinkError::ProtocolMismatch`). Firmware of
+//!   another version still goes onto the board over USB DFU, which does not
+//!   speak this protocol.
 //!
 //! # Numbers on the wire
 //! f32 values (BRDF vectors) and u16 pixel values (simulated frames) travel as
@@ -46,7 +56,7 @@ pub use messages::*;
 pub use points::*;
 
 /// The protocol version this library speaks.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 /// Largest decoded payload (header + body + CRC) either side sends or accepts.
 /// (1024: a line frame carries 5 points of 81 Sigma16 values, or 27 points'
 /// readings; the device holds 4 outgoing frames and one incoming.)

@@ -46,8 +46,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         status.refused,
         status.provisioning.map(|b| format!(", provisioning ({b} bytes received)")).unwrap_or_default()
     );
-    // A device of protocol 4 or later reports its firmware; an error reply
-    // (an older device) is not a failure of `info`.
+    // An error here (the link failing now) leaves the identity and status
+    // above standing: `info` shows what it got.
     let firmware = c.firmware_info().ok();
     if let Some(f) = &firmware {
         let v = f.version;
