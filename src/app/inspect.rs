@@ -208,8 +208,10 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
         }) {
             self.schedule_pulse(seq, pulse).await;
         }
+        // Woken by each pulse the reject output reports; a signal left over
+        // from an earlier run costs one more look at the count, no more.
         while self.core.lock(|c| c.borrow().pulses_under_way) > 0 {
-            Timer::after_millis(1).await;
+            self.pulse_reported.wait().await;
         }
         self.core.lock(|c| c.borrow_mut().awaiting_pulses = false);
     }
@@ -274,5 +276,6 @@ where
             let c = &mut *c.borrow_mut();
             c.pulses_under_way = c.pulses_under_way.saturating_sub(taken);
         });
+        shared.pulse_reported.signal(());
     }
 }

@@ -249,6 +249,10 @@ pub struct Shared<F, const N: usize, const M: usize, const P: usize> {
     pub version: [u8; 3],
     /// Estimation -> reject output: pulses to drive (with the job's sequence number).
     pub reject: Channel<Cs, (u32, crate::inspect::reject::Pulse), 4>,
+    /// Reject output -> estimation: a pulse has been reported and taken off
+    /// the count under way (an inspection waiting for its last pulses looks
+    /// at the count again).
+    pub pulse_reported: Signal<Cs, ()>,
 }
 
 impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N, M, P> {
@@ -283,6 +287,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             addr_of_mut!((*p).simulated).write(simulated);
             addr_of_mut!((*p).reboot).write(Signal::new());
             addr_of_mut!((*p).reject).write(Channel::new());
+            addr_of_mut!((*p).pulse_reported).write(Signal::new());
             addr_of_mut!((*p).version).write(built_version());
             addr_of_mut!((*p).target).write(Self::target_of(simulated));
             slot.assume_init_mut()
@@ -299,6 +304,7 @@ impl<F: MappedFlash, const N: usize, const M: usize, const P: usize> Shared<F, N
             simulated: _,
             reboot: _,
             reject: _,
+            pulse_reported: _,
             version: _,
             target: _,
         } = shared;
