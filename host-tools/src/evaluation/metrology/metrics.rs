@@ -115,6 +115,9 @@ pub struct Row {
     pub flag_caught: Option<f64>,
     /// Of the rest, the share flagged.
     pub flag_false: Option<f64>,
+    /// The median BRDF error of the flagged estimates and of the rest
+    /// ([`FlagErrors`]; NaN for a side with none).
+    pub flag_error_medians: Option<[f64; 2]>,
     /// Specular peak height, relative error.
     pub peak_height_rel: Spread,
     /// Its full width at half maximum, absolute error (deg).
@@ -132,6 +135,38 @@ pub struct Row {
 }
 
 pub use crate::calibration::estimators::out_of_prior::FlagScore;
+
+/// The BRDF errors of the flagged estimates and of the rest, apart. A
+/// [`FlagScore`] says whether the flag is raised on either side of one
+/// error ([`BAD_ERROR`]); these say how much worse, in the error's own
+/// unit, a flagged point is read than one without the flag: what a user
+/// may take a raised flag to mean.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FlagErrors {
+    /// Errors of the flagged estimates.
+    pub flagged: Vec<f64>,
+    /// Errors of the rest.
+    pub rest: Vec<f64>,
+}
+
+impl FlagErrors {
+    /// Tallies one estimate's error (over its truth's peak).
+    pub fn add(&mut self, error: f64, flagged: bool) {
+        if flagged { &mut self.flagged } else { &mut self.rest }.push(error);
+    }
+
+    /// Both tallies together.
+    pub fn merged(mut self, other: &Self) -> Self {
+        self.flagged.extend_from_slice(&other.flagged);
+        self.rest.extend_from_slice(&other.rest);
+        self
+    }
+
+    /// The medians of the flagged and of the rest (NaN for a side with none).
+    pub fn medians(&self) -> [f64; 2] {
+        [Spread::of(&self.flagged).median, Spread::of(&self.rest).median]
+    }
+}
 
 /// The running tally of one family and method.
 #[derive(Debug, Default)]
@@ -153,6 +188,7 @@ pub struct Tally {
     /// Per reading, surfaces whose result covers the truth and surfaces.
     results: Option<[(usize, usize); 3]>,
     flag: FlagScore,
+    flag_errors: FlagErrors,
     flags: bool,
     height: Vec<f64>,
     width: Vec<f64>,
@@ -245,6 +281,9 @@ impl Tally {
                 }
             }
             self.flag.add(e, r.flagged == Some(true));
+            if let Some(f) = r.flagged {
+                self.flag_errors.add(e, f);
+            }
             self.flags |= r.flagged.is_some();
             let (tp, ep) = (truth.specular, r.specular);
             if tp.rf.is_finite() {
@@ -333,6 +372,7 @@ impl Tally {
             bad: self.flag.bad,
             flag_caught: if self.flags { share((self.flag.bad_flagged, self.flag.bad)) } else { None },
             flag_false: if self.flags { share((self.flag.good_flagged, self.flag.good)) } else { None },
+            flag_error_medians: self.flags.then(|| self.flag_errors.medians()),
             peak_height_rel: Spread::of(&self.height),
             peak_width_abs_deg: Spread::of(&self.width),
             peak_height_coverage: self.height_cov.and_then(share),
@@ -361,6 +401,19 @@ mod tests {
         assert!(
             FlagScore::<usize>::default().caught().is_nan() && FlagScore::<usize>::default().false_alarms().is_nan()
         );
+    }
+
+    #[test]
+    fn the_flagged_and_the_rest_have_their_own_error_medians() {
+        let mut a = FlagErrors::default();
+        for (e, f) in [(0.2, true), (0.3, false), (0.05, true), (0.01, false), (0.02, false), (0.08, true)] {
+            a.add(e, f);
+        }
+        assert_eq!(a.medians(), [0.08, 0.02]);
+        let b = a.clone().merged(&FlagErrors { flagged: vec![0.5, 0.6], rest: vec![] });
+        assert_eq!(b.medians()[0], 0.2);
+        let none = FlagErrors::default().merged(&FlagErrors { flagged: vec![], rest: vec![0.1] });
+        assert!(none.medians()[0].is_nan() && none.medians()[1] == 0.1);
     }
 
     /// A surface's draws reading gloss `g` (each stated to `u`) against a

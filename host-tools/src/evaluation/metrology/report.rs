@@ -260,6 +260,11 @@ fn pct(x: f64) -> String {
     if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "-".into() }
 }
 
+/// A BRDF error (over the truth's peak) to four places, `-` for none.
+fn opt_err(x: f64) -> String {
+    if x.is_finite() { format!("{x:.4}") } else { "-".into() }
+}
+
 fn opt_pct(x: Option<f64>) -> String {
     x.map_or("-".into(), pct)
 }
@@ -298,14 +303,14 @@ impl Report {
         }
         s += &format!(
             "\nBRDF (error = RMS over the 81 bins / the truth's peak; impossible = a bin below -1 % of the estimate's peak; \
-             coverage = |est - truth| <= 2 u, with its 95 % interval over the surfaces; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest; \
+             coverage = |est - truth| <= 2 u, with its 95 % interval over the surfaces; band = RMS of u over the bins / the truth's peak, median; flag: of estimates worse than {BAD_ERROR:.2}, share flagged / of the rest, and the median error of the flagged / of the rest; \
              peak coverage: of the peaks the calibration resolves, an unresolved one states no u)\n\n"
         );
-        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) | peaks unresolved |\n";
-        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        s += "| family | method | surfaces | median | 90 % | worst | worst surface | impossible | bin coverage k=2 | band u p50 | flag caught (n bad) | false flags | error p50 flagged / not | peak height rel. err. p50 / p90 (coverage k=2) | FWHM err. p50 / p90 (deg) (coverage k=2) | peaks unresolved |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for r in &self.rows {
             s += &format!(
-                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} ({}) | {} ({}) | {} |\n",
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} ({}) | {} | {} | {} ({}) | {} ({}) | {} |\n",
                 r.family,
                 r.method,
                 r.materials,
@@ -319,6 +324,7 @@ impl Report {
                 opt_pct(r.flag_caught),
                 r.bad,
                 opt_pct(r.flag_false),
+                r.flag_error_medians.map_or("-".into(), |[f, n]| format!("{} / {}", opt_err(f), opt_err(n))),
                 pair_pct(&r.peak_height_rel),
                 opt_pct(r.peak_height_coverage),
                 pair(&r.peak_width_abs_deg, 2),

@@ -64,7 +64,7 @@ use crate::calibration::estimators::interpolation;
 use crate::calibration::estimators::scale_free::peak_error;
 use crate::calibration::train::{TrainSpec, ZonePairs, train_on};
 use crate::device::reference::expected_line;
-use crate::evaluation::metrology::metrics::{FlagScore, GLOSS_SPLIT_GU, K, Spread};
+use crate::evaluation::metrology::metrics::{FlagErrors, FlagScore, GLOSS_SPLIT_GU, K, Spread};
 use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::evaluation::pixel_error::quantiles;
 use crate::forward::brdf::{Brdf, Ggx, SmoothDielectric, Ward, binned_reflectance_at};
@@ -172,6 +172,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
     let mut rows: Vec<MaterialRow> = Vec::new();
     let mut pixel_counts = vec![PixelCounts::default(); p];
     let mut held_out_flag = FlagScore::default();
+    let mut held_out_flag_errors = FlagErrors::default();
     let mut held_out_peaks = PeakTally::default();
     let mut flag_statistics = Vec::with_capacity(folds + 1);
     let statistic = |b: &BlobView<'_>| crate::calibration::estimators::out_of_prior::statistic_name(b).to_string();
@@ -194,6 +195,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
             let v = geo.prior.column(*k).into_owned();
             row.nearest_training = NearestSample::in_prior(&spec.prior, &geo.prior, (&v, v.amax()), &held);
             held_out_flag = held_out_flag.merged(row.flag);
+            held_out_flag_errors = held_out_flag_errors.merged(&row.flag_errors);
             held_out_peaks = held_out_peaks.merged(pk);
             for (acc, x) in pixel_counts.iter_mut().zip(fl) {
                 acc.add(x);
@@ -326,6 +328,7 @@ pub fn run(spec: &MapSpec, progress: &dyn Fn(&str)) -> anyhow::Result<PixelMap> 
         reading_coverage: held_out.reading_coverage,
         result_coverage: held_out.result_coverage,
         flag: held_out_flag,
+        flag_error_medians: held_out_flag_errors.medians(),
         held_out_nearness: nearness_of(&rows),
         peaks: held_out_peaks.summary(),
         flag_statistics,

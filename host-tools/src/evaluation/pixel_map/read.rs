@@ -246,6 +246,7 @@ pub(super) fn read_material(
     // Per pixel and reading: lines with the reading, and of them within k = 2.
     let mut readings_in = vec![[(0usize, 0usize); 3]; p];
     let mut flag = FlagScore::default();
+    let mut flag_errors = FlagErrors::default();
     // The result a user states of the material, as `measure` states it
     // (`device::measurement_result`) of the centre zones' points, against
     // the truth's mean over their pixels.
@@ -312,6 +313,7 @@ pub(super) fn read_material(
             let flagged = pt.flags & flags::OUT_OF_PRIOR != 0;
             c.out_of_prior += usize::from(flagged);
             flag.add(score.error, flagged);
+            flag_errors.add(score.error, flagged);
             c.saturated += usize::from(pt.flags & flags::SATURATED != 0);
             c.points += 1;
         }
@@ -332,6 +334,7 @@ pub(super) fn read_material(
             .collect(),
         result_covered: result_covered(blob, &centre, geo, result_points, &result_truth),
         flag,
+        flag_errors,
         nearest_training: None,
     };
     Ok((row, fl, peaks))

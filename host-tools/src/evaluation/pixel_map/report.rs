@@ -24,6 +24,12 @@ fn flag_cell(f: &FlagScore) -> String {
     format!("{} ({}) / {}", pct(f.caught()), f.bad, pct(f.false_alarms()))
 }
 
+/// [`flag_cell`] and the median errors of the flagged points and of the rest.
+fn flag_cell_with_errors(f: &FlagScore, [flagged, rest]: [f64; 2]) -> String {
+    let err = |x: f64| if x.is_finite() { format!("{x:.3}") } else { "-".into() };
+    format!("{}; median error {} / {}", flag_cell(f), err(flagged), err(rest))
+}
+
 /// A [`PeakSummary`] as one cell: height error median / 90th, all peaks,
 /// the resolved ones and interpolation's; share not resolved; resolved
 /// heights and widths within k = 2 (points with a peak in truth, read
@@ -94,8 +100,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
     );
     let _ = writeln!(
         s,
-        "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest | {} |",
-        flag_cell(&map.flag)
+        "| out-of-prior flag, held out: of points worse than {BAD_ERROR:.2} of their peak, share flagged (n) / of the rest; median BRDF error of the flagged points / of the rest | {} |",
+        flag_cell_with_errors(&map.flag, map.flag_error_medians)
     );
     if let Some(n) = map.held_out_nearness {
         let _ = writeln!(
@@ -210,8 +216,8 @@ pub fn markdown(map: &PixelMap, stride: usize) -> String {
         );
         let _ = writeln!(
             s,
-            "| unseen set's out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest | {} |",
-            flag_cell(&u.flag)
+            "| unseen set's out-of-prior flag: of points worse than {BAD_ERROR:.2}, share flagged (n) / of the rest; median error of the flagged / of the rest | {} |",
+            flag_cell_with_errors(&u.flag, u.flag_error_medians)
         );
         let _ = writeln!(s, "| unseen set's specular peaks | {} |", peak_cell(&u.peaks));
         if let Some(n) = u.nearness {
@@ -513,6 +519,7 @@ mod tests {
             reading_coverage: vec![[1.0; 3]; 2],
             result_covered: [1.0, 1.0, f64::NAN],
             flag: FlagScore { bad, bad_flagged: caught, good: points - bad, good_flagged: 1 },
+            flag_errors: Default::default(),
             nearest_training: Some(crate::evaluation::metrology::NearestSample {
                 name: format!("near-{name}"),
                 distance: 0.05,

@@ -75,6 +75,10 @@ pub struct MaterialRow {
     /// material the calibration reads badly is read badly everywhere, and
     /// whether the flag says so ([`report`]'s materials read worst).
     pub flag: FlagScore,
+    /// The same points' errors, the flagged apart from the rest (not
+    /// written per material: the summaries' medians are).
+    #[serde(skip)]
+    pub flag_errors: FlagErrors,
     /// The prior sample nearest it among those its calibration trained
     /// on, at the scene's view (`folds::nearest`; `None`: none left).
     pub nearest_training: Option<NearestSample>,
@@ -267,6 +271,9 @@ pub struct PixelMap {
     pub result_coverage: [f64; 3],
     /// Whether the out-of-prior flag predicts the held-out points' error.
     pub flag: FlagScore,
+    /// The held-out points' median error, flagged and not
+    /// ([`FlagErrors::medians`]).
+    pub flag_error_medians: [f64; 2],
     /// How near the held-out materials are to the prior samples their
     /// fold trained on, at the scene's view (`folds::nearest`; a
     /// material's error: its median over the pixels).

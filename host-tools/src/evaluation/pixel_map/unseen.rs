@@ -9,7 +9,7 @@
 use super::peaks::{PeakSummary, PeakTally};
 use super::{LineGeometry, LineSummary, MapSpec, MaterialRead, MaterialRow, read_material};
 use crate::evaluation::metrology::folds::matching;
-use crate::evaluation::metrology::metrics::FlagScore;
+use crate::evaluation::metrology::metrics::{FlagErrors, FlagScore};
 use crate::evaluation::metrology::{NearestSample, Nearness};
 use crate::forward::brdf::Brdf;
 use crate::forward::prior_models::SampleModel;
@@ -38,6 +38,8 @@ pub struct UnseenSet {
     pub summary: LineSummary,
     /// Whether the out-of-prior flag predicts their points' error.
     pub flag: FlagScore,
+    /// Their points' median error, flagged and not ([`FlagErrors::medians`]).
+    pub flag_error_medians: [f64; 2],
     /// Their points' specular peaks.
     pub peaks: PeakSummary,
     /// Per surface (each with the prior sample nearest it).
@@ -66,6 +68,7 @@ pub(super) fn read(
         .map(|(i, ((name, b), _))| read_material(spec, geo, name, b, blob, 3_000_003 + *i as u64))
         .collect::<anyhow::Result<_>>()?;
     let flag = reads.iter().fold(FlagScore::default(), |a, r| a.merged(r.0.flag));
+    let flag_error_medians = reads.iter().fold(FlagErrors::default(), |a, r| a.merged(&r.0.flag_errors)).medians();
     let peaks = reads.iter().fold(PeakTally::default(), |a, r| a.merged(r.2.clone())).summary();
     let materials: Vec<MaterialRow> = reads
         .into_iter()
@@ -78,6 +81,7 @@ pub(super) fn read(
         in_prior: seen.into_iter().map(|(_, ((n, _), _))| n.clone()).collect(),
         summary: LineSummary::of(&materials),
         flag,
+        flag_error_medians,
         peaks,
         materials,
         nearness,
