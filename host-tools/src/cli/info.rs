@@ -52,15 +52,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(f) = &firmware {
         let v = f.version;
         println!(
-            "firmware: {}.{}.{} for {:?}, boot state {:?}, self-test store {} sensor {} link {}{}{}",
+            "firmware: {}.{}.{} for {:?}, boot state {:?}, self-test: {}{}{}",
             v[0],
             v[1],
             v[2],
             f.target,
             f.boot,
-            f.self_test.store,
-            f.self_test.sensor,
-            f.self_test.link,
+            self_test_text(f.self_test, f.boot),
             f.pending.map(|p| format!(", update {}.{}.{} waiting for a reset", p[0], p[1], p[2])).unwrap_or_default(),
             f.receiving.map(|b| format!(", update in progress ({b} bytes received)")).unwrap_or_default(),
         );
@@ -107,4 +105,40 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::output::io::write_json(p, &j)?;
     }
     Ok(())
+}
+
+/// The self-test's parts in words. A part not passed is not a failure
+/// until the device has had the chance: the sensor's frame is read at a
+/// trial boot (the image then confirms itself) or by the first
+/// measurement, so a confirmed image reports "no frame yet" until then.
+fn self_test_text(t: brdf_meter::protocol::SelfTest, boot: brdf_meter::protocol::BootState) -> String {
+    let trial = boot == brdf_meter::protocol::BootState::Trial;
+    let store = if t.store { "store read" } else { "store NOT read" };
+    let sensor = match (t.sensor, trial) {
+        (true, _) => "sensor delivered a frame",
+        (false, true) => "sensor: no frame yet (the image on trial confirms itself once it has one)",
+        (false, false) => "sensor: no frame since boot (the first measurement reads one)",
+    };
+    let link = if t.link { "link ok" } else { "link: no valid request yet" };
+    format!("{store}, {sensor}, {link}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use brdf_meter::protocol::{BootState, SelfTest};
+
+    #[test]
+    fn a_sensor_not_yet_read_is_not_called_a_failure() {
+        let t = SelfTest { store: true, sensor: false, link: true };
+        assert_eq!(
+            self_test_text(t, BootState::Confirmed),
+            "store read, sensor: no frame since boot (the first measurement reads one), link ok"
+        );
+        assert!(self_test_text(t, BootState::Trial).contains("confirms itself once it has one"));
+        assert_eq!(
+            self_test_text(SelfTest { sensor: true, ..t }, BootState::Confirmed),
+            "store read, sensor delivered a frame, link ok"
+        );
+    }
 }
