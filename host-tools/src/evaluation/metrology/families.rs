@@ -81,8 +81,7 @@ impl TestFamily {
                     }
                 }
                 Some("binary") => {
-                    let mut t = MerlTable::load(f)?;
-                    t.channel_weights = spectral;
+                    let t = MerlTable::load_monochrome(f, spectral)?;
                     let name = f.file_stem().map_or_else(|| f.display().to_string(), |s| s.to_string_lossy().into());
                     materials.push((name, Arc::new(t)));
                 }

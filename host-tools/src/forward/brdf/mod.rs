@@ -315,8 +315,8 @@ impl BrdfSpec {
                 });
             }
             BrdfSpec::MerlBinary { file } => {
-                let mut t = merl_binary::MerlTable::load(file).map_err(|e| file_error("merl-binary", e))?;
-                t.channel_weights = spectral;
+                let t = merl_binary::MerlTable::load_monochrome(file, spectral)
+                    .map_err(|e| file_error("merl-binary", e))?;
                 return Ok(Box::new(t));
             }
             _ => {}
