@@ -114,27 +114,30 @@ impl MerlTable {
     /// unmeasured ones read as 0, weighted by [`Self::channel_weights`], in
     /// f32 (the measurements' own precision is far coarser).
     pub fn monochrome(&self) -> MerlMono {
-        let n = self.cells();
-        let values = (0..n)
-            .map(|c| {
-                (0..3).map(|k| (self.values[k * n + c] * MERL_SCALE[k]).max(0.0) * self.channel_weights[k]).sum::<f64>()
-                    as f32
-            })
-            .collect();
+        let values = (0..self.cells()).map(|c| self.cell_f_r(c) as f32).collect();
         MerlMono { dims: self.dims, values }
     }
 
     /// RGB f_r (1/sr); unmeasured cells read 0.
     pub fn rgb(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
-        let Some(c) = self.cell(wi, wo) else { return [0.0; 3] };
+        self.cell(wi, wo).map_or([0.0; 3], |c| self.cell_rgb(c))
+    }
+
+    /// Cell `c`'s RGB f_r (1/sr), scaled; an unmeasured channel reads 0.
+    fn cell_rgb(&self, c: usize) -> [f64; 3] {
         let n = self.cells();
         core::array::from_fn(|k| (self.values[k * n + c] * MERL_SCALE[k]).max(0.0))
+    }
+
+    /// Cell `c`'s f_r for the monochrome sensor: its RGB weighted.
+    fn cell_f_r(&self, c: usize) -> f64 {
+        self.cell_rgb(c).iter().zip(&self.channel_weights).map(|(f, w)| f * w).sum()
     }
 }
 
 impl Brdf for MerlTable {
     fn f_r(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> f64 {
-        self.rgb(wi, wo).iter().zip(&self.channel_weights).map(|(f, w)| f * w).sum()
+        self.cell(wi, wo).map_or(0.0, |c| self.cell_f_r(c))
     }
 }
 
